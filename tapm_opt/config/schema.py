@@ -1,0 +1,426 @@
+"""Scenario schema: frozen dataclasses, one per section of a scenario file.
+
+Each field carries its unit, a one-line description and its allowed range in the dataclass field
+metadata (see :func:`spec`). The loader (:mod:`tapm_opt.config.loader`) reads these to parse and
+check a TOML file, and ``docs/scenarios.md`` is written from the same metadata, so a field is
+described exactly once.
+
+Units are SI. Angles are degrees in the file (keys ending in ``_deg``) and radians in code: a field
+declared with ``unit="deg"`` is read from ``<name>_deg`` and stored in radians under ``<name>``.
+
+Directions of environmental loads follow survey eq. (7): the direction a current, wave or wind is
+*going to* (propagating toward), measured in {E} from north (x) toward east (y).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import MISSING, dataclass, field
+from functools import cached_property
+from typing import Any, Callable, Literal
+
+import numpy as np
+
+Check = Callable[[Any], "str | None"]
+
+
+def positive(v: float) -> str | None:
+    return None if v > 0 else "must be > 0"
+
+
+def nonneg(v: float) -> str | None:
+    return None if v >= 0 else "must be >= 0"
+
+
+def in_range(lo: float, hi: float) -> Check:
+    def check(v: float) -> str | None:
+        return None if lo <= v <= hi else f"must be in [{lo:g}, {hi:g}]"
+
+    check.__doc__ = f"[{lo:g}, {hi:g}]"
+    return check
+
+
+def at_least(lo: float) -> Check:
+    def check(v: float) -> str | None:
+        return None if v >= lo else f"must be >= {lo:g}"
+
+    check.__doc__ = f">= {lo:g}"
+    return check
+
+
+positive.__doc__ = "> 0"
+nonneg.__doc__ = ">= 0"
+
+
+def spec(
+    doc: str,
+    unit: str = "",
+    *,
+    default: Any = MISSING,
+    check: Check | None = None,
+    shape: tuple[int, ...] | None = None,
+    id_like: bool = False,
+) -> Any:
+    """Declare a scenario field.
+
+    Parameters
+    ----------
+    doc : str
+        One-line description (appears in ``docs/scenarios.md`` and error messages).
+    unit : str
+        SI unit; ``"deg"`` means the file key is ``<name>_deg`` and the value is stored in rad.
+    default : optional
+        Default value; absent means the field is required.
+    check : callable, optional
+        ``check(value) -> message or None`` applied to each number of the field.
+    shape : tuple of int, optional
+        Required shape of an array-valued field; ``-1`` allows any length.
+    id_like : bool
+        Accept an integer and store it as a string (ids).
+    """
+    meta = {"doc": doc, "unit": unit, "check": check, "shape": shape, "id_like": id_like}
+    if default is MISSING:
+        return field(metadata=meta)
+    return field(default=default, metadata=meta)
+
+
+Vec = tuple[float, ...]
+Mat = tuple[tuple[float, ...], ...]
+
+
+def _ro(a: Any) -> np.ndarray:
+    arr = np.array(a, dtype=float)
+    arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True, kw_only=True)
+class Meta:
+    """Identification of the scenario and where its numbers come from."""
+
+    name: str = spec("Scenario name (used in reports).")
+    description: str = spec("What the scenario represents.", default="")
+    sources: tuple[str, ...] = spec("References the numbers are taken from.", default=(), shape=(-1,))
+
+
+@dataclass(frozen=True, kw_only=True)
+class Environment:
+    """Site constants."""
+
+    water_depth: float = spec("Water depth at the site (flat seabed).", "m", check=positive)
+    water_density: float = spec("Sea water density.", "kg/m^3", default=1025.0, check=in_range(900.0, 1100.0))
+    gravity: float = spec("Acceleration of gravity.", "m/s^2", default=9.81, check=in_range(9.7, 9.9))
+    air_density: float = spec("Air density.", "kg/m^3", default=1.226, check=in_range(0.9, 1.5))
+
+
+@dataclass(frozen=True, kw_only=True)
+class Vessel:
+    """Hull and low-frequency hydrodynamics in 3 DOF (surge, sway, yaw) about the body origin CO."""
+
+    name: str = spec("Vessel name.", default="vessel")
+    mass_matrix: Mat = spec(
+        "Generalised mass matrix M = M_RB + M_A incl. zero-frequency added mass, about CO.",
+        "kg, kg m, kg m^2",
+        shape=(3, 3),
+    )
+    added_mass: Mat | None = spec(
+        "Added-mass part M_A of mass_matrix (for the added-mass Coriolis term); absent: M_A = 0.",
+        "kg, kg m, kg m^2",
+        default=None,
+        shape=(3, 3),
+    )
+    linear_damping: Mat = spec("Linear damping matrix D_lin.", "N s/m, N s, N m s", shape=(3, 3))
+    quadratic_damping: Vec = spec(
+        "Quadratic damping (X_|u|u, Y_|v|v, N_|r|r) on relative velocity; force -d|nu_r|nu_r.",
+        "N s^2/m^2, N s^2/m^2, N m s^2",
+        default=(0.0, 0.0, 0.0),
+        shape=(3,),
+        check=nonneg,
+    )
+    length_pp: float = spec("Length between perpendiculars.", "m", check=positive)
+    breadth: float = spec("Moulded breadth.", "m", check=positive)
+    draught: float = spec("Draught.", "m", check=positive)
+    wind_area_frontal: float = spec("Projected frontal wind area (above water).", "m^2", check=positive)
+    wind_area_lateral: float = spec("Projected lateral wind area (above water).", "m^2", check=positive)
+    reference_point: Vec = spec(
+        "Position of the body origin CO from aft perpendicular, centre line and keel (fwd, stbd, up).",
+        "m",
+        default=(math.nan, 0.0, math.nan),
+        shape=(3,),
+    )
+
+    @cached_property
+    def M(self) -> np.ndarray:
+        """Generalised mass matrix, shape (3, 3), read-only."""
+        return _ro(self.mass_matrix)
+
+    @cached_property
+    def M_A(self) -> np.ndarray:
+        """Added-mass matrix, shape (3, 3) (zeros when not given), read-only."""
+        return _ro(self.added_mass if self.added_mass is not None else np.zeros((3, 3)))
+
+    @cached_property
+    def D_lin(self) -> np.ndarray:
+        """Linear damping matrix, shape (3, 3), read-only."""
+        return _ro(self.linear_damping)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Turret:
+    """Internal turret and its fairlead circle (survey eq. 2–6)."""
+
+    position: Vec = spec("Centre of turret p_cot^B in {B} (x fwd, y stbd).", "m", shape=(2,))
+    mode: Literal["locked", "free"] = spec(
+        "'locked': turret fixed to the hull at alpha_t; 'free': ideal bearing, turret keeps its "
+        "heading in {E} and transmits no yaw moment about the COT.",
+        default="free",
+    )
+    angle: float = spec(
+        "Turret angle alpha_t relative to the hull x-axis at the field zero point (eq. 3).", "deg", default=0.0
+    )
+    fairlead_radius: float = spec("Radius r of the fairlead circle (eq. 2).", "m", default=0.0, check=nonneg)
+    fairlead_depth: float = spec("Depth of the fairleads below the mean water line.", "m", default=0.0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class LineType:
+    """Mooring line material and hydrodynamic properties (per unit unstretched length)."""
+
+    id: str = spec("Name referenced by lines[].type.", id_like=True)
+    diameter: float = spec(
+        "Hydrodynamic diameter d used in Morison drag and added mass (seed FEM eq. 3–5).", "m", check=positive
+    )
+    mass_per_length: float = spec("Mass per unit length in air rho_0.", "kg/m", check=positive)
+    density: float | None = spec(
+        "Material density rho_c; submerged weight w = rho_0 g (rho_c - rho_w)/rho_c (seed FEM eq. 2). "
+        "Give exactly one of density and submerged_weight.",
+        "kg/m^3",
+        default=None,
+        check=positive,
+    )
+    submerged_weight: float | None = spec(
+        "Submerged weight per unit length w (instead of density).", "N/m", default=None, check=positive
+    )
+    EA: float = spec("Axial stiffness.", "N", check=positive)
+    MBS: float = spec("Minimum breaking strength (mean breaking strength in the reliability index).", "N", check=positive)
+    MBS_std: float = spec("Standard deviation of the breaking strength sigma_b (survey eq. 32).", "N", check=nonneg)
+    Cd_normal: float = spec("Normal drag coefficient C_DN (on diameter).", check=nonneg)
+    Cd_tangential: float = spec("Tangential drag coefficient C_DT (on diameter).", check=nonneg)
+    Ca_normal: float = spec("Normal added-mass coefficient C_MN.", check=nonneg)
+    Ca_tangential: float = spec("Tangential added-mass coefficient.", default=0.0, check=nonneg)
+    max_strain: float | None = spec(
+        "Largest allowed axial strain; absent: the strain at MBS, MBS/EA.", default=None, check=in_range(0.0, 1.0)
+    )
+    seabed_friction: float = spec("Seabed friction coefficient C_B (catenary).", default=0.0, check=nonneg)
+
+    def w(self, env: Environment) -> float:
+        """Submerged weight per unit unstretched length [N/m]."""
+        if self.submerged_weight is not None:
+            return float(self.submerged_weight)
+        assert self.density is not None  # guaranteed by validation
+        return float(self.mass_per_length * env.gravity * (self.density - env.water_density) / self.density)
+
+    @property
+    def strain_limit(self) -> float:
+        """Largest strain the line may take: ``max_strain`` or MBS/EA [-]."""
+        return float(self.max_strain) if self.max_strain is not None else float(self.MBS / self.EA)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Line:
+    """One mooring line from its anchor (on the seabed) to its fairlead on the turret."""
+
+    id: str = spec("Line name (unique).", id_like=True)
+    type: str = spec("Line type id (line_types[].id).", id_like=True)
+    anchor: Vec = spec(
+        "Anchor position in {E}: (x, y) or (x, y, z) with z = water depth (anchors lie on the seabed).",
+        "m",
+        shape=(-1,),
+    )
+    fairlead_angle: float = spec("Fairlead angle gamma_i on the turret circle in {T} (eq. 2).", "deg")
+    fairlead_radius: float | None = spec(
+        "Fairlead radius r_i; absent: turret.fairlead_radius.", "m", default=None, check=nonneg
+    )
+    length: float = spec("Unstretched length L.", "m", check=positive)
+    segments: int = spec("Number of FEM segments n (nodes 0..n, 0 at the anchor).", default=20, check=at_least(2))
+
+
+@dataclass(frozen=True, kw_only=True)
+class Thruster:
+    """A thruster; thrust f acts along the azimuth alpha measured from x^B toward y^B."""
+
+    id: str = spec("Thruster name (unique).", id_like=True)
+    kind: Literal["azimuth", "tunnel", "fixed"] = spec(
+        "'azimuth' (rotatable, thrust >= 0), 'tunnel' (fixed axis, reversible), 'fixed' (fixed axis)."
+    )
+    position: Vec = spec("Position in {B} (x fwd, y stbd).", "m", shape=(2,))
+    angle: float = spec(
+        "Thrust direction alpha for tunnel/fixed (tunnel: 90 = toward starboard); initial azimuth.",
+        "deg",
+        default=0.0,
+    )
+    max_thrust: float = spec("Largest thrust along +alpha.", "N", check=positive)
+    max_reverse_thrust: float = spec(
+        "Largest thrust along -alpha (tunnel and fixed; must be 0 for azimuth).", "N", default=0.0, check=nonneg
+    )
+    max_thrust_rate: float = spec("Largest rate of change of thrust.", "N/s", check=positive)
+    max_azimuth_rate: float | None = spec(
+        "Largest azimuth turning rate (azimuth thrusters only).", "deg/s", default=None, check=positive
+    )
+    time_constant: float = spec("First-order thrust response time constant.", "s", check=positive)
+    forbidden_sectors: tuple[tuple[float, ...], ...] = spec(
+        "Azimuth sectors (from, to) the thrust may not point into (azimuth only), degrees.",
+        "deg",
+        default=(),
+        shape=(-1, 2),
+    )
+
+
+@dataclass(frozen=True, kw_only=True)
+class SeaState:
+    """Environmental condition. Directions are where the wave/wind/current is going to, from north."""
+
+    id: str = spec("Sea state name (unique).", id_like=True)
+    Hs: float = spec("Significant wave height.", "m", check=nonneg)
+    Tp: float = spec("Spectral peak period.", "s", check=positive)
+    gamma: float = spec("JONSWAP peak enhancement factor.", default=3.3, check=in_range(1.0, 10.0))
+    wave_direction: float = spec("Mean wave direction (going to).", "deg", default=0.0)
+    wind_speed: float = spec("1-hour mean wind speed at 10 m.", "m/s", default=0.0, check=nonneg)
+    wind_direction: float = spec("Wind direction (going to).", "deg", default=0.0)
+    current_speed: float = spec("Surface current speed V_c.", "m/s", default=0.0, check=nonneg)
+    current_direction: float = spec("Current direction beta_c (going to, eq. 7).", "deg", default=0.0)
+    current_profile: Literal["uniform", "linear", "piecewise"] = spec(
+        "Current speed over depth: 'uniform'; 'linear' from 1 at the surface to "
+        "current_profile_factors[0] at the seabed; 'piecewise' linear through (depths, factors).",
+        default="uniform",
+    )
+    current_profile_depths: Vec = spec(
+        "Depths of the piecewise profile, increasing from 0.", "m", default=(), shape=(-1,), check=nonneg
+    )
+    current_profile_factors: Vec = spec(
+        "Speed factors (times current_speed) at those depths, or the seabed factor for 'linear'.",
+        default=(),
+        shape=(-1,),
+        check=nonneg,
+    )
+
+
+@dataclass(frozen=True, kw_only=True)
+class Riser:
+    """A single top-tensioned or catenary riser treated quasi-statically (reliability seed §2.1)."""
+
+    hangoff: Vec = spec("Hang-off point in {B}.", "m", shape=(2,))
+    wellhead: Vec = spec("Lower end (wellhead / touchdown) in {E}.", "m", shape=(2,))
+    length: float = spec("Riser length.", "m", check=positive)
+    diameter: float = spec("Outer (hydrodynamic) diameter.", "m", check=positive)
+    submerged_weight: float = spec("Submerged weight per unit length, contents included.", "N/m", check=positive)
+    top_tension: float = spec("Mean top tension.", "N", check=positive)
+    Cd: float = spec("Normal drag coefficient (on diameter).", default=1.0, check=nonneg)
+    critical_top_angle: float = spec("Mean critical top angle (threshold r_t).", "deg", check=positive)
+    critical_top_angle_std: float = spec("Standard deviation of the critical top angle.", "deg", check=positive)
+    critical_bottom_angle: float = spec("Mean critical bottom angle.", "deg", check=positive)
+    critical_bottom_angle_std: float = spec("Standard deviation of the critical bottom angle.", "deg", check=positive)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Fault:
+    """A fault injected into the plant at a given time."""
+
+    kind: Literal["line_break", "thruster_failure"] = spec("Fault kind.")
+    time: float = spec("Time the fault occurs.", "s", check=nonneg)
+    line: str | None = spec("Line id (line_break).", default=None, id_like=True)
+    thruster: str | None = spec("Thruster id (thruster_failure).", default=None, id_like=True)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Limits:
+    """Operational limits of the position-mooring system."""
+
+    safe_radius: float | None = spec("Radius of the safe (green) circle about the field zero point.", "m",
+                                     default=None, check=positive)
+    alert_radius: float | None = spec("Radius of the alert (red) circle; larger than safe_radius.", "m",
+                                      default=None, check=positive)
+    tension_utilisation: float = spec(
+        "Allowed fairlead tension as a fraction of MBS (default 1/1.67, API RP 2SK intact dynamic).",
+        default=round(1 / 1.67, 4),
+        check=in_range(0.0, 1.0),
+    )
+
+
+@dataclass(frozen=True, kw_only=True)
+class Scenario:
+    """A complete, validated TAPM scenario. Immutable; derive variants with ``dataclasses.replace``
+    (re-validate with :func:`tapm_opt.config.validate`)."""
+
+    meta: Meta = spec("Name, description, sources.")
+    environment: Environment = spec("Site constants.")
+    vessel: Vessel = spec("Hull and hydrodynamics.")
+    turret: Turret = spec("Turret and fairlead circle.")
+    line_types: tuple[LineType, ...] = spec("Line materials.")
+    lines: tuple[Line, ...] = spec("Mooring lines.")
+    thrusters: tuple[Thruster, ...] = spec("Thrusters.", default=())
+    sea_states: tuple[SeaState, ...] = spec("Sea states; the first is the default.", default=())
+    riser: Riser | None = spec("Optional riser.", default=None)
+    faults: tuple[Fault, ...] = spec("Faults to inject.", default=())
+    limits: Limits = spec("Operational limits.", default=Limits())
+
+    @property
+    def name(self) -> str:
+        return self.meta.name
+
+    def line_type(self, line: Line | int) -> LineType:
+        """The :class:`LineType` of a line (given as object or index)."""
+        if isinstance(line, int):
+            line = self.lines[line]
+        for lt in self.line_types:
+            if lt.id == line.type:
+                return lt
+        raise KeyError(line.type)
+
+    def line_index(self, line_id: str | int) -> int:
+        """Index of the line with id ``line_id``; ``KeyError`` if there is none."""
+        for i, ln in enumerate(self.lines):
+            if ln.id == str(line_id):
+                return i
+        raise KeyError(f"no line with id {line_id!r}; lines are {[ln.id for ln in self.lines]}")
+
+    def sea_state(self, sea_state_id: str | None = None) -> SeaState:
+        """The sea state with the given id (default: the first)."""
+        if not self.sea_states:
+            raise KeyError("the scenario defines no sea state")
+        if sea_state_id is None:
+            return self.sea_states[0]
+        for s in self.sea_states:
+            if s.id == str(sea_state_id):
+                return s
+        raise KeyError(f"no sea state {sea_state_id!r}; sea states are {[s.id for s in self.sea_states]}")
+
+    @cached_property
+    def anchors(self) -> np.ndarray:
+        """Anchor positions in {E}, shape (n_lines, 3) [m]; z = water depth (down)."""
+        return _ro([(ln.anchor[0], ln.anchor[1], self.environment.water_depth) for ln in self.lines])
+
+    @cached_property
+    def fairleads_T(self) -> np.ndarray:
+        """Fairlead positions in {T}, shape (n_lines, 2) [m] (eq. 2)."""
+        r = [self.turret.fairlead_radius if ln.fairlead_radius is None else ln.fairlead_radius for ln in self.lines]
+        g = [ln.fairlead_angle for ln in self.lines]
+        return _ro(np.stack([np.multiply(r, np.cos(g)), np.multiply(r, np.sin(g))], axis=-1))
+
+    @cached_property
+    def line_arrays(self) -> dict[str, np.ndarray]:
+        """Per-line properties as arrays of shape (n_lines,): L, EA, w, CB, MBS, MBS_std, d, segments."""
+        env = self.environment
+        types = [self.line_type(ln) for ln in self.lines]
+        out = {
+            "L": [ln.length for ln in self.lines],
+            "EA": [t.EA for t in types],
+            "w": [t.w(env) for t in types],
+            "CB": [t.seabed_friction for t in types],
+            "MBS": [t.MBS for t in types],
+            "MBS_std": [t.MBS_std for t in types],
+            "d": [t.diameter for t in types],
+            "strain_limit": [t.strain_limit for t in types],
+            "segments": [ln.segments for ln in self.lines],
+        }
+        return {k: _ro(v) for k, v in out.items()}

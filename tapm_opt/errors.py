@@ -1,0 +1,62 @@
+"""Typed exceptions of tapm_opt.
+
+Every error a user can cause derives from :class:`TapmError`; the ``tapm`` command prints its
+message on one line and exits non-zero instead of showing a traceback.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+class TapmError(Exception):
+    """Base class of every user-facing error in tapm_opt."""
+
+
+@dataclass(frozen=True)
+class ScenarioIssue:
+    """One problem found in a scenario.
+
+    Attributes
+    ----------
+    path : str
+        Field path in the scenario file, e.g. ``lines[3].length``.
+    message : str
+        What is wrong and what is allowed, naming the bad value.
+    """
+
+    path: str
+    message: str
+
+    def __str__(self) -> str:
+        return f"{self.path}: {self.message}" if self.path else self.message
+
+
+class ScenarioError(TapmError, ValueError):
+    """A scenario file or dictionary is invalid.
+
+    Carries *all* problems found (``issues``), not only the first one.
+    """
+
+    def __init__(self, issues: list[ScenarioIssue] | ScenarioIssue | str, *, source: str = ""):
+        if isinstance(issues, str):
+            issues = [ScenarioIssue("", issues)]
+        elif isinstance(issues, ScenarioIssue):
+            issues = [issues]
+        self.issues: tuple[ScenarioIssue, ...] = tuple(issues)
+        self.source = source
+        head = f"invalid scenario {source}" if source else "invalid scenario"
+        if len(self.issues) == 1:
+            msg = f"{head}: {self.issues[0]}"
+        else:
+            body = "\n".join(f"  - {i}" for i in self.issues)
+            msg = f"{head}: {len(self.issues)} problems\n{body}"
+        super().__init__(msg)
+
+
+class CatenaryError(TapmError, ValueError):
+    """A catenary problem has invalid input or no solution."""
+
+
+class ModelError(TapmError, ValueError):
+    """A model was asked something it cannot answer (bad argument, unknown option)."""

@@ -1,0 +1,160 @@
+"""Frames and kinematics of a turret-moored vessel (survey §3.1, eq. 1–6).
+
+Every function here works on numpy arrays and on CasADi symbols (SX/MX), so the control-design
+models and the numpy plant share one definition of each relation.
+
+Frames (NED): {E} earth-fixed at the field zero point, x north, y east, z down; {B} body-fixed,
+x forward, y starboard, z down; {T} turret-fixed at the centre of turret (COT), rotated by the
+turret angle ``alpha_t`` about z^B.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from . import _backend as bk
+
+__all__ = [
+    "rot_z",
+    "R",
+    "R2",
+    "rot2_apply",
+    "ssa",
+    "fairleads_T",
+    "fairleads_B",
+    "fairleads_E",
+]
+
+
+def rot_z(psi):
+    """3-DOF rotation matrix R(psi) of eq. (1): eta_dot = R(psi) nu.
+
+    Parameters
+    ----------
+    psi : float, ndarray or CasADi scalar
+        Heading [rad]. A numpy array of shape (...) gives matrices of shape (..., 3, 3).
+
+    Returns
+    -------
+    ndarray, shape (3, 3) or (..., 3, 3), or CasADi 3x3
+    """
+    c, s = bk.cos(psi), bk.sin(psi)
+    if bk.is_symbolic(psi):
+        return ca.vertcat(ca.horzcat(c, -s, 0), ca.horzcat(s, c, 0), ca.horzcat(0, 0, 1))
+    c = np.asarray(c, dtype=float)
+    out = np.zeros(c.shape + (3, 3))
+    out[..., 0, 0] = c
+    out[..., 0, 1] = -s
+    out[..., 1, 0] = s
+    out[..., 1, 1] = c
+    out[..., 2, 2] = 1.0
+    return out
+
+
+#: Alias in the survey's notation, R(psi) of eq. (1).
+R = rot_z
+
+
+def R2(angle):
+    """2x2 rotation matrix of eq. (4).
+
+    Parameters
+    ----------
+    angle : float, ndarray or CasADi scalar
+        Rotation angle [rad]; numpy arrays of shape (...) give (..., 2, 2).
+    """
+    c, s = bk.cos(angle), bk.sin(angle)
+    if bk.is_symbolic(angle):
+        return ca.vertcat(ca.horzcat(c, -s), ca.horzcat(s, c))
+    c = np.asarray(c, dtype=float)
+    out = np.empty(c.shape + (2, 2))
+    out[..., 0, 0] = c
+    out[..., 0, 1] = -s
+    out[..., 1, 0] = s
+    out[..., 1, 1] = c
+    return out
+
+
+def rot2_apply(angle, x, y):
+    """Rotate the planar vector(s) (x, y) by ``angle``: returns R2(angle) @ (x, y).
+
+    Works elementwise on numpy arrays (broadcasting) and on CasADi column vectors.
+    """
+    c, s = bk.cos(angle), bk.sin(angle)
+    return c * x - s * y, s * x + c * y
+
+
+def ssa(angle):
+    """Smallest signed angle: wrap ``angle`` [rad] to the interval [-pi, pi).
+
+    Works on floats, numpy arrays and CasADi symbols.
+    """
+    return angle - 2.0 * np.pi * bk.floor((angle + np.pi) / (2.0 * np.pi))
+
+
+def fairleads_T(radius, gamma):
+    """Fairlead (terminal point) positions in the turret frame {T}, eq. (2).
+
+    Parameters
+    ----------
+    radius : array_like, shape (n,)
+        Radius r_i of the fairlead circle [m].
+    gamma : array_like, shape (n,)
+        Fairlead angle gamma_i in {T} [rad].
+
+    Returns
+    -------
+    ndarray, shape (n, 2)
+        (x, y) of each fairlead in {T} [m].
+    """
+    radius = np.asarray(radius, dtype=float)
+    gamma = np.asarray(gamma, dtype=float)
+    return np.stack([radius * np.cos(gamma), radius * np.sin(gamma)], axis=-1)
+
+
+def fairleads_B(p_cot_B, p_T, alpha_t):
+    """Fairlead positions in {B}, eq. (3): p^B = p_cot^B + R2(alpha_t) p^T.
+
+    Parameters
+    ----------
+    p_cot_B : array_like, shape (2,)
+        Centre of turret in {B} [m].
+    p_T : array_like, shape (n, 2)
+        Fairleads in {T} [m].
+    alpha_t : float or CasADi scalar
+        Turret angle relative to the hull x-axis [rad].
+
+    Returns
+    -------
+    (x, y) : tuple of ndarray shape (n,) or CasADi columns — fairleads in {B} [m].
+    """
+    p_T = np.asarray(p_T, dtype=float)
+    xr, yr = rot2_apply(alpha_t, p_T[:, 0], p_T[:, 1])
+    return p_cot_B[0] + xr, p_cot_B[1] + yr
+
+
+def fairleads_E(eta, p_cot_B, p_T, alpha_t):
+    """Fairlead positions in {E}, eq. (5): p^E = p + R2(psi) p_cot^B + R2(psi + alpha_t) p^T.
+
+    Parameters
+    ----------
+    eta : array_like shape (3,) or CasADi 3-vector
+        Vessel position and heading (x [m], y [m], psi [rad]) in {E}.
+    p_cot_B : array_like, shape (2,)
+        Centre of turret in {B} [m].
+    p_T : array_like, shape (n, 2)
+        Fairleads in {T} [m].
+    alpha_t : float or CasADi scalar
+        Turret angle relative to the hull [rad]. A turret held at a fixed orientation in {E}
+        (free, weathervaning hull) has ``alpha_t = psi_t - psi`` with psi_t its heading in {E}.
+
+    Returns
+    -------
+    (x, y) : tuple of ndarray shape (n,) or CasADi columns — fairleads in {E} [m].
+    """
+    p_T = np.asarray(p_T, dtype=float)
+    x, y, psi = eta[0], eta[1], eta[2]
+    cx, cy = rot2_apply(psi, p_cot_B[0], p_cot_B[1])
+    tx, ty = rot2_apply(psi + alpha_t, p_T[:, 0], p_T[:, 1])
+    return x + cx + tx, y + cy + ty
