@@ -63,3 +63,8 @@ def where(cond, a, b):
     if is_symbolic(cond, a, b):
         return ca.if_else(cond, a, b)
     return np.where(cond, a, b)
+
+
+def sum_(x):
+    """Sum of all elements (CasADi column or numpy array)."""
+    return ca.sum1(x) if is_symbolic(x) else np.sum(x)

@@ -1,0 +1,524 @@
+"""Elastic catenary of a mooring line with seabed contact and friction, numeric and symbolic.
+
+A line of unstretched length ``L`` [m], axial stiffness ``EA`` [N] and submerged weight ``w``
+[N/m] runs from its anchor on a flat seabed to its fairlead, which lies ``XF`` [m] away
+horizontally and ``ZF`` [m] above the anchor. The unknowns are the fairlead tension components
+``HF`` (horizontal) and ``VF`` (vertical), both >= 0; the line's force on the vessel points from
+the fairlead toward the anchor along the line.
+
+Closure equations (Irvine 1981; in the form used by FAST/MAP, Jonkman 2007, eq. 2-2 to 2-5),
+with ``VA = VF - w L`` the vertical tension at the anchor:
+
+fully suspended (VA >= 0, anchor uplift)::
+
+    XF = HF/w [asinh(VF/HF) - asinh(VA/HF)] + HF L/EA
+    ZF = HF/w [sqrt(1 + (VF/HF)^2) - sqrt(1 + (VA/HF)^2)] + (VF L - w L^2/2)/EA
+
+touching down (VA < 0): ``LB = L - VF/w`` lies on the seabed, and with seabed friction ``CB``::
+
+    XF = LB + HF/w asinh(VF/HF) + HF L/EA
+         + CB w/(2 EA) [-LB^2 + (LB - HF/(CB w)) max(LB - HF/(CB w), 0)]
+    ZF = HF/w [sqrt(1 + (VF/HF)^2) - 1] + VF^2/(2 EA w)
+
+Both are written once in :func:`closure` with numerically stable forms (no cancellation as
+``w -> 0`` or ``HF -> 0``) and serve the vectorised numeric solver (:func:`solve`) and the
+symbolic CasADi path (:func:`symbolic_function`). Degenerate regimes have closed forms:
+
+* slack: the line hangs vertically over a length ``Ls`` with ``ZF = Ls + w Ls^2/(2 EA)`` and the rest
+  lies on the seabed without tension (``L - Ls >= XF``): ``HF = 0, VF = w Ls``;
+* vertical and fully suspended (``XF = 0``): ``HF = 0, VF = EA (ZF - L)/L + w L/2``;
+* both ends on the seabed (``ZF = 0``, ``XF > L``): ``VF = 0`` and ``HF`` from the seabed stretch
+  with friction;
+* weightless (``w = 0``): a straight elastic bar, ``T = EA max(l/L - 1, 0)``.
+
+Conventions: tensions in N, lengths in m; ``HA`` is the horizontal tension at the anchor (reduced
+by seabed friction), ``VA`` the anchor uplift (0 when the line touches down), ``TF`` the fairlead
+tension magnitude ``sqrt(HF^2 + VF^2)`` — this is the "fairlead tension" everywhere in tapm_opt.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from .. import _backend as bk
+from ..errors import CatenaryError
+
+__all__ = [
+    "REGIMES",
+    "CatenarySolution",
+    "closure",
+    "solve",
+    "line_profile",
+    "symbolic_function",
+]
+
+#: Names of the regime codes in :attr:`CatenarySolution.regime`.
+REGIMES = ("slack", "touchdown", "suspended", "vertical", "seabed", "weightless")
+SLACK, TOUCHDOWN, SUSPENDED, VERTICAL, SEABED, WEIGHTLESS = range(6)
+
+
+# ------------------------------------------------------------------------------------------
+# the one set of closure equations (numpy or CasADi)
+# ------------------------------------------------------------------------------------------
+
+
+def closure(HF, VF, L, EA, w, CB=0.0):
+    """Horizontal and vertical span (X, Z) [m] reached by a line with fairlead tension (HF, VF).
+
+    Implements the elastic catenary closure equations with seabed contact and friction (module
+    docstring) in numerically stable form. Works elementwise on numpy arrays and on CasADi
+    symbols; requires ``HF > 0`` and ``w > 0``.
+
+    Parameters
+    ----------
+    HF, VF : array_like or CasADi
+        Horizontal and vertical fairlead tension [N].
+    L : array_like
+        Unstretched length [m].
+    EA : array_like
+        Axial stiffness [N] (``inf`` for an inextensible line, numeric path only).
+    w : array_like
+        Submerged weight per unit length [N/m], > 0.
+    CB : array_like
+        Seabed friction coefficient [-], >= 0.
+
+    Returns
+    -------
+    X, Z : spans [m] of the same shape.
+    """
+    VA = VF - w * L
+    hF = bk.hypot(HF, VF)
+    hA = bk.hypot(HF, VA)
+    # fully suspended; asinh(a) - asinh(b) = asinh((a-b)(a+b)/(a sqrt(1+b^2) + b sqrt(1+a^2)))
+    den = VF * hA + VA * hF
+    Xs = HF / w * bk.asinh(w * L * (VF + VA) / den) + HF * L / EA
+    Zs = L * (VF + VA) / (hF + hA) + (VF * L - 0.5 * w * L * L) / EA
+    # touching down
+    LB = L - VF / w
+    Xt = LB + HF / w * bk.asinh(VF / HF) + HF * L / EA
+    Zt = VF * VF / (w * (hF + HF)) + VF * VF / (2.0 * EA * w)
+    has_cb = CB > 0
+    cbw = bk.where(has_cb, CB * w, 1.0)
+    xs = LB - HF / cbw
+    Xt = Xt + bk.where(has_cb, cbw / (2.0 * EA) * (-LB * LB + xs * bk.fmax(xs, 0.0)), 0.0)
+    susp = VF >= w * L
+    return bk.where(susp, Xs, Xt), bk.where(susp, Zs, Zt)
+
+
+def _closure_jacobian(HF, VF, L, EA, w, CB):
+    """Analytic d(X, Z)/d(HF, VF) of :func:`closure` (numpy only), for the Newton iteration."""
+    VA = VF - w * L
+    hF = np.hypot(HF, VF)
+    hA = np.hypot(HF, VA)
+    den = VF * hA + VA * hF
+    S = np.arcsinh(w * L * (VF + VA) / den)
+    q = L * (VF + VA) / (den * hA * hF)
+    off_s = -HF * L * (VF + VA) / (hF * hA * (hF + hA))
+    Xh_s = S / w - HF * HF * q + L / EA
+    Zv_s = HF * HF * q + L / EA
+    # touchdown
+    a = VF / HF
+    off_t = -VF * VF / (w * hF * (hF + HF))
+    Xh_t = (np.arcsinh(a) - VF / hF) / w + L / EA
+    Zv_t = VF / (w * hF) + VF / (EA * w)
+    Xv_t = off_t.copy()
+    has_cb = CB > 0
+    cbw = np.where(has_cb, CB * w, 1.0)
+    LB = L - VF / w
+    xs_pos = np.maximum(LB - HF / cbw, 0.0)
+    Xh_t = Xh_t + np.where(has_cb, -xs_pos / EA, 0.0)
+    Xv_t = Xv_t + np.where(has_cb, CB / EA * (LB - xs_pos), 0.0)
+    susp = VF >= w * L
+    return (
+        np.where(susp, Xh_s, Xh_t),
+        np.where(susp, off_s, Xv_t),
+        np.where(susp, off_s, off_t),
+        np.where(susp, Zv_s, Zv_t),
+    )
+
+
+# ------------------------------------------------------------------------------------------
+# numeric, vectorised solver
+# ------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class CatenarySolution:
+    """Solution of :func:`solve`; every array has the broadcast shape of the inputs.
+
+    Attributes
+    ----------
+    HF, VF : ndarray
+        Horizontal and vertical tension at the fairlead [N], >= 0.
+    HA, VA : ndarray
+        Horizontal tension and vertical uplift at the anchor [N] (VA = 0 when touching down).
+    TF, TA : ndarray
+        Tension magnitude at the fairlead and at the anchor [N].
+    LBot : ndarray
+        Unstretched length resting on the seabed [m].
+    regime : ndarray of int
+        Index into :data:`REGIMES`.
+    dHF_dXF, dHF_dZF, dVF_dXF, dVF_dZF : ndarray
+        Exact sensitivities of the fairlead tensions to the spans [N/m] (implicit function
+        theorem on the closure equations; the line's stiffness). ``dVF_dZF`` is +inf for a line
+        lying straight on the seabed (ZF = 0), which lifts off with infinite vertical stiffness.
+    iterations : int
+        Newton iterations used (the largest over all configurations).
+    """
+
+    HF: np.ndarray
+    VF: np.ndarray
+    HA: np.ndarray
+    VA: np.ndarray
+    TF: np.ndarray
+    TA: np.ndarray
+    LBot: np.ndarray
+    regime: np.ndarray
+    dHF_dXF: np.ndarray
+    dHF_dZF: np.ndarray
+    dVF_dXF: np.ndarray
+    dVF_dZF: np.ndarray
+    iterations: int
+
+    def regime_names(self) -> np.ndarray:
+        """Regime names as a string array of the same shape."""
+        return np.asarray(REGIMES, dtype=object)[self.regime]
+
+
+def _check_inputs(**arrays: np.ndarray) -> None:
+    rules = {
+        "XF": ("must be >= 0 (horizontal fairlead distance)", lambda a: a >= 0),
+        "ZF": ("must be >= 0 (fairlead at or above the anchor)", lambda a: a >= 0),
+        "L": ("must be > 0 (unstretched length)", lambda a: a > 0),
+        "EA": ("must be > 0 (axial stiffness)", lambda a: a > 0),
+        "w": ("must be >= 0 (submerged weight; buoyant lines are not supported)", lambda a: a >= 0),
+        "CB": ("must be >= 0 (seabed friction coefficient)", lambda a: a >= 0),
+    }
+    for name, arr in arrays.items():
+        finite_ok = np.isfinite(arr) | ((name == "EA") & (arr == np.inf))
+        msg, rule = rules[name]
+        with np.errstate(invalid="ignore"):
+            bad = ~(finite_ok & rule(arr))
+        if np.any(bad):
+            idx = tuple(int(i) for i in np.argwhere(bad)[0])
+            where = f" at index {idx}" if arr.ndim else ""
+            what = "must be finite" if not finite_ok[idx] else msg
+            raise CatenaryError(f"{name} = {arr[idx]!r}{where} {what}")
+
+
+def _initial_guess(XF, ZF, L, EA, w):
+    """Peyrot & Goulois (1979) starting point, raised for lines stretched beyond their length."""
+    d = np.hypot(XF, ZF)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lam = np.where(d >= L, 0.2, np.sqrt(np.maximum(3.0 * ((L * L - ZF * ZF) / (XF * XF) - 1.0), 0.0)))
+        lam = np.where(XF <= 0, 1e6, np.maximum(lam, 0.2))
+        HF = np.maximum(np.abs(0.5 * w * XF / lam), 1e-3 * w * L)
+        VF = 0.5 * w * (ZF / np.tanh(lam) + L)
+        T0 = np.where(d > L, EA * (d / L - 1.0), 0.0)
+        T0 = np.where(np.isfinite(T0), T0, 0.0)
+        HF = np.maximum(HF, T0 * XF / d)
+        VF = np.maximum(VF, T0 * ZF / d + 0.5 * w * L)
+    return HF, VF
+
+
+def _newton(XF, ZF, L, EA, w, CB, *, tol, max_iter):
+    """Damped Newton on (HF, VF) for the general (non-degenerate) configurations."""
+    HF, VF = _initial_guess(XF, ZF, L, EA, w)
+    it = 0
+    with np.errstate(all="ignore"):
+        X, Z = closure(HF, VF, L, EA, w, CB)
+        rX, rZ = X - XF, Z - ZF
+        err = np.abs(rX) + np.abs(rZ)
+        for it in range(1, max_iter + 1):
+            active = err > tol
+            if not np.any(active):
+                it -= 1
+                break
+            a, b, c, d = _closure_jacobian(HF, VF, L, EA, w, CB)
+            det = a * d - b * c
+            dH = -(d * rX - b * rZ) / det
+            dV = -(-c * rX + a * rZ) / det
+            bad = ~(np.isfinite(dH) & np.isfinite(dV))
+            dH = np.where(bad, 0.5 * HF, dH)
+            dV = np.where(bad, 0.0, dV)
+            step = np.ones_like(HF)
+            for _ in range(8):  # backtracking on the residual norm, keep HF, VF positive
+                Hn = np.maximum(HF + step * dH, 0.1 * HF)
+                Vn = np.maximum(VF + step * dV, 0.1 * VF)
+                Xn, Zn = closure(Hn, Vn, L, EA, w, CB)
+                rXn, rZn = Xn - XF, Zn - ZF
+                errn = np.abs(rXn) + np.abs(rZn)
+                ok = (errn < err) | ~active | ~np.isfinite(err)
+                ok &= np.isfinite(errn)
+                if np.all(ok):
+                    break
+                step = np.where(ok, step, 0.5 * step)
+            take = active & np.isfinite(errn)
+            HF = np.where(take, Hn, HF)
+            VF = np.where(take, Vn, VF)
+            rX = np.where(take, rXn, rX)
+            rZ = np.where(take, rZn, rZ)
+            err = np.where(take, errn, err)
+    return HF, VF, err, it
+
+
+def _fallback(XF, ZF, L, EA, w, CB, HF, VF, tol):
+    """Per-configuration scipy solve, in log-scaled variables, for what Newton did not converge."""
+    from scipy.optimize import root
+
+    def fun(p):
+        h, v = np.exp(p)
+        x, z = closure(np.array(h), np.array(v), L, EA, w, CB)
+        return [float(x - XF), float(z - ZF)]
+
+    best = (HF, VF, np.inf)
+    for h0, v0 in ((HF, VF), *(_initial_guess(np.array(XF), np.array(ZF), L, EA, w),)):
+        with np.errstate(all="ignore"):
+            sol = root(fun, np.log([max(float(h0), 1e-12), max(float(v0), 1e-12)]), method="hybr", tol=1e-14)
+            h, v = np.exp(sol.x)
+            r = np.abs(fun(sol.x)).sum()
+        if np.isfinite(r) and r < best[2]:
+            best = (h, v, r)
+        if r <= tol:
+            break
+    return best
+
+
+def solve(XF, ZF, L, EA, w, *, CB=0.0, tol: float = 1e-9, max_iter: int = 60) -> CatenarySolution:
+    """Solve the elastic catenary for arrays of line configurations at once.
+
+    Parameters
+    ----------
+    XF : array_like
+        Horizontal distance anchor -> fairlead [m], >= 0.
+    ZF : array_like
+        Height of the fairlead above the anchor [m], >= 0.
+    L : array_like
+        Unstretched line length [m], > 0.
+    EA : array_like
+        Axial stiffness [N], > 0 (``np.inf`` for an inextensible line).
+    w : array_like
+        Submerged weight per unit length [N/m], >= 0 (0: weightless bar).
+    CB : array_like, optional
+        Seabed friction coefficient [-], >= 0.
+    tol : float, optional
+        Closure tolerance [m]: the spans reproduce ``XF`` and ``ZF`` to within ``tol``.
+    max_iter : int, optional
+        Newton iteration limit before the per-configuration fallback.
+
+    Returns
+    -------
+    CatenarySolution
+        Arrays of the broadcast input shape.
+
+    Raises
+    ------
+    CatenaryError
+        On invalid input (negative, non-finite), an inextensible line shorter than the
+        anchor–fairlead distance, or a configuration that does not converge; the message names
+        the input and its value. No NaN is ever returned.
+    """
+    XF, ZF, L, EA, w, CB = (np.asarray(a, dtype=float) for a in (XF, ZF, L, EA, w, CB))
+    _check_inputs(XF=XF, ZF=ZF, L=L, EA=EA, w=w, CB=CB)
+    shape = np.broadcast_shapes(XF.shape, ZF.shape, L.shape, EA.shape, w.shape, CB.shape)
+    XF, ZF, L, EA, w, CB = (np.broadcast_to(a, shape).ravel() for a in (XF, ZF, L, EA, w, CB))
+    n = XF.size
+    out = {k: np.zeros(n) for k in ("HF", "VF", "HA", "VA", "LBot", "dHX", "dHZ", "dVX", "dVZ")}
+    regime = np.full(n, -1, dtype=np.int8)
+
+    d = np.hypot(XF, ZF)
+    inext_short = np.isinf(EA) & (d > L * (1 + 1e-12))
+    if np.any(inext_short):
+        i = int(np.argmax(inext_short))
+        raise CatenaryError(
+            f"inextensible line (EA = inf) of length L = {L[i]:g} m cannot span the anchor-fairlead "
+            f"distance {d[i]:g} m (XF = {XF[i]:g} m, ZF = {ZF[i]:g} m) at index {i}")
+
+    with np.errstate(divide="ignore", invalid="ignore"):
+        # weightless straight bar
+        m = w == 0
+        if np.any(m):
+            T = EA[m] * np.maximum(d[m] / L[m] - 1.0, 0.0)
+            dd = np.where(d[m] > 0, d[m], 1.0)
+            out["HF"][m] = T * XF[m] / dd
+            out["VF"][m] = T * ZF[m] / dd
+            out["HA"][m], out["VA"][m] = out["HF"][m], out["VF"][m]
+            taut = d[m] > L[m]
+            k0 = np.where(taut, EA[m] * (1.0 / L[m] - 1.0 / dd), 0.0)
+            k1 = np.where(taut, EA[m] / dd**3, 0.0)
+            out["dHX"][m] = k0 + k1 * XF[m] ** 2
+            out["dVZ"][m] = k0 + k1 * ZF[m] ** 2
+            out["dHZ"][m] = out["dVX"][m] = k1 * XF[m] * ZF[m]
+            regime[m] = WEIGHTLESS
+        heavy = ~m
+        # hanging length of a vertical line with no horizontal tension: ZF = Ls + w Ls^2/(2 EA)
+        Ls = 2.0 * ZF / (1.0 + np.sqrt(1.0 + 2.0 * w * ZF / EA))
+        m = heavy & (Ls <= L) & (L - Ls >= XF)
+        if np.any(m):
+            out["VF"][m] = w[m] * Ls[m]
+            out["LBot"][m] = L[m] - Ls[m]
+            out["dVZ"][m] = w[m] / (1.0 + w[m] * Ls[m] / EA[m])
+            regime[m] = SLACK
+        # vertical, fully suspended
+        m = heavy & (regime < 0) & (XF <= 1e-12 * L)
+        if np.any(m):
+            VF = EA[m] * (ZF[m] - L[m]) / L[m] + 0.5 * w[m] * L[m]
+            VF = np.where(np.isfinite(VF), VF, w[m] * L[m])
+            out["VF"][m] = VF
+            out["VA"][m] = VF - w[m] * L[m]
+            ratio = np.log(VF / np.maximum(VF - w[m] * L[m], 1e-300))
+            out["dHX"][m] = 1.0 / (ratio / w[m] + L[m] / EA[m])
+            out["dVZ"][m] = EA[m] / L[m]
+            regime[m] = VERTICAL
+        # both ends on the seabed, line stretched
+        m = heavy & (regime < 0) & (ZF <= 0)
+        if np.any(m):
+            cbw = CB[m] * w[m]
+            stretch = XF[m] - L[m]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                H_part = np.sqrt(2.0 * EA[m] * cbw * stretch)
+                part = (cbw > 0) & (H_part < cbw * L[m])
+                H_full = (stretch + cbw * L[m] ** 2 / (2.0 * EA[m])) * EA[m] / L[m]
+            H = np.where(part, H_part, H_full)
+            out["HF"][m] = H
+            out["HA"][m] = np.where(part, 0.0, np.maximum(H - cbw * L[m], 0.0))
+            out["LBot"][m] = L[m]
+            out["dHX"][m] = np.where(part, EA[m] * cbw / np.where(part, H, 1.0), EA[m] / L[m])
+            out["dVZ"][m] = np.inf
+            regime[m] = SEABED
+
+    iterations = 0
+    g = np.flatnonzero(regime < 0)
+    if g.size:
+        args = (XF[g], ZF[g], L[g], EA[g], w[g], CB[g])
+        HF, VF, err, iterations = _newton(*args, tol=tol, max_iter=max_iter)
+        bad = np.flatnonzero(~(err <= tol) | ~np.isfinite(HF) | ~np.isfinite(VF))
+        for j in bad:
+            h, v, r = _fallback(*(a[j] for a in args), HF[j], VF[j], tol)
+            if not r <= tol:
+                i = int(g[j])
+                raise CatenaryError(
+                    "catenary did not converge for XF = {:g} m, ZF = {:g} m, L = {:g} m, EA = {:g} N, "
+                    "w = {:g} N/m, CB = {:g} (index {}); closure error {:.3g} m".format(
+                        XF[i], ZF[i], L[i], EA[i], w[i], CB[i], i, r))
+            HF[j], VF[j] = h, v
+        Lg, wg, EAg, CBg = L[g], w[g], EA[g], CB[g]
+        susp = VF >= wg * Lg
+        LB = np.where(susp, 0.0, Lg - VF / wg)
+        out["HF"][g] = HF
+        out["VF"][g] = VF
+        out["VA"][g] = np.where(susp, VF - wg * Lg, 0.0)
+        out["HA"][g] = np.where(susp, HF, np.maximum(HF - CBg * wg * LB, 0.0))
+        out["LBot"][g] = LB
+        a, b, c, dd = _closure_jacobian(HF, VF, Lg, EAg, wg, CBg)
+        det = a * dd - b * c
+        out["dHX"][g], out["dHZ"][g] = dd / det, -b / det
+        out["dVX"][g], out["dVZ"][g] = -c / det, a / det
+        regime[g] = np.where(susp, SUSPENDED, TOUCHDOWN)
+
+    HF, VF, HA, VA = out["HF"], out["VF"], out["HA"], out["VA"]
+    res = {
+        "HF": HF, "VF": VF, "HA": HA, "VA": VA,
+        "TF": np.hypot(HF, VF), "TA": np.hypot(HA, VA), "LBot": out["LBot"],
+        "dHF_dXF": out["dHX"], "dHF_dZF": out["dHZ"], "dVF_dXF": out["dVX"], "dVF_dZF": out["dVZ"],
+    }
+    for k, v in res.items():
+        if k != "dVF_dZF" and not np.all(np.isfinite(v)):  # pragma: no cover - guarded above
+            i = int(np.argmax(~np.isfinite(v)))
+            raise CatenaryError(f"non-finite {k} for XF = {XF[i]:g} m, ZF = {ZF[i]:g} m, L = {L[i]:g} m")
+    shaped = {k: v.reshape(shape) for k, v in res.items()}
+    return CatenarySolution(regime=regime.reshape(shape), iterations=int(iterations), **shaped)
+
+
+def line_profile(XF: float, ZF: float, L: float, EA: float, w: float, *, CB: float = 0.0, n: int = 101):
+    """Shape and tension along one line, from the anchor (s = 0) to the fairlead (s = L).
+
+    Parameters
+    ----------
+    XF, ZF, L, EA, w, CB : float
+        As in :func:`solve` (scalars).
+    n : int
+        Number of points along the unstretched arc length.
+
+    Returns
+    -------
+    dict
+        ``s`` unstretched arc length [m], ``x`` horizontal distance from the anchor [m], ``z`` height
+        above the anchor [m], ``T`` tension [N], each of shape (n,), plus the scalar solution.
+    """
+    sol = solve(XF, ZF, L, EA, w, CB=CB)
+    HF, VF = float(sol.HF), float(sol.VF)
+    reg = int(sol.regime)
+    s = np.linspace(0.0, L, n)
+    if reg == WEIGHTLESS:
+        frac = s / L
+        x, z = frac * XF, frac * ZF
+        T = np.full(n, float(sol.TF))
+    elif reg == SLACK:
+        LB = float(sol.LBot)
+        on_bed = s <= LB
+        x = np.where(on_bed, XF * s / max(LB, 1e-300), XF)
+        sv = np.maximum(s - LB, 0.0)
+        z = sv + w * sv * sv / (2 * EA)
+        T = w * sv
+    elif reg == SEABED:
+        x, z = s * XF / L, np.zeros(n)
+        T = np.full(n, HF)
+    else:
+        LB = float(sol.LBot)
+        cbw = CB * w
+        s0 = max(LB - HF / cbw, 0.0) if cbw > 0 else 0.0
+        sb = np.minimum(s, LB)
+        tens_int = np.where(sb > s0, HF * (sb - s0) - cbw * (LB * (sb - s0) - 0.5 * (sb**2 - s0**2)), 0.0)
+        x_bed = sb + tens_int / EA
+        VA = float(sol.VA)
+        sig = np.maximum(s - LB, 0.0)
+        V = VA + w * sig
+        with np.errstate(invalid="ignore", divide="ignore"):
+            x_sus = HF / w * (np.arcsinh(V / HF) - np.arcsinh(VA / HF)) + HF * sig / EA if HF > 0 else 0 * sig
+        z = (np.hypot(HF, V) - np.hypot(HF, VA)) / w + (VA * sig + 0.5 * w * sig**2) / EA
+        x = x_bed + x_sus
+        T_bed = np.maximum(HF - cbw * (LB - sb), 0.0)
+        T = np.where(s <= LB, T_bed, np.hypot(HF, V))
+    return {"s": s, "x": x, "z": z, "T": T, "solution": sol}
+
+
+# ------------------------------------------------------------------------------------------
+# symbolic path (CasADi)
+# ------------------------------------------------------------------------------------------
+
+_SYMBOLIC_CACHE: dict[Any, ca.Function] = {}
+
+
+def symbolic_function(*, abstol: float = 1e-10, max_iter: int = 50) -> ca.Function:
+    """CasADi Function ``catenary(XF, ZF, L, EA, w, CB, HF0, VF0) -> (HF, VF)``.
+
+    The fairlead tensions are the root of the same :func:`closure` residual as the numeric
+    solver, found by a CasADi ``rootfinder`` (Newton with line search), so the Function can be
+    embedded in an NLP with exact first and second derivatives (implicit function theorem).
+    ``HF0, VF0`` is the initial guess [N] — e.g. the numeric solution at a nearby configuration
+    (:func:`solve`). Valid in the regular regimes (touching down and fully suspended, HF > 0,
+    w > 0); slack, vertical, seabed and weightless lines need the numeric :func:`solve`.
+
+    Inputs and outputs are scalars; use ``Function.map`` for several lines.
+    """
+    key = (abstol, max_iter)
+    if key in _SYMBOLIC_CACHE:
+        return _SYMBOLIC_CACHE[key]
+    z = ca.SX.sym("z", 2)
+    p = ca.SX.sym("p", 6)
+    XF, ZF, L, EA, w, CB = (p[i] for i in range(6))
+    X, Z = closure(z[0], z[1], L, EA, w, CB)
+    g = ca.Function("catenary_residual", [z, p], [ca.vertcat(X - XF, Z - ZF)])
+    rf = ca.rootfinder("catenary_rf", "fast_newton", g,
+                       {"abstol": abstol, "max_iter": max_iter, "error_on_fail": False})
+    names = ["XF", "ZF", "L", "EA", "w", "CB", "HF0", "VF0"]
+    syms = [ca.MX.sym(nm) for nm in names]
+    sol = rf(ca.vertcat(syms[6], syms[7]), ca.vertcat(*syms[:6]))
+    fn = ca.Function("catenary", syms, [sol[0], sol[1]], names, ["HF", "VF"])
+    _SYMBOLIC_CACHE[key] = fn
+    return fn

@@ -1,0 +1,307 @@
+"""Quasi-static mooring restoring model: elastic catenary lines on a turret (survey eq. 17–29).
+
+Sign conventions
+----------------
+* ``tau_moor = (X, Y, N)`` is the load of the mooring on the vessel in {B} [N, N, N m].
+* Line i pulls its fairlead toward its anchor with the horizontal fairlead tension ``H_i``:
+  the force on the vessel in {E} is ``-H_i (cos beta_i, sin beta_i)`` with ``beta_i`` the
+  direction from anchor to fairlead (eq. 17–18).
+* The stiffness ``K = -d tau_moor / d eta`` (3 x 3) is positive for a restoring mooring.
+* Turret ``locked``: the fairleads turn with the hull (alpha_t fixed) and every line's moment about
+  the body origin reaches the hull (eq. 19–23). Turret ``free``: an ideal bearing; the turret keeps
+  its heading psi_t = alpha_t(0) in {E} (alpha_t = psi_t - psi) and passes only the net line force
+  through the centre of turret, so the hull feels the moment of that force about CO
+  (weathervaning).
+* The 3-DOF model keeps the fairlead depth fixed: ``ZF = water depth - fairlead depth``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Iterable, Literal
+
+import casadi as ca
+import numpy as np
+
+from .. import _backend as bk
+from ..errors import ModelError
+from ..geometry import fairleads_E, rot_z
+from . import catenary
+
+__all__ = ["MooringModel", "LinearMooring"]
+
+
+def _ro(a: Any) -> np.ndarray:
+    arr = np.array(a, dtype=float)
+    arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True, eq=False)
+class MooringModel:
+    """Quasi-static catenary mooring of a turret-moored vessel.
+
+    Build with :meth:`from_scenario`. Arrays are per line, shape (n,).
+
+    Attributes
+    ----------
+    line_ids : tuple of str
+        Ids of the lines in the model (broken lines excluded).
+    anchors : ndarray, shape (n, 2)
+        Anchor (x, y) in {E} [m].
+    p_T : ndarray, shape (n, 2)
+        Fairleads in the turret frame {T} [m] (eq. 2).
+    p_cot_B : ndarray, shape (2,)
+        Centre of turret in {B} [m].
+    turret_angle : float
+        alpha_t at the field zero point [rad] (locked: always; free: psi_t = this angle in {E}).
+    turret_mode : {"locked", "free"}
+    ZF, L, EA, w, CB, MBS : ndarray, shape (n,)
+        Fairlead height above anchor [m], unstretched length [m], axial stiffness [N], submerged
+        weight [N/m], seabed friction [-], minimum breaking strength [N].
+    """
+
+    line_ids: tuple[str, ...]
+    anchors: np.ndarray
+    p_T: np.ndarray
+    p_cot_B: np.ndarray
+    turret_angle: float
+    turret_mode: Literal["locked", "free"]
+    ZF: np.ndarray
+    L: np.ndarray
+    EA: np.ndarray
+    w: np.ndarray
+    CB: np.ndarray
+    MBS: np.ndarray
+    _cache: dict = field(default_factory=dict, repr=False, compare=False)
+
+    # -- construction ---------------------------------------------------------------------
+    @classmethod
+    def from_scenario(cls, scenario: Any, *, broken: Iterable[str | int] = ()) -> "MooringModel":
+        """Mooring model of a :class:`~tapm_opt.config.Scenario`.
+
+        Parameters
+        ----------
+        scenario : Scenario
+        broken : iterable of line ids
+            Lines left out (broken). Unknown ids raise :class:`ModelError`.
+        """
+        ids = [ln.id for ln in scenario.lines]
+        broken = {str(b) for b in broken}
+        unknown = sorted(broken - set(ids))
+        if unknown:
+            raise ModelError(f"broken line id(s) {unknown} not in the scenario; lines are {ids}")
+        keep = np.array([i not in broken for i in ids])
+        if not keep.any():
+            raise ModelError("every line is broken: there is no mooring left to model")
+        la = scenario.line_arrays
+        env = scenario.environment
+        zf = env.water_depth - scenario.turret.fairlead_depth
+        return cls(
+            line_ids=tuple(i for i, k in zip(ids, keep) if k),
+            anchors=_ro(scenario.anchors[keep, :2]),
+            p_T=_ro(scenario.fairleads_T[keep]),
+            p_cot_B=_ro(scenario.turret.position),
+            turret_angle=float(scenario.turret.angle),
+            turret_mode=scenario.turret.mode,
+            ZF=_ro(np.full(int(keep.sum()), zf)),
+            L=_ro(la["L"][keep]),
+            EA=_ro(la["EA"][keep]),
+            w=_ro(la["w"][keep]),
+            CB=_ro(la["CB"][keep]),
+            MBS=_ro(la["MBS"][keep]),
+        )
+
+    @property
+    def n_lines(self) -> int:
+        return len(self.line_ids)
+
+    # -- geometry (one definition, numpy or CasADi) ---------------------------------------
+    def _alpha_t(self, psi):
+        return self.turret_angle if self.turret_mode == "locked" else self.turret_angle - psi
+
+    def fairleads(self, eta):
+        """Fairlead positions (x, y) in {E} [m] for vessel pose ``eta`` (eq. 5)."""
+        return fairleads_E(eta, self.p_cot_B, self.p_T, self._alpha_t(eta[2]))
+
+    def spans(self, eta):
+        """Horizontal anchor->fairlead vectors (dx, dy) and distances XF [m], each shape (n,)."""
+        fx, fy = self.fairleads(eta)
+        dx = fx - self.anchors[:, 0]
+        dy = fy - self.anchors[:, 1]
+        return dx, dy, bk.hypot(dx, dy)
+
+    def tau_from_H(self, eta, H):
+        """Mooring load in {B} from the horizontal fairlead tensions ``H`` (n,) [N] (eq. 18–23)."""
+        fx, fy = self.fairleads(eta)
+        dx = fx - self.anchors[:, 0]
+        dy = fy - self.anchors[:, 1]
+        XF = bk.hypot(dx, dy)
+        XFs = bk.where(XF > 0, XF, 1.0)
+        f_x = -H * dx / XFs  # force on the vessel, {E}
+        f_y = -H * dy / XFs
+        Fx, Fy = bk.sum_(f_x), bk.sum_(f_y)
+        x, y, psi = eta[0], eta[1], eta[2]
+        if self.turret_mode == "locked":
+            Nz = bk.sum_((fx - x) * f_y - (fy - y) * f_x)
+        else:
+            c, s = bk.cos(psi), bk.sin(psi)
+            cx = c * self.p_cot_B[0] - s * self.p_cot_B[1]
+            cy = s * self.p_cot_B[0] + c * self.p_cot_B[1]
+            Nz = cx * Fy - cy * Fx
+        if bk.is_symbolic(eta, H):
+            return ca.mtimes(rot_z(psi).T, ca.vertcat(Fx, Fy, Nz))
+        return rot_z(psi).T @ np.array([Fx, Fy, Nz])
+
+    # -- numeric ---------------------------------------------------------------------------
+    def solve_lines(self, eta) -> catenary.CatenarySolution:
+        """Catenary solution of every line at pose ``eta`` (x [m], y [m], psi [rad])."""
+        eta = self._check_eta(eta)
+        _, _, XF = self.spans(eta)
+        return catenary.solve(XF, self.ZF, self.L, self.EA, self.w, CB=self.CB)
+
+    def force(self, eta) -> np.ndarray:
+        """Restoring load tau_moor in {B}, shape (3,) [N, N, N m] (eq. 23, 28)."""
+        eta = self._check_eta(eta)
+        return self.tau_from_H(eta, self.solve_lines(eta).HF)
+
+    def tensions(self, eta) -> np.ndarray:
+        """Fairlead tension magnitude TF of every line [N], shape (n,)."""
+        return self.solve_lines(eta).TF
+
+    def stiffness(self, eta) -> np.ndarray:
+        """Exact stiffness K = -d tau_moor / d eta, shape (3, 3), at pose ``eta``.
+
+        Chain rule of CasADi derivatives of the geometry and the catenary's analytic sensitivity
+        dH/dXF (implicit function theorem); no finite differences.
+        """
+        eta = self._check_eta(eta)
+        sol = self.solve_lines(eta)
+        f = self._geometry_jacobians()
+        J_eta, J_H, J_XF = (np.asarray(m) for m in f(eta, sol.HF))
+        return -(J_eta + J_H @ (sol.dHF_dXF[:, None] * J_XF))
+
+    def _geometry_jacobians(self) -> ca.Function:
+        if "geo" not in self._cache:
+            eta = ca.SX.sym("eta", 3)
+            H = ca.SX.sym("H", self.n_lines)
+            tau = self.tau_from_H(eta, H)
+            _, _, XF = self.spans(eta)
+            self._cache["geo"] = ca.Function(
+                "mooring_geometry_jac", [eta, H],
+                [ca.jacobian(tau, eta), ca.jacobian(tau, H), ca.jacobian(XF, eta)])
+        return self._cache["geo"]
+
+    def _check_eta(self, eta) -> np.ndarray:
+        eta = np.asarray(eta, dtype=float)
+        if eta.shape != (3,):
+            raise ModelError(f"eta must have shape (3,) = (x [m], y [m], psi [rad]), got shape {eta.shape}")
+        if not np.all(np.isfinite(eta)):
+            raise ModelError(f"eta = {eta.tolist()} must be finite")
+        return eta
+
+    # -- symbolic --------------------------------------------------------------------------
+    def force_function(self, kind: Literal["catenary", "linear", "characteristic"] = "catenary",
+                       *, eta0=(0.0, 0.0, 0.0)) -> ca.Function:
+        """CasADi Function ``tau_moor(eta) -> tau`` for control design.
+
+        Parameters
+        ----------
+        kind : {"catenary", "linear", "characteristic"}
+            ``"catenary"``: every line through the elastic catenary root (exact derivatives);
+            ``"characteristic"``: per-line characteristics linearised about ``eta0`` (eq. 27–28);
+            ``"linear"``: the linear spring ``g(eta0) - R(psi)^T G_mo (eta - eta0)`` (eq. 29).
+        eta0 : array_like, shape (3,)
+            Working point [m, m, rad] for the linearised kinds and the Newton initial guess.
+        """
+        key = ("force", kind, tuple(np.asarray(eta0, dtype=float)))
+        if key in self._cache:
+            return self._cache[key]
+        eta = ca.MX.sym("eta", 3)
+        if kind == "catenary":
+            sol0 = self.solve_lines(eta0)
+            _, _, XF0 = self.spans(np.asarray(eta0, dtype=float))
+            _, _, XF = self.spans(eta)
+            dX = XF - XF0
+            DM = ca.DM
+            HF0 = ca.fmax(DM(sol0.HF) + DM(sol0.dHF_dXF) * dX, DM(0.1 * sol0.HF + 1.0))
+            VF0 = ca.fmax(DM(sol0.VF) + DM(sol0.dVF_dXF) * dX, DM(0.1 * sol0.VF + 1.0))
+            cat = catenary.symbolic_function().map(self.n_lines)
+            HF, _ = cat(XF.T, self.ZF[None, :], self.L[None, :], self.EA[None, :], self.w[None, :],
+                        self.CB[None, :], HF0.T, VF0.T)
+            tau = self.tau_from_H(eta, HF.T)
+        elif kind in ("linear", "characteristic"):
+            tau = self.linearised(eta0).force(eta, kind=kind)
+        else:
+            raise ModelError(f"kind = {kind!r} is not one of 'catenary', 'linear', 'characteristic'")
+        fn = ca.Function(f"tau_moor_{kind}", [eta], [tau], ["eta"], ["tau_moor"])
+        self._cache[key] = fn
+        return fn
+
+    def linearised(self, eta0=(0.0, 0.0, 0.0), *, D_mo=None) -> "LinearMooring":
+        """Linear spring model about the working point ``eta0`` (survey eq. 26–30)."""
+        eta0 = self._check_eta(eta0)
+        sol = self.solve_lines(eta0)
+        K = self.stiffness(eta0)
+        _, _, XF0 = self.spans(eta0)
+        return LinearMooring(
+            model=self,
+            eta0=_ro(eta0),
+            g0=_ro(self.tau_from_H(eta0, sol.HF)),
+            G_mo=_ro(rot_z(eta0[2]) @ K),
+            H0=_ro(sol.HF),
+            k=_ro(sol.dHF_dXF),
+            XF0=_ro(XF0),
+            D_mo=_ro(np.zeros((3, 3)) if D_mo is None else D_mo),
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class LinearMooring:
+    """Linearised mooring about a working point ``eta0`` (survey eq. 26–30).
+
+    Attributes
+    ----------
+    eta0 : ndarray (3,)
+        Working point (the field zero point by default) [m, m, rad].
+    g0 : ndarray (3,)
+        Restoring load at eta0 in {B}, g_moor(eta0) [N, N, N m] (zero for a symmetric mooring).
+    G_mo : ndarray (3, 3)
+        Stiffness in {E} of eq. (29): tau ~ g0 - R(psi)^T G_mo (eta - eta0).
+    H0, k, XF0 : ndarray (n,)
+        Per-line horizontal tension [N], characteristic slope dH/dL_h [N/m] and horizontal
+        anchor–fairlead distance [m] at eta0 (eq. 26–27).
+    D_mo : ndarray (3, 3)
+        Linear mooring damping of eq. (30) [N s/m, N s, N m s] (identified from the plant later).
+    """
+
+    model: MooringModel
+    eta0: np.ndarray
+    g0: np.ndarray
+    G_mo: np.ndarray
+    H0: np.ndarray
+    k: np.ndarray
+    XF0: np.ndarray
+    D_mo: np.ndarray
+
+    def force(self, eta, nu=None, *, kind: Literal["linear", "characteristic"] = "linear"):
+        """Linearised mooring load in {B} (numpy or CasADi ``eta``).
+
+        ``kind="linear"``: eq. (29) plus damping -D_mo nu (eq. 30) when ``nu`` is given.
+        ``kind="characteristic"``: eq. (27)–(28), H_i = H0_i + k_i (|p_tp - p_a| - XF0_i), with
+        the exact geometry.
+        """
+        if kind == "characteristic":
+            _, _, XF = self.model.spans(eta)
+            tau = self.model.tau_from_H(eta, self.H0 + self.k * (XF - self.XF0))
+        elif kind == "linear":
+            Rt = rot_z(eta[2]).T
+            if bk.is_symbolic(eta):
+                tau = self.g0 - ca.mtimes(Rt, ca.mtimes(self.G_mo, eta - self.eta0))
+            else:
+                tau = self.g0 - Rt @ (self.G_mo @ (np.asarray(eta, dtype=float) - self.eta0))
+        else:
+            raise ModelError(f"kind = {kind!r} is not one of 'linear', 'characteristic'")
+        if nu is not None:
+            tau = tau - (ca.mtimes(self.D_mo, nu) if bk.is_symbolic(nu) else self.D_mo @ np.asarray(nu))
+        return tau
