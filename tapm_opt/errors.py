@@ -29,7 +29,10 @@ class ScenarioIssue:
     message: str
 
     def __str__(self) -> str:
-        return f"{self.path}: {self.message}" if self.path else self.message
+        if not self.path:
+            return self.message
+        sep = " " if self.message.startswith("= ") else ": "
+        return f"{self.path}{sep}{self.message}"
 
 
 class ScenarioError(TapmError, ValueError):

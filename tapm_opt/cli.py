@@ -1,0 +1,237 @@
+"""The ``tapm`` command.
+
+User mistakes (a bad scenario, a missing file, an impossible option) end with a one-line
+``error: ...`` message and a non-zero exit code; ``--verbose`` adds the traceback.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import traceback
+from pathlib import Path
+
+import click
+import numpy as np
+
+from . import __version__
+from ._io import atomic_write_text, csv_text
+from .config import builtin_scenarios, load_scenario
+from .errors import ScenarioError, TapmError
+
+EXIT_USER_ERROR = 2
+
+
+class _State:
+    verbose = False
+
+
+def _load(name_or_path: str):
+    return load_scenario(name_or_path)
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.option("--verbose", "-v", is_flag=True, help="Show tracebacks and extra detail.")
+@click.version_option(__version__, prog_name="tapm")
+def cli(verbose: bool) -> None:
+    """tapm_opt — control design workbench for thruster-assisted position mooring."""
+    _State.verbose = verbose
+
+
+# ------------------------------------------------------------------------------------------
+# tapm scenario ...
+# ------------------------------------------------------------------------------------------
+
+
+@cli.group()
+def scenario() -> None:
+    """List, show and validate scenarios."""
+
+
+@scenario.command("list")
+def scenario_list() -> None:
+    """List the built-in scenarios."""
+    for name in builtin_scenarios():
+        sc = load_scenario(name)
+        click.echo(f"{name:8s} {sc.meta.description}")
+
+
+@scenario.command("validate")
+@click.argument("files", nargs=-1, required=True)
+def scenario_validate(files: tuple[str, ...]) -> None:
+    """Check scenario FILES; print every problem found. Exit status 1 if any is invalid."""
+    bad = 0
+    for f in files:
+        try:
+            sc = load_scenario(f)
+        except ScenarioError as exc:
+            bad += 1
+            n = len(exc.issues)
+            click.echo(f"{f}: INVALID ({n} problem{'s' if n != 1 else ''})")
+            for issue in exc.issues:
+                click.echo(f"  - {issue}")
+            continue
+        click.echo(f"{f}: OK — {sc.name}: {len(sc.lines)} lines, {len(sc.thrusters)} thrusters, "
+                   f"{len(sc.sea_states)} sea states")
+    if bad:
+        sys.exit(1)
+
+
+@scenario.command("show")
+@click.argument("name")
+def scenario_show(name: str) -> None:
+    """Print a summary of scenario NAME (built-in name or TOML file)."""
+    from .models.mooring import MooringModel
+
+    sc = _load(name)
+    env, v, tur = sc.environment, sc.vessel, sc.turret
+    click.echo(f"Scenario {sc.name}: {sc.meta.description}")
+    for s in sc.meta.sources:
+        click.echo(f"  source: {s}")
+    click.echo(f"Environment: depth {env.water_depth:g} m, rho_w {env.water_density:g} kg/m3, g {env.gravity:g} m/s2")
+    click.echo(f"Vessel {v.name}: Lpp {v.length_pp:g} m, B {v.breadth:g} m, T {v.draught:g} m; "
+               f"M diag [{', '.join(f'{x:.3g}' for x in np.diag(v.M))}]")
+    click.echo(f"Turret: {tur.mode}, at ({tur.position[0]:g}, {tur.position[1]:g}) m in {{B}}, "
+               f"fairlead radius {tur.fairlead_radius:g} m, depth {tur.fairlead_depth:g} m")
+    model = MooringModel.from_scenario(sc)
+    sol = model.solve_lines(np.zeros(3))
+    click.echo(f"Lines ({len(sc.lines)}), at the field zero point:")
+    click.echo(f"  {'id':>6} {'type':>10} {'L [m]':>8} {'XF [m]':>8} {'T [kN]':>9} {'H [kN]':>9} {'T/MBS':>6} regime")
+    _, _, XF = model.spans(np.zeros(3))
+    for i, ln in enumerate(sc.lines):
+        click.echo(f"  {ln.id:>6} {ln.type:>10} {ln.length:8.1f} {XF[i]:8.1f} {sol.TF[i] / 1e3:9.1f} "
+                   f"{sol.HF[i] / 1e3:9.1f} {sol.TF[i] / model.MBS[i]:6.3f} {sol.regime_names()[i]}")
+    tau0 = model.force(np.zeros(3))
+    click.echo(f"Net mooring load at the field zero point: X {tau0[0] / 1e3:.3g} kN, Y {tau0[1] / 1e3:.3g} kN, "
+               f"N {tau0[2] / 1e3:.3g} kN m")
+    if sc.thrusters:
+        click.echo(f"Thrusters ({len(sc.thrusters)}):")
+        for t in sc.thrusters:
+            click.echo(f"  {t.id:>6} {t.kind:8s} at ({t.position[0]:g}, {t.position[1]:g}) m, "
+                       f"max {t.max_thrust / 1e3:.0f} kN")
+    for s in sc.sea_states:
+        click.echo(f"Sea state {s.id}: Hs {s.Hs:g} m, Tp {s.Tp:g} s, wind {s.wind_speed:g} m/s, "
+                   f"current {s.current_speed:g} m/s")
+    if sc.riser is not None:
+        click.echo(f"Riser: length {sc.riser.length:g} m, top tension {sc.riser.top_tension / 1e3:.0f} kN")
+    for f in sc.faults:
+        target = f.line if f.kind == "line_break" else f.thruster
+        click.echo(f"Fault: {f.kind} of {target} at t = {f.time:g} s")
+    if sc.limits.safe_radius is not None:
+        click.echo(f"Limits: safe radius {sc.limits.safe_radius:g} m, alert radius {sc.limits.alert_radius} m")
+
+
+# ------------------------------------------------------------------------------------------
+# tapm lines
+# ------------------------------------------------------------------------------------------
+
+
+def _parse_floats(text: str, what: str) -> np.ndarray:
+    try:
+        vals = np.array([float(x) for x in text.split(",") if x.strip()])
+    except ValueError:
+        raise click.BadParameter(f"{what} must be comma-separated numbers, got {text!r}") from None
+    if vals.size == 0 or not np.all(np.isfinite(vals)):
+        raise click.BadParameter(f"{what} must be finite numbers, got {text!r}")
+    return vals
+
+
+@cli.command()
+@click.argument("scenario_name", metavar="SCENARIO", default="fpso")
+@click.option("--out", type=click.Path(dir_okay=False), default=None,
+              help="CSV of line characteristics; offsets and stiffness go beside it (*_offsets.csv, *_stiffness.csv).")
+@click.option("--range", "half_range", type=float, default=None,
+              help="Half range of anchor distance / offset [m] (default: 10 % of water depth).")
+@click.option("--points", type=click.IntRange(2, 2001), default=41, show_default=True, help="Points per curve.")
+@click.option("--directions", default="0,45,90,135,180,225,270,315", show_default=True,
+              help="Offset directions from north [deg], comma-separated.")
+def lines(scenario_name: str, out: str | None, half_range: float | None, points: int, directions: str) -> None:
+    """Line characteristics, restoring curves and stiffness of SCENARIO (default: fpso).
+
+    Writes, per line, H, V, T against the horizontal anchor-fairlead distance (eq. 25); the
+    system's restoring load and line tensions against offsets in the given directions (heading
+    0); and the stiffness matrix at the field zero point.
+    """
+    from .models.characteristics import line_characteristics, offset_curves
+    from .models.mooring import MooringModel
+
+    sc = _load(scenario_name)
+    dirs_deg = _parse_floats(directions, "--directions")
+    half = 0.1 * sc.environment.water_depth if half_range is None else half_range
+    if not (math.isfinite(half) and half > 0):
+        raise click.BadParameter(f"--range = {half_range} must be a positive number of metres")
+    model = MooringModel.from_scenario(sc)
+    chars = line_characteristics(model, half_range=half, n_points=points)
+    offs = np.linspace(0.0, half, points)
+    curves = offset_curves(model, np.radians(dirs_deg), offs)
+    K = model.stiffness(np.zeros(3))
+
+    M = sc.vessel.M
+    click.echo(f"{sc.name}: {model.n_lines} lines; stiffness K = -d tau_moor/d eta at the field zero point")
+    labels = ("X [N/m]", "Y [N/m]", "N [N m/rad]")
+    for i in range(3):
+        click.echo(f"  {labels[i]:>12} " + " ".join(f"{K[i, j] + 0.0:14.6g}" for j in range(3)))
+    for i, dof in enumerate(("surge", "sway", "yaw")):
+        if K[i, i] > 0:
+            click.echo(f"  {dof} natural period 2*pi*sqrt(M/K) = {2 * np.pi * np.sqrt(M[i, i] / K[i, i]):.1f} s")
+        else:
+            click.echo(f"  {dof}: no restoring stiffness")
+    sol0 = model.solve_lines(np.zeros(3))
+    click.echo("  pretension [kN]: " + ", ".join(f"{i}:{t / 1e3:.0f}" for i, t in zip(model.line_ids, sol0.TF)))
+
+    if out is None:
+        return
+    path = Path(out)
+    from .models.catenary import REGIMES
+
+    rows = []
+    for i, lid in enumerate(chars.line_ids):
+        for j in range(chars.XF.shape[1]):
+            rows.append((lid, float(chars.XF[i, j]), float(chars.H[i, j]), float(chars.V[i, j]),
+                         float(chars.T[i, j]), REGIMES[int(chars.regime[i, j])]))
+    text_lines = csv_text(["line", "XF_m", "H_N", "V_N", "T_N", "regime"], rows,
+                          comments=[f"tapm lines {sc.name}: fairlead tensions against horizontal anchor-fairlead distance"])
+    rows = []
+    for a, d in enumerate(dirs_deg):
+        for b, r in enumerate(offs):
+            rows.append((float(d), float(r), *map(float, curves.tau[a, b]), *map(float, curves.T[a, b])))
+    text_off = csv_text(["direction_deg", "offset_m", "X_N", "Y_N", "N_Nm", *[f"T_{i}_N" for i in curves.line_ids]],
+                        rows, comments=[f"tapm lines {sc.name}: mooring load in {{B}} (heading 0) against offset"])
+    text_k = csv_text(["row", "x_N_per_m", "y_N_per_m", "psi_N_per_rad"],
+                      [(n, *map(float, K[i])) for i, n in enumerate(("X", "Y", "N"))],
+                      comments=[f"tapm lines {sc.name}: stiffness K = -d tau_moor / d eta at the field zero point"])
+    off_path = path.with_name(path.stem + "_offsets.csv")
+    k_path = path.with_name(path.stem + "_stiffness.csv")
+    for p, t in ((path, text_lines), (off_path, text_off), (k_path, text_k)):
+        atomic_write_text(p, t)
+        click.echo(f"wrote {p}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``tapm`` console script."""
+    try:
+        cli.main(args=argv, prog_name="tapm", standalone_mode=False)
+    except click.exceptions.Abort:
+        click.echo("aborted", err=True)
+        return 130
+    except click.ClickException as exc:
+        exc.show()
+        return exc.exit_code
+    except TapmError as exc:
+        if _State.verbose:
+            traceback.print_exc()
+        msg = str(exc)
+        click.echo(f"error: {msg}", err=True)
+        return EXIT_USER_ERROR
+    except OSError as exc:
+        if _State.verbose:
+            traceback.print_exc()
+        click.echo(f"error: {exc}", err=True)
+        return EXIT_USER_ERROR
+    except SystemExit as exc:
+        return int(exc.code or 0)
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
