@@ -16,7 +16,10 @@ _CASADI_TYPES = (ca.SX, ca.MX, ca.DM)
 
 def is_symbolic(*xs: Any) -> bool:
     """True if any argument is a CasADi object (SX, MX or DM)."""
-    return any(isinstance(x, _CASADI_TYPES) for x in xs)
+    for x in xs:
+        if isinstance(x, _CASADI_TYPES):
+            return True
+    return False
 
 
 def sin(x):

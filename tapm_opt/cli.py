@@ -207,6 +207,64 @@ def lines(scenario_name: str, out: str | None, half_range: float | None, points:
         click.echo(f"wrote {p}")
 
 
+# ------------------------------------------------------------------------------------------
+# tapm plant ...
+# ------------------------------------------------------------------------------------------
+
+
+@cli.group()
+def plant() -> None:
+    """The FEM mooring plant: forced-motion analysis."""
+
+
+@plant.command("forced-motion")
+@click.argument("scenario_name", metavar="SCENARIO")
+@click.option("--dof", type=click.Choice(["surge", "sway", "yaw"]), default="surge", show_default=True,
+              help="Degree of freedom to move.")
+@click.option("--amplitude", type=float, required=True,
+              help="Motion amplitude: metres for surge/sway, degrees for yaw.")
+@click.option("--period", type=float, required=True, help="Motion period [s].")
+@click.option("--duration", type=float, required=True, help="Simulated time after settling [s].")
+@click.option("--segments", type=click.IntRange(2, 1000), default=None,
+              help="FEM segments per line (default: the scenario's).")
+@click.option("--dt-out", type=float, default=1.0, show_default=True, help="Output interval [s].")
+@click.option("--out", type=click.Path(dir_okay=False), default=None,
+              help="CSV file with columns t, x, y, psi, T1..Tn (s, m, m, rad, N).")
+def plant_forced_motion(scenario_name: str, dof: str, amplitude: float, period: float, duration: float,
+                        segments: int | None, dt_out: float, out: str | None) -> None:
+    """Settle the lines of SCENARIO at rest, then move the vessel as amplitude*sin(2 pi t/period).
+
+    Prints the FEM step used, the equivalent linear mooring damping of the DOF (energy dissipated
+    per cycle, cycles after the first) and each line's dynamic/quasi-static tension amplification.
+    """
+    from .plant.forced_motion import forced_motion
+
+    for name, val in (("--amplitude", amplitude), ("--period", period), ("--duration", duration), ("--dt-out", dt_out)):
+        if not (math.isfinite(val) and val > 0):
+            raise click.BadParameter(f"{name} = {val} must be a positive number")
+    sc = _load(scenario_name)
+    amp = math.radians(amplitude) if dof == "yaw" else amplitude
+    res = forced_motion(sc, dof=dof, amplitude=amp, period=period, duration=duration, segments=segments,
+                        dt_out=dt_out)
+    unit = "N m s/rad" if dof == "yaw" else "N s/m"
+    click.echo(f"{sc.name}: forced {dof}, amplitude {amplitude:g} {'deg' if dof == 'yaw' else 'm'}, period {period:g} s, "
+               f"duration {duration:g} s; FEM step {res.dt:.4g} s, settled in {res.settle.time:.0f} s")
+    if res.cycles_analysed >= 1:
+        click.echo(f"  equivalent linear damping ({res.cycles_analysed} cycles after the first): "
+                   f"{res.damping:.4g} {unit}; energy per cycle {res.energy_per_cycle:.4g} J")
+    else:
+        click.echo("  damping not estimated: the duration must cover at least two periods")
+    click.echo("  line  T_min [kN]  T_max [kN]  dyn/qs amplification")
+    for i, lid in enumerate(res.line_ids):
+        amp_i = res.amplification[i]
+        amp_txt = f"{amp_i:.3f}" if np.isfinite(amp_i) else "n/a (line not moved)"
+        click.echo(f"  {lid:>4}  {res.T[:, i].min() / 1e3:10.1f}  {res.T[:, i].max() / 1e3:10.1f}  {amp_txt}")
+    if out is not None:
+        header, data = res.table()
+        atomic_write_text(out, csv_text(header, (tuple(map(float, row)) for row in data)))
+        click.echo(f"wrote {out}")
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``tapm`` console script."""
     try:

@@ -132,14 +132,35 @@ class MooringModel:
         return dx, dy, bk.hypot(dx, dy)
 
     def tau_from_H(self, eta, H):
-        """Mooring load in {B} from the horizontal fairlead tensions ``H`` (n,) [N] (eq. 18–23)."""
+        """Mooring load in {B} from the horizontal fairlead tensions ``H`` (n,) [N] (eq. 18–23).
+
+        Each line pulls its fairlead horizontally toward its anchor with ``H_i``.
+        """
         fx, fy = self.fairleads(eta)
         dx = fx - self.anchors[:, 0]
         dy = fy - self.anchors[:, 1]
         XF = bk.hypot(dx, dy)
         XFs = bk.where(XF > 0, XF, 1.0)
-        f_x = -H * dx / XFs  # force on the vessel, {E}
-        f_y = -H * dy / XFs
+        return self.tau_from_forces(eta, -H * dx / XFs, -H * dy / XFs, fairleads=(fx, fy))
+
+    def tau_from_forces(self, eta, f_x, f_y, *, fairleads=None):
+        """Load in {B} on the vessel from horizontal line forces at the fairleads (eq. 21–23).
+
+        Parameters
+        ----------
+        eta : array_like (3,) or CasADi
+            Vessel pose [m, m, rad].
+        f_x, f_y : array_like (n,) or CasADi
+            Force of each line on its fairlead in {E} [N] (north, east).
+        fairleads : tuple, optional
+            Fairlead positions (x, y) in {E} if already computed.
+
+        Returns
+        -------
+        tau : (3,) in {B} [N, N, N m]. With a locked turret every line's moment about the body
+        origin counts; with a free turret only the net force acting at the centre of turret.
+        """
+        fx, fy = self.fairleads(eta) if fairleads is None else fairleads
         Fx, Fy = bk.sum_(f_x), bk.sum_(f_y)
         x, y, psi = eta[0], eta[1], eta[2]
         if self.turret_mode == "locked":
@@ -149,7 +170,7 @@ class MooringModel:
             cx = c * self.p_cot_B[0] - s * self.p_cot_B[1]
             cy = s * self.p_cot_B[0] + c * self.p_cot_B[1]
             Nz = cx * Fy - cy * Fx
-        if bk.is_symbolic(eta, H):
+        if bk.is_symbolic(eta, f_x, f_y):
             return ca.mtimes(rot_z(psi).T, ca.vertcat(Fx, Fy, Nz))
         return rot_z(psi).T @ np.array([Fx, Fy, Nz])
 

@@ -1,0 +1,354 @@
+"""Lumped-mass finite-element model of all mooring lines, vectorised (seed [A] §II.C, [R] eq. 7).
+
+Every line j is cut into ``n_j`` segments of unstretched length ``l_j = L_j / n_j``; nodes 0..n_j,
+node 0 at the anchor, node n_j at the fairlead. All nodes of all lines live in one flat array, and
+every force is computed for all of them at once with index gathers (no Python loop over lines or
+nodes in a time step).
+
+Forces on node k (NED, z down):
+
+* axial elasticity in tension only: segment tension ``T = EA max(e, 0) + c_int de/dt`` (clipped
+  at 0), strain ``e = |l_k| / l - 1`` ([A] eq. 1, [R] eq. 7 f_r);
+* submerged weight ``w (l_k + l_{k+1}) / 2`` downward ([A] eq. 2);
+* Morison drag on the velocity relative to the current at the node's depth, each adjacent segment
+  contributing half its length ([A] eq. 3–4, 'D_k'): normal ``-1/2 rho C_DN d eps |v_n| v_n`` and
+  tangential ``-1/2 rho C_DT d eps |v_t| v_t``. **Both use the nominal diameter d** (as the seed),
+  not pi d for the tangential term;
+* added mass ``C_MN rho pi d^2/4`` per stretched length normal to the node tangent ([A] eq. 5); the
+  node tangent is the normalised sum of the two adjacent segment tangents, so the 3 x 3 mass
+  matrix ``m I + m_a (I - q q^T)`` inverts in closed form (equals the seed's M_k when the two
+  segments are collinear);
+* seabed contact for nodes below the seabed: a vertical spring-damper per unit length
+  ``k_b d``, ``c_b d`` and optional Coulomb friction ``mu`` (regularised with tanh).
+
+Integration: semi-implicit (symplectic) Euler with a step chosen from the stiffest segment
+(``dt <= safety * 2 / omega_max``, see :meth:`FEMLines.stable_dt`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from ..errors import TapmError
+
+__all__ = ["LineSet", "FEMLines", "SimulationDiverged"]
+
+
+class SimulationDiverged(TapmError, RuntimeError):
+    """The simulation state became non-finite or unphysical.
+
+    Attributes name the time [s], line id and node index where it was detected.
+    """
+
+    def __init__(self, message: str, *, time: float, line: str | None = None, node: int | None = None):
+        self.time, self.line, self.node = time, line, node
+        super().__init__(message)
+
+
+@dataclass(frozen=True)
+class LineSet:
+    """Per-line properties, arrays of shape (n_lines,) (SI units).
+
+    ``L`` unstretched length [m]; ``EA`` [N]; ``w`` submerged weight [N/m]; ``mass`` mass per
+    length in air [kg/m]; ``d`` hydrodynamic diameter [m]; ``Cdn``, ``Cdt`` drag and ``Can``,
+    ``Cat`` added-mass coefficients; ``segments`` (int); ``damping_ratio`` axial internal damping as
+    a fraction of the critical damping of one segment's axial mode; ``mu`` seabed friction.
+    """
+
+    ids: tuple[str, ...]
+    L: np.ndarray
+    EA: np.ndarray
+    w: np.ndarray
+    mass: np.ndarray
+    d: np.ndarray
+    Cdn: np.ndarray
+    Cdt: np.ndarray
+    Can: np.ndarray
+    Cat: np.ndarray
+    segments: np.ndarray
+    damping_ratio: np.ndarray
+    mu: np.ndarray
+
+
+CurrentField = Callable[[np.ndarray], np.ndarray]
+"""Current velocity at node positions: ``f(r) -> v_c``, both (n_nodes, 3) [m, m/s], {E}."""
+
+
+class FEMLines:
+    """State and dynamics of all lumped-mass lines (positions and velocities in {E}).
+
+    Parameters
+    ----------
+    lines : LineSet
+    anchors : ndarray, shape (n_lines, 3)
+        Anchor positions in {E} [m] (z down).
+    water_depth, rho_w, g : float
+        Seabed depth [m], water density [kg/m^3], gravity [m/s^2] (g only enters through w).
+    seabed_penetration : float
+        Static penetration of a line lying on the seabed under its own weight [m]; sets the
+        seabed stiffness ``k_b = w / (d * penetration)`` per unit area. Default 1 cm.
+    seabed_damping_ratio : float
+        Seabed contact damping as a fraction of critical (per node).
+    """
+
+    def __init__(self, lines: LineSet, anchors: np.ndarray, *, water_depth: float, rho_w: float,
+                 seabed_penetration: float = 0.01, seabed_damping_ratio: float = 0.5):
+        self.lines = lines
+        self.depth = float(water_depth)
+        self.rho_w = float(rho_w)
+        nl = len(lines.ids)
+        nseg = np.asarray(lines.segments, dtype=int)
+        self.n_lines = nl
+        self._seg_per_line = nseg
+        self.node_start = np.concatenate([[0], np.cumsum(nseg + 1)[:-1]])
+        self.n_nodes = int(np.sum(nseg + 1))
+        self.anchor_idx = self.node_start.copy()
+        self.fairlead_idx = self.node_start + nseg
+        self.line_of_node = np.repeat(np.arange(nl), nseg + 1)
+        # "bonds": bond i joins node i to node i + 1; the bond from a fairlead to the next line's
+        # anchor is not a segment (masked). Segment k of line j is bond node_start[j] + k.
+        nb = self.n_nodes - 1
+        self.bond_ok = np.ones(nb, dtype=bool)
+        self.bond_ok[self.fairlead_idx[:-1]] = False
+        self.line_of_bond = self.line_of_node[:-1]
+        self.anchor_seg = self.node_start.copy()
+        self.fairlead_seg = self.fairlead_idx - 1
+        self.anchors = np.asarray(anchors, dtype=float).copy()
+        self.L = np.asarray(lines.L, dtype=float).copy()
+        self.active = np.ones(nl, dtype=bool)  # False once a line breaks
+        self.fixed = np.zeros(self.n_nodes, dtype=bool)
+        self.fixed[self.anchor_idx] = True
+        self.fixed[self.fairlead_idx] = True
+        ls = lines
+        ok = self.bond_ok
+        lb = self.line_of_bond
+        self._EA = np.where(ok, ls.EA[lb], 0.0)
+        self._w = np.where(ok, ls.w[lb], 0.0)
+        self._m = np.where(ok, ls.mass[lb], 0.0)
+        self._zeta_int = np.where(ok, ls.damping_ratio[lb], 0.0)
+        # drag 1/2 rho C d per stretched length, halved: applied to the sum of the two adjacent
+        # segments' stretched lengths (twice the node's share)
+        self._cdn_node = 0.5 * (0.5 * rho_w * ls.Cdn * ls.d)[self.line_of_node]
+        self._cdt_node = 0.5 * (0.5 * rho_w * ls.Cdt * ls.d)[self.line_of_node]
+        area = 0.25 * np.pi * ls.d**2
+        self._can_half = 0.5 * (ls.Can * rho_w * area)[self.line_of_node]
+        self._cat_half = 0.5 * (ls.Cat * rho_w * area)[self.line_of_node]
+        self._d_node = ls.d[self.line_of_node]
+        self._mu = ls.mu[self.line_of_node]
+        self._kb_pen = float(seabed_penetration)
+        self._zeta_b = float(seabed_damping_ratio)
+        self._attached = np.arange(nl)
+        self._has_friction = bool(np.any(self._mu))
+        # padded bond buffers: row i + 1 holds bond i, rows 0 and n_nodes are zero
+        self._qp = np.zeros((self.n_nodes + 1, 3))
+        self._tvp = np.zeros((self.n_nodes + 1, 3))
+        self._epsp = np.zeros(self.n_nodes + 1)
+        self.r = np.zeros((self.n_nodes, 3))
+        self.v = np.zeros((self.n_nodes, 3))
+        self.t = 0.0
+        self._update_lengths()
+
+    # -- geometry and constants ------------------------------------------------------------
+    def _update_lengths(self) -> None:
+        """Recompute per-segment/per-node constants from the current unstretched lengths L."""
+        ok = self.bond_ok
+        self.l0 = np.where(ok, (self.L / self._seg_per_line)[self.line_of_bond], 1.0)  # (n_bonds,)
+        l0 = np.where(ok, self.l0, 0.0)
+        self.node_len = 0.5 * (np.append(l0, 0.0) + np.insert(l0, 0, 0.0))  # unstretched length per node
+        ml = self._m * l0
+        wl = self._w * l0
+        self.node_mass = 0.5 * (np.append(ml, 0.0) + np.insert(ml, 0, 0.0))
+        self.node_weight = 0.5 * (np.append(wl, 0.0) + np.insert(wl, 0, 0.0))
+        k_ax = self._EA / self.l0
+        self._c_int = self._zeta_int * 2.0 * np.sqrt(k_ax * 0.5 * self._m * l0) * self.l0  # [N s] on strain rate
+        self._has_int_damping = bool(np.any(self._c_int))
+        self._kb = self.node_weight / self._kb_pen  # node spring [N/m]: static penetration = seabed_penetration
+        self._cb = self._zeta_b * 2.0 * np.sqrt(self._kb * self.node_mass)
+
+    def stable_dt(self, safety: float = 0.8) -> float:
+        """Largest stable step of the symplectic Euler scheme [s].
+
+        Bounded by the stiffest axial mode (Gershgorin bound of each free node,
+        ``omega^2 <= 2 (k_below + k_above) / m``, with ``k = EA / l``) and the seabed contact mode,
+        each reduced for its damping ratio.
+        """
+        m_node = np.maximum(self.node_mass, 1e-300)
+        k_ax = np.where(self.bond_ok, self._EA / self.l0, 0.0)
+        k_node = np.append(k_ax, 0.0) + np.insert(k_ax, 0, 0.0)
+        free = ~self.fixed
+        omega_ax = np.sqrt(2.0 * k_node[free] / m_node[free])
+        z = float(np.max(self._zeta_int)) if self._zeta_int.size else 0.0
+        dt_ax = float(np.min(2.0 / omega_ax)) * (np.sqrt(1 + z * z) - z)
+        omega_b = np.sqrt(self._kb[free] / m_node[free])
+        zb = self._zeta_b
+        dt_b = float(np.min(2.0 / omega_b)) * (np.sqrt(1 + zb * zb) - zb)
+        return float(safety * min(dt_ax, dt_b))
+
+    # -- forces ----------------------------------------------------------------------------
+    def segment_state(self, r: np.ndarray, v: np.ndarray):
+        """Bond vectors (n_nodes-1, 3), stretched lengths and tensions [N] (0 on non-segments).
+
+        Segment k of line j is bond ``node_start[j] + k``.
+        """
+        lv = r[1:] - r[:-1]
+        eps = np.sqrt((lv * lv).sum(axis=1))
+        strain = eps / self.l0 - 1.0
+        T = self._EA * strain
+        if self._has_int_damping:
+            dv = v[1:] - v[:-1]
+            T += self._c_int * (dv * lv).sum(axis=1) / (eps * self.l0)
+        np.maximum(T, 0.0, out=T)
+        T[strain <= 0.0] = 0.0
+        return lv, eps, T
+
+    def accelerations(self, r: np.ndarray, v: np.ndarray, v_current: np.ndarray):
+        """Node accelerations [m/s^2] (n_nodes, 3) and bond tensions [N] (n_nodes - 1,).
+
+        Drag and added mass use the node tangent q (normalised sum of the adjacent segment
+        tangents) and the node's share of stretched length (half of each adjacent segment).
+        """
+        lv, eps, T = self.segment_state(r, v)
+        qp, tvp, epsp = self._qp, self._tvp, self._epsp
+        inv = self.bond_ok / eps
+        q = qp[1:-1]
+        np.multiply(lv, inv[:, None], out=q)
+        np.multiply(T[:, None], q, out=tvp[1:-1])
+        np.multiply(eps, self.bond_ok, out=epsp[1:-1])
+        F = tvp[1:] - tvp[:-1]
+        F[:, 2] += self.node_weight
+        qn = qp[1:] + qp[:-1]
+        qn /= np.sqrt((qn * qn).sum(axis=1))[:, None]
+        stretched = epsp[1:] + epsp[:-1]  # twice the node's stretched length
+        # Morison drag on the relative velocity, normal and tangential to the node tangent
+        vr = v - v_current
+        vt = (vr * qn).sum(axis=1)
+        vn = vr - vt[:, None] * qn
+        vn_mag = np.sqrt((vn * vn).sum(axis=1))
+        F -= (self._cdn_node * stretched * vn_mag)[:, None] * vn
+        F -= (self._cdt_node * stretched * np.abs(vt) * vt)[:, None] * qn
+        # seabed contact
+        pen = r[:, 2] - self.depth
+        on = pen > 0.0
+        if on.any():
+            Fn = np.maximum(self._kb * pen + self._cb * v[:, 2], 0.0)
+            Fn[~on] = 0.0
+            F[:, 2] -= Fn
+            if self._has_friction:
+                vh = vr[:, :2]
+                sp = np.sqrt((vh * vh).sum(axis=1))
+                fr = self._mu * Fn * np.tanh(sp / 0.01) / np.maximum(sp, 1e-12)
+                F[:, :2] -= fr[:, None] * vh
+        # closed-form inverse of m I + m_an (I - q q^T) + m_at q q^T
+        Ft = (F * qn).sum(axis=1)
+        a = (F - Ft[:, None] * qn) * (1.0 / (self.node_mass + self._can_half * stretched))[:, None]
+        a += (Ft / (self.node_mass + self._cat_half * stretched))[:, None] * qn
+        return a, T
+
+    # -- integration -----------------------------------------------------------------------
+    def step(self, dt: float, fairlead_r: np.ndarray, fairlead_v: np.ndarray, v_current: np.ndarray,
+             extra_damping: float = 0.0):
+        """Advance one symplectic-Euler step with prescribed fairlead motion.
+
+        Parameters
+        ----------
+        dt : float
+            Step [s] (at most :meth:`stable_dt`).
+        fairlead_r, fairlead_v : ndarray, shape (n_lines, 3)
+            Fairlead positions [m] and velocities [m/s] in {E} at the end of the step.
+        v_current : ndarray, shape (n_nodes, 3)
+            Current velocity at each node [m/s].
+        extra_damping : float
+            Mass-proportional damping rate [1/s] (used only to settle the lines).
+
+        Returns
+        -------
+        T : ndarray (n_nodes - 1,)
+            Bond tensions at the start of the step [N].
+        """
+        a, T = self.accelerations(self.r, self.v, v_current)
+        if extra_damping:
+            a -= extra_damping * self.v
+        v = self.v + dt * a
+        v[self.anchor_idx] = 0.0
+        att = self._attached
+        v[self.fairlead_idx[att]] = fairlead_v[att]
+        r = self.r + dt * v
+        r[self.anchor_idx] = self.anchors
+        r[self.fairlead_idx[att]] = fairlead_r[att]
+        self.r, self.v = r, v
+        self.t += dt
+        return T
+
+    def break_line(self, j: int) -> None:
+        """Line j breaks at its fairlead: it no longer acts on the vessel and its upper end falls free.
+
+        The line keeps its own internal tension as it falls; its reported fairlead tension is 0.
+        """
+        self.active[j] = False
+        self.fixed[self.fairlead_idx[j]] = False
+        self._attached = np.flatnonzero(self.active)
+
+    # -- outputs ---------------------------------------------------------------------------
+    def fairlead_forces(self) -> np.ndarray:
+        """Force of each line on its fairlead point in {E} [N], shape (n_lines, 3).
+
+        The top segment's tension along the segment toward the anchor, plus the weight of the
+        fairlead's lumped node (half a segment), which the vessel carries. Zero for a broken line.
+        """
+        s = self.fairlead_seg
+        lv = self.r[s + 1] - self.r[s]
+        eps = np.sqrt((lv * lv).sum(axis=1))
+        strain = eps / self.l0[s] - 1.0
+        T = self._EA[s] * strain
+        if self._has_int_damping:
+            dv = self.v[s + 1] - self.v[s]
+            T += self._c_int[s] * (dv * lv).sum(axis=1) / (eps * self.l0[s])
+        T = np.where(strain > 0.0, np.maximum(T, 0.0), 0.0)
+        f = -(T / eps)[:, None] * lv
+        f[:, 2] += self.node_weight[self.fairlead_idx]
+        f[~self.active] = 0.0
+        return f
+
+    def fairlead_tension(self) -> np.ndarray:
+        """Fairlead tension of each line: magnitude of :meth:`fairlead_forces` [N]."""
+        f = self.fairlead_forces()
+        return np.sqrt(np.einsum("ij,ij->i", f, f))
+
+    def anchor_tension(self, T: np.ndarray | None = None) -> np.ndarray:
+        """Anchor tension of each line: tension of the segment at the anchor [N]."""
+        if T is None:
+            _, _, T = self.segment_state(self.r, self.v)
+        return T[self.anchor_seg]
+
+    def energy(self) -> float:
+        """Mechanical energy of the lines [J]: kinetic (structural mass) + elastic + gravitational.
+
+        The gravitational part uses the submerged weight with z down (potential -w z). Excludes
+        added mass; used for health checks and tests.
+        """
+        lv, eps, T = self.segment_state(self.r, self.v)
+        strain = np.maximum(eps / self.l0 - 1.0, 0.0)
+        elastic = 0.5 * np.sum(self._EA * strain**2 * self.l0 * self.bond_ok)
+        kin = 0.5 * np.sum(self.node_mass * np.einsum("ij,ij->i", self.v, self.v))
+        pot = -np.sum(self.node_weight * self.r[:, 2])
+        return float(kin + elastic + pot)
+
+    def check_health(self) -> None:
+        """Raise :class:`SimulationDiverged` if any node state is non-finite or absurdly fast."""
+        bad = ~np.isfinite(self.r).all(axis=1) | ~np.isfinite(self.v).all(axis=1)
+        fast = np.einsum("ij,ij->i", self.v, self.v) > 100.0**2
+        bad |= fast
+        if np.any(bad):
+            i = int(np.argmax(bad))
+            j = int(self.line_of_node[i])
+            k = int(i - self.node_start[j])
+            what = "non-finite" if not np.isfinite(self.r[i]).all() or not np.isfinite(self.v[i]).all() else \
+                f"unphysical speed {np.linalg.norm(self.v[i]):.3g} m/s"
+            raise SimulationDiverged(
+                f"FEM mooring state {what} at t = {self.t:.3f} s, line {self.lines.ids[j]!r}, node {k}; "
+                "reduce the time step (a smaller 'safety' factor), use fewer segments, or check the "
+                "line properties (EA, mass) and the imposed fairlead motion",
+                time=self.t, line=self.lines.ids[j], node=k)

@@ -1,0 +1,196 @@
+"""Forced-motion analysis of the FEM mooring (no vessel dynamics).
+
+The lines are settled with the vessel at the field zero point; from t = 0 the vessel moves as
+``eta_dof(t) = A sin(2 pi t / T)`` (full speed at t = 0) in one degree of freedom. From the
+fairlead tensions and the line forces on the vessel we estimate
+
+* the equivalent linear mooring damping of that degree of freedom, from the energy the lines
+  dissipate per cycle (survey eq. 30, §3.2.2): for ``eta = A sin(w t)`` a linear damper ``b``
+  dissipates ``W = pi b w A^2`` per cycle, so ``b_eq = W / (pi w A^2)``, where
+  ``W = -integral over whole cycles of F_dof * eta_dot_dof dt / n_cycles`` and ``F_dof`` is the
+  mooring load on the vessel along that DOF in {E} (force for surge/sway, moment for yaw);
+* the dynamic-to-quasi-static tension amplification of each line: the range (max - min) of its
+  FEM fairlead tension over the analysed cycles divided by the range of its quasi-static catenary
+  tension at the same vessel positions.
+
+The first cycle is left out of both estimates (start-up transient).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+
+from ..errors import ModelError
+from ..models import catenary
+from ..models.mooring import MooringModel
+from .mooring_fem import MooringFEM, SettleInfo
+
+__all__ = ["ForcedMotionResult", "forced_motion", "DOFS"]
+
+DOFS = ("surge", "sway", "yaw")
+
+
+@dataclass(frozen=True)
+class ForcedMotionResult:
+    """Result of :func:`forced_motion`.
+
+    Attributes
+    ----------
+    t : ndarray (n_out,)
+        Output times [s].
+    eta : ndarray (n_out, 3)
+        Prescribed vessel pose (x [m], y [m], psi [rad]).
+    T : ndarray (n_out, n_lines)
+        FEM fairlead tension of each line [N].
+    T_quasi_static : ndarray (n_out, n_lines)
+        Catenary fairlead tension at the same poses [N].
+    force : ndarray (n_out, 3)
+        Mooring load on the vessel in {E}: (F_x [N], F_y [N], M_z [N m]).
+    damping : float
+        Equivalent linear damping of the DOF [N s/m] (surge, sway) or [N m s/rad] (yaw).
+    energy_per_cycle : float
+        Energy dissipated by the lines per cycle [J].
+    amplification : ndarray (n_lines,)
+        Dynamic / quasi-static fairlead tension range of each line [-].
+    dt : float
+        FEM time step used [s].
+    """
+
+    line_ids: tuple[str, ...]
+    dof: str
+    amplitude: float
+    period: float
+    t: np.ndarray
+    eta: np.ndarray
+    T: np.ndarray
+    T_quasi_static: np.ndarray
+    force: np.ndarray
+    damping: float
+    energy_per_cycle: float
+    amplification: np.ndarray
+    dt: float
+    segments: int | None
+    settle: SettleInfo
+    cycles_analysed: int
+    meta: dict = field(default_factory=dict)
+
+    def table(self) -> tuple[list[str], np.ndarray]:
+        """Columns ``t, x, y, psi, T1..Tn`` (s, m, m, rad, N) and the data (n_out, 4 + n_lines)."""
+        header = ["t", "x", "y", "psi", *[f"T{i + 1}" for i in range(len(self.line_ids))]]
+        return header, np.column_stack([self.t, self.eta, self.T])
+
+
+def forced_motion(scenario: Any, *, dof: Literal["surge", "sway", "yaw"] = "surge", amplitude: float,
+                  period: float, duration: float, segments: int | None = None, dt_out: float = 1.0,
+                  current: Any = None, safety: float = 0.9) -> ForcedMotionResult:
+    """Drive the fairleads with a sinusoidal vessel motion and record the line response.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    dof : {"surge", "sway", "yaw"}
+        Degree of freedom moved (surge = x, sway = y in {E}, the heading stays 0).
+    amplitude : float
+        Motion amplitude [m] (surge, sway) or [rad] (yaw), > 0.
+    period : float
+        Motion period [s], > 0.
+    duration : float
+        Simulated time after settling [s], > 0.
+    segments : int, optional
+        FEM segments per line (default: the scenario's).
+    dt_out : float
+        Output interval [s]; the FEM step is the largest stable step that divides it.
+    current : callable, optional
+        ``current(z) -> (n, 3)`` current velocity in {E} on the line nodes (default: still water).
+    safety : float
+        Fraction of the FEM stability limit used as step.
+    """
+    if dof not in DOFS:
+        raise ModelError(f"dof = {dof!r} is not one of {', '.join(DOFS)}")
+    for name, val in (("amplitude", amplitude), ("period", period), ("duration", duration), ("dt_out", dt_out)):
+        if not (isinstance(val, (int, float)) and math.isfinite(val) and val > 0):
+            raise ModelError(f"{name} = {val!r} must be a positive number")
+    k = DOFS.index(dof)
+    plant = MooringFEM(scenario, segments=segments, current=current, safety=safety)
+    # a whole number of FEM steps per output interval, each no longer than the stable step
+    every = int(math.ceil(dt_out / plant.dt - 1e-9))
+    plant.dt = dt = dt_out / every
+    eta0 = np.zeros(3)
+    plant.initialise(eta0)
+    info = plant.settle(eta0)
+    omega = 2.0 * math.pi / period
+    n_out = int(math.floor(duration / dt_out + 1e-9)) + 1
+    n_steps = (n_out - 1) * every
+    t_out = np.zeros(n_out)
+    eta_out = np.zeros((n_out, 3))
+    T_out = np.zeros((n_out, plant.fem.n_lines))
+    F_out = np.zeros((n_out, 3))
+    # dissipated power -F.eta_dot is sampled at least 400 times per cycle (trapezoidal rule)
+    power_t, power = [], []
+    every_p = max(1, int(period / 400.0 / dt))
+
+    def pose(t: float):
+        e = np.zeros(3)
+        ed = np.zeros(3)
+        e[k] = amplitude * math.sin(omega * t)
+        ed[k] = amplitude * omega * math.cos(omega * t)
+        return e, ed
+
+    def load_E(eta):
+        tau_b = plant.tau(eta)
+        c, s = math.cos(eta[2]), math.sin(eta[2])
+        return np.array([c * tau_b[0] - s * tau_b[1], s * tau_b[0] + c * tau_b[1], tau_b[2]])
+
+    j = 0
+    e, ed = pose(0.0)
+    F = load_E(e)
+    t_out[0], eta_out[0], T_out[0], F_out[0] = 0.0, e, plant.fairlead_tension(), F
+    power_t.append(0.0)
+    power.append(-F[k] * ed[k])
+    for i in range(1, n_steps + 1):
+        t = i * dt
+        e, ed = pose(t)
+        plant.step(e, ed)
+        if i % 200 == 0:
+            plant.fem.check_health()
+        if i % every_p == 0 or i % every == 0:
+            F = load_E(e)
+            power_t.append(t)
+            power.append(-F[k] * ed[k])
+        if i % every == 0:
+            j += 1
+            t_out[j], eta_out[j], T_out[j], F_out[j] = t, e, plant.fairlead_tension(), F
+    plant.fem.check_health()
+    t_out, eta_out, T_out, F_out = t_out[: j + 1], eta_out[: j + 1], T_out[: j + 1], F_out[: j + 1]
+
+    # quasi-static reference at the output poses
+    moor = MooringModel.from_scenario(scenario)
+    XF = np.array([moor.spans(e)[2] for e in eta_out])
+    T_qs = catenary.solve(XF, moor.ZF, moor.L, moor.EA, moor.w, CB=moor.CB).TF
+
+    # whole cycles after the first one
+    n_cyc = int(math.floor(duration / period + 1e-9)) - 1
+    power_t = np.asarray(power_t)
+    power = np.asarray(power)
+    if n_cyc >= 1:
+        t0, t1 = period, period * (1 + n_cyc)
+        m = (power_t >= t0 - 1e-9) & (power_t <= t1 + 1e-9)
+        W = float(np.trapezoid(power[m], power_t[m])) / n_cyc
+        b_eq = W / (math.pi * omega * amplitude**2)
+        mo = (t_out >= t0 - 1e-9) & (t_out <= t1 + 1e-9)
+        rng_dyn = T_out[mo].max(axis=0) - T_out[mo].min(axis=0)
+        rng_qs = T_qs[mo].max(axis=0) - T_qs[mo].min(axis=0)
+        amp = np.where(rng_qs > 1e-9 * np.maximum(T_qs[mo].max(axis=0), 1.0), rng_dyn / np.where(rng_qs > 0, rng_qs, 1.0), np.nan)
+    else:
+        W, b_eq = math.nan, math.nan
+        amp = np.full(plant.fem.n_lines, np.nan)
+    return ForcedMotionResult(
+        line_ids=plant.line_ids, dof=dof, amplitude=float(amplitude), period=float(period), t=t_out, eta=eta_out,
+        T=T_out, T_quasi_static=T_qs, force=F_out, damping=b_eq, energy_per_cycle=W, amplification=amp, dt=dt,
+        segments=segments, settle=info, cycles_analysed=max(n_cyc, 0),
+        meta={"scenario": scenario.name},
+    )

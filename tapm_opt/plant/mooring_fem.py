@@ -1,0 +1,203 @@
+"""FEM mooring lines of a scenario, attached to the vessel's fairleads.
+
+Connects :class:`~tapm_opt.plant.fem.FEMLines` to a scenario: line properties, catenary
+initialisation, settling, fairlead kinematics and the load on the vessel. The turret and
+fairlead geometry and the assembly of the load in {B} are those of
+:class:`~tapm_opt.models.mooring.MooringModel` (one definition for the design model and the plant).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import numpy as np
+
+from ..errors import ModelError
+from ..models import catenary
+from ..models.mooring import MooringModel
+from .fem import FEMLines, LineSet
+
+__all__ = ["MooringFEM", "SettleInfo", "line_set_from_scenario"]
+
+
+def line_set_from_scenario(scenario: Any, *, segments: int | None = None) -> LineSet:
+    """Per-line FEM properties of a scenario; ``segments`` overrides every line's count."""
+    if segments is not None and (not isinstance(segments, (int, np.integer)) or segments < 2):
+        raise ModelError(f"segments = {segments!r} must be a whole number >= 2")
+    la = scenario.line_arrays
+    types = [scenario.line_type(ln) for ln in scenario.lines]
+    n = len(types)
+    return LineSet(
+        ids=tuple(ln.id for ln in scenario.lines),
+        L=np.array(la["L"], dtype=float),
+        EA=np.array(la["EA"], dtype=float),
+        w=np.array(la["w"], dtype=float),
+        mass=np.array([t.mass_per_length for t in types]),
+        d=np.array([t.diameter for t in types]),
+        Cdn=np.array([t.Cd_normal for t in types]),
+        Cdt=np.array([t.Cd_tangential for t in types]),
+        Can=np.array([t.Ca_normal for t in types]),
+        Cat=np.array([t.Ca_tangential for t in types]),
+        segments=np.full(n, segments, dtype=int) if segments is not None else np.array(la["segments"], dtype=int),
+        damping_ratio=np.array([getattr(t, "axial_damping_ratio", 0.0) for t in types]),
+        mu=np.array([t.seabed_friction for t in types]),
+    )
+
+
+@dataclass(frozen=True)
+class SettleInfo:
+    """How the lines were settled: simulated time [s], final largest node speed [m/s] and the
+    relative change of the fairlead tensions over the last check interval."""
+
+    time: float
+    max_speed: float
+    tension_change: float
+    converged: bool
+
+
+class MooringFEM:
+    """All mooring lines of a scenario as lumped-mass FEM lines, moved by the vessel.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    segments : int, optional
+        FEM segments per line (default: each line's ``segments``).
+    current : callable, optional
+        ``current(z) -> (n, 3)`` current velocity in {E} at depths z [m]; default none.
+    safety : float
+        Fraction of the stability limit used as time step (see ``FEMLines.stable_dt``).
+    """
+
+    def __init__(self, scenario: Any, *, segments: int | None = None,
+                 current: Callable[[np.ndarray], np.ndarray] | None = None, safety: float = 0.9):
+        if not (0.0 < safety <= 1.0):
+            raise ModelError(f"safety = {safety!r} must be in (0, 1]")
+        self.scenario = scenario
+        self.geometry = MooringModel.from_scenario(scenario)
+        env = scenario.environment
+        self.fem = FEMLines(line_set_from_scenario(scenario, segments=segments), np.array(scenario.anchors),
+                            water_depth=env.water_depth, rho_w=env.water_density)
+        self.fairlead_z = float(scenario.turret.fairlead_depth)
+        self.current = current
+        self.dt = self.fem.stable_dt(safety)
+        self._vc = np.zeros((self.fem.n_nodes, 3))
+
+    @property
+    def line_ids(self) -> tuple[str, ...]:
+        return self.fem.lines.ids
+
+    # -- kinematics ------------------------------------------------------------------------
+    def fairlead_state(self, eta: np.ndarray, eta_dot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Fairlead positions and velocities in {E}, each (n_lines, 3), for the vessel pose and rate.
+
+        Rigid-body kinematics of eq. (5): ``v = p_dot + psi_dot k x (p_f - p)`` (locked turret) or
+        ``v = p_dot + psi_dot k x R2(psi) p_cot`` plus no turret rotation (free turret).
+        """
+        g = self.geometry
+        fx, fy = g.fairleads(eta)
+        r = np.column_stack((fx, fy, np.full(fx.shape[0], self.fairlead_z)))
+        if g.turret_mode == "locked":
+            rx, ry = fx - eta[0], fy - eta[1]
+        else:
+            c, s = np.cos(eta[2]), np.sin(eta[2])
+            rx = c * g.p_cot_B[0] - s * g.p_cot_B[1]
+            ry = s * g.p_cot_B[0] + c * g.p_cot_B[1]
+        v = np.zeros_like(r)
+        v[:, 0] = eta_dot[0] - eta_dot[2] * ry
+        v[:, 1] = eta_dot[1] + eta_dot[2] * rx
+        return r, v
+
+    def _update_current(self) -> np.ndarray:
+        if self.current is not None:
+            self._vc = self.current(self.fem.r[:, 2])
+        return self._vc
+
+    # -- set-up ----------------------------------------------------------------------------
+    def initialise(self, eta: np.ndarray) -> None:
+        """Place every line's nodes on its elastic catenary for the vessel at ``eta``."""
+        fem = self.fem
+        r_fl, _ = self.fairlead_state(np.asarray(eta, float), np.zeros(3))
+        depth = fem.depth
+        for j in range(fem.n_lines):  # set-up only, not in the time step
+            a = fem.anchors[j]
+            d = r_fl[j, :2] - a[:2]
+            XF = float(np.hypot(*d))
+            u = d / XF if XF > 0 else np.array([1.0, 0.0])
+            ns = int(fem.lines.segments[j])
+            prof = catenary.line_profile(XF, depth - self.fairlead_z, fem.L[j], fem.lines.EA[j], fem.lines.w[j],
+                                         CB=fem.lines.mu[j], n=ns + 1)
+            sl = slice(fem.node_start[j], fem.node_start[j] + ns + 1)
+            fem.r[sl, :2] = a[:2] + prof["x"][:, None] * u
+            fem.r[sl, 2] = depth - prof["z"]
+            # a slack line's seabed part: put the nodes just on the seabed
+        fem.r[fem.fairlead_idx] = r_fl
+        fem.v[:] = 0.0
+        self._r_fl = r_fl
+
+    def settle(self, eta: np.ndarray, *, max_time: float = 600.0, check_every: float = 5.0,
+               tol: float = 1e-6, damping: float = 0.5) -> SettleInfo:
+        """Let the lines come to rest with the vessel held at ``eta`` (dynamic relaxation).
+
+        Runs with mass-proportional damping ``damping`` [1/s] until, over ``check_every`` seconds,
+        every fairlead tension changes by less than ``tol`` (relative) and the fastest node moves
+        slower than 1 mm/s; at most ``max_time`` seconds.
+        """
+        eta = np.asarray(eta, float)
+        r_fl, v_fl = self.fairlead_state(eta, np.zeros(3))
+        fem = self.fem
+        n_check = max(1, int(round(check_every / self.dt)))
+        T_prev = fem.fairlead_tension()
+        t = 0.0
+        change, speed = np.inf, np.inf
+        while t < max_time:
+            vc = self._update_current()
+            for _ in range(n_check):
+                fem.step(self.dt, r_fl, v_fl, vc, extra_damping=damping)
+            t += n_check * self.dt
+            fem.check_health()
+            T = fem.fairlead_tension()
+            change = float(np.max(np.abs(T - T_prev) / np.maximum(np.abs(T), 1.0)))
+            speed = float(np.sqrt(np.max(np.einsum("ij,ij->i", fem.v, fem.v))))
+            T_prev = T
+            if change < tol and speed < 1e-3:
+                break
+        fem.v[:] = 0.0
+        fem.t = 0.0
+        return SettleInfo(time=t, max_speed=speed, tension_change=change, converged=change < tol and speed < 1e-3)
+
+    # -- time stepping ---------------------------------------------------------------------
+    def step(self, eta: np.ndarray, eta_dot: np.ndarray) -> np.ndarray:
+        """One FEM step of length ``self.dt`` with the fairleads at pose ``eta`` moving at ``eta_dot``.
+
+        Returns the segment tensions at the start of the step [N].
+        """
+        r_fl, v_fl = self.fairlead_state(eta, eta_dot)
+        self._r_fl = r_fl
+        return self.fem.step(self.dt, r_fl, v_fl, self._update_current())
+
+    def tau(self, eta: np.ndarray) -> np.ndarray:
+        """Load of all lines on the vessel in {B} [N, N, N m] (horizontal fairlead forces).
+
+        ``eta`` must be the pose of the last :meth:`step` (the fairlead positions are reused).
+        """
+        f = self.fem.fairlead_forces()
+        r = self._r_fl
+        return self.geometry.tau_from_forces(eta, f[:, 0], f[:, 1], fairleads=(r[:, 0], r[:, 1]))
+
+    def fairlead_tension(self) -> np.ndarray:
+        """Fairlead tension of every line [N] (0 for a broken line)."""
+        return self.fem.fairlead_tension()
+
+    def anchor_tension(self) -> np.ndarray:
+        """Anchor tension of every line [N]."""
+        return self.fem.anchor_tension()
+
+    def break_line(self, line_id: str) -> None:
+        """Break line ``line_id`` at its fairlead."""
+        try:
+            j = self.line_ids.index(str(line_id))
+        except ValueError:
+            raise ModelError(f"cannot break line {line_id!r}: no such line; lines are {list(self.line_ids)}") from None
+        self.fem.break_line(j)
