@@ -222,7 +222,7 @@ class _Parser:
         else:
             got = (len(v),)
             flat = list(v)
-        if shape is not None and any(s != -1 and s != g for s, g in zip(shape, got)) and flat:
+        if shape is not None and any(s != -1 and s != g for s, g in zip(shape, got)) and (v or not nested):
             self.err(path, f"must have shape {tuple(shape)}, got {got}")
             return _MISSING
         if shape is not None and len(shape) == 2 and not flat and shape[0] != -1:
@@ -467,7 +467,7 @@ def scenario_to_dict(obj: Any) -> Any:
         out: dict[str, Any] = {}
         for f in dataclasses.fields(obj):
             val = getattr(obj, f.name)
-            if val is None:
+            if val is None or _has_nan(val):  # NaN only comes from an "unknown" default: omit it
                 continue
             if f.metadata.get("unit") in ("deg", "deg/s"):
                 val = _deg(val)
@@ -476,6 +476,12 @@ def scenario_to_dict(obj: Any) -> Any:
     if isinstance(obj, tuple):
         return [scenario_to_dict(x) for x in obj]
     return obj
+
+
+def _has_nan(val: Any) -> bool:
+    if isinstance(val, tuple):
+        return any(_has_nan(x) for x in val)
+    return isinstance(val, float) and math.isnan(val)
 
 
 def _deg(val: Any) -> Any:

@@ -207,7 +207,7 @@ def _check_inputs(**arrays: np.ndarray) -> None:
             idx = tuple(int(i) for i in np.argwhere(bad)[0])
             where = f" at index {idx}" if arr.ndim else ""
             what = "must be finite" if not finite_ok[idx] else msg
-            raise CatenaryError(f"{name} = {arr[idx]!r}{where} {what}")
+            raise CatenaryError(f"{name} = {float(arr[idx])!r}{where} {what}")
 
 
 def _initial_guess(XF, ZF, L, EA, w):
@@ -465,10 +465,7 @@ def line_profile(XF: float, ZF: float, L: float, EA: float, w: float, *, CB: flo
         sv = np.maximum(s - LB, 0.0)
         z = sv + w * sv * sv / (2 * EA)
         T = w * sv
-    elif reg == SEABED:
-        x, z = s * XF / L, np.zeros(n)
-        T = np.full(n, HF)
-    else:
+    else:  # touchdown, suspended, vertical; seabed (LB = L) through the same friction integral
         LB = float(sol.LBot)
         cbw = CB * w
         s0 = max(LB - HF / cbw, 0.0) if cbw > 0 else 0.0
@@ -478,9 +475,14 @@ def line_profile(XF: float, ZF: float, L: float, EA: float, w: float, *, CB: flo
         VA = float(sol.VA)
         sig = np.maximum(s - LB, 0.0)
         V = VA + w * sig
+        hV, hA = np.hypot(HF, V), np.hypot(HF, VA)
+        # difference-free forms as in closure(): no cancellation for small w or HF
+        den = V * hA + VA * hV  # 0 only where V = VA = 0, i.e. sig = 0
         with np.errstate(invalid="ignore", divide="ignore"):
-            x_sus = HF / w * (np.arcsinh(V / HF) - np.arcsinh(VA / HF)) + HF * sig / EA if HF > 0 else 0 * sig
-        z = (np.hypot(HF, V) - np.hypot(HF, VA)) / w + (VA * sig + 0.5 * w * sig**2) / EA
+            x_sus = np.where(den > 0, HF / w * np.arcsinh(w * sig * (V + VA) / np.where(den > 0, den, 1.0)), 0.0)
+            z_sus = np.where(hV + hA > 0, sig * (V + VA) / np.where(hV + hA > 0, hV + hA, 1.0), 0.0)
+        x_sus = x_sus + HF * sig / EA
+        z = z_sus + (VA * sig + 0.5 * w * sig**2) / EA
         x = x_bed + x_sus
         T_bed = np.maximum(HF - cbw * (LB - sb), 0.0)
         T = np.where(s <= LB, T_bed, np.hypot(HF, V))
@@ -495,14 +497,19 @@ _SYMBOLIC_CACHE: dict[Any, ca.Function] = {}
 
 
 def symbolic_function(*, abstol: float = 1e-10, max_iter: int = 50) -> ca.Function:
-    """CasADi Function ``catenary(XF, ZF, L, EA, w, CB, HF0, VF0) -> (HF, VF)``.
+    """CasADi Function ``catenary(XF, ZF, L, EA, w, CB, HF0, VF0) -> (HF, VF, closure_error)``.
 
     The fairlead tensions are the root of the same :func:`closure` residual as the numeric
-    solver, found by a CasADi ``rootfinder`` (Newton with line search), so the Function can be
-    embedded in an NLP with exact first and second derivatives (implicit function theorem).
-    ``HF0, VF0`` is the initial guess [N] — e.g. the numeric solution at a nearby configuration
-    (:func:`solve`). Valid in the regular regimes (touching down and fully suspended, HF > 0,
-    w > 0); slack, vertical, seabed and weightless lines need the numeric :func:`solve`.
+    solver, found by a CasADi ``rootfinder`` (Newton with line search on log HF, log VF, which
+    keeps both positive), so the Function can be embedded in an NLP with exact first and second
+    derivatives (implicit function theorem). ``HF0, VF0`` is the initial guess [N] — e.g. the
+    numeric solution at a nearby configuration (:func:`solve`).
+
+    ``closure_error`` [m] is the largest span error of the returned tensions, recomputed from the
+    closure equations (``inf`` if they are not finite). CasADi's rootfinder does not always report a
+    failed solve, so **a caller must check it** (e.g. ``closure_error < 1e-6``); a poor guess can
+    leave Newton far from the root. Valid in the regular regimes (touching down and fully
+    suspended, HF > 0, w > 0); slack, vertical, seabed and weightless lines need :func:`solve`.
 
     Inputs and outputs are scalars; use ``Function.map`` for several lines.
     """
@@ -512,13 +519,17 @@ def symbolic_function(*, abstol: float = 1e-10, max_iter: int = 50) -> ca.Functi
     z = ca.SX.sym("z", 2)
     p = ca.SX.sym("p", 6)
     XF, ZF, L, EA, w, CB = (p[i] for i in range(6))
-    X, Z = closure(z[0], z[1], L, EA, w, CB)
+    X, Z = closure(ca.exp(z[0]), ca.exp(z[1]), L, EA, w, CB)
     g = ca.Function("catenary_residual", [z, p], [ca.vertcat(X - XF, Z - ZF)])
-    rf = ca.rootfinder("catenary_rf", "fast_newton", g,
-                       {"abstol": abstol, "max_iter": max_iter, "error_on_fail": False})
+    rf = ca.rootfinder("catenary_rf", "newton", g,
+                       {"abstol": abstol, "max_iter": max_iter, "line_search": True, "error_on_fail": False})
     names = ["XF", "ZF", "L", "EA", "w", "CB", "HF0", "VF0"]
     syms = [ca.MX.sym(nm) for nm in names]
-    sol = rf(ca.vertcat(syms[6], syms[7]), ca.vertcat(*syms[:6]))
-    fn = ca.Function("catenary", syms, [sol[0], sol[1]], names, ["HF", "VF"])
+    sol = rf(ca.log(ca.vertcat(syms[6], syms[7])), ca.vertcat(*syms[:6]))
+    HF, VF = ca.exp(sol[0]), ca.exp(sol[1])
+    Xc, Zc = closure(HF, VF, *syms[2:6])
+    err = ca.fmax(ca.fabs(Xc - syms[0]), ca.fabs(Zc - syms[1]))
+    err = ca.if_else(err <= 1e300, err, ca.inf)  # NaN compares false: reported as inf
+    fn = ca.Function("catenary", syms, [HF, VF, err], names, ["HF", "VF", "closure_error"])
     _SYMBOLIC_CACHE[key] = fn
     return fn

@@ -223,7 +223,8 @@ class MooringModel:
 
     # -- symbolic --------------------------------------------------------------------------
     def force_function(self, kind: Literal["catenary", "linear", "characteristic"] = "catenary",
-                       *, eta0=(0.0, 0.0, 0.0)) -> ca.Function:
+                       *, eta0=(0.0, 0.0, 0.0), closure_tol: float = 1e-6,
+                       with_closure_error: bool = False) -> ca.Function:
         """CasADi Function ``tau_moor(eta) -> tau`` for control design.
 
         Parameters
@@ -234,11 +235,18 @@ class MooringModel:
             ``"linear"``: the linear spring ``g(eta0) - R(psi)^T G_mo (eta - eta0)`` (eq. 29).
         eta0 : array_like, shape (3,)
             Working point [m, m, rad] for the linearised kinds and the Newton initial guess.
+        closure_tol : float
+            ``"catenary"`` only: if any line's root misses its spans by more than this [m], the
+            load is NaN instead of a wrong number (an NLP solver treats NaN as an evaluation error
+            and shortens its step).
+        with_closure_error : bool
+            ``"catenary"`` only: add a second output ``closure_error`` [m], the largest over lines.
         """
-        key = ("force", kind, tuple(np.asarray(eta0, dtype=float)))
+        key = ("force", kind, tuple(np.asarray(eta0, dtype=float)), closure_tol, with_closure_error)
         if key in self._cache:
             return self._cache[key]
         eta = ca.MX.sym("eta", 3)
+        outs, names = [], ["tau_moor"]
         if kind == "catenary":
             sol0 = self.solve_lines(eta0)
             _, _, XF0 = self.spans(np.asarray(eta0, dtype=float))
@@ -248,14 +256,20 @@ class MooringModel:
             HF0 = ca.fmax(DM(sol0.HF) + DM(sol0.dHF_dXF) * dX, DM(0.1 * sol0.HF + 1.0))
             VF0 = ca.fmax(DM(sol0.VF) + DM(sol0.dVF_dXF) * dX, DM(0.1 * sol0.VF + 1.0))
             cat = catenary.symbolic_function().map(self.n_lines)
-            HF, _ = cat(XF.T, self.ZF[None, :], self.L[None, :], self.EA[None, :], self.w[None, :],
-                        self.CB[None, :], HF0.T, VF0.T)
+            HF, _, err = cat(XF.T, self.ZF[None, :], self.L[None, :], self.EA[None, :], self.w[None, :],
+                             self.CB[None, :], HF0.T, VF0.T)
+            worst = ca.mmax(err)
             tau = self.tau_from_H(eta, HF.T)
+            tau = ca.if_else(worst <= closure_tol, tau, ca.DM.nan(3, 1))
+            outs = [tau]
+            if with_closure_error:
+                outs.append(worst)
+                names.append("closure_error")
         elif kind in ("linear", "characteristic"):
-            tau = self.linearised(eta0).force(eta, kind=kind)
+            outs = [self.linearised(eta0).force(eta, kind=kind)]
         else:
             raise ModelError(f"kind = {kind!r} is not one of 'catenary', 'linear', 'characteristic'")
-        fn = ca.Function(f"tau_moor_{kind}", [eta], [tau], ["eta"], ["tau_moor"])
+        fn = ca.Function(f"tau_moor_{kind}", [eta], outs, ["eta"], names)
         self._cache[key] = fn
         return fn
 

@@ -1,0 +1,653 @@
+"""Tests of scenario loading and validation (tapm_opt.config): the built-in scenarios are valid,
+immutable, round-trip through dicts and are physically sound (checked with the catenary); bad input
+gives a ScenarioError naming the field path and the value; the field reference in
+docs/scenarios.md follows the schema."""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+import re
+import tomllib
+import types
+import typing
+from pathlib import Path
+from typing import Any, Literal, get_args, get_origin, get_type_hints
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import tapm_opt
+from tapm_opt.config import (
+    builtin_scenarios,
+    load_scenario,
+    scenario_from_dict,
+    scenario_to_dict,
+    schema,
+)
+from tapm_opt.config.loader import file_key
+from tapm_opt.config.reference import BEGIN_MARKER, END_MARKER, SECTIONS, field_reference_markdown
+from tapm_opt.errors import ScenarioError, ScenarioIssue
+from tapm_opt.models.mooring import MooringModel
+
+DOC = Path(__file__).resolve().parents[1] / "docs" / "scenarios.md"
+EXPECTED_BUILTINS = {"aamo4", "fpso", "ren8"}
+
+
+# ------------------------------------------------------------------------------------------
+# helpers
+# ------------------------------------------------------------------------------------------
+
+
+@functools.lru_cache(maxsize=None)
+def builtin(name: str) -> schema.Scenario:
+    return load_scenario(name)
+
+
+def doc_example_text() -> str:
+    blocks = re.findall(r"```toml\n(.*?)```", DOC.read_text(encoding="utf-8"), re.S)
+    assert len(blocks) == 1, "docs/scenarios.md must hold exactly one ```toml block: the complete example"
+    return blocks[0]
+
+
+def base(name: str = "aamo4") -> dict:
+    """A fresh, valid scenario dict (file keys, degrees) to corrupt."""
+    if name == "doc_example":
+        return tomllib.loads(doc_example_text())
+    return scenario_to_dict(builtin(name))
+
+
+def issues_of(data: dict) -> tuple[ScenarioIssue, ...]:
+    with pytest.raises(ScenarioError) as info:
+        scenario_from_dict(data)
+    return info.value.issues
+
+
+def issue_at(issues: tuple[ScenarioIssue, ...], path: str) -> ScenarioIssue:
+    found = [i for i in issues if i.path == path]
+    assert found, f"no issue at {path!r}; issues: {[str(i) for i in issues]}"
+    return found[0]
+
+
+def assert_close(a: Any, b: Any, where: str = "scenario") -> None:
+    """Recursive equality with a tolerance on floats (angles pass through degrees and back)."""
+    if dataclasses.is_dataclass(a):
+        assert type(a) is type(b), where
+        for f in dataclasses.fields(a):
+            assert_close(getattr(a, f.name), getattr(b, f.name), f"{where}.{f.name}")
+    elif isinstance(a, tuple):
+        assert isinstance(b, tuple) and len(a) == len(b), where
+        for i, (x, y) in enumerate(zip(a, b)):
+            assert_close(x, y, f"{where}[{i}]")
+    elif isinstance(a, float) and isinstance(b, float):
+        assert (math.isnan(a) and math.isnan(b)) or math.isclose(a, b, rel_tol=1e-12, abs_tol=1e-12), \
+            f"{where}: {a!r} != {b!r}"
+    else:
+        assert a == b, f"{where}: {a!r} != {b!r}"
+
+
+# ------------------------------------------------------------------------------------------
+# built-in scenarios: load, immutable, round trip
+# ------------------------------------------------------------------------------------------
+
+
+def test_builtin_names():
+    assert set(builtin_scenarios()) == EXPECTED_BUILTINS
+
+
+@pytest.mark.parametrize("name", sorted(EXPECTED_BUILTINS))
+def test_builtin_loads_by_name_and_path(name):
+    sc = tapm_opt.load_scenario(name)
+    assert isinstance(sc, schema.Scenario)
+    assert sc.name == name
+    assert sc.lines and sc.sea_states and sc.limits.safe_radius is not None
+    from_path = load_scenario(tapm_opt.config.BUILTIN_DIR / f"{name}.toml")
+    assert from_path == sc
+
+
+@pytest.mark.parametrize("name", sorted(EXPECTED_BUILTINS))
+def test_builtin_is_immutable(name):
+    sc = builtin(name)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        sc.meta = schema.Meta(name="other")  # type: ignore[misc]
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        sc.environment.water_depth = 1.0  # type: ignore[misc]
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        sc.lines[0].length = 1.0  # type: ignore[misc]
+    with pytest.raises(TypeError):
+        sc.lines[0] = sc.lines[1]  # type: ignore[index]
+    with pytest.raises(ValueError):  # derived arrays are read-only
+        sc.vessel.M[0, 0] = 1.0
+    with pytest.raises(ValueError):
+        sc.anchors[0, 0] = 1.0
+
+
+@pytest.mark.parametrize("name", sorted(EXPECTED_BUILTINS))
+def test_builtin_round_trips_through_dict(name):
+    sc = builtin(name)
+    data = scenario_to_dict(sc)
+    assert_close(scenario_from_dict(data), sc)
+    # angles leave in degrees under their file keys
+    assert "fairlead_angle_deg" in data["lines"][1]
+    assert data["lines"][1]["fairlead_angle_deg"] == pytest.approx(math.degrees(sc.lines[1].fairlead_angle))
+
+
+def test_round_trip_keeps_an_unset_reference_point_unset():
+    sc = builtin("aamo4")
+    assert math.isnan(sc.vessel.reference_point[0])  # default: unknown
+    data = scenario_to_dict(sc)
+    assert "reference_point" not in data["vessel"]  # NaN cannot be written to TOML
+    assert math.isnan(scenario_from_dict(data).vessel.reference_point[0])
+
+
+def test_round_trip_converts_degrees_back():
+    data = scenario_to_dict(builtin("fpso"))
+    extreme = next(s for s in data["sea_states"] if s["id"] == "extreme")
+    assert extreme["current_direction_deg"] == pytest.approx(210.0)
+    assert data["thrusters"][0]["max_azimuth_rate_deg_s"] == pytest.approx(10.0)
+
+
+# ------------------------------------------------------------------------------------------
+# built-in scenarios: physics at the field zero point (catenary)
+# ------------------------------------------------------------------------------------------
+
+
+@functools.lru_cache(maxsize=None)
+def at_rest(name: str):
+    sc = builtin(name)
+    model = MooringModel.from_scenario(sc)
+    return sc, model, model.solve_lines(np.zeros(3))
+
+
+@pytest.mark.parametrize("name", sorted(EXPECTED_BUILTINS))
+def test_builtin_net_mooring_load_vanishes_at_field_zero_point(name):
+    # all three built-ins are symmetric patterns about the centre of turret at eta = 0
+    sc, model, sol = at_rest(name)
+    tau = model.force(np.zeros(3))
+    scale = float(np.sum(sol.HF))
+    assert abs(tau[0]) < 1e-6 * scale and abs(tau[1]) < 1e-6 * scale
+    assert abs(tau[2]) < 1e-6 * scale * max(sc.vessel.length_pp, 1.0)
+    # and it is a restoring mooring: pushing the vessel north pulls it back south
+    assert model.force(np.array([10.0, 0.0, 0.0]))[0] < -1e-3 * scale
+
+
+@pytest.mark.parametrize("name", sorted(EXPECTED_BUILTINS))
+def test_builtin_pretension_below_mbs_and_strain_within_limit(name):
+    sc, _, sol = at_rest(name)
+    la = sc.line_arrays
+    assert np.all(sol.TF > 0)
+    assert np.all(sol.TF < la["MBS"])
+    assert np.all(sol.TF < sc.limits.tension_utilisation * la["MBS"])
+    assert np.all(sol.TF / la["EA"] < la["strain_limit"])
+
+
+def test_fpso_lines_touch_down_with_realistic_pretension_and_periods():
+    sc, model, sol = at_rest("fpso")
+    assert set(sol.regime_names()) == {"touchdown"}
+    assert np.all(sol.LBot > 0.05 * sc.line_arrays["L"])
+    utilisation = sol.TF / sc.line_arrays["MBS"]
+    assert np.all((utilisation > 0.10) & (utilisation < 0.20))
+    K = model.stiffness(np.zeros(3))
+    assert K[0, 0] == pytest.approx(K[1, 1], rel=1e-6)  # 3 x 4 bundles: isotropic
+    T_surge = 2 * np.pi * np.sqrt(sc.vessel.M[0, 0] / K[0, 0])
+    assert 100.0 < T_surge < 350.0
+    assert 2.0e8 < sc.vessel.M[0, 0] < 3.0e8
+    assert len(sc.thrusters) == 6 and all(t.kind == "azimuth" for t in sc.thrusters)
+    assert {s.id for s in sc.sea_states} >= {"calm", "normal", "extreme"}
+    assert sc.riser is not None
+
+
+def test_ren8_corrections_make_the_seed_system_physical():
+    sc, _, sol = at_rest("ren8")
+    lt = sc.line_types[0]
+    assert lt.max_strain == 0.005 and lt.submerged_weight == 275.0  # Table 2, weight reading
+    assert lt.Cd_normal > lt.Cd_tangential  # Table 2's swapped drag coefficients put back
+    radii = np.hypot(sc.anchors[:, 0], sc.anchors[:, 1])
+    np.testing.assert_allclose(radii, 1960.0, atol=0.1)  # one anchor circle
+    assert np.all(sol.TF / lt.EA < 0.005)
+    assert set(sol.regime_names()) == {"touchdown"}
+    # as printed (cardinal anchors at 2030 m) the line would exceed Table 2's strain limit
+    from tapm_opt.models import catenary
+    printed = catenary.solve(2030.0 - 20.0, 1000.0, 2250.0, lt.EA, lt.w(sc.environment))
+    assert printed.TF / lt.EA > 0.005
+
+
+# ------------------------------------------------------------------------------------------
+# bad input: each error names the field path and the value
+# ------------------------------------------------------------------------------------------
+
+
+def test_missing_field():
+    data = base()
+    del data["environment"]["water_depth"]
+    issue = issue_at(issues_of(data), "environment.water_depth")
+    assert "missing required field" in issue.message and "[m]" in issue.message
+
+
+def test_unknown_key_suggests_the_closest():
+    data = base()
+    data["environment"]["water_dpeth"] = data["environment"].pop("water_depth")
+    issues = issues_of(data)
+    assert "did you mean 'water_depth'" in issue_at(issues, "environment.water_dpeth").message
+    issue_at(issues, "environment.water_depth")  # and the real key is reported missing
+
+
+def test_unknown_angle_key_suggests_the_deg_key():
+    data = base()
+    data["lines"][0]["fairlead_angle"] = data["lines"][0].pop("fairlead_angle_deg")
+    assert "did you mean 'fairlead_angle_deg'" in issue_at(issues_of(data), "lines[0].fairlead_angle").message
+
+
+def test_wrong_type():
+    data = base()
+    data["lines"][2]["length"] = "long"
+    message = issue_at(issues_of(data), "lines[2].length").message
+    assert "must be a number" in message and "'long'" in message
+
+
+@pytest.mark.parametrize("literal, path", [
+    ("nan", "environment.water_depth"),
+    ("inf", "environment.water_depth"),
+    ("-inf", "environment.water_depth"),
+])
+def test_nan_and_inf_in_toml_are_rejected(literal, path):
+    text = (tapm_opt.config.BUILTIN_DIR / "aamo4.toml").read_text()
+    text = text.replace("water_depth = 1000.0", f"water_depth = {literal}")
+    issue = issue_at(issues_of(tomllib.loads(text)), path)
+    assert literal.lstrip("-") in issue.message and "finite" in issue.message
+
+
+def test_nan_inside_a_matrix_names_the_entry():
+    data = base()
+    data["vessel"]["mass_matrix"][1][2] = float("nan")
+    assert "finite" in issue_at(issues_of(data), "vessel.mass_matrix[1][2]").message
+
+
+@pytest.mark.parametrize("section, index, key, value, expect", [
+    ("lines", 1, "length", 0.0, "= 0 m must be > 0"),
+    ("lines", 1, "length", -1200.0, "= -1200 m must be > 0"),
+    ("line_types", 0, "mass_per_length", -27.6, "= -27.6 kg/m must be > 0"),
+    ("line_types", 0, "EA", 0.0, "= 0 N must be > 0"),
+    ("line_types", 0, "MBS", -1.0, "= -1 N must be > 0"),
+    ("line_types", 0, "diameter", 0.0, "= 0 m must be > 0"),
+])
+def test_non_positive_sizes(section, index, key, value, expect):
+    data = base()
+    data[section][index][key] = value
+    assert expect in issue_at(issues_of(data), f"{section}[{index}].{key}").message
+
+
+def test_non_positive_vessel_size_and_depth():
+    data = base()
+    data["vessel"]["length_pp"] = -230.0
+    data["environment"]["water_depth"] = 0.0
+    issues = issues_of(data)
+    assert "= -230 m must be > 0" in issue_at(issues, "vessel.length_pp").message
+    assert "= 0 m must be > 0" in issue_at(issues, "environment.water_depth").message
+
+
+def test_anchor_above_the_seabed():
+    data = base()
+    data["lines"][0]["anchor"] = [2000.0, 0.0, 900.0]
+    message = issue_at(issues_of(data), "lines[0].anchor[2]").message
+    assert "= 900 m" in message and "above the seabed" in message and "1000" in message
+
+
+def test_anchor_with_wrong_number_of_components():
+    data = base()
+    data["lines"][0]["anchor"] = [2000.0]
+    assert "got 1 numbers" in issue_at(issues_of(data), "lines[0].anchor").message
+
+
+def test_fairleads_below_the_seabed():
+    data = base()
+    data["turret"]["fairlead_depth"] = 1200.0
+    message = issue_at(issues_of(data), "turret.fairlead_depth").message
+    assert "= 1200 m" in message and "below the seabed" in message
+
+
+def test_mass_matrix_not_symmetric():
+    data = base()
+    data["vessel"]["mass_matrix"][1][2] = -5.0e9
+    data["vessel"]["mass_matrix"][2][1] = -4.0e9
+    message = issue_at(issues_of(data), "vessel.mass_matrix").message
+    assert "symmetric" in message and "-5e+09" in message and "-4e+09" in message
+
+
+def test_mass_matrix_not_positive_definite():
+    data = base()
+    data["vessel"]["mass_matrix"][0][0] = -9.6e7
+    message = issue_at(issues_of(data), "vessel.mass_matrix").message
+    assert "positive definite" in message and "-9.6e+07" in message
+
+
+def test_linear_damping_not_positive_semidefinite():
+    data = base()
+    data["vessel"]["linear_damping"][0][0] = -9.2e5
+    assert "positive semidefinite" in issue_at(issues_of(data), "vessel.linear_damping").message
+
+
+def test_duplicate_ids():
+    data = base()
+    data["lines"][2]["id"] = data["lines"][0]["id"]
+    message = issue_at(issues_of(data), "lines[2].id").message
+    assert "'1'" in message and "unique" in message
+
+
+def test_line_type_not_defined_suggests_the_closest():
+    data = base()
+    data["lines"][1]["type"] = "cabel"
+    message = issue_at(issues_of(data), "lines[1].type").message
+    assert "'cabel' is not a line type" in message and "did you mean 'cable'" in message
+
+
+def test_line_too_short_to_reach_its_anchor():
+    data = base()  # aamo4: anchor 4 at (0, -2000), 1000 m deep, fairlead at the turret centre
+    data["lines"][3]["length"] = 1200.0
+    with pytest.raises(ScenarioError) as info:
+        scenario_from_dict(data)
+    issue = issue_at(info.value.issues, "lines[3].length")
+    assert "= 1200 m cannot reach the anchor from the fairlead (distance 2236 m) within" in issue.message
+    assert "lines[3].length = 1200 m cannot reach the anchor from the fairlead (distance 2236 m) within the line " \
+           "type's strain at MBS 2.17 %" in str(info.value)
+
+
+def test_line_reach_uses_the_max_strain_when_given():
+    data = base("ren8")  # straight span 2182.6 m, L = 2250 m: fine
+    data["lines"][0]["length"] = 2180.0  # 2180 * 1.005 = 2190.9 > 2182.6: reaches
+    scenario_from_dict(data)
+    data["lines"][0]["length"] = 2170.0  # 2170 * 1.005 = 2180.9 < 2182.6: too short
+    assert "max strain 0.5 %" in issue_at(issues_of(data), "lines[0].length").message
+
+
+def test_azimuth_thruster_without_azimuth_rate():
+    data = base("fpso")
+    del data["thrusters"][2]["max_azimuth_rate_deg_s"]
+    assert "required for an azimuth" in issue_at(issues_of(data), "thrusters[2].max_azimuth_rate_deg_s").message
+
+
+def test_reverse_thrust_on_an_azimuth_thruster():
+    data = base("fpso")
+    data["thrusters"][0]["max_reverse_thrust"] = 1.0e5
+    message = issue_at(issues_of(data), "thrusters[0].max_reverse_thrust").message
+    assert "= 100000 N must be 0" in message
+
+
+def test_azimuth_rate_on_a_tunnel_thruster():
+    data = base("doc_example")
+    data["thrusters"][1]["max_azimuth_rate_deg_s"] = 5.0
+    assert "only allowed for azimuth" in issue_at(issues_of(data), "thrusters[1].max_azimuth_rate_deg_s").message
+
+
+def test_fault_naming_a_missing_line():
+    data = base("doc_example")
+    data["faults"][0]["line"] = "99"
+    message = issue_at(issues_of(data), "faults[0].line").message
+    assert "'99' is not a line id" in message and "'1'" in message
+
+
+def test_fault_naming_a_missing_thruster():
+    data = base("doc_example")
+    data["faults"].append({"kind": "thruster_failure", "time": 10.0, "thruster": "stern"})
+    assert "'stern' is not a thruster id" in issue_at(issues_of(data), "faults[1].thruster").message
+
+
+def test_alert_radius_below_safe_radius():
+    data = base()
+    data["limits"]["alert_radius"] = 40.0
+    message = issue_at(issues_of(data), "limits.alert_radius").message
+    assert "= 40 m must exceed safe_radius = 50 m" in message
+
+
+def test_all_parse_errors_are_reported_at_once():
+    data = base()
+    del data["environment"]["water_depth"]
+    data["vessel"]["draught"] = "deep"
+    data["line_types"][0]["EA"] = float("inf")
+    data["lines"][1]["length"] = -3.0
+    data["turret"]["modee"] = "free"
+    with pytest.raises(ScenarioError) as info:
+        scenario_from_dict(data)
+    paths = {i.path for i in info.value.issues}
+    assert paths == {"environment.water_depth", "vessel.draught", "line_types[0].EA", "lines[1].length",
+                     "turret.modee"}
+    assert "5 problems" in str(info.value)
+    for path in paths:
+        assert path in str(info.value)
+
+
+def test_all_cross_field_errors_are_reported_at_once():
+    data = base("doc_example")
+    data["lines"][2]["id"] = "1"
+    data["lines"][1]["type"] = "rope"
+    data["turret"]["fairlead_depth"] = 400.0
+    data["thrusters"][0]["max_reverse_thrust"] = 1.0e4
+    data["faults"][0]["line"] = "7"
+    data["limits"]["alert_radius"] = 10.0
+    paths = {i.path for i in issues_of(data)}
+    assert {"lines[2].id", "lines[1].type", "turret.fairlead_depth", "thrusters[0].max_reverse_thrust",
+            "faults[0].line", "limits.alert_radius"} <= paths
+
+
+def test_load_scenario_unknown_name_lists_the_builtins():
+    with pytest.raises(ScenarioError) as info:
+        load_scenario("no_such")
+    message = str(info.value)
+    assert "'no_such'" in message
+    for name in EXPECTED_BUILTINS:
+        assert name in message
+
+
+def test_malformed_toml_reports_the_line(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[meta]\nname = "x"\nwater_depth 1000.0\n', encoding="utf-8")
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(bad)
+    message = str(info.value)
+    assert "bad.toml" in message and "not valid TOML" in message and "line 3" in message
+
+
+def test_a_file_with_errors_names_the_file(tmp_path):
+    text = (tapm_opt.config.BUILTIN_DIR / "aamo4.toml").read_text().replace("length = 2250.0", "length = -1.0", 1)
+    bad = tmp_path / "short.toml"
+    bad.write_text(text, encoding="utf-8")
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(bad)
+    assert info.value.source.endswith("short.toml")
+    assert "lines[0].length" in str(info.value) and "-1" in str(info.value)
+
+
+# ------------------------------------------------------------------------------------------
+# property: corrupt one field, get a ScenarioError naming it (or a valid scenario) — never a crash
+# ------------------------------------------------------------------------------------------
+
+_TOKEN = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)((?:\[\d+\])*)")
+
+
+def _leaves(d: dict, prefix: str = ""):
+    for k, v in d.items():
+        p = f"{prefix}.{k}" if prefix else k
+        if isinstance(v, dict):
+            yield from _leaves(v, p)
+        elif isinstance(v, list) and v and all(isinstance(x, dict) for x in v):
+            for i, x in enumerate(v):
+                yield from _leaves(x, f"{p}[{i}]")
+        else:
+            yield p
+
+
+def _parts(path: str) -> list[str | int]:
+    out: list[str | int] = []
+    for name, idx in _TOKEN.findall(path):
+        out.append(name)
+        out += [int(i) for i in re.findall(r"\d+", idx)]
+    return out
+
+
+def _set(d: Any, path: str, value: Any) -> None:
+    parts = _parts(path)
+    for p in parts[:-1]:
+        d = d[p]
+    d[parts[-1]] = value
+
+
+def _get(d: Any, path: str) -> Any:
+    for p in _parts(path):
+        d = d[p]
+    return d
+
+
+def _unwrap(tp: Any) -> Any:
+    if get_origin(tp) in (typing.Union, types.UnionType):
+        tp = next(a for a in get_args(tp) if a is not type(None))
+    return tp
+
+
+def _field(path: str) -> tuple[dataclasses.Field, Any]:
+    """Schema field and (unwrapped) type of a file path such as ``lines[3].anchor``."""
+    cls: Any = schema.Scenario
+    names = [p for p in _parts(path) if isinstance(p, str)]
+    for i, name in enumerate(names):
+        fields = {file_key(f): f for f in dataclasses.fields(cls)}
+        f = fields[name]
+        tp = _unwrap(get_type_hints(cls)[f.name])
+        if i == len(names) - 1:
+            return f, tp
+        cls = get_args(tp)[0] if get_origin(tp) is tuple else tp
+    raise AssertionError(path)  # pragma: no cover
+
+
+def _is_text(tp: Any) -> bool:
+    return tp is str or (get_origin(tp) is tuple and get_args(tp)[0] is str)
+
+
+def _is_numeric(tp: Any) -> bool:
+    if tp in (int, float):
+        return True
+    if get_origin(tp) is tuple:
+        inner = get_args(tp)[0]
+        return inner in (int, float) or (get_origin(inner) is tuple and get_args(inner)[0] in (int, float))
+    return False
+
+
+def _first_number_path(value: Any, path: str) -> str:
+    while isinstance(value, list):
+        value, path = value[0], f"{path}[0]"
+    return path
+
+
+BASES = ("aamo4", "ren8", "fpso", "doc_example")
+KINDS = ("negative", "nan", "inf", "bool", "string", "list", "empty")
+
+
+@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(data=st.data())
+def test_property_one_corrupted_field_is_reported_by_path(data):
+    """Corrupt one field of a valid scenario: it still loads, or a ScenarioError names that field
+    (always when the value breaks the field's own type or range); never another exception."""
+    scenario = base(data.draw(st.sampled_from(BASES), label="base"))
+    path = data.draw(st.sampled_from(sorted(_leaves(scenario))), label="path")
+    f, tp = _field(path)
+    is_array = get_origin(tp) is tuple
+    kinds = [k for k in KINDS
+             if not (k == "string" and _is_text(tp) and get_origin(tp) is not Literal)
+             and not (k == "negative" and not _is_numeric(tp))
+             and not (k == "list" and is_array)
+             and not (k == "empty" and not (is_array and _is_numeric(tp)))]
+    kind = data.draw(st.sampled_from(kinds), label="kind")
+    original = _get(scenario, path)
+    target = path
+    if isinstance(original, list) and original and kind not in ("string", "empty"):
+        target = _first_number_path(original, path)  # corrupt one entry of the array
+        original = _get(scenario, target)
+    shape = f.metadata.get("shape") or ()
+    bad: Any = {
+        "negative": -abs(original) - 1 if isinstance(original, (int, float)) else -1.0,
+        "nan": float("nan"),
+        "inf": data.draw(st.sampled_from([float("inf"), float("-inf")])),
+        "bool": True,
+        "string": data.draw(st.sampled_from(["oops", "", "1e3", "nan"])),
+        "list": [1.5],
+        "empty": [[]] if len(shape) == 2 else [],
+    }[kind]
+    _set(scenario, target, bad)
+
+    check = f.metadata.get("check")
+    if kind == "negative":
+        invalid_here = check is not None and check(bad) is not None
+    elif kind == "empty":  # an empty array is wrong where the shape fixes a length
+        invalid_here = (shape[0] != -1) if bad == [] else (shape[1] != -1)
+    else:
+        invalid_here = True
+    try:
+        scenario_from_dict(scenario)
+    except ScenarioError as exc:
+        assert exc.issues and all(i.path for i in exc.issues), str(exc)
+        if invalid_here:
+            assert path in str(exc), f"{path} <- {bad!r}: {exc}"
+    else:
+        assert not invalid_here, f"{path} <- {bad!r} was accepted"
+
+
+@pytest.mark.parametrize("where, path, value", [
+    ("turret", "position", []),
+    ("vessel", "quadratic_damping", []),
+    ("vessel", "mass_matrix", [[]]),
+])
+def test_empty_arrays_of_fixed_shape_are_rejected(where, path, value):
+    data = base("fpso")
+    data[where][path] = value
+    assert "must have shape" in issue_at(issues_of(data), f"{where}.{path}").message
+
+
+def test_empty_forbidden_sector_is_rejected():
+    data = base("doc_example")
+    data["thrusters"][0]["forbidden_sectors_deg"] = [[]]
+    assert "must have shape (-1, 2)" in issue_at(issues_of(data), "thrusters[0].forbidden_sectors_deg").message
+    data["thrusters"][0]["forbidden_sectors_deg"] = []  # no sector at all is fine
+    assert scenario_from_dict(data).thrusters[0].forbidden_sectors == ()
+
+
+# ------------------------------------------------------------------------------------------
+# docs/scenarios.md follows the schema
+# ------------------------------------------------------------------------------------------
+
+
+def test_doc_field_reference_matches_the_schema():
+    text = DOC.read_text(encoding="utf-8")
+    assert text.count(BEGIN_MARKER) == 1 and text.count(END_MARKER) == 1
+    between = text.split(BEGIN_MARKER, 1)[1].split(END_MARKER, 1)[0]
+    assert between.strip() == field_reference_markdown().strip(), \
+        "docs/scenarios.md is stale: run python -m tapm_opt.config.reference docs/scenarios.md"
+
+
+def test_field_reference_covers_every_field_with_unit_default_and_range():
+    md = field_reference_markdown()
+    assert {key for key, _, _ in SECTIONS} == {file_key(f) for f in dataclasses.fields(schema.Scenario)}
+    tables = md.split("\n### ")
+    for key, toml_name, cls in SECTIONS:
+        table = next(t for t in tables if t.startswith(f"`{toml_name}`"))
+        rows = {r.split(" | ")[0].strip("| `"): r for r in table.splitlines() if r.startswith("| `")}
+        for f in dataclasses.fields(cls):
+            row = rows[file_key(f)]
+            if f.metadata.get("unit"):
+                assert f.metadata["unit"].replace("|", "\\|") in row
+            if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
+                assert "| required |" in row
+            check = f.metadata.get("check")
+            if check is not None:
+                assert check.__doc__ in row
+    assert "| `fairlead_angle_deg` | number | deg | required |" in md
+    assert "| `water_density` | number | kg/m^3 | `1025` | [900, 1100] |" in md
+
+
+def test_doc_example_loads():
+    sc = scenario_from_dict(tomllib.loads(doc_example_text()))
+    assert len(sc.lines) == 3
+    assert sc.lines[1].fairlead_angle == pytest.approx(math.radians(120.0))
+    sol = MooringModel.from_scenario(sc).solve_lines(np.zeros(3))
+    assert np.all(sol.TF < 0.2 * sc.line_arrays["MBS"])  # the pretension the doc claims (about 14 %)
+    assert set(sol.regime_names()) == {"touchdown"}
