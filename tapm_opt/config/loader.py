@@ -336,6 +336,13 @@ def validate(sc: Scenario) -> list[ScenarioIssue]:
                 f"{p}.anchor[2]",
                 f"= {ln.anchor[2]:g} m puts the anchor {where} the seabed (water depth {env.water_depth:g} m, z down)"))
             continue
+        lo, hi = ln.length_limits
+        if not lo <= ln.length <= hi:
+            issues.append(ScenarioIssue(
+                f"{p}.length", f"= {ln.length:g} m is outside the winch limits [{lo:g}, {hi:g}] m"))
+        if (ln.min_length is not None or ln.max_length is not None) and ln.winch_max_rate == 0:
+            issues.append(ScenarioIssue(
+                f"{p}.winch_max_rate", "= 0 m/s: length limits are given but the line has no winch (set a rate)"))
         lt = sc.line_type(ln)
         fx = sc.turret.position[0] + c * fl[i, 0] - s * fl[i, 1]
         fy = sc.turret.position[1] + s * fl[i, 0] + c * fl[i, 1]

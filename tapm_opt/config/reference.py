@@ -25,20 +25,22 @@ __all__ = ["BEGIN_MARKER", "END_MARKER", "SECTIONS", "field_reference_markdown",
 BEGIN_MARKER = "<!-- BEGIN FIELD REFERENCE -->"
 END_MARKER = "<!-- END FIELD REFERENCE -->"
 
-#: Section headings of the reference: (file key, how it appears in TOML, dataclass).
-SECTIONS: tuple[tuple[str, str, type], ...] = (
-    ("meta", "[meta]", schema.Meta),
-    ("environment", "[environment]", schema.Environment),
-    ("vessel", "[vessel]", schema.Vessel),
-    ("turret", "[turret]", schema.Turret),
-    ("line_types", "[[line_types]]", schema.LineType),
-    ("lines", "[[lines]]", schema.Line),
-    ("thrusters", "[[thrusters]]", schema.Thruster),
-    ("sea_states", "[[sea_states]]", schema.SeaState),
-    ("riser", "[riser]", schema.Riser),
-    ("faults", "[[faults]]", schema.Fault),
-    ("limits", "[limits]", schema.Limits),
-)
+def _sections() -> tuple[tuple[str, str, type], ...]:
+    """(file key, how it appears in TOML, dataclass) of every section of :class:`schema.Scenario`."""
+    out = []
+    hints = typing.get_type_hints(schema.Scenario)
+    for f in dataclasses.fields(schema.Scenario):
+        tp = hints[f.name]
+        args = [a for a in typing.get_args(tp) if a is not type(None)]
+        if typing.get_origin(tp) is tuple:
+            out.append((f.name, f"[[{f.name}]]", args[0]))
+        else:
+            out.append((f.name, f"[{f.name}]", args[0] if args else tp))
+    return tuple(out)
+
+
+#: Section headings of the reference, derived from the Scenario dataclass.
+SECTIONS: tuple[tuple[str, str, type], ...] = _sections()
 
 _HEADER = ("file key", "type", "unit", "default", "allowed", "description")
 

@@ -211,7 +211,11 @@ class LineType:
     max_strain: float | None = spec(
         "Largest allowed axial strain; absent: the strain at MBS, MBS/EA.", default=None, check=in_range(0.0, 1.0)
     )
-    seabed_friction: float = spec("Seabed friction coefficient C_B (catenary).", default=0.0, check=nonneg)
+    seabed_friction: float = spec("Seabed friction coefficient C_B (catenary and FEM seabed contact).", default=0.0,
+                                  check=nonneg)
+    axial_damping_ratio: float = spec(
+        "FEM axial internal damping as a fraction of the critical damping of one segment's axial mode.",
+        default=0.0, check=in_range(0.0, 1.0))
 
     def w(self, env: Environment) -> float:
         """Submerged weight per unit unstretched length [N/m]."""
@@ -243,6 +247,19 @@ class Line:
     )
     length: float = spec("Unstretched length L.", "m", check=positive)
     segments: int = spec("Number of FEM segments n (nodes 0..n, 0 at the anchor).", default=20, check=at_least(2))
+    winch_max_rate: float = spec("Largest winch pay-out/haul-in speed (0: no winch).", "m/s", default=0.0,
+                                 check=nonneg)
+    min_length: float | None = spec("Shortest unstretched length the winch may haul in to; absent: length.", "m",
+                                    default=None, check=positive)
+    max_length: float | None = spec("Longest unstretched length the winch may pay out to; absent: length.", "m",
+                                    default=None, check=positive)
+
+    @property
+    def length_limits(self) -> tuple[float, float]:
+        """(shortest, longest) unstretched length the winch allows [m]."""
+        lo = self.length if self.min_length is None else self.min_length
+        hi = self.length if self.max_length is None else self.max_length
+        return float(lo), float(hi)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -333,6 +350,19 @@ class Fault:
 
 
 @dataclass(frozen=True, kw_only=True)
+class Sensors:
+    """Measurement noise and rates of the plant's sensors (sample and hold at each rate)."""
+
+    gnss_std: float = spec("GNSS position noise, standard deviation per axis.", "m", default=0.5, check=nonneg)
+    gnss_rate: float = spec("GNSS update rate.", "Hz", default=1.0, check=positive)
+    heading_std: float = spec("Gyro-compass heading noise, standard deviation.", "deg", default=0.1, check=nonneg)
+    heading_rate: float = spec("Heading update rate.", "Hz", default=10.0, check=positive)
+    tension_std_rel: float = spec("Tension-cell noise, standard deviation as a fraction of the line's MBS.",
+                                  default=0.002, check=nonneg)
+    tension_rate: float = spec("Tension-cell update rate.", "Hz", default=1.0, check=positive)
+
+
+@dataclass(frozen=True, kw_only=True)
 class Limits:
     """Operational limits of the position-mooring system."""
 
@@ -362,6 +392,7 @@ class Scenario:
     sea_states: tuple[SeaState, ...] = spec("Sea states; the first is the default.", default=())
     riser: Riser | None = spec("Optional riser.", default=None)
     faults: tuple[Fault, ...] = spec("Faults to inject.", default=())
+    sensors: Sensors = spec("Sensor noise and rates.", default=Sensors())
     limits: Limits = spec("Operational limits.", default=Limits())
 
     @property
