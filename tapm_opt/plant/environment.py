@@ -1,0 +1,399 @@
+"""Plant environment: current profile, irregular waves (WF motion, 2nd-order drift), wind.
+
+Directions (survey eq. 7): where a current, wave or wind is *going to*, in {E} from north (x)
+toward east (y). Loads in {B}, motions in {E}. Current loads act through ``nu_r`` in the vessel
+model (eq. 8-15). Randomness is drawn once at construction (``numpy.random.default_rng(seed)``).
+Models, constants, assumptions and references: ``docs/plant_environment.md``."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..config import schema
+from ..errors import TapmError
+
+__all__ = ["PlantError", "jonswap", "npd_spectrum", "CurrentProfile", "WaveParams", "WaveField",
+           "WindParams", "Wind", "Environment"]
+
+
+class PlantError(TapmError, ValueError):
+    """The plant was given an invalid parameter or input (message names the field and value)."""
+
+
+def _num(name: str, value: Any, *, lo: float = -math.inf, strict: bool = False, unit: str = "") -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise PlantError(f"{name}={value!r} is not a number") from None
+    if not math.isfinite(v) or v < lo or (strict and v == lo):
+        bound = f" and {'>' if strict else '>='} {lo:g}" if lo > -math.inf else ""
+        raise PlantError(f"{name}={value!r}{' ' + unit if unit else ''} must be finite{bound}")
+    return v
+
+
+def _array(name: str, x: Any, unit: str, lo: float = 0.0) -> np.ndarray:
+    x = np.asarray(x, dtype=float)
+    ok = np.isfinite(x) if lo == -math.inf else np.isfinite(x) & (x >= lo)
+    if not ok.all():
+        i = int(np.flatnonzero(~ok.ravel())[0])
+        raise PlantError(f"{name}[{i}]={float(x.ravel()[i])!r} {unit} must be finite and >= {lo:g}")
+    return x
+
+
+def _time(t: Any) -> float | np.ndarray:
+    if isinstance(t, (float, int)) and math.isfinite(t):
+        return float(t)
+    return _array("t", t, "s", -math.inf) if np.ndim(t) else _num("t", t, unit="s")
+
+
+def jonswap(omega: Any, Hs: float, Tp: float, gamma: float = 3.3) -> np.ndarray:
+    """JONSWAP wave spectrum S(w) [m^2 s/rad], shape of ``omega``; DNV-RP-C205 §3.5.5.
+
+    ``S = A_g S_PM gamma^exp(-(w - wp)^2 / (2 sigma^2 wp^2))``, ``S_PM = 5/16 Hs^2 wp^4 w^-5
+    exp(-5/4 (w/wp)^-4)``, ``wp = 2 pi/Tp``, ``A_g = 1 - 0.287 ln gamma``, ``sigma = 0.07`` (w <=
+    wp) or 0.09; ``gamma = 1``: Pierson-Moskowitz. Area Hs^2/16 within 2 % for gamma <= 7.
+
+    Parameters
+    ----------
+    omega : array_like
+        Angular frequencies [rad/s], >= 0 (S(0) = 0).
+    Hs, Tp, gamma : float
+        Significant wave height [m] >= 0, peak period [s] > 0, peak enhancement [-] in [1, 10].
+    """
+    Hs = _num("Hs", Hs, lo=0.0, unit="m")
+    Tp = _num("Tp", Tp, lo=0.0, strict=True, unit="s")
+    if not 1.0 <= _num("gamma", gamma) <= 10.0:
+        raise PlantError(f"gamma={gamma!r} must be in [1, 10]")
+    w = _array("omega", omega, "rad/s")
+    wp = 2.0 * math.pi / Tp
+    x = np.where(w > 0, w, wp) / wp
+    with np.errstate(over="ignore"):
+        S_pm = 5.0 / 16.0 * Hs**2 / wp * np.exp(-5.0 * np.log(x) - 1.25 * x**-4)
+    sigma = np.where(x <= 1.0, 0.07, 0.09)
+    S = (1.0 - 0.287 * math.log(gamma)) * S_pm * gamma ** np.exp(-0.5 * ((x - 1.0) / sigma) ** 2)
+    return np.where(w > 0, S, 0.0)
+
+
+def npd_spectrum(f: Any, U10: float, z: float = 10.0) -> np.ndarray:
+    """NPD (Frøya) gust spectrum S(f) [m^2/s^2 per Hz], DNV-RP-C205 §2.3.4, ISO 19901-1.
+
+    ``S = 320 (U10/10)^2 (z/10)^0.45 / (1 + x^n)^(5/(3n))``, ``x = 172 f (z/10)^(2/3)
+    (U10/10)^(-3/4)``, ``n = 0.468``.
+
+    Parameters
+    ----------
+    f : array_like
+        Frequencies [Hz], >= 0.
+    U10, z : float
+        1-hour mean wind speed at 10 m [m/s] >= 0 (0: zero spectrum); height [m] > 0.
+    """
+    U10 = _num("U10", U10, lo=0.0, unit="m/s")
+    z = _num("z", z, lo=0.0, strict=True, unit="m")
+    f = _array("f", f, "Hz")
+    if U10 == 0.0:
+        return np.zeros_like(f)
+    n = 0.468
+    x = 172.0 * f * (z / 10.0) ** (2.0 / 3.0) * (U10 / 10.0) ** -0.75
+    return 320.0 * (U10 / 10.0) ** 2 * (z / 10.0) ** 0.45 / (1.0 + x**n) ** (5.0 / (3.0 * n))
+
+
+class CurrentProfile:
+    """Current over depth: ``v_c(z) = V_c phi(z) (cos beta_c, sin beta_c, 0)`` in {E} (eq. 7).
+
+    ``phi = 1`` ('uniform'); linear from 1 at z = 0 to ``current_profile_factors[0]`` at the
+    seabed ('linear'); linear through ``(current_profile_depths, current_profile_factors)``,
+    constant beyond the ends ('piecewise'). Depths are clamped to [0, water_depth].
+
+    Parameters
+    ----------
+    sea_state : tapm_opt.config.SeaState
+    water_depth : float
+        Seabed depth [m], > 0.
+    """
+
+    def __init__(self, sea_state: schema.SeaState, water_depth: float):
+        self.water_depth = _num("environment.water_depth", water_depth, lo=0.0, strict=True, unit="m")
+        V = _num("sea_state.current_speed", sea_state.current_speed, lo=0.0, unit="m/s")
+        beta = _num("sea_state.current_direction", sea_state.current_direction, unit="rad")
+        self.kind = kind = sea_state.current_profile
+        d = _array("sea_state.current_profile_depths", sea_state.current_profile_depths, "m")
+        fac = _array("sea_state.current_profile_factors", sea_state.current_profile_factors, "")
+        if (kind not in ("uniform", "linear", "piecewise") or (kind == "linear" and fac.size != 1) or (
+                kind == "piecewise" and (d.size < 1 or d.size != fac.size or np.any(np.diff(d) <= 0)))):
+            raise PlantError(f"sea_state.current_profile={kind!r}, depths {d.tolist()}, factors {fac.tolist()}: "
+                             "need 'uniform', 'linear' (1 factor) or 'piecewise' (increasing depths, 1 factor each)")
+        self._depths, self._factors = d, fac
+        self.surface = np.array([V * math.cos(beta), V * math.sin(beta), 0.0])
+        self.surface.flags.writeable = False
+
+    def factor(self, z: Any) -> np.ndarray:
+        """Speed factor phi(z) [-] at depths z [m] (positive down), shape of ``z``."""
+        z = np.minimum(np.maximum(z, 0.0), self.water_depth)
+        if self.kind == "uniform":
+            return np.ones_like(z)
+        if self.kind == "linear":
+            return 1.0 + (self._factors[0] - 1.0) * (z / self.water_depth)
+        return np.interp(z, self._depths, self._factors)
+
+    def velocity(self, z: Any) -> np.ndarray:
+        """Current velocity in {E} at depths ``z`` [m], shape ``z.shape + (3,)`` [m/s]; v_z = 0."""
+        return np.multiply.outer(self.factor(_array("z", z, "m", -math.inf)), self.surface)
+
+
+def _check_params(p: Any, band: tuple[str, str], nonneg: tuple[str, ...]) -> None:
+    cls = type(p).__name__
+    if not isinstance(p.n_components, (int, np.integer)) or p.n_components < 1:
+        raise PlantError(f"{cls}.n_components={p.n_components!r} must be an integer >= 1")
+    for name in nonneg:
+        _num(f"{cls}.{name}", getattr(p, name), lo=0.0)
+    lo = _num(f"{cls}.{band[0]}", getattr(p, band[0]), lo=0.0, strict=True)
+    _num(f"{cls}.{band[1]} (> {band[0]})", getattr(p, band[1]), lo=lo, strict=True)
+
+
+@dataclass(frozen=True, kw_only=True)
+class WaveParams:
+    """Discretisation and coefficients of :class:`WaveField`: ``n_components`` N (one per equal
+    frequency bin); band ``[omega_min, omega_max]`` as multiples of w_p [-] (99.5 % of the variance);
+    ``yaw_rao`` c_psi of the yaw RAO ``c_psi k h_L sin 2beta`` [rad per rad of wave slope k a];
+    ``drift_yaw`` c_N of the yaw drift coefficient ``-1/2 rho g L^2 c_N R(w) sin 2beta`` [-]."""
+
+    n_components: int = 200
+    omega_min: float = 0.5
+    omega_max: float = 4.0
+    yaw_rao: float = 1.0
+    drift_yaw: float = 0.05
+
+    def __post_init__(self) -> None:
+        _check_params(self, ("omega_min", "omega_max"), ("yaw_rao", "drift_yaw"))
+
+
+class WaveField:
+    """Long-crested first-order irregular sea, its WF vessel motion and 2nd-order drift loads.
+
+    ``zeta(t) = sum_k a_k cos theta_k``, ``theta_k = w_k t + phi_k``, ``a_k = sqrt(2 S(w_k) dw)``
+    (a random frequency in each of N equal bins, random phases) at the field zero point. With
+    ``beta = beta_wave - psi``, ``k = w^2/g``, hull filters ``h_l = 1/(1 + (w/w_l)^4)``, ``w_l =
+    sqrt(pi g/l)`` for l = L_pp (h_L) or breadth (h_B):
+
+    * WF motion in {B} (RAO superposition, Fossen 2011 §8.2; a short body follows the orbital
+      displacement ``a sin theta``, Faltinsen 1990 ch. 2): surge ``cos beta sum a h_L sin theta``,
+      sway ``sin beta sum a h_B sin theta``, yaw ``sin 2beta sum c_psi k h_L a cos theta``.
+    * Drift in {B} (Newman 1974): ``F(t) = 2 c(beta) (sum a_k sqrt(R_k) cos theta_k)^2`` of mean
+      ``sum D(w_k) a_k^2``, ``D = R(w) c(beta)``, ``c = 1/2 rho g (B cos|cos|, L sin|sin|, -c_N L^2
+      sin 2beta)`` (wall-sided body, Faltinsen 1990 ch. 5), ``R(w) = 1 - exp(-2 k T)``.
+
+    Parameters
+    ----------
+    sea_state, vessel, env : tapm_opt.config.SeaState, Vessel, Environment
+        Hs, Tp, gamma, wave_direction; length_pp, breadth, draught; water_density, gravity.
+    seed : int, SeedSequence or Generator
+        Passed to ``numpy.random.default_rng``.
+    params : WaveParams
+    """
+
+    def __init__(self, sea_state: schema.SeaState, vessel: schema.Vessel, env: schema.Environment,
+                 seed: Any = None, *, params: WaveParams = WaveParams()):
+        self.Hs = _num("sea_state.Hs", sea_state.Hs, lo=0.0, unit="m")
+        self.Tp = _num("sea_state.Tp", sea_state.Tp, lo=0.0, strict=True, unit="s")
+        self.direction = _num("sea_state.wave_direction", sea_state.wave_direction, unit="rad")
+        L, B, T = (_num(f"vessel.{n}", getattr(vessel, n), lo=0.0, strict=True, unit="m")
+                   for n in ("length_pp", "breadth", "draught"))
+        rho, g = (_num(f"environment.{n}", getattr(env, n), lo=0.0, strict=True)
+                  for n in ("water_density", "gravity"))
+        self.params = p = params
+        rng, N, wp = np.random.default_rng(seed), int(p.n_components), 2.0 * math.pi / self.Tp
+        dw = (p.omega_max - p.omega_min) * wp / N
+        self.omega = w = p.omega_min * wp + dw * (np.arange(N) + rng.random(N))
+        self.phase = 2.0 * math.pi * rng.random(N)
+        self.amplitude = a = np.sqrt(2.0 * jonswap(w, self.Hs, self.Tp, sea_state.gamma) * dw)
+        k = w**2 / g
+        h_L = 1.0 / (1.0 + (w / math.sqrt(math.pi * g / L)) ** 4)
+        h_B = 1.0 / (1.0 + (w / math.sqrt(math.pi * g / B)) ** 4)
+        self.reflection = 1.0 - np.exp(-2.0 * k * T)
+        # weights of sin(theta): surge, sway, -yaw rate; of cos(theta): yaw, drift, surge/sway rate
+        self._Ws = np.stack([a * h_L, a * h_B, p.yaw_rao * k * h_L * a * w])
+        self._Wc = np.stack([p.yaw_rao * k * h_L * a, a * np.sqrt(self.reflection), a * h_L * w, a * h_B * w])
+        self._drift_c = 0.5 * rho * g * np.array([B, L, p.drift_yaw * L**2])
+        self._cache: tuple[float, np.ndarray, np.ndarray] | None = None
+        self._dir_cache: tuple[float, Any] | None = None
+
+    def _sums(self, t: Any) -> tuple[np.ndarray, np.ndarray]:
+        """(W_sin @ sin theta, W_cos @ cos theta), shapes (3, ...) and (4, ...); last t cached."""
+        t = _time(t)
+        if isinstance(t, float):
+            if self._cache is not None and self._cache[0] == t:
+                return self._cache[1], self._cache[2]
+            th = t * self.omega
+            th += self.phase
+            S, C = self._Ws @ np.sin(th), self._Wc @ np.cos(th)
+            self._cache = (t, S, C)
+            return S, C
+        th = t[..., None] * self.omega + self.phase
+        return np.moveaxis(np.sin(th) @ self._Ws.T, -1, 0), np.moveaxis(np.cos(th) @ self._Wc.T, -1, 0)
+
+    def _dirs(self, psi: float) -> tuple[float, float, float, np.ndarray]:
+        """cos beta, sin beta, sin 2beta and the drift factor c(beta) (3,) at heading psi; cached."""
+        if self._dir_cache is not None and self._dir_cache[0] == psi:
+            return self._dir_cache[1]
+        beta = self.direction - _num("psi", psi, unit="rad")
+        cb, sb, s2b = math.cos(beta), math.sin(beta), math.sin(2.0 * beta)
+        out = (cb, sb, s2b, self._drift_c * np.array([cb * abs(cb), sb * abs(sb), -s2b]))
+        self._dir_cache = (psi, out)
+        return out
+
+    def elevation(self, t: Any) -> np.ndarray:
+        """Wave elevation zeta(t) [m] at the field zero point (positive up), shape of ``t``."""
+        return np.cos(np.multiply.outer(_time(t), self.omega) + self.phase) @ self.amplitude
+
+    def _motion(self, t: Any, psi: float, rate: bool) -> np.ndarray:
+        cb, sb, s2b, _ = self._dirs(psi)
+        S, C = self._sums(t)
+        xb, yb, z = (cb * C[2], sb * C[3], -s2b * S[2]) if rate else (cb * S[0], sb * S[1], s2b * C[0])
+        c, s = math.cos(psi), math.sin(psi)
+        if np.ndim(xb) == 0:
+            return np.array([c * xb - s * yb, s * xb + c * yb, z])
+        return np.stack([c * xb - s * yb, s * xb + c * yb, z], axis=-1)
+
+    def eta_wf(self, t: Any, psi: float) -> np.ndarray:
+        """WF motion (x [m], y [m], psi [rad]) in {E} at LF heading psi [rad]; shape t.shape + (3,)."""
+        return self._motion(t, psi, rate=False)
+
+    def eta_wf_dot(self, t: Any, psi: float) -> np.ndarray:
+        """Time derivative of :meth:`eta_wf` at fixed LF heading [m/s, m/s, rad/s] in {E}."""
+        return self._motion(t, psi, rate=True)
+
+    def mean_drift(self, psi: float) -> np.ndarray:
+        """Newman mean drift ``sum_k D(w_k, beta) a_k^2`` in {B}, shape (3,) [N, N, N m]."""
+        return (self.amplitude**2 @ self.reflection) * self._dirs(psi)[3]
+
+    def tau_drift(self, t: Any, psi: float) -> np.ndarray:
+        """Mean + slowly varying drift load in {B} [N, N, N m] (Newman), shape t.shape + (3,)."""
+        q = self._sums(t)[1][1]
+        return np.multiply.outer(2.0 * q * q, self._dirs(psi)[3])
+
+
+@dataclass(frozen=True, kw_only=True)
+class WindParams:
+    """Gusts and coefficients of :class:`Wind`: ``n_components`` (one per log-spaced bin); band
+    ``[f_min, f_max]`` [Hz] (1/3600 Hz: the 1-hour mean of U10); ``height`` z [m] of the mean
+    speed ``U10 (1 + C ln(z/10))``, ``C = 0.0573 sqrt(1 + 0.148 U10)``, and of the spectrum;
+    ``c_x, c_y, c_n`` wind-load coefficients of a large tanker/FPSO [-] (Fossen 2011 §8.1:
+    0.7-0.9, 0.8-0.95, 0.08-0.1)."""
+
+    n_components: int = 100
+    f_min: float = 1.0 / 3600.0
+    f_max: float = 0.5
+    height: float = 10.0
+    c_x: float = 0.8
+    c_y: float = 0.9
+    c_n: float = 0.08
+
+    def __post_init__(self) -> None:
+        _check_params(self, ("f_min", "f_max"), ("c_x", "c_y", "c_n"))
+        _num("WindParams.height", self.height, lo=0.0, strict=True, unit="m")
+
+
+class Wind:
+    """Mean wind plus NPD gusts (fixed direction), and the wind load (Fossen 2011 §8.1).
+
+    ``V(t) = max(0, U(z) + sum_k b_k cos(2 pi f_k t + phi_k))``, ``b_k = sqrt(2 S_NPD(f_k) df_k)``.
+    With the vessel velocity relative to the air ``(u_rw, v_rw) = (u, v) - V (cos, sin)(beta_w -
+    psi)``, ``V_rw = |(u_rw, v_rw)|`` and ``gamma = atan2(v_rw, u_rw)`` the angle the relative
+    wind comes FROM, relative to the bow, + to starboard: ``(X, Y, N) = -1/2 rho_a V_rw^2 (c_x
+    cos(gamma) A_F, c_y sin(gamma) A_L, c_n sin(2 gamma) A_L L_pp)``. This is Fossen's ``C_X =
+    -c_x cos g``, ``C_Y = c_y sin g``, ``C_N = c_n sin 2g`` with ``g = -gamma`` (positive for wind
+    from port). The moment turns the bow away from the wind (broadside).
+
+    Parameters
+    ----------
+    sea_state, vessel, env : tapm_opt.config.SeaState, Vessel, Environment
+        wind_speed U10 (1-hour mean at 10 m), wind_direction beta_w (going to); wind_area_frontal
+        A_F, wind_area_lateral A_L, length_pp; air_density rho_a.
+    seed : int, SeedSequence or Generator
+    params : WindParams
+    """
+
+    def __init__(self, sea_state: schema.SeaState, vessel: schema.Vessel, env: schema.Environment,
+                 seed: Any = None, *, params: WindParams = WindParams()):
+        self.U10 = _num("sea_state.wind_speed", sea_state.wind_speed, lo=0.0, unit="m/s")
+        self.direction = _num("sea_state.wind_direction", sea_state.wind_direction, unit="rad")
+        self.params = p = params
+        rho_a = _num("environment.air_density", env.air_density, lo=0.0, strict=True)
+        A_F, A_L, L = (_num(f"vessel.{n}", getattr(vessel, n), lo=0.0)
+                       for n in ("wind_area_frontal", "wind_area_lateral", "length_pp"))
+        rng, edges = np.random.default_rng(seed), np.geomspace(p.f_min, p.f_max, int(p.n_components) + 1)
+        df = np.diff(edges)
+        self.freq = edges[:-1] + df * rng.random(df.size)
+        self.phase = 2.0 * math.pi * rng.random(df.size)
+        self.amplitude = np.sqrt(2.0 * npd_spectrum(self.freq, self.U10, p.height) * df)
+        self._w = 2.0 * math.pi * self.freq
+        self.mean_speed = self.U10 * (1.0 + 0.0573 * math.sqrt(1.0 + 0.148 * self.U10) * math.log(p.height / 10))
+        self._k = -0.5 * rho_a * np.array([p.c_x * A_F, p.c_y * A_L, 2.0 * p.c_n * A_L * L])
+
+    def speed(self, t: Any) -> Any:
+        """Wind speed V(t) at the reference height [m/s], float or shape of ``t``."""
+        t = _time(t)
+        if isinstance(t, float):
+            th = t * self._w
+            th += self.phase
+            return max(self.mean_speed + float(self.amplitude @ np.cos(th)), 0.0)
+        return np.maximum(self.mean_speed + np.cos(t[..., None] * self._w + self.phase) @ self.amplitude, 0.0)
+
+    def tau_wind(self, t: float, psi: float, nu: Any = None) -> np.ndarray:
+        """Wind load (X [N], Y [N], N [N m]) in {B}, shape (3,), at time t [s], LF heading psi
+        [rad] and vessel velocity nu = (u, v, r) in {B} [m/s, m/s, rad/s] (None: at rest)."""
+        V = self.speed(float(t))
+        b = self.direction - _num("psi", psi, unit="rad")
+        u_rw, v_rw = -V * math.cos(b), -V * math.sin(b)
+        if nu is not None:
+            nu = np.asarray(nu, dtype=float)
+            if nu.shape != (3,) or not np.all(np.isfinite(nu)):
+                raise PlantError(f"nu={nu.tolist()} must be 3 finite numbers (u, v, r) in {{B}}")
+            u_rw, v_rw = u_rw + float(nu[0]), v_rw + float(nu[1])
+        return self._k * np.array([math.hypot(u_rw, v_rw) * u_rw, math.hypot(u_rw, v_rw) * v_rw, u_rw * v_rw])
+
+
+class Environment:
+    """Current, waves and wind of one sea state of a scenario, with independent random streams.
+
+    Waves and wind draw from ``SeedSequence(seed).spawn(2)``: changing one leaves the other.
+    ``eta_wf(t, psi)``, ``eta_wf_dot(t, psi)`` (WF motion and rate in {E}, :class:`WaveField`)
+    and ``current_at(z)`` (:meth:`CurrentProfile.velocity`) are the components' bound methods.
+
+    Parameters
+    ----------
+    scenario : tapm_opt.config.Scenario
+        Uses ``environment`` (water_depth, densities, gravity) and ``vessel``.
+    sea_state : SeaState, str or None
+        The sea state, its id, or None for the scenario's first one.
+    seed : int
+        Master seed.
+    wave_params, wind_params : WaveParams, WindParams
+    """
+
+    def __init__(self, scenario: schema.Scenario, sea_state: schema.SeaState | str | None = None,
+                 seed: int = 0, *, wave_params: WaveParams = WaveParams(),
+                 wind_params: WindParams = WindParams()):
+        if not isinstance(sea_state, schema.SeaState):
+            try:
+                sea_state = scenario.sea_state(sea_state)
+            except KeyError as exc:
+                raise PlantError(f"sea_state: {exc.args[0]}") from None
+        self.sea_state = sea_state
+        env, ves = scenario.environment, scenario.vessel
+        s_wave, s_wind = np.random.SeedSequence(seed).spawn(2)
+        self.current = CurrentProfile(sea_state, env.water_depth)
+        self.waves = WaveField(sea_state, ves, env, s_wave, params=wave_params)
+        self.wind = Wind(sea_state, ves, env, s_wind, params=wind_params)
+        self.eta_wf, self.eta_wf_dot = self.waves.eta_wf, self.waves.eta_wf_dot
+        self.current_at = self.current.velocity
+
+    def loads(self, t: float, eta: Any, nu: Any = None) -> dict[str, np.ndarray]:
+        """Environmental loads in {B} (survey eq. 9) at time t [s], LF pose eta (3,) [m, m, rad]
+        and velocity nu (3,) in {B}: ``{"tau_wind": (3,), "tau_drift": (3,)}`` [N, N, N m]."""
+        psi = eta[2]
+        return {"tau_wind": self.wind.tau_wind(t, psi, nu), "tau_drift": self.waves.tau_drift(t, psi)}

@@ -1,0 +1,147 @@
+"""Sensors of the plant: GNSS position, gyro-compass heading and fairlead tension cells.
+
+Each sensor samples at its own rate with sample-and-hold: at the first call, and whenever t
+reaches the next sample instant k / rate, it takes a new noisy sample of the true value at t
+(additive zero-mean Gaussian white noise); between instants it returns the held value. The heading
+is wrapped with ``ssa``. Noise is drawn from three independent generators spawned from one seed
+(GNSS, heading, tensions), so e.g. changing the number of lines does not change the GNSS noise.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..config import schema
+from ..geometry import ssa
+from .environment import PlantError, _num
+
+__all__ = ["SensorSpec", "Measurement", "Sensors"]
+
+_GNSS, _HEADING, _TENSION = 0, 1, 2
+
+
+#: The sensor specification is the scenario's ``[sensors]`` section (one definition of the fields,
+#: units and defaults: :class:`tapm_opt.config.schema.Sensors`; ``heading_std`` is in rad in code).
+SensorSpec = schema.Sensors
+
+
+def _check_spec(spec: SensorSpec) -> None:
+    for name in ("gnss_std", "heading_std", "tension_std_rel"):
+        _num(f"sensors.{name}", getattr(spec, name), lo=0.0)
+    for name in ("gnss_rate", "heading_rate", "tension_rate"):
+        _num(f"sensors.{name}", getattr(spec, name), lo=0.0, strict=True, unit="Hz")
+
+
+def _ro(a: Any) -> np.ndarray:
+    a = np.array(a, dtype=float)
+    a.flags.writeable = False
+    return a
+
+
+@dataclass(frozen=True, kw_only=True)
+class Measurement:
+    """What the sensors report at time ``t``; arrays are read-only.
+
+    Attributes
+    ----------
+    t : float
+        Time of the request [s].
+    position : ndarray, shape (2,)
+        Measured (x, y) in {E} [m] (held since ``t_position``).
+    heading : float
+        Measured heading [rad] in [-pi, pi) (held since ``t_heading``).
+    tensions : ndarray, shape (n_lines,)
+        Measured fairlead tensions [N] (held since ``t_tensions``).
+    t_position, t_heading, t_tensions : float
+        Times [s] at which each held value was sampled.
+    """
+
+    t: float
+    position: np.ndarray = field(repr=False)
+    heading: float
+    tensions: np.ndarray = field(repr=False)
+    t_position: float
+    t_heading: float
+    t_tensions: float
+
+
+class Sensors:
+    """Sample-and-hold noisy sensors (see the module docstring).
+
+    Parameters
+    ----------
+    spec : SensorSpec
+    n_lines : int
+        Number of tension cells (one per mooring line).
+    seed : int, SeedSequence or None
+        Seed of the noise; the same seed gives the same noise sequence.
+    MBS : array_like, shape (n_lines,), optional
+        Minimum breaking strengths [N]; the tension noise is ``spec.tension_std_rel * MBS``.
+        Required unless n_lines = 0.
+    """
+
+    def __init__(self, spec: SensorSpec, n_lines: int, seed: Any = None, *, MBS: Any = None):
+        if not isinstance(n_lines, (int, np.integer)) or n_lines < 0:
+            raise PlantError(f"n_lines={n_lines!r} must be an integer >= 0")
+        _check_spec(spec)
+        self.spec, self.n_lines = spec, int(n_lines)
+        if MBS is not None:
+            mbs = np.asarray(MBS, dtype=float)
+            if mbs.shape != (self.n_lines,) or not np.all(np.isfinite(mbs) & (mbs > 0)):
+                raise PlantError(f"MBS={mbs.tolist()} must be {self.n_lines} finite values > 0 [N]")
+            std = spec.tension_std_rel * mbs
+        elif self.n_lines == 0:
+            std = np.zeros(0)
+        else:
+            raise PlantError("give MBS: the tension noise is sensors.tension_std_rel times each line's MBS")
+        self.tension_std = _ro(std)
+        self._rates = (spec.gnss_rate, spec.heading_rate, spec.tension_rate)
+        self._rngs = [np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(3)]
+        self._next: list[float] = [-math.inf] * 3  # next sample index k per sensor
+        self._held: list[Any] = [None] * 3
+        self._t_held = [math.nan] * 3
+        self._t_last = -math.inf
+
+    @classmethod
+    def from_scenario(cls, scenario: schema.Scenario, spec: SensorSpec | None = None, seed: Any = None) -> Sensors:
+        """Sensors for all lines of a scenario: its ``[sensors]`` section unless ``spec`` is given."""
+        return cls(spec or scenario.sensors, len(scenario.lines), seed, MBS=scenario.line_arrays["MBS"])
+
+    def _due(self, i: int, t: float) -> bool:
+        """True (and schedule the next instant) when sensor i takes a new sample at t."""
+        k = t * self._rates[i]
+        if k < self._next[i] - 1e-9:
+            return False
+        self._next[i] = math.floor(k + 1e-9) + 1.0
+        self._t_held[i] = t
+        return True
+
+    def sample(self, t: float, eta_total: Any, tensions: Any) -> Measurement:
+        """Measurement at time t [s] of the true pose ``eta_total`` (3,) = (x [m], y [m], psi [rad])
+        in {E} (LF + WF) and the true fairlead tensions (n_lines,) [N]. Times must not decrease."""
+        t = _num("t", t, unit="s")
+        if t < self._t_last:
+            raise PlantError(f"t={t!r} s is before the previous sample time {self._t_last!r} s")
+        self._t_last = t
+        eta = np.asarray(eta_total, dtype=float)
+        T = np.asarray(tensions, dtype=float)
+        if eta.shape != (3,) or not np.all(np.isfinite(eta)):
+            raise PlantError(f"eta_total={eta.tolist()} must be 3 finite numbers (x, y, psi)")
+        if T.shape != (self.n_lines,) or not np.all(np.isfinite(T)):
+            bad = [] if T.shape != (self.n_lines,) else np.flatnonzero(~np.isfinite(T)).tolist()
+            raise PlantError(f"tensions (shape {T.shape}) must be {self.n_lines} finite values [N]; "
+                             f"bad lines {bad}")
+        s = self.spec
+        if self._due(_GNSS, t):
+            self._held[_GNSS] = _ro(eta[:2] + s.gnss_std * self._rngs[_GNSS].standard_normal(2))
+        if self._due(_HEADING, t):
+            self._held[_HEADING] = float(ssa(eta[2] + s.heading_std * self._rngs[_HEADING].standard_normal()))
+        if self._due(_TENSION, t):
+            self._held[_TENSION] = _ro(T + self.tension_std * self._rngs[_TENSION].standard_normal(self.n_lines))
+        return Measurement(t=t, position=self._held[_GNSS], heading=self._held[_HEADING],
+                           tensions=self._held[_TENSION], t_position=self._t_held[_GNSS],
+                           t_heading=self._t_held[_HEADING], t_tensions=self._t_held[_TENSION])

@@ -1,0 +1,194 @@
+"""Labelled time series: time x channel, with units and metadata, saved without the code.
+
+A :class:`Result` is what every simulation returns. It saves to one ``.npz`` file holding plain
+arrays (``time``, ``data``, ``channels``, ``units``) and the metadata as a JSON string, readable
+with numpy alone::
+
+    z = numpy.load("run.npz"); z["data"][:, list(z["channels"]).index("x")]
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterable, Mapping, Sequence
+
+import numpy as np
+
+from ._io import atomic_write_text, csv_text
+from .errors import TapmError
+
+__all__ = ["Result", "ResultError", "ResultBuilder"]
+
+FORMAT = "tapm_opt.result/1"
+
+
+class ResultError(TapmError, ValueError):
+    """A result file is missing, unreadable or inconsistent, or a channel does not exist."""
+
+
+@dataclass(frozen=True, eq=False)
+class Result:
+    """Time series of named channels.
+
+    Attributes
+    ----------
+    time : ndarray, shape (n,)
+        Sample times [s].
+    data : ndarray, shape (n, m)
+        Channel values, column j is ``channels[j]``.
+    channels : tuple of str
+        Channel names (e.g. ``"x"``, ``"T_fairlead[3]"``).
+    units : tuple of str
+        Unit of each channel.
+    meta : dict
+        JSON-serialisable metadata (scenario, seed, code version, settings, diagnostics).
+    """
+
+    time: np.ndarray
+    data: np.ndarray
+    channels: tuple[str, ...]
+    units: tuple[str, ...]
+    meta: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        t = np.asarray(self.time, dtype=float)
+        d = np.asarray(self.data, dtype=float)
+        if d.ndim != 2 or d.shape[0] != t.shape[0] or d.shape[1] != len(self.channels) or len(self.units) != len(self.channels):
+            raise ResultError(f"inconsistent result: time {t.shape}, data {d.shape}, "
+                              f"{len(self.channels)} channels, {len(self.units)} units")
+        if len(set(self.channels)) != len(self.channels):
+            raise ResultError("channel names must be unique")
+        t.setflags(write=False)
+        d.setflags(write=False)
+        object.__setattr__(self, "time", t)
+        object.__setattr__(self, "data", d)
+
+    # -- access ----------------------------------------------------------------------------
+    def __getitem__(self, name: str) -> np.ndarray:
+        """Values of channel ``name``, shape (n,)."""
+        return self.data[:, self._index(name)]
+
+    def __contains__(self, name: object) -> bool:
+        return name in self.channels
+
+    def _index(self, name: str) -> int:
+        try:
+            return self.channels.index(name)
+        except ValueError:
+            raise ResultError(f"no channel {name!r}; channels are {', '.join(self.channels)}") from None
+
+    def unit(self, name: str) -> str:
+        """Unit of channel ``name``."""
+        return self.units[self._index(name)]
+
+    def group(self, prefix: str) -> np.ndarray:
+        """All channels named ``prefix[...]`` stacked as columns, shape (n, k), in channel order."""
+        idx = [i for i, c in enumerate(self.channels) if c.startswith(prefix + "[")]
+        if not idx:
+            raise ResultError(f"no channels '{prefix}[...]'")
+        return self.data[:, idx]
+
+    def group_names(self, prefix: str) -> list[str]:
+        """The labels inside the brackets of the channels ``prefix[...]``."""
+        return [c[len(prefix) + 1:-1] for c in self.channels if c.startswith(prefix + "[")]
+
+    def __len__(self) -> int:
+        return self.time.shape[0]
+
+    # -- persistence -----------------------------------------------------------------------
+    def save(self, path: str | Path) -> Path:
+        """Write the result to ``path`` (``.npz`` appended if missing), atomically."""
+        path = Path(path)
+        if path.suffix != ".npz":
+            path = path.with_name(path.name + ".npz")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        buf = io.BytesIO()
+        np.savez_compressed(buf, time=self.time, data=self.data, channels=np.array(self.channels, dtype=str),
+                            units=np.array(self.units, dtype=str),
+                            meta=np.array(json.dumps({"format": FORMAT, **self.meta}, default=_json_default)))
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        try:
+            with os.fdopen(fd, "wb") as fh:
+                fh.write(buf.getvalue())
+                fh.flush()
+                os.fsync(fh.fileno())
+            os.replace(tmp, path)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> "Result":
+        """Read a result written by :meth:`save`."""
+        path = Path(path)
+        if not path.exists() and path.with_name(path.name + ".npz").exists():
+            path = path.with_name(path.name + ".npz")
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                meta = json.loads(str(z["meta"]))
+                fmt = meta.pop("format", None)
+                if fmt != FORMAT:
+                    raise ResultError(f"{path} is not a tapm_opt result (format {fmt!r})")
+                return cls(time=z["time"], data=z["data"], channels=tuple(str(c) for c in z["channels"]),
+                           units=tuple(str(u) for u in z["units"]), meta=meta)
+        except (OSError, KeyError, ValueError) as exc:
+            if isinstance(exc, ResultError):
+                raise
+            raise ResultError(f"cannot read result {path}: {exc}") from None
+
+    def to_csv(self, path: str | Path, channels: Sequence[str] | None = None) -> Path:
+        """Write time and channels (all by default) as CSV with a units comment line."""
+        names = list(self.channels if channels is None else channels)
+        cols = [self._index(n) for n in names]
+        header = ["t", *names]
+        rows = (tuple(map(float, (t, *self.data[i, cols]))) for i, t in enumerate(self.time))
+        units = "units: s, " + ", ".join(self.units[c] for c in cols)
+        return atomic_write_text(path, csv_text(header, rows, comments=[units]))
+
+
+def _json_default(o: Any) -> Any:
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, (np.floating, np.integer, np.bool_)):
+        return o.item()
+    if isinstance(o, Path):
+        return str(o)
+    raise TypeError(f"not JSON-serialisable: {type(o).__name__}")
+
+
+class ResultBuilder:
+    """Collects samples row by row into preallocated storage; :meth:`build` returns a Result.
+
+    Parameters
+    ----------
+    channels : sequence of (name, unit)
+    capacity : int
+        Expected number of rows (grows if exceeded).
+    """
+
+    def __init__(self, channels: Iterable[tuple[str, str]], capacity: int = 1024):
+        ch = list(channels)
+        self.channels = tuple(c for c, _ in ch)
+        self.units = tuple(u for _, u in ch)
+        self._t = np.zeros(max(capacity, 1))
+        self._d = np.zeros((max(capacity, 1), len(ch)))
+        self._n = 0
+
+    def append(self, t: float, row: np.ndarray) -> None:
+        """Add one sample: time [s] and the channel values in channel order."""
+        if self._n == self._t.shape[0]:
+            self._t = np.concatenate([self._t, np.zeros_like(self._t)])
+            self._d = np.vstack([self._d, np.zeros_like(self._d)])
+        self._t[self._n] = t
+        self._d[self._n] = row
+        self._n += 1
+
+    def build(self, meta: Mapping[str, Any] | None = None) -> Result:
+        return Result(time=self._t[: self._n].copy(), data=self._d[: self._n].copy(), channels=self.channels,
+                      units=self.units, meta=dict(meta or {}))
