@@ -81,6 +81,7 @@ class MooringFEM:
                             water_depth=env.water_depth, rho_w=env.water_density)
         self.fairlead_z = float(scenario.turret.fairlead_depth)
         self.current = current
+        self.safety = float(safety)
         self.dt = self.fem.stable_dt(safety)
         self._vc = np.zeros((self.fem.n_nodes, 3))
 

@@ -1,0 +1,342 @@
+"""The plant: truth vessel + FEM mooring + environment + thrusters + sensors + faults.
+
+Time stepping (multirate, all explicit):
+
+* an **outer step** ``h <= outer_dt`` (default 0.1 s) advances the thrusters, the environmental
+  loads and the low-frequency (LF) vessel. The vessel is the *rich* form of
+  :func:`tapm_opt.models.vessel.vessel_rhs` (Coriolis, quadratic damping on the velocity relative
+  to the current) — the same CasADi Function the design models use, called numerically — driven by
+  thrust, wind, wave drift and the FEM mooring load from the end of the previous outer step
+  (semi-implicit Euler: ``nu`` first, then ``eta`` with the new ``nu``);
+* inside it, **FEM substeps** at the largest stable step that divides ``h`` move the lines, with
+  the fairleads following the *total* motion (LF + wave-frequency), interpolated linearly over the
+  outer step.
+
+The controller sees the plant only through :meth:`Plant.measure` (sensors), as a real one would.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from ..geometry import rot_z
+from ..models.vessel import VesselParams, vessel_rhs
+from ..results import Result, ResultBuilder
+from .environment import Environment, PlantError
+from .fem import SimulationDiverged
+from .mooring_fem import MooringFEM, SettleInfo
+from .sensors import Measurement, Sensors
+from .thrusters import ThrusterBank
+
+__all__ = ["Plant", "ThrusterCommand", "run_open_loop", "PlantError", "SimulationDiverged"]
+
+
+@dataclass(frozen=True)
+class ThrusterCommand:
+    """Commanded thrust ``f`` [N] (n,) and azimuth ``alpha`` [rad] (n,) of every thruster."""
+
+    f: np.ndarray
+    alpha: np.ndarray | None = None
+
+
+class Plant:
+    """The simulated moored vessel, stepped by the closed-loop runner.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    sea_state : str, SeaState or None
+        Sea state (id or object); default the scenario's first one; ``"calm"`` for none.
+    seed : int
+        Seed of every random process (waves, wind, sensor noise).
+    segments : int, optional
+        FEM segments per line (default: each line's own).
+    wave_frequency : bool
+        Superpose first-order wave-frequency motion on the fairleads and the measurements.
+    faults : sequence of Fault, optional
+        Faults to inject (default: the scenario's).
+    outer_dt : float
+        Longest outer step [s] for vessel, thrusters and environment.
+    eta0 : array_like (3,), optional
+        Initial LF pose [m, m, rad] (default the field zero point); the lines are settled there.
+    """
+
+    def __init__(self, scenario: Any, *, sea_state: Any = None, seed: int = 0, segments: int | None = None,
+                 wave_frequency: bool = True, faults: Sequence[Any] | None = None, outer_dt: float = 0.1,
+                 eta0: Any = None, safety: float = 0.9):
+        if not (math.isfinite(outer_dt) and outer_dt > 0):
+            raise PlantError(f"outer_dt = {outer_dt!r} s must be a positive number")
+        self.scenario = scenario
+        self.outer_dt = float(outer_dt)
+        ss = _sea_state(scenario, sea_state)
+        ss_seed, noise_seed = (int(c.generate_state(1)[0]) for c in np.random.SeedSequence(seed).spawn(2))
+        self.sea_state = ss
+        self.env = Environment(scenario, ss, seed=ss_seed) if ss is not None else None
+        self.wave_frequency = bool(wave_frequency) and self.env is not None and ss.Hs > 0
+        current = self.env.current_at if (self.env is not None and ss.current_speed > 0) else None
+        self.mooring = MooringFEM(scenario, segments=segments, current=current, safety=safety)
+        self.thrusters = ThrusterBank.from_scenario(scenario)
+        self.sensors = Sensors.from_scenario(scenario, seed=noise_seed)
+        self.vessel = VesselParams.from_scenario(scenario)
+        self._v_c = np.zeros(2) if current is None else np.asarray(self.env.current.surface[:2], dtype=float)
+        self.line_ids = tuple(ln.id for ln in scenario.lines)
+        self._winch_rate_max = np.array([ln.winch_max_rate for ln in scenario.lines])
+        self._L_limits = np.array([ln.length_limits for ln in scenario.lines])
+        self._faults = sorted(scenario.faults if faults is None else faults, key=lambda f: f.time)
+        for f in self._faults:
+            if f.kind == "line_break" and str(f.line) not in self.line_ids:
+                raise PlantError(f"fault line_break at t = {f.time:g} s names line {f.line!r}, which does not "
+                                 f"exist; lines are {list(self.line_ids)}")
+            if f.kind == "thruster_failure" and str(f.thruster) not in self.thrusters.ids:
+                raise PlantError(f"fault thruster_failure at t = {f.time:g} s names thruster {f.thruster!r}, which "
+                                 f"does not exist; thrusters are {list(self.thrusters.ids)}")
+        self._fault_i = 0
+        self.events: list[tuple[float, str]] = []
+        self.t = 0.0
+        self.eta = np.zeros(3) if eta0 is None else _vec3("eta0", eta0)
+        self.nu = np.zeros(3)
+        self._cmd = ThrusterCommand(np.zeros(self.thrusters.n), self.thrusters.alpha.copy())
+        self._winch = np.zeros(len(self.line_ids))
+        self._eta_wf = self._wf(0.0)
+        pose = self.eta + self._eta_wf
+        self.mooring.initialise(pose)
+        self.settle_info: SettleInfo = self.mooring.settle(pose)
+        self._tau_moor = self.mooring.tau(pose)
+        self.loads = {"tau_wind": np.zeros(3), "tau_drift": np.zeros(3), "tau_moor": self._tau_moor.copy(),
+                      "tau_thr": np.zeros(3)}
+        self._steps = 0
+        self._dt_stable: float | None = None
+        self._h_last = -1.0
+        self._n_sub = 1
+
+    # -- helpers ---------------------------------------------------------------------------
+    def _wf(self, t: float) -> np.ndarray:
+        if not self.wave_frequency:
+            return np.zeros(3)
+        return np.asarray(self.env.eta_wf(t, self.eta[2]), dtype=float)
+
+    @property
+    def eta_total(self) -> np.ndarray:
+        """LF plus wave-frequency pose (x [m], y [m], psi [rad])."""
+        return self.eta + self._eta_wf
+
+    @property
+    def fem_dt(self) -> float:
+        """FEM step in use [s]."""
+        return self.mooring.dt
+
+    # -- interface -------------------------------------------------------------------------
+    def step(self, dt: float, thruster_cmd: ThrusterCommand | None = None, winch_cmd: Any = None) -> None:
+        """Advance the plant by ``dt`` seconds holding the commands.
+
+        Parameters
+        ----------
+        dt : float
+            Time to advance [s], > 0.
+        thruster_cmd : ThrusterCommand, optional
+            New thruster commands (kept until the next command); saturation and rate limits apply.
+        winch_cmd : array_like (n_lines,), optional
+            Winch speed of each line [m/s] (+ pays out, - hauls in), limited to each line's
+            ``winch_max_rate`` and length limits. Non-zero on a line without a winch is an error.
+        """
+        if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
+            raise PlantError(f"dt = {dt!r} s must be a positive number")
+        if thruster_cmd is not None:
+            self._cmd = self._check_cmd(thruster_cmd)
+        if winch_cmd is not None:
+            self._winch = self._check_winch(winch_cmd)
+        n = max(1, int(math.ceil(dt / self.outer_dt - 1e-9)))
+        h = dt / n
+        for _ in range(n):
+            self._outer_step(h)
+
+    def measure(self) -> Measurement:
+        """Sensor readings at the current time (GNSS, heading, tension cells)."""
+        return self.sensors.sample(self.t, self.eta_total, self.mooring.fairlead_tension())
+
+    # -- checks ----------------------------------------------------------------------------
+    def _check_cmd(self, cmd: Any) -> ThrusterCommand:
+        if not isinstance(cmd, ThrusterCommand):
+            if isinstance(cmd, tuple) and len(cmd) == 2:
+                cmd = ThrusterCommand(*cmd)
+            else:
+                raise PlantError(f"thruster command must be a ThrusterCommand or (f, alpha), got {type(cmd).__name__}")
+        n = self.thrusters.n
+        f = np.asarray(cmd.f, dtype=float)
+        alpha = self.thrusters.alpha if cmd.alpha is None else np.asarray(cmd.alpha, dtype=float)
+        for name, v in (("thruster_cmd.f", f), ("thruster_cmd.alpha", alpha)):
+            if v.shape != (n,):
+                raise PlantError(f"{name} has shape {v.shape}, expected ({n},) for thrusters {list(self.thrusters.ids)}")
+            bad = np.flatnonzero(~np.isfinite(v))
+            if bad.size:
+                i = int(bad[0])
+                raise PlantError(f"{name}[{i}] (thruster {self.thrusters.ids[i]!r}) = {v[i]!r} must be finite")
+        return ThrusterCommand(f.copy(), alpha.copy())
+
+    def _check_winch(self, cmd: Any) -> np.ndarray:
+        w = np.asarray(cmd, dtype=float)
+        if w.shape != (len(self.line_ids),):
+            raise PlantError(f"winch_cmd has shape {w.shape}, expected ({len(self.line_ids)},) for lines {list(self.line_ids)}")
+        bad = np.flatnonzero(~np.isfinite(w))
+        if bad.size:
+            i = int(bad[0])
+            raise PlantError(f"winch_cmd[{i}] (line {self.line_ids[i]!r}) = {w[i]!r} m/s must be finite")
+        no_winch = np.flatnonzero((self._winch_rate_max == 0) & (w != 0))
+        if no_winch.size:
+            i = int(no_winch[0])
+            raise PlantError(f"winch_cmd[{i}] = {w[i]:g} m/s on line {self.line_ids[i]!r}, which has no winch "
+                             "(lines[].winch_max_rate = 0)")
+        return np.clip(w, -self._winch_rate_max, self._winch_rate_max)
+
+    # -- the outer step --------------------------------------------------------------------
+    def _apply_faults(self) -> None:
+        while self._fault_i < len(self._faults) and self._faults[self._fault_i].time <= self.t + 1e-9:
+            f = self._faults[self._fault_i]
+            if f.kind == "line_break":
+                self.mooring.break_line(str(f.line))
+                self.events.append((self.t, f"line {f.line} broke"))
+            else:
+                self.thrusters.fail(str(f.thruster))
+                self.events.append((self.t, f"thruster {f.thruster} failed"))
+            self._fault_i += 1
+
+    def _outer_step(self, h: float) -> None:
+        self._apply_faults()
+        t0 = self.t
+        self.thrusters.step(h, self._cmd.f, self._cmd.alpha)
+        tau_thr = self.thrusters.tau()
+        if self.env is not None:
+            loads = self.env.loads(t0, self.eta, self.nu)
+            tau_wind, tau_drift = loads["tau_wind"], loads["tau_drift"]
+        else:
+            tau_wind = tau_drift = np.zeros(3)
+        tau = tau_thr + tau_wind + tau_drift + self._tau_moor
+        _, nu_dot = vessel_rhs(self.eta, self.nu, tau, self._v_c, self.vessel, form="rich")
+        nu = self.nu + h * np.asarray(nu_dot, dtype=float).ravel()
+        eta = self.eta + h * (rot_z(self.eta[2]) @ nu)
+        if not (np.all(np.isfinite(nu)) and np.all(np.isfinite(eta)) and np.hypot(eta[0], eta[1]) < 1e5):
+            raise SimulationDiverged(
+                f"vessel state became unphysical at t = {t0:.2f} s (eta = {eta.tolist()}, nu = {nu.tolist()}); "
+                "check the vessel mass and damping, the thruster commands and the environmental loads",
+                time=t0)
+        # winches
+        if np.any(self._winch):
+            fem = self.mooring.fem
+            fem.L = np.clip(fem.L + h * self._winch, self._L_limits[:, 0], self._L_limits[:, 1])
+            fem._update_lengths()
+        # FEM substeps with the fairleads on the interpolated total motion
+        pose0 = self.eta + self._eta_wf
+        self.t = t0 + h
+        self.eta, self.nu = eta, nu
+        self._eta_wf = self._wf(self.t)
+        pose1 = self.eta + self._eta_wf
+        m = self.mooring
+        if h != self._h_last or np.any(self._winch):
+            self._dt_stable = m.fem.stable_dt(m.safety) if np.any(self._winch) or self._dt_stable is None else self._dt_stable
+            self._n_sub = max(1, int(math.ceil(h / self._dt_stable - 1e-9)))
+            self._h_last = h
+        n_sub = self._n_sub
+        m.dt = h / n_sub
+        rate = (pose1 - pose0) / h
+        for k in range(1, n_sub + 1):
+            m.step(pose0 + (k / n_sub) * (pose1 - pose0), rate)
+        self._steps += 1
+        if self._steps % 20 == 0:
+            m.fem.check_health()
+        self._tau_moor = m.tau(pose1)
+        self.loads = {"tau_wind": tau_wind, "tau_drift": tau_drift, "tau_moor": self._tau_moor, "tau_thr": tau_thr}
+
+    # -- logging ---------------------------------------------------------------------------
+    def channels(self) -> list[tuple[str, str]]:
+        """Names and units of the channels of :meth:`sample_row`."""
+        ch = [("x", "m"), ("y", "m"), ("psi", "rad"), ("u", "m/s"), ("v", "m/s"), ("r", "rad/s"),
+              ("x_wf", "m"), ("y_wf", "m"), ("psi_wf", "rad")]
+        ch += [(f"T_fairlead[{i}]", "N") for i in self.line_ids]
+        ch += [(f"T_anchor[{i}]", "N") for i in self.line_ids]
+        ch += [(f"L[{i}]", "m") for i in self.line_ids]
+        ch += [(f"f[{i}]", "N") for i in self.thrusters.ids]
+        ch += [(f"alpha[{i}]", "rad") for i in self.thrusters.ids]
+        ch += [(f"P[{i}]", "W") for i in self.thrusters.ids]
+        for load in ("tau_thr", "tau_moor", "tau_wind", "tau_drift"):
+            ch += [(f"{load}[X]", "N"), (f"{load}[Y]", "N"), (f"{load}[N]", "N m")]
+        return ch
+
+    def sample_row(self) -> np.ndarray:
+        """Current values of all :meth:`channels` (true states, not measurements)."""
+        m = self.mooring
+        return np.concatenate([
+            self.eta, self.nu, self._eta_wf, m.fairlead_tension(), m.anchor_tension(), m.fem.L,
+            self.thrusters.f, self.thrusters.alpha, self.thrusters.power(),
+            self.loads["tau_thr"], self.loads["tau_moor"], self.loads["tau_wind"], self.loads["tau_drift"],
+        ])
+
+    def metadata(self) -> dict:
+        """Inputs and settings that identify a run."""
+        from .. import __version__
+
+        ss = self.sea_state
+        return {
+            "scenario": self.scenario.name,
+            "sea_state": None if ss is None else ss.id,
+            "segments": [int(s) for s in self.mooring.fem.lines.segments],
+            "fem_dt": self.mooring.dt,
+            "outer_dt": self.outer_dt,
+            "wave_frequency": self.wave_frequency,
+            "settle": {"time": self.settle_info.time, "converged": self.settle_info.converged},
+            "events": [[t, e] for t, e in self.events],
+            "tapm_opt_version": __version__,
+        }
+
+
+def _sea_state(scenario: Any, sea_state: Any):
+    if sea_state is None:
+        return scenario.sea_states[0] if scenario.sea_states else None
+    if isinstance(sea_state, str):
+        if sea_state == "calm":
+            return None
+        try:
+            return scenario.sea_state(sea_state)
+        except KeyError as exc:
+            raise PlantError(str(exc).strip("'\"")) from None
+    return sea_state
+
+
+def _vec3(name: str, v: Any) -> np.ndarray:
+    a = np.asarray(v, dtype=float)
+    if a.shape != (3,) or not np.all(np.isfinite(a)):
+        raise PlantError(f"{name} = {v!r} must be 3 finite numbers (x [m], y [m], psi [rad])")
+    return a
+
+
+def run_open_loop(plant: Plant, duration: float, *, thruster_cmd: ThrusterCommand | Callable[[float], ThrusterCommand] | None = None,
+                  winch_cmd: Any = None, dt_log: float = 1.0, meta: dict | None = None) -> Result:
+    """Run the plant with fixed (or time-scheduled) commands and log every ``dt_log`` seconds.
+
+    Parameters
+    ----------
+    plant : Plant
+    duration : float
+        Simulated time [s].
+    thruster_cmd : ThrusterCommand or callable t -> ThrusterCommand, optional
+        Thruster commands (held between log instants when a callable).
+    winch_cmd : array_like (n_lines,), optional
+        Winch speeds [m/s].
+    dt_log : float
+        Logging interval [s].
+    """
+    if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0):
+        raise PlantError(f"duration = {duration!r} s must be a positive number")
+    if not (isinstance(dt_log, (int, float)) and math.isfinite(dt_log) and dt_log > 0):
+        raise PlantError(f"dt_log = {dt_log!r} s must be a positive number")
+    n = int(math.floor(duration / dt_log + 1e-9))
+    rb = ResultBuilder(plant.channels(), capacity=n + 1)
+    rb.append(plant.t, plant.sample_row())
+    for _ in range(n):
+        cmd = thruster_cmd(plant.t) if callable(thruster_cmd) else thruster_cmd
+        plant.step(dt_log, cmd, winch_cmd)
+        rb.append(plant.t, plant.sample_row())
+    return rb.build({**plant.metadata(), **(meta or {})})
