@@ -29,7 +29,7 @@ from ..models import catenary
 from ..models.mooring import MooringModel
 from .mooring_fem import MooringFEM, SettleInfo
 
-__all__ = ["ForcedMotionResult", "forced_motion", "DOFS"]
+__all__ = ["ForcedMotionResult", "forced_motion", "identify_mooring_damping", "DOFS"]
 
 DOFS = ("surge", "sway", "yaw")
 
@@ -194,3 +194,33 @@ def forced_motion(scenario: Any, *, dof: Literal["surge", "sway", "yaw"] = "surg
         segments=segments, settle=info, cycles_analysed=max(n_cyc, 0),
         meta={"scenario": scenario.name},
     )
+
+
+def identify_mooring_damping(scenario: Any, *, amplitudes: tuple[float, float, float] = (10.0, 10.0, math.radians(5.0)),
+                             period: float = 100.0, cycles: int = 3, segments: int | None = None,
+                             current: Any = None) -> np.ndarray:
+    """Diagonal linear mooring damping D_mo (survey eq. 30) identified from forced-motion runs.
+
+    One :func:`forced_motion` run per degree of freedom at the given amplitude and period; the
+    equivalent linear damping of each becomes the diagonal of D_mo. The result depends on the
+    amplitude and period (drag is nonlinear): choose those of the expected low-frequency motion.
+
+    Parameters
+    ----------
+    amplitudes : (surge [m], sway [m], yaw [rad])
+    period : float
+        Motion period [s], e.g. the surge natural period.
+    cycles : int
+        Cycles simulated (the first is discarded), >= 2.
+
+    Returns
+    -------
+    ndarray (3, 3)
+        diag(b_surge [N s/m], b_sway [N s/m], b_yaw [N m s/rad]).
+    """
+    if not isinstance(cycles, int) or cycles < 2:
+        raise ModelError(f"cycles = {cycles!r} must be a whole number >= 2")
+    b = [forced_motion(scenario, dof=dof, amplitude=a, period=period, duration=cycles * period, segments=segments,
+                       dt_out=period / 100.0, current=current).damping
+         for dof, a in zip(DOFS, amplitudes)]
+    return np.diag(b)
