@@ -174,7 +174,7 @@ class Plant:
             bad = np.flatnonzero(~np.isfinite(v))
             if bad.size:
                 i = int(bad[0])
-                raise PlantError(f"{name}[{i}] (thruster {self.thrusters.ids[i]!r}) = {v[i]!r} must be finite")
+                raise PlantError(f"{name}[{i}] (thruster {self.thrusters.ids[i]!r}) = {float(v[i])!r} must be finite")
         return ThrusterCommand(f.copy(), alpha.copy())
 
     def _check_winch(self, cmd: Any) -> np.ndarray:
@@ -184,7 +184,7 @@ class Plant:
         bad = np.flatnonzero(~np.isfinite(w))
         if bad.size:
             i = int(bad[0])
-            raise PlantError(f"winch_cmd[{i}] (line {self.line_ids[i]!r}) = {w[i]!r} m/s must be finite")
+            raise PlantError(f"winch_cmd[{i}] (line {self.line_ids[i]!r}) = {float(w[i])!r} m/s must be finite")
         no_winch = np.flatnonzero((self._winch_rate_max == 0) & (w != 0))
         if no_winch.size:
             i = int(no_winch[0])
@@ -230,7 +230,7 @@ class Plant:
             fem._update_lengths()
         # FEM substeps with the fairleads on the interpolated total motion
         pose0 = self.eta + self._eta_wf
-        self.t = t0 + h
+        self.t = round(t0 + h, 9)  # no drift from repeated addition: logged times are exact
         self.eta, self.nu = eta, nu
         self._eta_wf = self._wf(self.t)
         pose1 = self.eta + self._eta_wf
@@ -301,7 +301,7 @@ def _sea_state(scenario: Any, sea_state: Any):
         try:
             return scenario.sea_state(sea_state)
         except KeyError as exc:
-            raise PlantError(str(exc).strip("'\"")) from None
+            raise PlantError(f"sea_state = {sea_state!r}: {str(exc).strip(chr(39) + chr(34))}") from None
     return sea_state
 
 

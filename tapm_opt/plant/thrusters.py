@@ -33,6 +33,7 @@ import numpy as np
 
 from ..config import schema
 from ..geometry import ssa
+from ..models.thrust import configuration_matrix
 from .environment import PlantError, _num
 
 __all__ = ["ThrusterBank", "THRUST_LOADING", "EFFICIENCY"]
@@ -211,8 +212,7 @@ class ThrusterBank:
         ``tau = T(alpha) f``; default alpha: the actual azimuths.
         """
         a = self._alpha if alpha is None else self._vector("alpha", alpha)
-        c, s = np.cos(a), np.sin(a)
-        return np.stack([c, s, self.limits.x * s - self.limits.y * c])
+        return configuration_matrix(a, self.limits.x, self.limits.y)
 
     def tau(self) -> np.ndarray:
         """Generalised thruster force tau_thr = sum_i f_i (cos a_i, sin a_i, x_i sin a_i - y_i cos a_i)
