@@ -273,6 +273,41 @@ class MooringModel:
         self._cache[key] = fn
         return fn
 
+    def tension_function(self, kind: Literal["catenary", "characteristic"] = "characteristic",
+                         *, eta0=(0.0, 0.0, 0.0), closure_tol: float = 1e-6) -> ca.Function:
+        """CasADi Function ``T_fairlead(eta) -> T`` (n,) [N], fairlead tension of every line.
+
+        ``"catenary"``: exact, ``sqrt(HF^2 + VF^2)`` from the symbolic catenary (NaN if a root fails,
+        as in :meth:`force_function`); ``"characteristic"``: each line's tension linearised in its
+        horizontal distance about ``eta0``, ``T0 + (dT/dXF) (XF(eta) - XF0)`` with the exact geometry.
+        """
+        key = ("tension", kind, tuple(np.asarray(eta0, dtype=float)), closure_tol)
+        if key in self._cache:
+            return self._cache[key]
+        eta0 = self._check_eta(eta0)
+        eta = ca.MX.sym("eta", 3)
+        sol0 = self.solve_lines(eta0)
+        _, _, XF0 = self.spans(eta0)
+        _, _, XF = self.spans(eta)
+        if kind == "characteristic":
+            dT = (sol0.HF * sol0.dHF_dXF + sol0.VF * sol0.dVF_dXF) / np.maximum(sol0.TF, 1e-300)
+            T = ca.DM(sol0.TF) + ca.DM(dT) * (XF - ca.DM(XF0))
+        elif kind == "catenary":
+            dX = XF - XF0
+            DM = ca.DM
+            HF0 = ca.fmax(DM(sol0.HF) + DM(sol0.dHF_dXF) * dX, DM(0.1 * sol0.HF + 1.0))
+            VF0 = ca.fmax(DM(sol0.VF) + DM(sol0.dVF_dXF) * dX, DM(0.1 * sol0.VF + 1.0))
+            cat = catenary.symbolic_function().map(self.n_lines)
+            HF, VF, err = cat(XF.T, self.ZF[None, :], self.L[None, :], self.EA[None, :], self.w[None, :],
+                              self.CB[None, :], HF0.T, VF0.T)
+            T = ca.sqrt(HF.T ** 2 + VF.T ** 2)
+            T = ca.if_else(ca.mmax(err) <= closure_tol, T, ca.DM.nan(self.n_lines, 1))
+        else:
+            raise ModelError(f"kind = {kind!r} is not one of 'catenary', 'characteristic'")
+        fn = ca.Function(f"T_fairlead_{kind}", [eta], [T], ["eta"], ["T"])
+        self._cache[key] = fn
+        return fn
+
     def linearised(self, eta0=(0.0, 0.0, 0.0), *, D_mo=None) -> "LinearMooring":
         """Linear spring model about the working point ``eta0`` (survey eq. 26–30)."""
         eta0 = self._check_eta(eta0)

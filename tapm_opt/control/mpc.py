@@ -1,0 +1,645 @@
+"""Model predictive control of a thruster-assisted moored vessel (CasADi; OSQP for the linear MPC).
+
+One formulation serves both controllers. :func:`build_problem` writes the optimal control problem
+over CasADi symbols, in scaled variables, with multiple shooting:
+
+* prediction model: the design form of the vessel (survey eq. 14–15/31, ``models.vessel``) with the
+  mooring restoring model (``"catenary"``, ``"characteristic"`` or ``"linear"``) and the slowly
+  varying environmental load ``b`` in {E} as a parameter, ``tau_env = R(psi)^T b``; RK4 over ``dt``;
+* decision variables: generalised thrust ``tau`` (allocation afterwards) or the thrusters' force
+  components directly (extended thrust; allocation inside the MPC);
+* cost: thrust power surrogate (so the mooring does the work), position error outside a dead band
+  (the TAPM philosophy, survey §4.1) and optionally inside it, heading error, velocity, thrust rate,
+  a terminal cost;
+* constraints: thrust capacity and rate (hard); the safe circle and every line's tension limit
+  (soft, exact L1 penalty plus a small quadratic one); dead band as a polygon with a slack.
+
+:class:`NonlinearMPC` solves it with an NLP solver (IPOPT, SQP with a QP solver, or fatrop).
+:class:`LinearMPC` linearises the dynamics and the tensions about an operating point: the problem is
+then a QP whose constant matrices are taken from the same CasADi expressions once, and each step
+only updates the parameter-dependent vectors of an OSQP problem set up once (warm started).
+On a failed solve both apply the shifted previous plan and say so in their diagnostics.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import casadi as ca
+import numpy as np
+import scipy.sparse as sp
+
+from ..errors import TapmError
+from ..geometry import rot_z
+from ..models.mooring import MooringModel
+from ..models.thrust import extended_columns
+from ..models.vessel import VesselParams, moored_function
+from .estimate import Estimate, Setpoint
+
+__all__ = ["MPCSettings", "MPCError", "NonlinearMPC", "LinearMPC", "build_problem", "MPCStep"]
+
+
+class MPCError(TapmError, ValueError):
+    """Bad MPC settings or arguments."""
+
+
+@dataclass(frozen=True, kw_only=True)
+class MPCSettings:
+    """Settings of :class:`NonlinearMPC` and :class:`LinearMPC` (weights are dimensionless: every
+    term is normalised by the reference values below).
+
+    Attributes
+    ----------
+    horizon : int
+        Prediction steps N.
+    dt : float
+        Prediction step [s]; also the default re-solve period.
+    substeps : int
+        RK4 steps per prediction step.
+    mooring : {"characteristic", "catenary", "linear"}
+        Mooring model in the prediction (``models.mooring.MooringModel.force_function``).
+    decision : {"tau", "thrusters"}
+        Optimise the generalised thrust (allocation after) or the thruster forces directly.
+    solver : {"sqp", "ipopt", "fatrop"}
+        NLP solver of :class:`NonlinearMPC` (SQP: CasADi ``sqpmethod`` with its active-set QP
+        solver ``qrqp``, the fastest measured; IPOPT; fatrop).
+    w_thrust, w_rate : float
+        Weights on (tau / tau_ref)^2 (or (f_i / f_max,i)^2) and on its change per step.
+    w_position : float
+        Weight on (distance outside the dead band / r_ref)^2.
+    w_position_in : float
+        Weight on (position error / r_ref)^2 everywhere (0: free inside the dead band).
+    w_heading, w_velocity : float
+        Weights on (heading error / psi_ref)^2 and (nu / nu_ref)^2.
+    w_terminal : float
+        Multiplier of the state terms at the end of the horizon.
+    dead_band : float
+        Radius of the dead band about the position setpoint [m] (0: none).
+    safe_radius : float or None
+        Soft constraint radius about the field zero point [m] (None: from the scenario, or none).
+    tension_utilisation : float or None
+        Soft tension limit as a fraction of MBS (None: the scenario's ``limits.tension_utilisation``).
+    soft_l1, soft_l2 : float
+        Exact (L1) and quadratic penalties on the normalised soft-constraint violations.
+    r_ref, psi_ref, nu_ref, r_rate_ref : float
+        Normalisation: position [m], heading [rad], speed [m/s], yaw rate [rad/s].
+    capacity_fraction : float
+        ``decision="tau"``: fraction of the summed thrust used as the box on each of X, Y, N.
+    polygon_sides : int
+        Sides of the polygons approximating circles (dead band, safe circle, thrust circles).
+    max_iter : int
+        Solver iteration limit.
+    """
+
+    horizon: int = 20
+    dt: float = 5.0
+    substeps: int = 1
+    mooring: Literal["characteristic", "catenary", "linear"] = "characteristic"
+    decision: Literal["tau", "thrusters"] = "tau"
+    solver: Literal["sqp", "ipopt", "fatrop"] = "sqp"
+    w_thrust: float = 1.0
+    w_rate: float = 1.0
+    w_position: float = 50.0
+    w_position_in: float = 0.0
+    w_heading: float = 20.0
+    w_velocity: float = 0.0
+    w_terminal: float = 5.0
+    dead_band: float = 0.0
+    safe_radius: float | None = None
+    tension_utilisation: float | None = None
+    soft_l1: float = 1e3
+    soft_l2: float = 1e2
+    r_ref: float = 10.0
+    psi_ref: float = math.radians(5.0)
+    nu_ref: float = 0.5
+    r_rate_ref: float = math.radians(0.5)
+    capacity_fraction: float = 0.6
+    polygon_sides: int = 16
+    max_iter: int = 100
+
+    def __post_init__(self) -> None:
+        pos = ("dt", "r_ref", "psi_ref", "nu_ref", "r_rate_ref", "capacity_fraction")
+        nonneg = ("w_thrust", "w_rate", "w_position", "w_position_in", "w_heading", "w_velocity", "w_terminal",
+                  "dead_band", "soft_l1", "soft_l2")
+        for name in pos:
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise MPCError(f"MPCSettings.{name} = {v!r} must be a positive number")
+        for name in nonneg:
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                raise MPCError(f"MPCSettings.{name} = {v!r} must be a number >= 0")
+        for name, lo in (("horizon", 1), ("substeps", 1), ("polygon_sides", 3), ("max_iter", 1)):
+            v = getattr(self, name)
+            if not (isinstance(v, int) and v >= lo):
+                raise MPCError(f"MPCSettings.{name} = {v!r} must be a whole number >= {lo}")
+        for name, allowed in (("mooring", ("characteristic", "catenary", "linear")), ("decision", ("tau", "thrusters")),
+                              ("solver", ("sqp", "ipopt", "fatrop"))):
+            if getattr(self, name) not in allowed:
+                raise MPCError(f"MPCSettings.{name} = {getattr(self, name)!r} is not one of {', '.join(allowed)}")
+        if self.safe_radius is not None and not (math.isfinite(self.safe_radius) and self.safe_radius > 0):
+            raise MPCError(f"MPCSettings.safe_radius = {self.safe_radius!r} must be a positive number or None")
+
+
+@dataclass(frozen=True)
+class MPCStep:
+    """Diagnostics of one MPC update."""
+
+    t: float
+    success: bool
+    status: str
+    solve_time: float
+    iterations: int
+    fallback: bool
+    cost: float
+    active: tuple[str, ...]
+    max_soft_violation: float
+
+
+# ------------------------------------------------------------------------------------------
+# the problem
+# ------------------------------------------------------------------------------------------
+
+
+@dataclass
+class _Problem:
+    z: ca.SX | ca.MX
+    p: ca.SX | ca.MX
+    f: Any
+    g: Any
+    lbz: np.ndarray
+    ubz: np.ndarray
+    lbg: np.ndarray
+    ubg: np.ndarray
+    idx: dict
+    scale: dict
+    n_u: int
+    B_thr: np.ndarray | None
+
+
+def _thruster_data(scenario: Any):
+    th = scenario.thrusters
+    if not th:
+        raise MPCError(f"scenario {scenario.name!r} has no thrusters: there is nothing to control")
+    cols, lo, hi, kinds, fmax, rate = [], [], [], [], [], []
+    for t in th:
+        if t.kind == "azimuth":
+            cols.append(extended_columns(*t.position))
+            kinds += ["az", "az"]
+            lo += [-t.max_thrust] * 2
+            hi += [t.max_thrust] * 2
+            fmax += [t.max_thrust] * 2
+            rate += [t.max_thrust_rate] * 2
+        else:
+            c, s = math.cos(t.angle), math.sin(t.angle)
+            cols.append(np.array([[c], [s], [t.position[0] * s - t.position[1] * c]]))
+            kinds.append("fixed")
+            lo.append(-t.max_reverse_thrust)
+            hi.append(t.max_thrust)
+            fmax.append(max(t.max_thrust, t.max_reverse_thrust))
+            rate.append(t.max_thrust_rate)
+    B = np.hstack(cols)
+    return B, np.array(lo), np.array(hi), kinds, np.array(fmax), np.array(rate)
+
+
+def _polygon(n: int) -> np.ndarray:
+    """Outward unit normals of a regular n-gon circumscribing the unit circle."""
+    a = 2 * np.pi * np.arange(n) / n
+    return np.stack([np.cos(a), np.sin(a)], axis=1)
+
+
+def build_problem(scenario: Any, settings: MPCSettings, *, linear_about: tuple | None = None,
+                  model: MooringModel | None = None) -> _Problem:
+    """Write the MPC problem (module docstring) as CasADi expressions.
+
+    Parameters
+    ----------
+    linear_about : (x_op (6,), u_op (3,), b_op (3,)) or None
+        None: nonlinear prediction. Otherwise the dynamics are linearised about this point, the
+        tensions about ``x_op``'s pose, and the heading error is used unwrapped: the problem is a QP.
+
+    Returns the decision vector ``z`` (scaled), parameters ``p = (x0, u_prev, eta_d, b)`` in SI, cost
+    ``f``, constraints ``g`` with bounds, and index maps.
+    """
+    s = settings
+    N = s.horizon
+    vp = VesselParams.from_scenario(scenario)
+    moor = model or MooringModel.from_scenario(scenario)
+    eta_op = np.zeros(3) if linear_about is None else np.asarray(linear_about[0][:3], float)
+    kind = s.mooring
+    tau_moor = moor.force_function(kind, eta0=eta_op)
+    if kind != "catenary":
+        tau_moor = tau_moor.expand()  # pure SX: evaluated without the MX virtual machine
+    rhs = moored_function(vp, tau_moor, form="design")
+    # thrust variables
+    B_thr, u_lo, u_hi, kinds, fmax, rate = _thruster_data(scenario)
+    if s.decision == "tau":
+        # a box per DOF: the summed capacity of every thruster in that DOF, times a fraction that
+        # leaves room for the other two DOFs (each azimuth can push its full thrust any way)
+        cap = s.capacity_fraction * np.array([np.sum(fmax * np.abs(B_thr[i])) for i in range(3)])
+        n_u = 3
+        u_ref = cap
+        u_lo_s, u_hi_s = -np.ones(3), np.ones(3)
+        rate_s = np.array([np.sum(rate * np.abs(B_thr[i])) for i in range(3)]) * s.capacity_fraction / cap
+        Bu = np.eye(3)
+    else:
+        n_u = B_thr.shape[1]
+        u_ref = fmax
+        u_lo_s, u_hi_s = u_lo / fmax, u_hi / fmax
+        rate_s = rate / fmax
+        Bu = B_thr
+    x_ref = np.array([s.r_ref, s.r_ref, s.psi_ref, s.nu_ref, s.nu_ref, s.r_rate_ref])
+    la = scenario.line_arrays
+    util = scenario.limits.tension_utilisation if s.tension_utilisation is None else s.tension_utilisation
+    T_allow = util * la["MBS"][[scenario.line_index(i) for i in moor.line_ids]]
+    R_safe = scenario.limits.safe_radius if s.safe_radius is None else s.safe_radius
+    polyg = _polygon(s.polygon_sides)
+
+    Sym = ca.MX if kind == "catenary" and linear_about is None else ca.SX
+    p = Sym.sym("p", 6 + n_u + 3 + 3)
+    x0, u_prev, eta_d, b_E = p[0:6], p[6:6 + n_u], p[6 + n_u:9 + n_u], p[9 + n_u:12 + n_u]
+
+    # discrete dynamics (RK4) in SI, with thrust tau = Bu u
+    xs, us, bs = ca.SX.sym("x", 6), ca.SX.sym("u", n_u), ca.SX.sym("b", 3)
+    if kind == "catenary":
+        xs, us, bs = ca.MX.sym("x", 6), ca.MX.sym("u", n_u), ca.MX.sym("b", 3)
+    h = s.dt / s.substeps
+    xk = xs
+    tau_u = ca.mtimes(ca.DM(Bu), us)
+    for _ in range(s.substeps):
+        def fx(xx):
+            tau_env = ca.mtimes(rot_z(xx[2]).T, bs)
+            return rhs(xx, tau_u, tau_env, ca.DM.zeros(2))
+        k1 = fx(xk)
+        k2 = fx(xk + h / 2 * k1)
+        k3 = fx(xk + h / 2 * k2)
+        k4 = fx(xk + h * k3)
+        xk = xk + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    F = ca.Function("F", [xs, us, bs], [xk])
+    tension = moor.tension_function("catenary" if kind == "catenary" else "characteristic", eta0=eta_op)
+    if kind != "catenary":
+        tension = tension.expand()
+    if linear_about is not None:
+        x_op, u_op, b_op = (np.asarray(a, float) for a in linear_about)
+        A = np.array(ca.Function("A", [xs, us, bs], [ca.jacobian(xk, xs)])(x_op, u_op, b_op))
+        Bm = np.array(ca.Function("B", [xs, us, bs], [ca.jacobian(xk, us)])(x_op, u_op, b_op))
+        G = np.array(ca.Function("G", [xs, us, bs], [ca.jacobian(xk, bs)])(x_op, u_op, b_op))
+        F0 = np.array(F(x_op, u_op, b_op)).ravel()
+        xs2, us2, bs2 = ca.SX.sym("x", 6), ca.SX.sym("u", n_u), ca.SX.sym("b", 3)
+        F = ca.Function("F_lin", [xs2, us2, bs2], [ca.DM(F0) + ca.mtimes(ca.DM(A), xs2 - x_op)
+                                                   + ca.mtimes(ca.DM(Bm), us2 - u_op) + ca.mtimes(ca.DM(G), bs2 - b_op)])
+        e_s = ca.SX.sym("e", 3)
+        T0 = np.array(tension(x_op[:3])).ravel()
+        JT = _jac(tension, x_op[:3])
+        tension = ca.Function("T_lin", [e_s], [ca.DM(T0) + ca.mtimes(ca.DM(JT), e_s - x_op[:3])])
+
+    # decision variables (scaled): X (6 x N+1), U (n_u x N), slacks: dead band, safe, tension (N each)
+    nX, nU = 6 * (N + 1), n_u * N
+    z = Sym.sym("z", nX + nU + 3 * N)
+    X = ca.reshape(z[:nX], 6, N + 1)
+    U = ca.reshape(z[nX:nX + nU], n_u, N)
+    S_db = z[nX + nU:nX + nU + N]
+    S_safe = z[nX + nU + N:nX + nU + 2 * N]
+    S_T = z[nX + nU + 2 * N:nX + nU + 3 * N]
+    Dx, Du = ca.DM(x_ref), ca.DM(u_ref)
+
+    g, lbg, ubg = [], [], []
+    cost = 0
+    g.append(X[:, 0] - x0 / Dx)
+    lbg += [0.0] * 6
+    ubg += [0.0] * 6
+    u_last = u_prev / Du
+    for k in range(N):
+        xk_si = X[:, k] * Dx
+        uk_si = U[:, k] * Du
+        xn = F(xk_si, uk_si, b_E)
+        g.append(X[:, k + 1] - xn / Dx)
+        lbg += [0.0] * 6
+        ubg += [0.0] * 6
+        # thrust rate (hard)
+        g.append(U[:, k] - u_last)
+        lbg += list(-rate_s * s.dt)
+        ubg += list(rate_s * s.dt)
+        # thrust circles of azimuths (thruster decision)
+        if s.decision == "thrusters":
+            col = 0
+            while col < n_u:
+                if kinds[col] == "az":
+                    uv = U[col:col + 2, k]
+                    for nrm in polyg:
+                        g.append(nrm[0] * uv[0] + nrm[1] * uv[1])
+                        lbg.append(-ca.inf)
+                        ubg.append(math.cos(math.pi / s.polygon_sides))  # inscribed polygon
+                    col += 2
+                else:
+                    col += 1
+        cost += s.w_thrust * ca.sumsqr(U[:, k]) + s.w_rate * ca.sumsqr(U[:, k] - u_last)
+        u_last = U[:, k]
+        # state terms at k+1
+        xe = X[:, k + 1] * Dx
+        w_state = s.w_terminal if k == N - 1 else 1.0
+        dp = xe[0:2] - eta_d[0:2]
+        if s.dead_band > 0 or s.w_position > 0:
+            for nrm in polyg:
+                g.append((nrm[0] * dp[0] + nrm[1] * dp[1]) / s.r_ref - S_db[k])
+                lbg.append(-ca.inf)
+                ubg.append(s.dead_band / s.r_ref)
+            cost += w_state * s.w_position * S_db[k] ** 2
+        cost += w_state * s.w_position_in * ca.sumsqr(dp / s.r_ref)
+        dpsi = xe[2] - eta_d[2]
+        if linear_about is None:
+            cost += w_state * s.w_heading * 2.0 * (1.0 - ca.cos(dpsi)) / s.psi_ref ** 2
+        else:
+            cost += w_state * s.w_heading * (dpsi / s.psi_ref) ** 2
+        cost += w_state * s.w_velocity * (ca.sumsqr(xe[3:5] / s.nu_ref) + (xe[5] / s.r_rate_ref) ** 2)
+        # soft: safe circle about the field zero point, line tensions
+        if R_safe is not None:
+            for nrm in polyg:
+                g.append((nrm[0] * xe[0] + nrm[1] * xe[1]) / R_safe - S_safe[k])
+                lbg.append(-ca.inf)
+                ubg.append(1.0)
+        T = tension(xe[0:3])
+        g.append(T / ca.DM(T_allow) - S_T[k])
+        lbg += [-ca.inf] * len(T_allow)
+        ubg += [1.0] * len(T_allow)
+        cost += s.soft_l1 * (S_safe[k] + S_T[k]) + s.soft_l2 * (S_safe[k] ** 2 + S_T[k] ** 2)
+    g = ca.vertcat(*g)
+    lbz = np.concatenate([np.full(nX, -np.inf), np.tile(u_lo_s, N), np.zeros(3 * N)])
+    ubz = np.concatenate([np.full(nX, np.inf), np.tile(u_hi_s, N), np.full(3 * N, np.inf)])
+    idx = {"X": slice(0, nX), "U": slice(nX, nX + nU), "S_db": slice(nX + nU, nX + nU + N),
+           "S_safe": slice(nX + nU + N, nX + nU + 2 * N), "S_T": slice(nX + nU + 2 * N, nX + nU + 3 * N)}
+    scale = {"x": x_ref, "u": u_ref, "T_allow": T_allow, "R_safe": R_safe}
+    return _Problem(z=z, p=p, f=cost, g=g, lbz=lbz, ubz=ubz, lbg=np.array(lbg, float), ubg=np.array(ubg, float),
+                    idx=idx, scale=scale, n_u=n_u, B_thr=Bu if s.decision == "thrusters" else None)
+
+
+def _jac(fn: ca.Function, x: np.ndarray) -> np.ndarray:
+    q = ca.MX.sym("q", fn.size1_in(0))
+    return np.array(ca.Function("J", [q], [ca.jacobian(fn(q), q)])(x))
+
+
+# ------------------------------------------------------------------------------------------
+# controllers
+# ------------------------------------------------------------------------------------------
+
+
+class _MPCBase:
+    """Shared parts: parameters, warm start by shifting, applying the first move, diagnostics."""
+
+    def __init__(self, scenario: Any, settings: MPCSettings):
+        if not isinstance(settings, MPCSettings):
+            raise MPCError(f"settings must be MPCSettings, got {type(settings).__name__}")
+        self.scenario = scenario
+        self.settings = settings
+        self.model = MooringModel.from_scenario(scenario)
+        self._z: np.ndarray | None = None
+        self._u_prev: np.ndarray | None = None
+        self.diagnostics: list[MPCStep] = []
+        self.plan_u: np.ndarray | None = None
+
+    @property
+    def owns_allocation(self) -> bool:
+        """True when the MPC optimises the thruster forces itself (``decision="thrusters"``)."""
+        return self.settings.decision == "thrusters"
+
+    def _params(self, est: Estimate, sp: Setpoint) -> np.ndarray:
+        eta, nu = np.asarray(est.eta, float), np.asarray(est.nu, float)
+        if eta.shape != (3,) or nu.shape != (3,) or not (np.all(np.isfinite(eta)) and np.all(np.isfinite(nu))):
+            raise MPCError(f"estimate eta = {eta.tolist()}, nu = {nu.tolist()} must be finite 3-vectors")
+        eta_d = np.asarray(sp.eta_d, float).copy()
+        eta_d[2] = eta[2] + _ssa(eta_d[2] - eta[2])  # heading setpoint unwrapped next to the heading
+        tau_env = np.asarray(est.tau_env, float)
+        b_E = rot_z(eta[2]) @ tau_env
+        u_prev = np.zeros(self._n_u) if self._u_prev is None else self._u_prev
+        return np.concatenate([eta, nu, u_prev, eta_d, b_E])
+
+    def _shift(self, z: np.ndarray) -> np.ndarray:
+        idx, N = self._prob.idx, self.settings.horizon
+        out = z.copy()
+        X = z[idx["X"]].reshape(N + 1, 6)
+        U = z[idx["U"]].reshape(N, self._n_u)
+        out[idx["X"]] = np.vstack([X[1:], X[-1:]]).ravel()
+        out[idx["U"]] = np.vstack([U[1:], U[-1:]]).ravel()
+        for key in ("S_db", "S_safe", "S_T"):
+            sl = z[idx[key]]
+            out[idx[key]] = np.concatenate([sl[1:], sl[-1:]])
+        return out
+
+    def _initial(self, p: np.ndarray) -> np.ndarray:
+        z = np.zeros(self._prob.z.numel())
+        X = np.tile(p[:6] / self._prob.scale["x"], self.settings.horizon + 1)
+        z[self._prob.idx["X"]] = X
+        return z
+
+    def _finish(self, t: float, z: np.ndarray, ok: bool, status: str, solve_time: float, it: int, cost: float) -> np.ndarray:
+        idx, N = self._prob.idx, self.settings.horizon
+        fallback = False
+        if not ok or not np.all(np.isfinite(z)):
+            fallback = True
+            if self._z is not None:
+                z = self._shift(self._z)
+            else:
+                z = self._initial(self._last_p)
+                z[idx["U"]] = np.tile((self._u_prev if self._u_prev is not None else np.zeros(self._n_u))
+                                      / self._prob.scale["u"], N)
+        U = z[idx["U"]].reshape(N, self._n_u) * self._prob.scale["u"]
+        # hard input bounds are guaranteed even for a fallback plan
+        U = np.clip(U, self._prob.lbz[idx["U"]].reshape(N, self._n_u) * self._prob.scale["u"],
+                    self._prob.ubz[idx["U"]].reshape(N, self._n_u) * self._prob.scale["u"])
+        self._z = z
+        u0 = U[0]
+        self._u_prev = u0.copy()
+        self.plan_u = U
+        soft = max(float(np.max(z[idx["S_safe"]], initial=0.0)), float(np.max(z[idx["S_T"]], initial=0.0)))
+        active = []
+        if float(np.max(z[idx["S_safe"]], initial=0.0)) > 1e-4:
+            active.append("safe_circle")
+        if float(np.max(z[idx["S_T"]], initial=0.0)) > 1e-4:
+            active.append("tension")
+        if float(np.max(z[idx["S_db"]], initial=0.0)) > 1e-4:
+            active.append("dead_band")
+        us = z[idx["U"]].reshape(N, self._n_u)[0]
+        if np.any(np.abs(us) >= np.minimum(-self._prob.lbz[idx["U"]][:self._n_u], self._prob.ubz[idx["U"]][:self._n_u]) - 1e-4):
+            active.append("thrust_capacity")
+        self.diagnostics.append(MPCStep(t=t, success=ok, status=status, solve_time=solve_time, iterations=it,
+                                        fallback=fallback, cost=cost, active=tuple(active), max_soft_violation=soft))
+        return u0
+
+    def tau_from_u(self, u: np.ndarray) -> np.ndarray:
+        """Generalised thrust [N, N, N m] of a decision vector (identity for ``decision="tau"``)."""
+        return u if self._prob.B_thr is None else self._prob.B_thr @ u
+
+    def thruster_command(self, u: np.ndarray):
+        """(f, alpha) of every thruster from the thruster decision vector (``decision="thrusters"``)."""
+        f, alpha, col = [], [], 0
+        for t in self.scenario.thrusters:
+            if t.kind == "azimuth":
+                fx, fy = u[col], u[col + 1]
+                f.append(math.hypot(fx, fy))
+                alpha.append(math.atan2(fy, fx) if math.hypot(fx, fy) > 1e-6 * t.max_thrust else t.angle)
+                col += 2
+            else:
+                f.append(u[col])
+                alpha.append(t.angle)
+                col += 1
+        return np.array(f), np.array(alpha)
+
+    def last_thruster_command(self):
+        """(f, alpha) of the move applied last (``decision="thrusters"``)."""
+        if self._u_prev is None:
+            return np.zeros(len(self.scenario.thrusters)), np.array([t.angle for t in self.scenario.thrusters])
+        return self.thruster_command(self._u_prev)
+
+    def update(self, t: float, estimate: Estimate, setpoint: Setpoint) -> np.ndarray:
+        """Solve the MPC at time ``t`` and return the generalised thrust tau (3,) in {B} [N, N, N m]."""
+        p = self._params(estimate, setpoint)
+        self._last_p = p
+        u0 = self._solve(t, p)
+        return self.tau_from_u(u0)
+
+    def reset(self) -> None:
+        self._z = None
+        self._u_prev = None
+        self.diagnostics = []
+
+
+def _ssa(a: float) -> float:
+    return (a + math.pi) % (2 * math.pi) - math.pi
+
+
+class NonlinearMPC(_MPCBase):
+    """Nonlinear MPC on the design model with the chosen mooring model (CasADi NLP).
+
+    The NLP solver is built once; each :meth:`update` sets the parameters (state estimate, previous
+    thrust, setpoint, environmental load) and warm-starts from the shifted previous solution.
+    """
+
+    def __init__(self, scenario: Any, settings: MPCSettings = MPCSettings()):
+        super().__init__(scenario, settings)
+        prob = build_problem(scenario, settings, model=self.model)
+        self._prob = prob
+        self._n_u = prob.n_u
+        nlp = {"x": prob.z, "p": prob.p, "f": prob.f, "g": prob.g}
+        s = settings
+        if s.solver == "ipopt":
+            opts = {"ipopt.print_level": 0, "print_time": False, "ipopt.max_iter": s.max_iter, "ipopt.tol": 1e-6,
+                    "ipopt.warm_start_init_point": "yes", "ipopt.sb": "yes"}
+            self._solver = ca.nlpsol("mpc", "ipopt", nlp, opts)
+        elif s.solver == "sqp":
+            opts = {"qpsol": "qrqp", "print_time": False, "print_header": False, "print_iteration": False,
+                    "print_status": False, "max_iter": s.max_iter, "error_on_fail": False,
+                    "qpsol_options": {"print_iter": False, "print_header": False, "error_on_fail": False}}
+            self._solver = ca.nlpsol("mpc", "sqpmethod", nlp, opts)
+        else:
+            opts = {"print_time": False, "fatrop.print_level": 0}
+            self._solver = ca.nlpsol("mpc", "fatrop", nlp, opts)
+        self._lam_x = None
+        self._lam_g = None
+
+    def _solve(self, t: float, p: np.ndarray) -> np.ndarray:
+        prob = self._prob
+        z0 = self._shift(self._z) if self._z is not None else self._initial(p)
+        args = {"x0": z0, "p": p, "lbx": prob.lbz, "ubx": prob.ubz, "lbg": prob.lbg, "ubg": prob.ubg}
+        if self._lam_g is not None:
+            args["lam_x0"], args["lam_g0"] = self._lam_x, self._lam_g
+        t0 = time.perf_counter()
+        try:
+            sol = self._solver(**args)
+            stats = self._solver.stats()
+            ok = bool(stats.get("success", False))
+            status = str(stats.get("return_status", "unknown"))
+            it = int(stats.get("iter_count", -1))
+            z = np.array(sol["x"]).ravel()
+            cost = float(sol["f"])
+            if ok:
+                self._lam_x = np.array(sol["lam_x"]).ravel()
+                self._lam_g = np.array(sol["lam_g"]).ravel()
+        except RuntimeError as exc:  # an evaluation error inside the solver: treat as a failed solve
+            ok, status, it, z, cost = False, f"error: {str(exc).splitlines()[0][:120]}", -1, z0, math.nan
+        return self._finish(t, z, ok, status, time.perf_counter() - t0, it, cost)
+
+
+class LinearMPC(_MPCBase):
+    """Linear MPC: the same problem with dynamics and tensions linearised about an operating point,
+    solved as a sparse QP by OSQP (set up once; each step updates q, l, u and warm-starts).
+
+    The operating point is the setpoint pose at rest with zero thrust and the current environmental
+    load estimate; it is re-linearised (same sparsity, new matrix values) when the setpoint moves more
+    than ``relinearise_distance`` [m] or ``relinearise_heading`` [rad].
+    """
+
+    def __init__(self, scenario: Any, settings: MPCSettings = MPCSettings(), *, relinearise_distance: float = 5.0,
+                 relinearise_heading: float = math.radians(5.0), eps_abs: float = 1e-5, eps_rel: float = 1e-5):
+        super().__init__(scenario, settings)
+        import osqp
+
+        self._osqp_mod = osqp
+        self._reld, self._relh = relinearise_distance, relinearise_heading
+        self._eps = (eps_abs, eps_rel)
+        self._op = None
+        self._qp = None
+        self._n_u = 3 if settings.decision == "tau" else _thruster_data(scenario)[0].shape[1]
+
+    def _setup(self, x_op: np.ndarray, b_op: np.ndarray) -> None:
+        prob = build_problem(self.scenario, self.settings, linear_about=(x_op, np.zeros(self._n_u), b_op),
+                             model=self.model)
+        self._prob, self._n_u = prob, prob.n_u
+        z, p = prob.z, prob.p
+        H = ca.hessian(prob.f, z)[0]
+        fH = ca.Function("H", [p], [H])
+        q = ca.gradient(prob.f, z)
+        zero = ca.DM.zeros(z.numel())
+        fq = ca.Function("q", [z, p], [q])
+        Jg = ca.jacobian(prob.g, z)
+        fJ = ca.Function("Jg", [p], [Jg])
+        fg = ca.Function("g", [z, p], [prob.g])
+        self._fq = lambda pv: np.array(fq(zero, pv)).ravel()
+        self._fg0 = lambda pv: np.array(fg(zero, pv)).ravel()
+        p0 = np.zeros(p.numel())
+        Hm = sp.csc_matrix(np.array(fH(p0)))
+        Hm = sp.triu(Hm, format="csc")
+        Jm = sp.csc_matrix(np.array(fJ(p0)))
+        nz = z.numel()
+        Aq = sp.vstack([Jm, sp.eye(nz, format="csc")], format="csc")
+        self._nz = nz
+        big = 1e20
+        self._lbz = np.where(np.isfinite(prob.lbz), prob.lbz, -big)
+        self._ubz = np.where(np.isfinite(prob.ubz), prob.ubz, big)
+        self._lbg = np.where(np.isfinite(prob.lbg), prob.lbg, -big)
+        self._ubg = np.where(np.isfinite(prob.ubg), prob.ubg, big)
+        if self._qp is None or self._A_shape != Aq.shape or self._A_nnz != Aq.nnz or self._H_nnz != Hm.nnz:
+            self._qp = self._osqp_mod.OSQP()
+            self._qp.setup(P=Hm, q=np.zeros(nz), A=Aq, l=np.concatenate([self._lbg, self._lbz]),
+                           u=np.concatenate([self._ubg, self._ubz]), verbose=False, warm_starting=True,
+                           eps_abs=self._eps[0], eps_rel=self._eps[1], max_iter=20000, polishing=True)
+            self._A_shape, self._A_nnz, self._H_nnz = Aq.shape, Aq.nnz, Hm.nnz
+        else:
+            self._qp.update(Px=Hm.data, Ax=Aq.data)
+        self._op = (x_op.copy(), b_op.copy())
+
+    def _solve(self, t: float, p: np.ndarray) -> np.ndarray:
+        n_u = self._n_u
+        x_op = np.concatenate([p[6 + n_u:9 + n_u], np.zeros(3)])
+        b_op = p[-3:]
+        if (self._op is None or np.hypot(*(x_op[:2] - self._op[0][:2])) > self._reld
+                or abs(_ssa(x_op[2] - self._op[0][2])) > self._relh):
+            self._setup(x_op, b_op)
+        q = self._fq(p)
+        g0 = self._fg0(p)
+        l = np.concatenate([self._lbg - g0, self._lbz])
+        u = np.concatenate([self._ubg - g0, self._ubz])
+        self._qp.update(q=q, l=l, u=u)
+        if self._z is not None:
+            self._qp.warm_start(x=self._shift(self._z))
+        t0 = time.perf_counter()
+        res = self._qp.solve()
+        dt = time.perf_counter() - t0
+        st = res.info.status_val
+        ok = st in (self._osqp_mod.constant("OSQP_SOLVED"),) and res.x is not None and np.all(np.isfinite(res.x))
+        z = np.asarray(res.x, float) if res.x is not None else np.full(self._nz, np.nan)
+        cost = float(res.info.obj_val) if ok else math.nan
+        return self._finish(t, z, ok, str(res.info.status), dt, int(res.info.iter), cost)
+

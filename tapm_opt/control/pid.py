@@ -1,0 +1,781 @@
+"""TAPM PID control modes and their gains by pole placement.
+
+The multivariable PID of [G] §2.3,
+
+    tau = -K_i R(psi)^T int(eta - eta_d) dt - K_p R(psi)^T (eta - eta_d) - K_d (nu - nu_d),
+
+split into the four TAPM control modes of [S] Table 2 by the projections H_psi = diag(0, 0, 1)
+and H_xy = diag(1, 1, 0) (xi_dot = eta - eta_d, heading error wrapped with ``ssa``):
+
+    1. heading PID          -H_psi K_i R^T xi - H_psi K_p R^T (eta - eta_d) - H_psi K_d (nu - nu_d)
+    2. surge-sway damping   -H_xy K_d (nu - nu_d)
+    3. surge-sway restoring -H_xy K_p R^T (eta - eta_d)
+    4. surge-sway mean      -H_xy K_i R^T xi
+
+The enabled modes are summed; :data:`MODE_SETS` holds the combinations of [S] Table 3.
+[S] writes the damping term on accelerations (nu_dot - nu_d_dot); this module follows [G] and
+feeds back velocities: with K_d in N s/m a D-term on acceleration has the wrong units, and
+"damping" means a load proportional to velocity.
+
+Gains come from per-DOF pole placement on the linearised moored vessel ([S] eq. 31 about an
+equilibrium): :func:`design_gains`, :func:`design_from_scenario`. Closed-loop poles of the coupled
+3-DOF model are computed with python-control. ``[S]`` = seed survey-tapm-modeling-and-control,
+``[G]`` = seed reliability-setpoint-riser-mooring.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field, replace
+from types import MappingProxyType
+from typing import Any, Literal, Mapping, Sequence
+
+import control
+import numpy as np
+import scipy.optimize
+
+from ..errors import TapmError
+from ..geometry import rot_z, ssa
+from ..models.mooring import MooringModel
+from ..models.vessel import VesselParams, linearise, moored_function
+from .estimate import Estimate, Setpoint
+
+__all__ = [
+    "ControlError",
+    "GainClampWarning",
+    "MODES",
+    "MODE_SETS",
+    "H_PSI",
+    "H_XY",
+    "PIDGains",
+    "TAPMPID",
+    "PIDDesign",
+    "designed_poles",
+    "dof_plant",
+    "design_gains",
+    "design_from_scenario",
+    "closed_loop",
+]
+
+_X, _Y, _PSI = 0, 1, 2
+
+
+def _ro(a: Any, dtype: Any = float) -> np.ndarray:
+    arr = np.array(a, dtype=dtype)
+    arr.flags.writeable = False
+    return arr
+
+
+class ControlError(TapmError, ValueError):
+    """A controller or a gain design got input it cannot use (bad shape, NaN, unknown mode)."""
+
+
+class GainClampWarning(UserWarning):
+    """A designed gain came out negative and was set to zero (see ``PIDDesign.clamped``)."""
+
+
+#: The four TAPM control modes of [S] Table 2, in the order of the table.
+MODES: tuple[str, ...] = ("heading", "damping", "restoring", "mean")
+
+#: Mode combinations of [S] Table 3 (control actions 1, 1+2, 1+2+3, 1+2+4, 1+2+3+4).
+MODE_SETS: Mapping[str, tuple[str, ...]] = MappingProxyType({
+    "calm": ("heading",),
+    "normal": ("heading", "damping"),
+    "normal_restoring": ("heading", "damping", "restoring"),
+    "extreme": ("heading", "damping", "mean"),
+    "extreme_restoring": ("heading", "damping", "restoring", "mean"),
+})
+
+#: Projections of [S] Table 2 onto heading and onto surge-sway.
+H_PSI = _ro(np.diag([0.0, 0.0, 1.0]))
+H_XY = _ro(np.diag([1.0, 1.0, 0.0]))
+
+
+def _resolve_modes(modes: str | Sequence[str]) -> tuple[str, ...]:
+    """Modes as a tuple in the order of :data:`MODES`; a string is a :data:`MODE_SETS` key or
+    one mode name."""
+    if isinstance(modes, str):
+        if modes in MODE_SETS:
+            return MODE_SETS[modes]
+        modes = (modes,)
+    try:
+        given = tuple(modes)
+    except TypeError:
+        raise ControlError(f"modes={modes!r} must be a name in {tuple(MODE_SETS)} or a sequence "
+                           f"of modes from {MODES}") from None
+    unknown = [m for m in given if m not in MODES]
+    if unknown:
+        raise ControlError(f"unknown control mode(s) {unknown}; modes are {MODES}, combinations "
+                           f"{tuple(MODE_SETS)}")
+    if not given:
+        raise ControlError(f"modes is empty; enable at least one of {MODES}")
+    return tuple(m for m in MODES if m in given)
+
+
+def _projections(modes: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(H_I, H_P, H_D): the rows of K_i, K_p, K_d in use for ``modes`` ([S] Table 2)."""
+    head = H_PSI if "heading" in modes else np.zeros((3, 3))
+    H_I = head + (H_XY if "mean" in modes else 0.0)
+    H_P = head + (H_XY if "restoring" in modes else 0.0)
+    H_D = head + (H_XY if "damping" in modes else 0.0)
+    return H_I, H_P, H_D
+
+
+def _integrated(Ki_used: np.ndarray) -> np.ndarray:
+    """Which components of xi (x, y, psi) feed the output: x and y together (R^T mixes them)."""
+    used_cols = np.any(Ki_used != 0.0, axis=0)
+    xy = bool(used_cols[_X] or used_cols[_Y])
+    return np.array([xy, xy, bool(used_cols[_PSI])])
+
+
+def _gain_matrix(name: str, value: Any) -> np.ndarray:
+    try:
+        arr = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ControlError(f"{name}={value!r} is not numeric") from None
+    if arr.shape == (3,):
+        arr = np.diag(arr)
+    if arr.shape != (3, 3):
+        raise ControlError(f"{name} must have shape (3,) (diagonal) or (3, 3), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ControlError(f"{name} must be finite, got {name}={arr.tolist()}")
+    if np.any(np.diag(arr) < 0.0):
+        raise ControlError(f"{name} must have a non-negative diagonal ([G] §2.3), got "
+                           f"diag({name})={np.diag(arr).tolist()}")
+    arr.flags.writeable = False
+    return arr
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class PIDGains:
+    """Gains of the multivariable PID ([G] §2.3), acting on {B}-frame errors.
+
+    Each accepts a (3,) diagonal or a full (3, 3) matrix (stored as (3, 3), read-only); the
+    diagonal must be non-negative.
+
+    Parameters
+    ----------
+    Kp : array_like, shape (3,) or (3, 3)
+        Restoring gain [N/m, N/m, N m/rad].
+    Ki : array_like, shape (3,) or (3, 3)
+        Integral gain [N/(m s), N/(m s), N m/(rad s)].
+    Kd : array_like, shape (3,) or (3, 3)
+        Damping gain [N s/m, N s/m, N m s/rad].
+    """
+
+    Kp: np.ndarray
+    Ki: np.ndarray
+    Kd: np.ndarray
+
+    def __post_init__(self) -> None:
+        for name in ("Kp", "Ki", "Kd"):
+            object.__setattr__(self, name, _gain_matrix(name, getattr(self, name)))
+
+
+def _limit(name: str, value: Any, *, allow_zero: bool) -> np.ndarray | None:
+    if value is None:
+        return None
+    try:
+        arr = np.broadcast_to(np.asarray(value, dtype=float), (3,)).copy()
+    except (TypeError, ValueError):
+        raise ControlError(f"{name}={value!r} must be a scalar or have shape (3,) "
+                           f"[N, N, N m]") from None
+    bad = np.isnan(arr) | (arr < 0.0) | ((arr == 0.0) if not allow_zero else False)
+    if np.any(bad):
+        rule = ">= 0" if allow_zero else "> 0"
+        raise ControlError(f"{name} must be {rule} (inf for no limit), got {name}={arr.tolist()}")
+    arr.flags.writeable = False
+    return arr
+
+
+def _vec3(name: str, value: Any) -> np.ndarray:
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ControlError(f"{name}={value!r} is not numeric") from None
+    if arr.shape != (3,):
+        raise ControlError(f"{name} must have shape (3,), got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ControlError(f"{name}={arr.tolist()} is not finite; the controller will not "
+                           f"command thrust from it (check the observer/sensors)")
+    return arr
+
+
+class TAPMPID:
+    """TAPM PID controller: the sum of the enabled modes of [S] Table 2.
+
+    ``update(t, estimate, setpoint) -> tau`` returns the commanded generalised thrust in {B}
+    (X [N], Y [N], N [N m]). Discrete time: the integral advances by the actual time since the
+    previous call (backward Euler on the current error); the first call after construction or
+    :meth:`reset` only initialises the clock.
+
+    Parameters
+    ----------
+    gains : PIDGains
+    modes : str or sequence of str
+        Enabled modes from :data:`MODES`, or a :data:`MODE_SETS` name such as ``"extreme"``.
+    tau_limit : float or array_like shape (3,), optional
+        Saturation of the output per DOF [N, N, N m] (e.g. the thrust the allocation can deliver
+        in each DOF); None for no saturation.
+    integral_limit : float or array_like shape (3,), optional
+        Bound on each component of the integral load K_i R^T xi in {B} [N, N, N m]. Default:
+        ``tau_limit`` (if given), else unbounded. Use e.g. ``0.5 * tau_limit`` to reserve thrust
+        for damping and restoring.
+    anti_windup : bool
+        If True (default), clamp the integral to ``integral_limit`` and stop integrating a DOF
+        while its output is saturated by ``tau_limit`` and the error would drive it further into
+        saturation (conditional integration). False is the plain PID (for comparison).
+    env_feedforward : bool
+        If True, subtract ``estimate.tau_env`` from the command (mean-load feedforward, the
+        alternative to integral action of Aalbers et al. in [S] §4.2.1). Default False: in TAPM
+        the mooring should carry the mean load.
+
+    Notes
+    -----
+    The integral state xi lives in {E} (xi_dot = eta - eta_d, heading error wrapped), as in
+    [S] Table 2, so a mean load fixed in {E} stays compensated when the vessel turns. Only the
+    components of xi that reach the output through the enabled modes are integrated (x and y
+    for ``"mean"``, psi for ``"heading"``); the others are held at zero, so enabling a mode later
+    starts its integral from zero.
+    """
+
+    def __init__(self, gains: PIDGains, *, modes: str | Sequence[str] = MODES,
+                 tau_limit: Any = None, integral_limit: Any = None, anti_windup: bool = True,
+                 env_feedforward: bool = False) -> None:
+        if not isinstance(gains, PIDGains):
+            raise ControlError(f"gains must be a PIDGains, got {type(gains).__name__}")
+        self._gains = gains
+        self._tau_limit = _limit("tau_limit", tau_limit, allow_zero=False)
+        il = _limit("integral_limit", integral_limit, allow_zero=True)
+        if il is None:
+            il = self._tau_limit if self._tau_limit is not None else _ro(np.full(3, np.inf))
+        self._integral_limit = il
+        self._anti_windup = bool(anti_windup)
+        self._env_ff = bool(env_feedforward)
+        self._xi = np.zeros(3)
+        self.set_modes(modes)
+        self.reset()
+
+    @classmethod
+    def from_design(cls, design: PIDDesign, *, modes: str | Sequence[str] = MODES,
+                    **kwargs: Any) -> TAPMPID:
+        """Controller with the gains of ``design``; ``kwargs`` as for the constructor."""
+        if not isinstance(design, PIDDesign):
+            raise ControlError(f"design must be a PIDDesign, got {type(design).__name__}")
+        return cls(design.gains, modes=modes, **kwargs)
+
+    # -- state ---------------------------------------------------------------------------
+    def reset(self) -> None:
+        """Zero the integral, forget the clock and the saturation state."""
+        self._xi = np.zeros(3)
+        self._t_prev: float | None = None
+        self._sat = np.zeros(3, dtype=bool)
+        self._tau_unsat = np.zeros(3)
+        self._psi = 0.0
+
+    def set_modes(self, modes: str | Sequence[str]) -> None:
+        """Switch the enabled modes (e.g. from a sea-state supervisor, [S] Table 3).
+
+        The integral of components no longer in use is zeroed; the rest is kept (bumpless).
+        """
+        self._modes = _resolve_modes(modes)
+        H_I, H_P, H_D = _projections(self._modes)
+        g = self._gains
+        self._Ki = H_I @ g.Ki
+        self._Kp = H_P @ g.Kp
+        self._Kd = H_D @ g.Kd
+        self._Ki_pinv = np.linalg.pinv(self._Ki)
+        self._mask = _integrated(self._Ki)
+        self._xi = np.where(self._mask, self._xi, 0.0)
+
+    @property
+    def gains(self) -> PIDGains:
+        return self._gains
+
+    @property
+    def modes(self) -> tuple[str, ...]:
+        """Enabled modes, in the order of :data:`MODES`."""
+        return self._modes
+
+    @property
+    def tau_limit(self) -> np.ndarray | None:
+        """Output saturation [N, N, N m], or None."""
+        return self._tau_limit
+
+    @property
+    def integral_limit(self) -> np.ndarray:
+        """Bound on |K_i R^T xi| per DOF [N, N, N m] (inf: none)."""
+        return self._integral_limit
+
+    @property
+    def integral(self) -> np.ndarray:
+        """Integral state xi in {E} (x [m s], y [m s], psi [rad s]), a read-only copy."""
+        return _ro(self._xi)
+
+    @property
+    def integral_load(self) -> np.ndarray:
+        """Integral part of the last command, -K_i R^T xi in {B} [N, N, N m] (projected)."""
+        return _ro(-(self._Ki @ (rot_z(self._psi).T @ self._xi)))
+
+    @property
+    def saturated(self) -> np.ndarray:
+        """Per DOF: was the last command clipped by ``tau_limit``? Read-only (3,) bool."""
+        return _ro(self._sat, dtype=bool)
+
+    # -- control law ---------------------------------------------------------------------
+    def update(self, t: float, estimate: Estimate, setpoint: Setpoint) -> np.ndarray:
+        """Command for the estimate at time ``t`` ([S] Table 2 with the enabled modes).
+
+        Parameters
+        ----------
+        t : float
+            Time [s]; must not decrease between calls (call :meth:`reset` to restart).
+        estimate : Estimate
+            ``eta`` (3,) in {E} [m, m, rad], ``nu`` (3,) in {B} [m/s, m/s, rad/s], ``tau_env``
+            (3,) [N, N, N m] (used only with ``env_feedforward``).
+        setpoint : Setpoint
+            ``eta_d`` (3,) in {E}, ``nu_d`` (3,) in {B}.
+
+        Returns
+        -------
+        tau : ndarray, shape (3,)
+            Commanded load in {B} (X [N], Y [N], N [N m]), saturated at ``tau_limit``.
+
+        Raises
+        ------
+        ControlError
+            Non-finite or wrongly shaped input, or time running backwards.
+        """
+        try:
+            t = float(t)
+        except (TypeError, ValueError):
+            raise ControlError(f"t={t!r} must be a number [s]") from None
+        if not np.isfinite(t):
+            raise ControlError(f"t={t} must be finite [s]")
+        eta = _vec3("estimate.eta", getattr(estimate, "eta", None))
+        nu = _vec3("estimate.nu", getattr(estimate, "nu", None))
+        eta_d = _vec3("setpoint.eta_d", getattr(setpoint, "eta_d", None))
+        nu_d = _vec3("setpoint.nu_d", getattr(setpoint, "nu_d", None))
+        tau_env = _vec3("estimate.tau_env", estimate.tau_env) if self._env_ff else None
+        if self._t_prev is not None and t < self._t_prev:
+            raise ControlError(f"t={t} s is earlier than the previous call at {self._t_prev} s; "
+                               f"call reset() to restart the controller")
+
+        e = eta - eta_d
+        e[_PSI] = ssa(e[_PSI])
+        Rt = rot_z(eta[_PSI]).T
+        e_b = Rt @ e
+        if self._t_prev is not None and t > self._t_prev:
+            self._integrate(e_b, Rt, t - self._t_prev)
+        self._t_prev = t
+        self._psi = float(eta[_PSI])
+
+        tau = -(self._Ki @ (Rt @ self._xi)) - self._Kp @ e_b - self._Kd @ (nu - nu_d)
+        if tau_env is not None:
+            tau = tau - tau_env
+        self._tau_unsat = tau
+        if self._tau_limit is not None:
+            self._sat = np.abs(tau) > self._tau_limit
+            tau = np.clip(tau, -self._tau_limit, self._tau_limit)
+        return np.array(tau)
+
+    def _integrate(self, e_b: np.ndarray, Rt: np.ndarray, dt: float) -> None:
+        """xi += (eta - eta_d) dt with conditional integration and clamping (anti-windup)."""
+        step_b = np.where(self._mask, e_b * dt, 0.0)  # mask is x-y symmetric: R^T commutes
+        if self._anti_windup and self._tau_limit is not None:
+            # the integral's own push on DOF i has the sign of -Ki_ii e_b,i: freeze a saturated
+            # DOF whose integral would push further into saturation
+            push = -np.diag(self._Ki) * step_b * self._tau_unsat
+            step_b = np.where(self._sat & (push > 0.0), 0.0, step_b)
+        xi = self._xi + Rt.T @ step_b
+        if self._anti_windup and np.any(np.isfinite(self._integral_limit)):
+            q = self._Ki @ (Rt @ xi)
+            q_c = np.clip(q, -self._integral_limit, self._integral_limit)
+            if np.any(q_c != q):
+                xi = xi + Rt.T @ (self._Ki_pinv @ (q_c - q))
+        self._xi = xi
+
+
+# --- gain design --------------------------------------------------------------------------
+
+def _per_dof(name: str, value: Any, *, positive: bool = True) -> np.ndarray:
+    try:
+        arr = np.broadcast_to(np.asarray(value, dtype=float), (3,)).copy()
+    except (TypeError, ValueError):
+        raise ControlError(f"{name}={value!r} must be a scalar or 3 values (surge, sway, "
+                           f"yaw)") from None
+    if not np.all(np.isfinite(arr)) or (np.any(arr <= 0.0) if positive else np.any(arr < 0.0)):
+        rule = "> 0" if positive else ">= 0"
+        raise ControlError(f"{name} must be finite and {rule}, got {name}={arr.tolist()}")
+    return arr
+
+
+def designed_poles(period: float, damping: float, integral_ratio: float) -> np.ndarray:
+    """Closed-loop poles of one DOF: roots of (s^2 + 2 zeta w s + w^2)(s + a).
+
+    Parameters
+    ----------
+    period : float
+        Undamped natural period T_n [s], w = 2 pi / T_n.
+    damping : float
+        Relative damping zeta > 0.
+    integral_ratio : float
+        a / w >= 0 (a: the integral pole [1/s]).
+
+    Returns
+    -------
+    ndarray, shape (3,), complex
+        (-zeta w + i w sqrt(1 - zeta^2), its conjugate, -a) [1/s]; for zeta >= 1 the pair is
+        real, -w (zeta -+ sqrt(zeta^2 - 1)).
+    """
+    w = 2.0 * np.pi / period
+    root = np.sqrt(complex(damping**2 - 1.0))
+    return np.array([w * (-damping + root), w * (-damping - root), -integral_ratio * w + 0j])
+
+
+def dof_plant(m: float, d: float, k: float) -> control.StateSpace:
+    """One decoupled DOF m e_ddot + d e_dot + k e = tau, augmented with its integral.
+
+    States ``(xi, e, e_dot)`` with xi_dot = e; input ``tau`` [N or N m]. The PID is the state
+    feedback tau = -[K_i, K_p, K_d] (xi, e, e_dot).
+
+    Parameters
+    ----------
+    m, d, k : float
+        Mass incl. added mass [kg or kg m^2], damping [N s/m or N m s], stiffness [N/m or N m].
+    """
+    A = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.0, -k / m, -d / m]])
+    B = np.array([[0.0], [0.0], [1.0 / m]])
+    return control.ss(A, B, np.eye(3), np.zeros((3, 1)), states=["xi", "e", "e_dot"],
+                      inputs=["tau"], outputs=["xi", "e", "e_dot"])
+
+
+def _plant_matrices(plant: Any) -> tuple[control.StateSpace, np.ndarray, np.ndarray, np.ndarray,
+                                          np.ndarray]:
+    """(plant with state output, M, D, K_B, R0) of a linearised moored vessel.
+
+    ``plant`` is a 6-state ``control.StateSpace`` from :func:`~tapm_opt.models.vessel.linearise`
+    (x = (eta, nu), input tau in {B}) or a tuple (M, D, K) in {B} at psi = 0. K_B = K R(psi0) is
+    the stiffness seen by {B}-frame position errors e_b = R(psi0)^T d_eta.
+    """
+    if isinstance(plant, control.StateSpace):
+        A, B = np.asarray(plant.A, dtype=float), np.asarray(plant.B, dtype=float)
+        if A.shape != (6, 6) or B.shape != (6, 3):
+            raise ControlError(f"plant must have 6 states (eta, nu) and 3 inputs (X, Y, N), got "
+                               f"A {A.shape}, B {B.shape}")
+        scale = max(float(np.max(np.abs(A))), 1.0)
+        R0 = A[:3, 3:]
+        psi0 = float(np.arctan2(R0[1, 0], R0[0, 0]))
+        if (np.max(np.abs(A[:3, :3])) > 1e-9 * scale or np.max(np.abs(B[:3])) > 0.0
+                or np.max(np.abs(R0 - rot_z(psi0))) > 1e-9):
+            raise ControlError("plant is not a moored vessel linearised at rest: expected "
+                               "eta_dot = R(psi0) nu (linearise() about an equilibrium with nu = 0)")
+        try:
+            M = np.linalg.inv(B[3:])
+        except np.linalg.LinAlgError:
+            raise ControlError("plant input matrix B[3:6] is singular; expected M^-1") from None
+        D = -M @ A[3:, 3:]
+        K_B = -M @ A[3:, :3] @ R0
+        full = control.ss(A, B, np.eye(6), np.zeros((6, 3)))
+        return full, M, D, K_B, R0
+    try:
+        M, D, K = (np.array(x, dtype=float) for x in plant)
+    except (TypeError, ValueError):
+        raise ControlError(f"plant must be a control.StateSpace or a tuple (M, D, K) of (3, 3) "
+                           f"arrays, got {type(plant).__name__}") from None
+    for name, X in (("M", M), ("D", D), ("K", K)):
+        if X.shape != (3, 3) or not np.all(np.isfinite(X)):
+            raise ControlError(f"{name} must be a finite (3, 3) array, got shape {X.shape}")
+    if np.any(np.diag(M) <= 0.0):
+        raise ControlError(f"M must have a positive diagonal, got diag(M)={np.diag(M).tolist()}")
+    M_inv = np.linalg.inv(M)
+    A = np.block([[np.zeros((3, 3)), np.eye(3)], [-M_inv @ K, -M_inv @ D]])
+    B = np.vstack([np.zeros((3, 3)), M_inv])
+    full = control.ss(A, B, np.eye(6), np.zeros((6, 3)))
+    return full, M, D, K, np.eye(3)
+
+
+def _controller_matrices(gains: PIDGains, modes: tuple[str, ...], R0: np.ndarray):
+    """Linearised controller about the operating point: integrated xi components and the maps
+    (F_eta, F_nu, F_xi) with tau = F_eta d_eta + F_nu nu + F_xi xi (setpoint at the point)."""
+    H_I, H_P, H_D = _projections(modes)
+    Ki, Kp, Kd = H_I @ gains.Ki, H_P @ gains.Kp, H_D @ gains.Kd
+    mask = _integrated(Ki)
+    F_xi = -(Ki @ R0.T)[:, mask]
+    return mask, -Kp @ R0.T, -Kd, F_xi
+
+
+def closed_loop(plant: Any, gains: PIDGains, modes: str | Sequence[str] = MODES
+                ) -> control.StateSpace:
+    """Linear closed loop of the moored vessel and the PID with ``modes`` (setpoint at the
+    linearisation point, heading error small).
+
+    Parameters
+    ----------
+    plant : control.StateSpace or tuple (M, D, K)
+        As for :func:`design_gains`.
+    gains : PIDGains
+    modes : str or sequence of str
+        As for :class:`TAPMPID`.
+
+    Returns
+    -------
+    control.StateSpace
+        States ``x, y, psi, u, v, r`` (deviations) and the integrated ``xi_*``; inputs
+        ``X_env, Y_env, N_env`` (load in {B} added to the thrust [N, N, N m]) and
+        ``x_d, y_d, psi_d`` (setpoint deviation in {E}); outputs ``x, y, psi`` (deviation
+        [m, m, rad]) and ``X_thr, Y_thr, N_thr`` (command [N, N, N m]).
+    """
+    full, _, _, _, R0 = _plant_matrices(plant)
+    modes = _resolve_modes(modes)
+    mask, F_eta, F_nu, F_xi = _controller_matrices(gains, modes, R0)
+    n_xi = int(mask.sum())
+    A_p, B_p = np.asarray(full.A), np.asarray(full.B)
+    F_x = np.hstack([F_eta, F_nu])          # tau from the plant state
+    F_d = -F_eta                            # tau from the setpoint deviation
+    S = np.eye(3)[mask]                     # selects the integrated components
+    A = np.block([[A_p + B_p @ F_x, B_p @ F_xi],
+                  [np.hstack([S, np.zeros((n_xi, 3))]), np.zeros((n_xi, n_xi))]])
+    B = np.block([[B_p, B_p @ F_d], [np.zeros((n_xi, 3)), -S]])
+    C = np.block([[np.eye(3), np.zeros((3, 3 + n_xi))], [F_x, F_xi]])
+    D = np.block([[np.zeros((3, 6))], [np.zeros((3, 3)), F_d]])
+    xi_names = [f"xi_{n}" for n, k in zip(("x", "y", "psi"), mask) if k]
+    return control.ss(A, B, C, D, states=["x", "y", "psi", "u", "v", "r"] + xi_names,
+                      inputs=["X_env", "Y_env", "N_env", "x_d", "y_d", "psi_d"],
+                      outputs=["x", "y", "psi", "X_thr", "Y_thr", "N_thr"])
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class PIDDesign:
+    """Result of :func:`design_gains`: gains, designed and achieved closed-loop poles.
+
+    Attributes
+    ----------
+    gains : PIDGains
+        Diagonal gains, negative values clamped to zero.
+    periods : ndarray, shape (3,)
+        Designed undamped natural periods (surge, sway, yaw) [s].
+    damping : ndarray, shape (3,)
+        Designed relative damping [-].
+    integral_ratio : float
+        Integral pole a = integral_ratio * 2 pi / T_n.
+    M, D, K : ndarray, shape (3, 3)
+        Mass incl. added mass, vessel + mooring damping, stiffness K R(psi0) seen by {B}-frame
+        errors, at the operating point; the design used their diagonals.
+    eta_op : ndarray, shape (3,)
+        Operating point (x [m], y [m], psi [rad]) in {E} (zeros unless designed from a scenario).
+    plant : control.StateSpace
+        Linearised moored vessel, states (eta, nu), inputs tau in {B}, outputs the state.
+    designed_poles : ndarray, shape (3, 3), complex
+        Row i: the three poles asked for DOF i [1/s].
+    decoupled_poles : ndarray, shape (3, 3), complex
+        Row i: poles achieved on the decoupled DOF i (diagonal model) with ``gains``
+        (python-control); equal to ``designed_poles`` unless a gain was clamped.
+    poles : ndarray, complex
+        Poles of the coupled closed loop, plant ``plant`` with all four modes (python-control),
+        sorted by magnitude.
+    natural_periods, damping_ratios : ndarray, same shape as ``poles``
+        2 pi / |p| [s] and -Re(p)/|p| of each pole (``control.damp``).
+    clamped : tuple of str
+        One message per gain that came out negative and was set to zero; empty if none.
+    """
+
+    gains: PIDGains
+    periods: np.ndarray
+    damping: np.ndarray
+    integral_ratio: float
+    M: np.ndarray
+    D: np.ndarray
+    K: np.ndarray
+    plant: control.StateSpace
+    designed_poles: np.ndarray
+    decoupled_poles: np.ndarray
+    poles: np.ndarray
+    natural_periods: np.ndarray
+    damping_ratios: np.ndarray
+    clamped: tuple[str, ...] = ()
+    eta_op: np.ndarray = field(default_factory=lambda: _ro(np.zeros(3)))
+
+    @property
+    def stable(self) -> bool:
+        """All coupled closed-loop poles in the open left half plane."""
+        return bool(np.all(self.poles.real < 0.0))
+
+    def closed_loop(self, modes: str | Sequence[str] = MODES) -> control.StateSpace:
+        """Linear closed loop with ``modes``; see :func:`closed_loop`."""
+        return closed_loop(self.plant, self.gains, modes)
+
+
+def design_gains(plant: Any, *, periods: Any, damping: Any, integral_ratio: float = 0.1,
+                 method: Literal["formula", "acker"] = "formula") -> PIDDesign:
+    """PID gains by per-DOF pole placement on the linearised moored vessel.
+
+    For each DOF i, decoupled (diagonals of M, D, K)::
+
+        M s^3 + (D + K_d) s^2 + (K + K_p) s + K_i = M (s^2 + 2 zeta w s + w^2)(s + a)
+        K_d = M (2 zeta w + a) - D,   K_p = M (w^2 + 2 zeta w a) - K,   K_i = M w^2 a
+
+    with w = 2 pi / T_n and a = integral_ratio * w. A negative K_p (the mooring is already stiffer
+    than asked) or K_d (already more damped) is set to zero and reported in ``clamped`` and by a
+    :class:`GainClampWarning`.
+
+    Parameters
+    ----------
+    plant : control.StateSpace or tuple (M, D, K)
+        The moored vessel linearised at rest: a 6-state model from
+        :func:`~tapm_opt.models.vessel.linearise` (states eta, nu; inputs tau in {B}), from which
+        M = B[3:]^-1, D = -M A_nu,nu and K = -M A_nu,eta R(psi0) are read; or (M, D, K), each
+        (3, 3) in {B} with psi0 = 0.
+    periods : float or array_like, shape (3,)
+        Desired undamped natural periods T_n (surge, sway, yaw) [s].
+    damping : float or array_like, shape (3,)
+        Desired relative damping zeta > 0.
+    integral_ratio : float
+        a / w >= 0; 0 gives a PD (K_i = 0).
+    method : {"formula", "acker"}
+        Closed form above, or python-control ``acker`` on :func:`dof_plant` (same result).
+
+    Returns
+    -------
+    PIDDesign
+    """
+    full, M, D, K, R0 = _plant_matrices(plant)
+    periods = _per_dof("periods", periods)
+    zeta = _per_dof("damping", damping)
+    try:
+        ratio = float(integral_ratio)
+    except (TypeError, ValueError):
+        raise ControlError(f"integral_ratio={integral_ratio!r} must be a number >= 0") from None
+    if not (np.isfinite(ratio) and ratio >= 0.0):
+        raise ControlError(f"integral_ratio={integral_ratio!r} must be finite and >= 0")
+    if method not in ("formula", "acker"):
+        raise ControlError(f"method={method!r} is unknown; choose 'formula' or 'acker'")
+
+    wanted = np.array([designed_poles(periods[i], zeta[i], ratio) for i in range(3)])
+    kp, ki, kd = np.zeros(3), np.zeros(3), np.zeros(3)
+    clamped: list[str] = []
+    dof = ("surge", "sway", "yaw")
+    for i in range(3):
+        m, d, k = M[i, i], D[i, i], K[i, i]
+        if method == "formula":
+            w = 2.0 * np.pi / periods[i]
+            a = ratio * w
+            ki[i] = m * w**2 * a
+            kp[i] = m * (w**2 + 2.0 * zeta[i] * w * a) - k
+            kd[i] = m * (2.0 * zeta[i] * w + a) - d
+        else:
+            row = np.asarray(control.acker(dof_plant(m, d, k).A, dof_plant(m, d, k).B,
+                                           wanted[i]), dtype=float).ravel()
+            ki[i], kp[i], kd[i] = row
+        for name, arr, own, unit in (("Kp", kp, k, "stiffness K"), ("Kd", kd, d, "damping D")):
+            if arr[i] < 0.0:
+                clamped.append(
+                    f"{name}[{dof[i]}] = {arr[i]:.4g} < 0 set to 0: the plant's {unit}[{i},{i}] = "
+                    f"{own:.4g} already exceeds the design (T_n = {periods[i]:g} s, zeta = "
+                    f"{zeta[i]:g}); the {dof[i]} poles will not be where asked")
+                arr[i] = 0.0
+        ki[i] = max(ki[i], 0.0)  # only round-off from acker can make it negative
+    for msg in clamped:
+        warnings.warn(msg, GainClampWarning, stacklevel=2)
+    gains = PIDGains(Kp=kp, Ki=ki, Kd=kd)
+
+    achieved = []
+    for i in range(3):
+        sys_i = dof_plant(M[i, i], D[i, i], K[i, i])
+        fb = control.ss(np.zeros((0, 0)), np.zeros((0, 3)), np.zeros((1, 0)),
+                        np.array([[-ki[i], -kp[i], -kd[i]]]))
+        achieved.append(np.sort_complex(control.feedback(sys_i, fb, sign=1).poles()))
+
+    # coupled loop with python-control: plant (full state out) in feedback with the controller
+    mask, F_eta, F_nu, F_xi = _controller_matrices(gains, MODES, R0)
+    n_xi = int(mask.sum())
+    ctrl = control.ss(np.zeros((n_xi, n_xi)), np.hstack([np.eye(3)[mask], np.zeros((n_xi, 3))]),
+                      F_xi, np.hstack([F_eta, F_nu]))
+    loop = control.feedback(full, ctrl, sign=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        wn, zeta_cl, poles = control.damp(loop, doprint=False)
+    order = np.argsort(np.abs(poles), kind="stable")
+    wn, zeta_cl, poles = wn[order], zeta_cl[order], poles[order]
+    with np.errstate(divide="ignore"):
+        periods_cl = np.where(wn > 0.0, 2.0 * np.pi / np.where(wn > 0.0, wn, 1.0), np.inf)
+
+    return PIDDesign(
+        gains=gains, periods=_ro(periods), damping=_ro(zeta), integral_ratio=ratio,
+        M=_ro(M), D=_ro(D), K=_ro(K), plant=full,
+        designed_poles=_ro(wanted, complex), decoupled_poles=_ro(np.array(achieved), complex),
+        poles=_ro(poles, complex), natural_periods=_ro(periods_cl),
+        damping_ratios=_ro(zeta_cl), clamped=tuple(clamped),
+    )
+
+
+def _mooring_equilibrium(moor: MooringModel, tau_env: np.ndarray, eta_guess: np.ndarray
+                         ) -> np.ndarray:
+    """Pose where tau_moor(eta) + tau_env = 0 (no thrust, at rest), Powell's method with the
+    exact stiffness as Jacobian."""
+    scale = max(float(np.max(np.abs(tau_env))), 1.0e3)
+
+    def f(e):
+        return (moor.force(e) + tau_env) / scale
+
+    def jac(e):
+        return -moor.stiffness(e) / scale
+
+    try:
+        sol = scipy.optimize.root(f, eta_guess, jac=jac, method="hybr")
+        resid = float(np.max(np.abs(f(sol.x))))
+    except TapmError as exc:
+        raise ControlError(f"no mooring equilibrium for tau_env={tau_env.tolist()}: the search "
+                           f"left the catenary's domain ({exc})") from None
+    if not resid <= 1e-8:
+        hint = ""
+        if moor.turret_mode == "free":
+            hint = (f"; with a free turret the hull can balance a body-fixed load only if "
+                    f"N = x_cot Y (x_cot = {moor.p_cot_B[0]:g} m), else it weathervanes")
+        raise ControlError(f"no mooring equilibrium for tau_env={tau_env.tolist()} from "
+                           f"eta0={eta_guess.tolist()}: relative residual {resid:.3g}{hint}")
+    return np.array(sol.x)
+
+
+def design_from_scenario(scenario: Any, *, periods: Any, damping: Any,
+                         integral_ratio: float = 0.1, eta0: Any = (0.0, 0.0, 0.0),
+                         tau_env: Any = (0.0, 0.0, 0.0), D_moor: Any = None,
+                         broken: Sequence[str] = (),
+                         method: Literal["formula", "acker"] = "formula") -> PIDDesign:
+    """Gains for a scenario's vessel and catenary mooring, linearised at the offset equilibrium.
+
+    The vessel rests where the catenary mooring balances ``tau_env`` (Powell's method on
+    ``MooringModel.force`` from ``eta0``); the design model (vessel design form, [S] eq. 31,
+    with the catenary restoring load) is linearised there with
+    :func:`~tapm_opt.models.vessel.linearise`, so K is the exact catenary stiffness
+    ``MooringModel.stiffness`` at that pose. Then :func:`design_gains`.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    periods, damping, integral_ratio, method
+        As for :func:`design_gains`.
+    eta0 : array_like, shape (3,)
+        Initial guess of the equilibrium (x [m], y [m], psi [rad]).
+    tau_env : array_like, shape (3,)
+        Mean environmental load in {B} [N, N, N m] (constant in {B}, as in the design model).
+    D_moor : array_like, shape (3, 3), optional
+        Linear mooring damping D_mo (eq. 30) [N s/m, N s, N m s], e.g. identified with
+        ``tapm_opt.plant.forced_motion.identify_mooring_damping``; default zero.
+    broken : sequence of str
+        Ids of broken lines, left out of the mooring.
+
+    Returns
+    -------
+    PIDDesign
+        With ``eta_op`` the equilibrium.
+    """
+    eta0 = _vec3("eta0", eta0)
+    tau_env = _vec3("tau_env", tau_env)
+    params = VesselParams.from_scenario(scenario)
+    moor = MooringModel.from_scenario(scenario, broken=broken)
+    eta_eq = _mooring_equilibrium(moor, tau_env, eta0)
+    fn = moored_function(params, moor.force_function("catenary", eta0=eta_eq), D_moor=D_moor)
+    plant = linearise(fn, np.r_[eta_eq, np.zeros(3)], tau_env0=tau_env, outputs="state")
+    design = design_gains(plant, periods=periods, damping=damping, integral_ratio=integral_ratio,
+                          method=method)
+    return replace(design, eta_op=_ro(eta_eq))

@@ -1,0 +1,110 @@
+"""A simple state estimate from measurements: low-pass filters (until an observer exists).
+
+Position and heading: each of x, y and the unwrapped heading passes through a critically damped
+second-order low-pass filter (cut-off ``omega_c``), a state-variable filter whose second state is
+the filtered rate; it removes most wave-frequency motion (periods ~ 5–20 s) and delays the LF
+motion (periods ~ 100–400 s) by about ``2 / omega_c``. The velocity in {B} is the filtered rate
+rotated by the filtered heading.
+
+Environmental load: a quasi-static balance, assuming the LF motion is slow enough for inertia
+and damping to be small on average: ``b = -(tau_moor(eta_hat) + tau_thr)`` expressed in {E} and
+low-pass filtered with time constant ``T_env``; handed to controllers in {B} as ``tau_env``. The
+mooring load is the design model's (``MooringModel``) at the estimated pose, so a broken line that
+the model still contains shows up as part of the "environment".
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from ..errors import TapmError
+from ..geometry import rot_z, ssa
+from ..models.mooring import MooringModel
+
+__all__ = ["LowPassEstimator", "EstimationError"]
+
+
+class EstimationError(TapmError, ValueError):
+    """Bad estimator settings or measurements."""
+
+
+class LowPassEstimator:
+    """Low-pass state and environmental-load estimate (module docstring).
+
+    Parameters
+    ----------
+    model : MooringModel
+        Mooring model used for the load balance.
+    omega_c : float
+        Cut-off of the position/heading filters [rad/s] (default 2 pi / 40 s).
+    T_env : float
+        Time constant of the environmental-load filter [s].
+    """
+
+    def __init__(self, model: MooringModel, *, omega_c: float = 2 * math.pi / 40.0, T_env: float = 60.0):
+        for name, v in (("omega_c", omega_c), ("T_env", T_env)):
+            if not (math.isfinite(v) and v > 0):
+                raise EstimationError(f"{name} = {v!r} must be a positive number")
+        self.model = model
+        self.omega_c = float(omega_c)
+        self.T_env = float(T_env)
+        self._y = None  # filtered (x, y, psi_unwrapped)
+        self._yd = np.zeros(3)
+        self._psi_prev = None
+        self._b = None
+        self._t = None
+
+    def reset(self) -> None:
+        self._y, self._yd, self._psi_prev, self._b, self._t = None, np.zeros(3), None, None, None
+
+    def update(self, t: float, position: np.ndarray, heading: float, tau_thr: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Feed one measurement; returns (eta_hat (3,), nu_hat (3,), tau_env_hat (3,) in {B}).
+
+        Parameters
+        ----------
+        t : float
+            Time [s] (non-decreasing).
+        position : (2,) measured position in {E} [m].
+        heading : measured heading [rad].
+        tau_thr : (3,) thrust applied in {B} [N, N, N m] (the command of the previous step).
+        """
+        z = np.array([position[0], position[1], heading], dtype=float)
+        if not np.all(np.isfinite(z)):
+            raise EstimationError(f"measurement position = {list(position)}, heading = {heading!r} must be finite")
+        if self._y is None:
+            self._y = z.copy()
+            self._psi_prev = heading
+            self._t = t
+        else:
+            dt = t - self._t
+            if dt < 0:
+                raise EstimationError(f"t = {t!r} s is before the previous update {self._t!r} s")
+            self._t = t
+            z[2] = self._y[2] + ssa(heading - self._y[2])  # unwrap next to the filtered heading
+            self._filter(z, dt)
+        eta = np.array([self._y[0], self._y[1], ssa(self._y[2])])
+        nu = rot_z(eta[2]).T @ self._yd
+        b_now = rot_z(eta[2]) @ (-(self.model.force(eta) + np.asarray(tau_thr, float)))
+        if self._b is None:
+            self._b = b_now
+        else:
+            a = math.exp(-max(t - self._t_env, 0.0) / self.T_env)
+            self._b = a * self._b + (1 - a) * b_now
+        self._t_env = t
+        return eta, nu, rot_z(eta[2]).T @ self._b
+
+    def _filter(self, z: np.ndarray, dt: float) -> None:
+        """Exact discretisation of y'' = w^2 (z - y) - 2 w y' over dt with z held."""
+        if dt == 0:
+            return
+        w = self.omega_c
+        e = self._y - z
+        ed = self._yd
+        ex = math.exp(-w * dt)
+        # critically damped: e(t) = (e0 + (ed0 + w e0) t) exp(-w t)
+        c1 = ed + w * e
+        self._y = z + (e + c1 * dt) * ex
+        self._yd = (c1 - w * (e + c1 * dt)) * ex
