@@ -1,0 +1,926 @@
+"""Constrained thrust allocation: tau_cmd -> thruster commands (f, alpha) by a QP solved with OSQP.
+
+Extended-thrust formulation (``docs/controllers_allocation.md``). Forces are scaled by ``F_ref``
+(largest max_thrust) and moments by ``F_ref L_ref`` (L_ref: largest thruster lever), so the QP's
+variables and rows are of order one. Unknowns:
+
+* azimuth i: its force ``u_i`` in {B}, in a local frame turned to the direction ``b_i`` it may
+  point to this step: ``u_i = p_i e(b_i) + v_i e(b_i + pi/2)`` (radial p, tangential v), so that
+  ``tau = B_i u_i`` with ``B_i`` = :func:`~tapm_opt.models.thrust.extended_columns`;
+  ``f_i = |u_i|``, ``alpha_i = atan2(u_i)``;
+* tunnel/fixed thruster i: its signed thrust f_i along its fixed direction;
+* a slack ``s`` (3,) on the force balance.
+
+The QP (``~``: scaled)::
+
+    minimise    sum_i k_i (f_i / max_thrust_i)^2 + rho_s |s~|^2          (power surrogate + slack)
+    subject to  B~ u~ + s~ = tau~                                         (force balance)
+                n_k . (p_i, v_i) <= R_i cos(pi/m),  k = 0..m-1            inscribed m-gon, a vertex on b_i
+                lp_i <= p_i <= hp_i,  lv_i <= v_i <= hv_i,  lf_i <= f_i <= hf_i
+
+Rates and sectors are linearised about the previous command ``(f_p, alpha_p)``. The allowed
+direction interval is ``[-Da, Da]`` (``Da = max_azimuth_rate dt``) intersected with the allowed
+arc that contains alpha_p (forbidden sectors); b_i is its bisector, hw its half-width:
+
+* narrow (hw < pi/2): the plant can reach the annular sector |Delta f| <= r dt,
+  |Delta alpha| <= Da (r = max_thrust_rate), whose convex part is the wedge |v| <= tan(hw) p cut
+  by the band ``f_p - r dt <= p <= (f_p + r dt) cos(hw)``. The QP uses the rectangle inscribed in
+  it: ``p0 <= p <= (f_p + r dt) cos(hw)``, ``|v| <= tan(hw) p0`` with
+  ``p0 = max(f_p - r dt, f_p / 2)``. (The wedge's two half-planes are exact but made OSQP crawl:
+  a thin wedge is badly conditioned in any scaling. Keeping half the thrust for a step below
+  2 r dt leaves a low-thrust thruster room to turn.)
+* half (pi <= width < 2 pi: Da >= pi/2, or a sector-bounded arc): ``p >= 0`` (the half-plane
+  inside the interval closest to alpha_p) and the box ``|u - u_p| <= r dt / sqrt(2)`` per
+  component of the local frame (inscribed in the disc |Delta u| <= r dt);
+* free (no sector and Da >= pi, or no azimuth-rate limit): the box only;
+* empty (failed; or alpha_p inside a forbidden sector with no allowed direction within Da):
+  u = 0, and a live thruster turns toward the nearest allowed direction.
+
+The returned command is then clipped to the exact limits (|Delta f| <= r dt, f <= max_thrust,
+|Delta alpha| within the interval). An idle azimuth (|u_i| <= idle_tol F_ref) gets zero thrust and
+keeps alpha_p, or (``steer_idle``) turns within its interval toward its preferred direction
+``-W_i^-1 B_i^T y / 2`` (y: the multiplier of the force balance), so that a thruster pointing
+away from the demand does not stay there.
+
+OSQP is set up once with this fixed sparsity. Each :meth:`ThrustAllocator.allocate` writes l and u,
+updates the balance entries of A when the frames b_i moved, warm-starts from the previous
+solution, solves and checks ``info.status_val``. Anything but solved (or solved-inaccurate with a
+small primal residual) gives the saturated weighted pseudo-inverse at the previous azimuths,
+reported as a fallback.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import warnings
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any, NamedTuple
+
+import numpy as np
+import osqp
+import scipy.sparse as sp
+
+from ..config import schema
+from ..errors import TapmError
+from ..geometry import ssa
+from ..models.thrust import configuration_matrix, extended_columns
+
+__all__ = [
+    "AllocationError",
+    "AllocationResult",
+    "OSQP_DEFAULTS",
+    "ThrustAllocator",
+    "allocate_reference",
+    "pseudo_inverse",
+]
+
+TWO_PI = 2.0 * math.pi
+HALF_PI = 0.5 * math.pi
+_SQRT1_2 = math.sqrt(0.5)
+#: In a narrow interval an azimuth keeps at least this fraction of its thrust for one step (when
+#: that is more than the thrust rate allows), so that it can still turn (module docstring).
+_KEEP = 0.5
+_INF = math.inf
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore")
+    _BIG = float(osqp.constant("OSQP_INFTY"))  # OSQP's infinity (1e30): no clipping in update()
+
+_STATUS_NAMES = {int(s): s.name.removeprefix("OSQP_").lower() for s in osqp.SolverStatus}
+_SOLVED = int(osqp.SolverStatus.OSQP_SOLVED)
+_SOLVED_INACCURATE = int(osqp.SolverStatus.OSQP_SOLVED_INACCURATE)
+
+#: Default OSQP settings (override with ``osqp_settings=``). The QP is scaled by construction, so
+#: OSQP's Ruiz scaling is off (it slowed rate-limited transients and costs time at every matrix
+#: update). Tolerances act on the scaled problem (1e-5 = 1e-5 F_ref). A fixed
+#: ``adaptive_rho_interval`` keeps iteration counts reproducible (0 would adapt on timing).
+#: ``max_iter`` is generous: rate-limited transients with a demand far beyond reach are LP-like
+#: and can take thousands of ADMM iterations (docs/controllers_allocation.md).
+OSQP_DEFAULTS: dict[str, Any] = dict(
+    eps_abs=1e-5, eps_rel=1e-5, eps_prim_inf=1e-6, eps_dual_inf=1e-6, max_iter=10000, polishing=True,
+    polish_refine_iter=3, warm_starting=True, adaptive_rho=True, adaptive_rho_interval=25,
+    check_termination=10, scaling=0, verbose=False,
+)
+
+
+class AllocationError(TapmError, ValueError):
+    """Thrust allocation was given an invalid argument (thruster data, tau shape, thruster id)."""
+
+@dataclass(frozen=True)
+class AllocationResult:
+    """Thruster commands for one tau_cmd.
+
+    Attributes
+    ----------
+    f : ndarray, shape (n,)
+        Thrust [N]: >= 0 for azimuths (along alpha), signed for tunnel/fixed thrusters
+        (in [-max_reverse_thrust, max_thrust]); exactly 0 for failed thrusters.
+    alpha : ndarray, shape (n,)
+        Thrust directions in {B} [rad] in [-pi, pi): commanded azimuths; the fixed angle of
+        tunnel/fixed thrusters.
+    tau : ndarray, shape (3,)
+        Generalised force the commands produce, ``T(alpha) f`` [N, N, N m].
+    slack : ndarray, shape (3,)
+        Unmet part ``tau_cmd - tau`` [N, N, N m] (NaN where tau_cmd was not finite).
+    status : str
+        ``"solved"``, ``"solved_inaccurate"`` (accepted, primal residual small) or
+        ``"fallback:<reason>"`` (reason: an OSQP status such as ``max_iter_reached``,
+        ``non_finite_solution`` or ``invalid_tau``).
+    fallback : bool
+        True when f, alpha come from the saturated pseudo-inverse (or are zero for invalid tau).
+    solve_time : float
+        OSQP solve + polish time [s] (0 when OSQP was not called).
+    iterations : int
+        ADMM iterations (0 when OSQP was not called).
+    message : str
+        Human-readable explanation.
+    """
+
+    f: np.ndarray
+    alpha: np.ndarray
+    tau: np.ndarray
+    slack: np.ndarray
+    status: str
+    fallback: bool
+    solve_time: float
+    iterations: int
+    message: str = ""
+
+    @property
+    def success(self) -> bool:
+        """True when the QP solution was used (not the fallback)."""
+        return not self.fallback
+
+
+def pseudo_inverse(T: Any, tau: Any, weights: Any = None, *, row_scale: Any = None,
+                   rcond: float = 1e-10) -> np.ndarray:
+    """Weighted least-norm solution of ``T f = tau``.
+
+    Minimises ``sum_i w_i f_i^2`` subject to ``T f = tau``, i.e.
+    ``f = W^-1 T^T (T W^-1 T^T)^-1 tau`` when T has full row rank. When ``T f = tau`` has no
+    solution (rank-deficient T), returns the least-norm minimiser of ``|S (T f - tau)|`` with
+    ``S = diag(row_scale)`` (computed as ``W^-1/2 pinv(S T W^-1/2) S tau``).
+
+    Parameters
+    ----------
+    T : array_like, shape (3, n)
+        Configuration matrix (or extended matrix B) [-, -, m].
+    tau : array_like, shape (3,)
+        Generalised force [N, N, N m].
+    weights : array_like, shape (n,), optional
+        w_i > 0 [1/N^2] (default ones). A column with weight inf is not used (f_i = 0).
+    row_scale : array_like, shape (3,), optional
+        Row scaling S (e.g. ``(1, 1, 1/L_ref)``) for the least-squares case; default ones.
+    rcond : float
+        Relative cut-off of small singular values (``numpy.linalg.pinv``).
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        Forces [N].
+    """
+    T = np.asarray(T, dtype=float)
+    tau = np.asarray(tau, dtype=float)
+    if T.ndim != 2 or tau.shape != (T.shape[0],):
+        raise AllocationError(f"pseudo_inverse: T has shape {T.shape} and tau {tau.shape}; expected (k, n) and (k,)")
+    w = np.ones(T.shape[1]) if weights is None else np.asarray(weights, dtype=float)
+    if w.shape != (T.shape[1],) or not np.all(w > 0):
+        raise AllocationError(f"pseudo_inverse: weights must be {T.shape[1]} positive numbers, got {weights!r}")
+    S = np.ones(T.shape[0]) if row_scale is None else np.asarray(row_scale, dtype=float)
+    wi = 1.0 / np.sqrt(w)  # inf weight -> column unused
+    Ts = (S[:, None] * T) * wi[None, :]
+    return wi * (np.linalg.pinv(Ts, rcond=rcond) @ (S * tau))
+
+
+# -- sectors -----------------------------------------------------------------------------------------
+
+def _merge_sectors(sectors: Sequence[Sequence[float]], where: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """Union of forbidden arcs ``(from, to)`` (counter-clockwise, i.e. increasing angle, from
+    ``from`` to ``to``) as sorted disjoint ``(starts, widths)`` [rad]."""
+    ivs: list[tuple[float, float]] = []
+    for k, sec in enumerate(sectors):
+        if len(sec) != 2 or not all(math.isfinite(float(v)) for v in sec):
+            raise AllocationError(f"{where}.forbidden_sectors[{k}]={tuple(sec)!r} must be two finite angles (from, to) [rad]")
+        a, b = float(sec[0]), float(sec[1])
+        w = (b - a) % TWO_PI
+        if w <= 0.0:
+            continue
+        a %= TWO_PI
+        if a + w > TWO_PI:
+            ivs += [(a, TWO_PI), (0.0, a + w - TWO_PI)]
+        else:
+            ivs.append((a, a + w))
+    if not ivs:
+        return (), ()
+    ivs.sort()
+    merged = [list(ivs[0])]
+    for s, e in ivs[1:]:
+        if s <= merged[-1][1]:
+            merged[-1][1] = max(merged[-1][1], e)
+        else:
+            merged.append([s, e])
+    if len(merged) > 1 and merged[0][0] <= 0.0 and merged[-1][1] >= TWO_PI:  # joins across 0
+        last = merged.pop()
+        merged[0] = [last[0], merged[0][1] + TWO_PI]
+    widths = tuple(e - s for s, e in merged)
+    if sum(widths) >= TWO_PI * (1.0 - 1e-12):
+        raise AllocationError(f"{where}.forbidden_sectors forbid every direction")
+    return tuple(s % TWO_PI for s, _ in merged), widths
+
+
+def _arc(alpha: float, starts: tuple[float, ...], widths: tuple[float, ...]) -> tuple[float, float]:
+    """Allowed arc relative to alpha, ``(lo, hi)`` [rad]: the arc containing alpha (lo <= 0 <= hi),
+    or, when alpha lies in a forbidden sector, the nearest allowed arc (lo > 0 or hi < 0)."""
+    K = len(starts)
+    for k in range(K):
+        t = (alpha - starts[k]) % TWO_PI
+        if 0.0 < t < widths[k]:
+            t2 = widths[k] - t
+            if t <= t2:  # leave clockwise: the allowed arc ending at starts[k]
+                w_prev = (starts[k] - starts[k - 1] - widths[k - 1]) % TWO_PI or TWO_PI - widths[k]
+                return -t - w_prev, -t
+            k1 = (k + 1) % K
+            w_next = (starts[k1] - starts[k] - widths[k]) % TWO_PI or TWO_PI - widths[k]
+            return t2, t2 + w_next
+    hi = min((s - alpha) % TWO_PI for s in starts)
+    lo = -min((alpha - s - w) % TWO_PI for s, w in zip(starts, widths))
+    return lo, hi
+
+
+class _Step(NamedTuple):
+    """Data of one step, scaled units; arrays (naz,) over the azimuths unless noted."""
+
+    b: np.ndarray        # local frame direction (bisector of the allowed interval) [rad]
+    olo: np.ndarray      # range of the reported direction, offset from b [rad]
+    ohi: np.ndarray
+    lp: np.ndarray       # bounds of the radial force p and the tangential force v
+    hp: np.ndarray
+    lv: np.ndarray
+    hv: np.ndarray
+    lm: np.ndarray       # bounds of the reported magnitude |u| (thrust rate, capacity)
+    hm: np.ndarray
+    lf: np.ndarray       # bounds of the tunnel/fixed thrusts, shape (nfx,)
+    hf: np.ndarray
+
+
+class _DtData(NamedTuple):
+    """Per-dt constants (cached)."""
+
+    dt: float
+    rdt_a: np.ndarray    # max_thrust_rate dt / F_ref of the azimuths
+    rdt_f: np.ndarray    # ... of the tunnel/fixed thrusters
+    D: np.ndarray        # max_azimuth_rate dt [rad] (inf: can point anywhere)
+    h: np.ndarray        # half-width of the box, rdt / sqrt(2)
+    simple: tuple        # fast-path constants (no azimuth has a sector or has failed)
+
+
+# -- the allocator -------------------------------------------------------------------------------------
+
+class ThrustAllocator:
+    """QP thrust allocation with an OSQP solver set up once (module docstring).
+
+    Parameters
+    ----------
+    thrusters : sequence of tapm_opt.config.Thruster
+        Kind, position (x, y) in {B} [m], angle [rad], max_thrust, max_reverse_thrust [N],
+        max_thrust_rate [N/s], max_azimuth_rate [rad/s] or None (instantaneous), forbidden_sectors
+        ((from, to) [rad], counter-clockwise from ``from`` to ``to``; azimuths only).
+    weights : array_like (n,) or mapping id -> weight, optional
+        Relative thrust weights k_i > 0 [-] (default 1); thruster i costs ``k_i (f_i / max_thrust_i)^2``.
+    slack_weight : float
+        rho_s [-]: cost of a slack of F_ref (force) or F_ref L_ref (moment), relative to one
+        thruster at full thrust with k_i = 1.
+    polygon_sides : int
+        m >= 4: sides of the inscribed polygon replacing an azimuth's thrust circle, with a vertex
+        along the direction b_i (capacity lost between vertices at most 1 - cos(pi/m): 1.9 % for 16).
+    dt : float
+        Default time step [s] of the rate limits (``allocate(tau_cmd, dt)`` overrides it).
+    idle_tol : float
+        An azimuth with |u_i| <= idle_tol F_ref is idle: f = 0, alpha kept or steered [-].
+    steer_idle : bool
+        Turn idle azimuths toward their preferred direction (module docstring).
+    accept_tol : float
+        An OSQP ``solved_inaccurate`` result is used when its primal residual (scaled units,
+        fractions of F_ref) is at most this [-]; its optimality may then be approximate.
+    osqp_settings : mapping, optional
+        Overrides of :data:`OSQP_DEFAULTS`.
+
+    Attributes
+    ----------
+    ids : tuple of str
+        Thruster ids, in order.
+    n : int
+        Number of thrusters.
+    dt : float
+        Default time step [s].
+    F_ref, L_ref : float
+        Force [N] and length [m] scales of the QP.
+    """
+
+    def __init__(self, thrusters: Sequence[schema.Thruster], *, weights: Any = None, slack_weight: float = 1e6,
+                 polygon_sides: int = 16, dt: float = 0.1, idle_tol: float = 1e-4, steer_idle: bool = True,
+                 accept_tol: float = 1e-3, osqp_settings: Mapping[str, Any] | None = None):
+        ths = tuple(thrusters)
+        if not ths:
+            raise AllocationError("thrusters is empty: nothing to allocate")
+        self.ids: tuple[str, ...] = tuple(str(th.id) for th in ths)
+        if len(set(self.ids)) != len(self.ids):
+            raise AllocationError(f"thruster ids {list(self.ids)} are not unique")
+        self.n = len(ths)
+        self.dt = _positive("dt", dt)
+        self.slack_weight = _positive("slack_weight", slack_weight)
+        self.idle_tol = _positive("idle_tol", idle_tol)
+        self.accept_tol = _positive("accept_tol", accept_tol)
+        self.steer_idle = bool(steer_idle)
+        if isinstance(polygon_sides, bool) or not isinstance(polygon_sides, (int, np.integer)) or polygon_sides < 4:
+            raise AllocationError(f"polygon_sides={polygon_sides!r} must be an integer >= 4")
+        self.polygon_sides = int(polygon_sides)
+        self._parse_thrusters(ths)
+        self._k = self._parse_weights(weights)
+        self._w_phys = self._k / self._fmax**2                 # weight of f_i^2 [1/N^2]
+        wt = self._k * (self.F_ref / self._fmax) ** 2          # weight of the scaled force squared
+        self._wa, self._wf = wt[self._iaz], wt[self._ifx]
+        self._build_qp(osqp_settings)
+        self._failed = np.zeros(self.n, dtype=bool)
+        self._any_failed = False
+        self.reset()
+
+    def _parse_thrusters(self, ths: tuple[schema.Thruster, ...]) -> None:
+        x, y, ang, fmax, fmin, rate, arate, sectors = ([] for _ in range(8))
+        for i, th in enumerate(ths):
+            p = f"thrusters[{i}] ({th.id!r})"
+            if th.kind not in ("azimuth", "tunnel", "fixed"):
+                raise AllocationError(f"{p}.kind={th.kind!r} must be 'azimuth', 'tunnel' or 'fixed'")
+            az = th.kind == "azimuth"
+            pos = tuple(th.position) if isinstance(th.position, (tuple, list, np.ndarray)) else ()
+            if len(pos) != 2:
+                raise AllocationError(f"{p}.position={th.position!r} must be two numbers (x, y) [m]")
+            x.append(_finite(f"{p}.position[0]", pos[0]))
+            y.append(_finite(f"{p}.position[1]", pos[1]))
+            ang.append(_finite(f"{p}.angle", th.angle))
+            fmax.append(_positive(f"{p}.max_thrust", th.max_thrust))
+            rev = 0.0 if az else _finite(f"{p}.max_reverse_thrust", th.max_reverse_thrust)
+            if rev < 0.0:
+                raise AllocationError(f"{p}.max_reverse_thrust={th.max_reverse_thrust!r} must be >= 0 [N]")
+            fmin.append(-rev)
+            rate.append(_positive(f"{p}.max_thrust_rate", th.max_thrust_rate))
+            ar = th.max_azimuth_rate if az else None
+            arate.append(_INF if ar is None else _positive(f"{p}.max_azimuth_rate", ar))
+            if th.forbidden_sectors and not az:
+                raise AllocationError(f"{p}.forbidden_sectors are only allowed for azimuth thrusters, not {th.kind!r}")
+            sectors.append(_merge_sectors(th.forbidden_sectors, p) if az else ((), ()))
+        self._x, self._y = np.array(x), np.array(y)
+        self._azimuth = np.array([th.kind == "azimuth" for th in ths])
+        self._angle0 = ssa(np.array(ang))
+        self._fmax, self._fmin, self._rate = np.array(fmax), np.array(fmin), np.array(rate)
+        self.F_ref = F = float(self._fmax.max())
+        self.L_ref = L = max(1.0, float(np.hypot(self._x, self._y).max()))
+        self._tau_scale = np.array([1.0 / F, 1.0 / F, 1.0 / (F * L)])
+        self._row_scale = np.array([1.0, 1.0, 1.0 / L])
+        self._iaz = np.flatnonzero(self._azimuth)
+        self._ifx = np.flatnonzero(~self._azimuth)
+        self._naz, self._nfx = len(self._iaz), len(self._ifx)
+        self._arate = np.array(arate)[self._iaz]
+        self._sectors = [sectors[i] for i in self._iaz]
+        self._jsec = [j for j in range(self._naz) if self._sectors[j][0]]
+        self._R = self._fmax[self._iaz] / F                          # scaled azimuth capacity
+        self._Rin = self._R * math.cos(math.pi / self.polygon_sides)  # polygon apothem
+        self._ffmin, self._ffmax = self._fmin[self._ifx] / F, self._fmax[self._ifx] / F
+
+    def _build_qp(self, osqp_settings: Mapping[str, Any] | None) -> None:
+        """Columns [p (naz), v (naz), f (nfx), s (3)]; rows [balance (3), bounds (nv, one per
+        column), polygons (naz m)]."""
+        naz, nfx, m = self._naz, self._nfx, self.polygon_sides
+        self._nv = nv = 2 * naz + nfx
+        self._rp = rp = 3 + nv
+        nr = rp + naz * m
+        # balance columns of an azimuth: B_i (e(b), e(b + pi/2)) with B_i = extended_columns
+        Bx = np.stack([extended_columns(self._x[i], self._y[i])[:, 0] for i in self._iaz], axis=1) if naz else np.zeros((3, 0))
+        By = np.stack([extended_columns(self._x[i], self._y[i])[:, 1] for i in self._iaz], axis=1) if naz else np.zeros((3, 0))
+        S = self._row_scale[:, None]
+        self._Kc = np.concatenate([Bx * S, By * S])     # p column: cos b Bx + sin b By
+        self._Ks = np.concatenate([By * S, -Bx * S])    # v column: cos b By - sin b Bx
+        Bf = configuration_matrix(self._angle0[self._ifx], self._x[self._ifx], self._y[self._ifx])
+        # tau = F_ref (Bx ux + By uy + Bf ff) in N, N m (ux, uy, ff scaled)
+        self._BF = np.concatenate([Bx, By, Bf], axis=1) * self.F_ref
+        phi = (2.0 * np.arange(m) + 1.0) * math.pi / m           # polygon normals, vertex at 0
+        self._poly_n = np.stack([np.cos(phi), np.sin(phi)], axis=1)
+        rows: list[int] = []
+        cols: list[int] = []
+        vals: list[float] = []
+        dyn = [(r, c0 + j) for c0 in (0, naz) for r in range(3) for j in range(naz)]
+        for r, c in dyn:
+            rows.append(r), cols.append(c), vals.append(1.0)     # placeholders, structurally non-zero
+        for k in range(nfx):
+            for r in range(3):
+                if Bf[r, k] != 0.0:
+                    rows.append(r), cols.append(2 * naz + k), vals.append(Bf[r, k] * self._row_scale[r])
+        for r in range(3):
+            rows.append(r), cols.append(nv + r), vals.append(1.0)
+        for c in range(nv):
+            rows.append(3 + c), cols.append(c), vals.append(1.0)
+        for k in range(m):
+            for j in range(naz):
+                rows += [rp + k * naz + j, rp + k * naz + j]
+                cols += [j, naz + j]
+                vals += [self._poly_n[k, 0], self._poly_n[k, 1]]
+        A = sp.csc_matrix((vals, (rows, cols)), shape=(nr, nv + 3))
+        A.sort_indices()
+        self._Ax_idx = np.array([A.indptr[c] + int(np.searchsorted(A.indices[A.indptr[c]:A.indptr[c + 1]], r))
+                                 for r, c in dyn], dtype=np.int64)
+        Pd = np.empty(nv + 3)
+        Pd[:naz] = Pd[naz:2 * naz] = 2.0 * self._wa
+        Pd[2 * naz:nv] = 2.0 * self._wf
+        Pd[nv:] = 2.0 * self.slack_weight
+        self._l = np.full(nr, -_BIG)
+        self._u = np.full(nr, _BIG)
+        self._u[rp:] = np.repeat(self._Rin[None, :], m, axis=0).ravel()
+        self._l[:3] = self._u[:3] = 0.0
+        settings = dict(OSQP_DEFAULTS)
+        settings.update(osqp_settings or {})
+        self._solver = osqp.OSQP()
+        try:
+            self._solver.setup(sp.diags(Pd, format="csc"), np.zeros(nv + 3), A, self._l, self._u, **settings)
+        except (ValueError, TypeError, AttributeError) as e:
+            raise AllocationError(f"osqp_settings={dict(osqp_settings or {})!r}: {e}") from None
+        # the compiled solver behind osqp.OSQP: update/solve without the Python wrapper's overhead
+        raw = getattr(self._solver, "_solver", None)
+        needed = ("update_data_vec", "update_data_mat", "solve", "info", "solution")
+        self._raw = raw if raw is not None and all(hasattr(raw, a) for a in needed) else None
+        self._b_last = np.full(naz, np.nan)      # forces the first A update
+        self._dtd: _DtData | None = None
+
+    @classmethod
+    def from_scenario(cls, scenario: schema.Scenario, **kw: Any) -> ThrustAllocator:
+        """Build from ``scenario.thrusters``; keywords as for the constructor."""
+        return cls(scenario.thrusters, **kw)
+
+    def _parse_weights(self, weights: Any) -> np.ndarray:
+        k = np.ones(self.n)
+        if weights is None:
+            return k
+        if isinstance(weights, Mapping):
+            for key, v in weights.items():
+                k[self.index(key)] = _positive(f"weights[{key!r}]", v)
+            return k
+        try:
+            arr = np.asarray(weights, dtype=float)
+        except (TypeError, ValueError):
+            arr = np.empty(0)
+        if arr.shape != (self.n,) or not np.all(np.isfinite(arr) & (arr > 0)):
+            raise AllocationError(f"weights={weights!r} must be {self.n} positive finite numbers "
+                                  "(one per thruster) or a mapping id -> weight")
+        return arr.copy()
+
+    # -- state ---------------------------------------------------------------------------------
+    @property
+    def solver(self) -> osqp.OSQP:
+        """The OSQP solver (set up once in the constructor; never rebuilt)."""
+        return self._solver
+
+    @property
+    def failed(self) -> np.ndarray:
+        """Failed thrusters, shape (n,) bool (a copy)."""
+        return self._failed.copy()
+
+    @property
+    def f_prev(self) -> np.ndarray:
+        """Previous command f, shape (n,) [N], the reference of the rate limits (a copy)."""
+        return np.array(self._f_prev)
+
+    @property
+    def alpha_prev(self) -> np.ndarray:
+        """Previous command alpha, shape (n,) [rad] (a copy)."""
+        return np.array(self._alpha_prev)
+
+    @property
+    def weights(self) -> np.ndarray:
+        """Weight w_i of f_i^2 in the cost, ``k_i / max_thrust_i^2``, shape (n,) [1/N^2] (a copy)."""
+        return self._w_phys.copy()
+
+    @property
+    def f_min(self) -> np.ndarray:
+        """Lowest thrust per thruster: 0 for azimuths, -max_reverse_thrust otherwise [N] (a copy)."""
+        return self._fmin.copy()
+
+    @property
+    def f_max(self) -> np.ndarray:
+        """max_thrust per thruster [N] (a copy)."""
+        return self._fmax.copy()
+
+    def index(self, thruster: int | str) -> int:
+        """Index of a thruster given by index or id; AllocationError naming it if there is none."""
+        if isinstance(thruster, (int, np.integer)) and not isinstance(thruster, bool):
+            if 0 <= thruster < self.n:
+                return int(thruster)
+        elif isinstance(thruster, str) and thruster in self.ids:
+            return self.ids.index(thruster)
+        raise AllocationError(f"thruster={thruster!r}: no such thruster (ids {list(self.ids)}, or an index 0..{self.n - 1})")
+
+    def set_failed(self, thruster: int | str, failed: bool = True) -> None:
+        """Mark a thruster failed (exactly zero force from the next allocation on) or working again.
+
+        The OSQP problem is not rebuilt: the thruster's bound rows become ``[0, 0]``. A re-enabled
+        thruster starts from zero thrust at its last azimuth.
+        """
+        i = self.index(thruster)
+        self._failed[i] = bool(failed)
+        self._any_failed = bool(self._failed.any())
+        f = np.array(self._f_prev)
+        f[i] = 0.0
+        self._f_prev = f
+        self._sync_prev()
+
+    def reset(self, f: Any = None, alpha: Any = None) -> None:
+        """Set the previous command (the reference of the rate limits), e.g. to measured thruster states.
+
+        Parameters
+        ----------
+        f : array_like, shape (n,), optional
+            Thrusts [N] (default zeros); clipped to [f_min, f_max]. An azimuth pointing into a
+            forbidden sector is taken as idle (f = 0).
+        alpha : array_like, shape (n,), optional
+            Azimuths [rad] (default: the scenario angles); ignored for tunnel/fixed thrusters.
+        """
+        f = np.zeros(self.n) if f is None else self._vector("f", f)
+        a = self._angle0 if alpha is None else self._vector("alpha", alpha)
+        self._alpha_prev = ssa(np.where(self._azimuth, a, self._angle0))
+        self._f_prev = np.clip(f, self._fmin, self._fmax)
+        self._sync_prev()
+
+    def _sync_prev(self) -> None:
+        f = np.where(self._failed, 0.0, self._f_prev)
+        aa = self._alpha_prev[self._iaz]
+        for j in self._jsec:
+            lo, hi = _arc(float(aa[j]), *self._sectors[j])
+            if lo > 0.0 or hi < 0.0:
+                f[self._iaz[j]] = 0.0
+        self._f_prev = f
+        self._aa_prev = aa
+        self._fa_prev = f[self._iaz] / self.F_ref
+        self._ff_prev = f[self._ifx] / self.F_ref
+
+    def _vector(self, name: str, v: Any) -> np.ndarray:
+        try:
+            a = np.array(v, dtype=float)
+        except (TypeError, ValueError):
+            raise AllocationError(f"{name}={v!r} is not numeric") from None
+        if a.shape != (self.n,):
+            raise AllocationError(f"{name} has shape {a.shape}, expected ({self.n},) (one per thruster)")
+        bad = np.flatnonzero(~np.isfinite(a))
+        if bad.size:
+            i = int(bad[0])
+            raise AllocationError(f"{name}[{i}]={float(a[i])!r} for thruster {self.ids[i]!r} is not finite")
+        return a
+
+    # -- the QP data of one step -------------------------------------------------------------------
+    def _dt_data(self, dt: float) -> _DtData:
+        d = self._dtd
+        if d is not None and d.dt == dt:
+            return d
+        F, R = self.F_ref, self._R
+        rdt = self._rate * dt / F
+        rdt_a, rdt_f = rdt[self._iaz], rdt[self._ifx]
+        D = self._arate * dt
+        D = np.where(D >= math.pi, _INF, D)          # can point anywhere within dt
+        h = rdt_a * _SQRT1_2
+        narrow = D < HALF_PI
+        half = ~narrow & np.isfinite(D)
+        hw = np.where(narrow, D, HALF_PI)
+        olo = np.where(narrow | half, -hw, -_INF)
+        # without sectors (b = alpha_p): lp = max(fa - a0, fa a8 + a1); hp = max(min((fa + a2) a3, a4), fa a5);
+        # hv = max(lp a6, a7): the narrow rectangle or the box (module docstring)
+        simple = (olo, -olo, np.where(narrow, rdt_a, h), np.where(narrow, 0.0, np.where(half, 0.0, -R)),
+                  np.where(narrow, rdt_a, h), np.where(narrow, np.cos(hw), 1.0), np.where(narrow, _BIG, R),
+                  narrow.astype(float), np.where(narrow, np.tan(hw), 0.0), np.where(narrow, 0.0, np.minimum(R, h)),
+                  np.where(narrow, _KEEP, 0.0))
+        d = self._dtd = _DtData(dt, rdt_a, rdt_f, D, h, simple)
+        return d
+
+    def _geometry(self, dt: float) -> _Step:
+        """Direction intervals, local frames and bounds of one step (shared by OSQP and cvxpy)."""
+        d = self._dt_data(dt)
+        fa = self._fa_prev
+        if self._nfx:
+            lf = np.maximum(self._ffmin, self._ff_prev - d.rdt_f)
+            hf = np.minimum(self._ffmax, self._ff_prev + d.rdt_f)
+            if self._any_failed:
+                dead = self._failed[self._ifx]
+                lf[dead] = hf[dead] = 0.0
+        else:
+            lf = hf = fa[:0]
+        lm = np.maximum(fa - d.rdt_a, 0.0)
+        hm = np.minimum(fa + d.rdt_a, self._R)
+        if not (self._jsec or self._any_failed):  # fast path: b = alpha_p, modes fixed by dt
+            olo, ohi, a0, a1, a2, a3, a4, a5, a6, a7, a8 = d.simple
+            lp = np.maximum(fa - a0, fa * a8 + a1)
+            hp = np.maximum(np.minimum((fa + a2) * a3, a4), fa * a5)
+            hv = np.maximum(lp * a6, a7)
+            return _Step(self._aa_prev, olo, ohi, lp, hp, -hv, hv, lm, hm, lf, hf)
+        return self._geometry_general(d, fa, lm, hm, lf, hf)
+
+    def _geometry_general(self, d: _DtData, fa, lm, hm, lf, hf) -> _Step:
+        D, R = d.D, self._R
+        lo, hi = -D, D.copy()
+        aa = self._aa_prev
+        for j in self._jsec:
+            slo, shi = _arc(float(aa[j]), *self._sectors[j])
+            Dj = float(D[j])
+            if slo > Dj or shi < -Dj:  # out of its allowed arc and out of reach: empty, turn toward it
+                lo[j], hi[j] = math.nan, min(max(slo if slo > 0.0 else shi, -Dj), Dj)
+            else:
+                lo[j], hi[j] = max(slo, -Dj), min(shi, Dj)
+        dead = self._failed[self._iaz]
+        empty = dead | np.isnan(lo)
+        restricted = np.isfinite(lo) & ~dead
+        lo0, hi0 = np.where(restricted, lo, 0.0), np.where(restricted, hi, 0.0)
+        narrow = restricted & (hi0 - lo0 < math.pi)
+        half = restricted & ~narrow
+        c = np.clip(0.0, lo0 + HALF_PI, hi0 - HALF_PI)      # half-plane direction, closest to alpha_p
+        mid = np.where(narrow, 0.5 * (lo0 + hi0), np.where(half, c, 0.0))
+        hw = np.where(narrow, 0.5 * (hi0 - lo0), HALF_PI)
+        olo = np.where(restricted, -hw, -_INF)
+        ohi = -olo
+        e = empty & ~dead
+        olo[e] = ohi[e] = hi[e]                               # relative to b = alpha_p (mid = 0)
+        olo[dead] = ohi[dead] = 0.0
+        pp = fa * np.cos(mid)                                 # u_p in the local frame
+        lp = np.maximum(np.minimum(fa - d.rdt_a, pp), _KEEP * np.maximum(pp, 0.0))  # narrow: rectangle
+        hp = np.maximum((fa + d.rdt_a) * np.cos(hw), pp)
+        hv = lp * np.tan(np.where(narrow, hw, 0.0))
+        lv = -hv
+        box = ~(narrow | empty)
+        if box.any():  # box |Delta u| <= r dt / sqrt(2) about u_p (moved into the polygon)
+            m = self.polygon_sides
+            fb = np.minimum(fa, self._Rin / np.cos(np.mod(-mid, TWO_PI / m) - math.pi / m))
+            pb, vb = fb * np.cos(mid), -fb * np.sin(mid)
+            lp = np.where(box, np.maximum(np.maximum(-R, pb - d.h), np.where(half, 0.0, -R)), lp)
+            hp = np.where(box, np.minimum(R, pb + d.h), hp)
+            lv = np.where(box, np.maximum(-R, vb - d.h), lv)
+            hv = np.where(box, np.minimum(R, vb + d.h), hv)
+        if empty.any():
+            lp, hp, lv, hv, lm, hm = (np.where(empty, 0.0, v) for v in (lp, hp, lv, hv, lm, hm))
+        return _Step(aa + mid, olo, ohi, lp, hp, lv, hv, lm, hm, lf, hf)
+
+    def _update_matrices(self, g: _Step) -> None:
+        """Push the balance entries of the azimuths' (p, v) columns for the frames b to OSQP."""
+        if (g.b == self._b_last).all():
+            return
+        self._b_last = g.b
+        vals = self._Kc * np.cos(g.b)
+        vals += self._Ks * np.sin(g.b)
+        self._update(Ax=vals.ravel(), Ax_idx=self._Ax_idx)
+
+    def _update(self, **kw: Any) -> None:
+        raw = self._raw
+        if raw is None:
+            self._solver.update(**kw)
+            return
+        if "l" in kw:
+            raw.update_data_vec(None, kw["l"], kw["u"])
+        if "Ax" in kw or "Px" in kw:
+            raw.update_data_mat(kw.get("Px"), None, kw.get("Ax"), kw.get("Ax_idx"))
+
+    def _solve(self) -> tuple[int, float, float, int, np.ndarray, np.ndarray]:
+        """(status_val, prim_res, solve + polish time, iterations, x, y)."""
+        raw = self._raw
+        if raw is None:
+            res = self._solver.solve(raise_error=False)
+            info, x, y = res.info, res.x, res.y
+        else:
+            raw.solve()
+            info, sol = raw.info, raw.solution
+            x, y = sol.x, sol.y
+        return (int(info.status_val), float(info.prim_res), float(info.solve_time + info.polish_time),
+                int(info.iter), x, y)
+
+    # -- allocation ------------------------------------------------------------------------------------
+    def _check_tau(self, tau_cmd: Any) -> np.ndarray:
+        try:
+            tau = np.array(tau_cmd, dtype=float)
+        except (TypeError, ValueError):
+            raise AllocationError(f"tau_cmd={tau_cmd!r} is not numeric (expected (X, Y, N) [N, N, N m])") from None
+        if tau.shape != (3,):
+            raise AllocationError(f"tau_cmd has shape {tau.shape}, expected (3,) = (X, Y, N) [N, N, N m]")
+        return tau
+
+    def _check_dt(self, dt: Any) -> float:
+        return self.dt if dt is None else _positive("dt", dt)
+
+    def allocate(self, tau_cmd: Any, dt: float | None = None) -> AllocationResult:
+        """Thruster commands for the generalised force tau_cmd; advances the rate-limit state.
+
+        Never raises for numerical trouble: a non-finite tau_cmd gives zero thrust, a failed or
+        inaccurate solve the saturated pseudo-inverse, both with ``fallback=True``.
+
+        Parameters
+        ----------
+        tau_cmd : array_like, shape (3,)
+            Commanded generalised force (X, Y, N) in {B} [N, N, N m].
+        dt : float, optional
+            Time since the previous command [s] (default: the constructor's dt).
+
+        Returns
+        -------
+        AllocationResult
+
+        Raises
+        ------
+        AllocationError
+            tau_cmd not numeric or not of shape (3,), dt not a positive number (programming errors).
+        """
+        tau = self._check_tau(tau_cmd)
+        dt = self.dt if dt is None else self._check_dt(dt)
+        if not math.isfinite(tau[0] + tau[1] + tau[2]):
+            return self._fallback(tau, dt, "invalid_tau", f"tau_cmd={tau.tolist()} is not finite: zero thrust", 0.0, 0)
+        g = self._geometry(dt)
+        naz, nv, l, u = self._naz, self._nv, self._l, self._u
+        l[:3] = u[:3] = tau * self._tau_scale
+        l[3:3 + naz], u[3:3 + naz], l[3 + naz:3 + 2 * naz], u[3 + naz:3 + 2 * naz] = g.lp, g.hp, g.lv, g.hv
+        if self._nfx:
+            l[3 + 2 * naz:3 + nv], u[3 + 2 * naz:3 + nv] = g.lf, g.hf
+        self._update_matrices(g)
+        self._update(l=l, u=u)
+        st, prim_res, t_solve, it, x, y = self._solve()
+        name = _STATUS_NAMES.get(st, f"status_{st}")
+        if st == _SOLVED or (st == _SOLVED_INACCURATE and prim_res <= self.accept_tol):
+            if math.isfinite(x.sum()):
+                return self._finish(x, y, tau, g, name, t_solve, it, commit=True)
+            name = "non_finite_solution"
+        elif st == _SOLVED_INACCURATE:
+            name = "inaccurate"
+        msg = f"OSQP: {name} (prim_res={prim_res:.3g}, iter={it}); saturated pseudo-inverse at the previous azimuths"
+        return self._fallback(tau, dt, name, msg, t_solve, it)
+
+    def _finish(self, x: np.ndarray, y: np.ndarray, tau: np.ndarray, g: _Step, status: str,
+                t_solve: float, it: int, *, commit: bool) -> AllocationResult:
+        """Clip a (scaled) QP solution to the exact limits; azimuths, idle steering, tau, slack."""
+        naz, nv = self._naz, self._nv
+        p = np.minimum(np.maximum(x[:naz], g.lp), g.hp)
+        v = np.minimum(np.maximum(x[naz:2 * naz], g.lv), g.hv)
+        mag = np.hypot(p, v)
+        th = np.arctan2(v, p)                    # direction relative to b, kept within the interval
+        np.maximum(th, g.olo, out=th)
+        np.minimum(th, g.ohi, out=th)
+        th += g.b
+        fa = np.minimum(np.maximum(mag, g.lm), g.hm)   # exact |Delta f| <= r dt and f <= max_thrust
+        if naz and mag.min() <= self.idle_tol:
+            th, fa = self._idle(mag, th, fa, y, g)
+        alpha_a = ssa(th)
+        if self._nfx:
+            ff = np.minimum(np.maximum(x[2 * naz:nv], g.lf), g.hf)
+            tau_a = self._BF @ np.concatenate((fa * np.cos(th), fa * np.sin(th), ff))
+            f = np.empty(self.n)
+            alpha = self._angle0.copy()
+            f[self._iaz], f[self._ifx] = fa * self.F_ref, ff * self.F_ref
+            alpha[self._iaz] = alpha_a
+        else:
+            ff = fa[:0]
+            tau_a = self._BF @ np.concatenate((fa * np.cos(th), fa * np.sin(th)))
+            f, alpha = fa * self.F_ref, alpha_a
+        if commit:
+            self._alpha_prev, self._f_prev, self._aa_prev, self._fa_prev, self._ff_prev = alpha, f, alpha_a, fa, ff
+        msg = "QP solution" if status == "solved" else f"QP solution accepted with OSQP status {status}"
+        return _result(f, alpha, tau_a, tau - tau_a, status, False, t_solve, it, msg)
+
+    def _idle(self, mag, th, fa, y, g):
+        """Idle azimuths: zero thrust; keep alpha_p or turn toward the preferred direction."""
+        idle = mag <= self.idle_tol
+        fa = np.where(idle, g.lm, fa)   # zero unless the thrust rate forbids it
+        aa = self._aa_prev
+        keep = aa
+        if self.steer_idle and math.isfinite(y[0] + y[1] + y[2]):
+            ys = y[:3] * self._row_scale           # preferred u_i = -W_i^-1 B_i^T y / 2 (P x + A^T y = 0)
+            x_, y_ = self._x[self._iaz], self._y[self._iaz]
+            px = -(ys[0] - y_ * ys[2]) / (2.0 * self._wa)
+            py = -(ys[1] + x_ * ys[2]) / (2.0 * self._wa)
+            pref = np.hypot(px, py) > self.idle_tol
+            toff = np.where(pref, ssa(np.arctan2(py, px) - g.b), 0.0)
+            turn = pref | (g.olo > 0.0) | (g.ohi < 0.0)        # also: out of a forbidden sector
+            keep = np.where(turn, g.b + np.clip(toff, g.olo, g.ohi), aa)
+        return np.where(idle, keep, th), fa
+
+    def _fallback(self, tau: np.ndarray, dt: float, reason: str, message: str, t_solve: float, it: int) -> AllocationResult:
+        """Saturated weighted pseudo-inverse at the previous azimuths (zero thrust for invalid tau)."""
+        alpha = np.array(self._alpha_prev)
+        ok = ~self._failed
+        f = np.zeros(self.n)
+        if reason != "invalid_tau":
+            T = configuration_matrix(alpha, self._x, self._y)
+            f = pseudo_inverse(T, tau, np.where(ok, self._w_phys, _INF), row_scale=self._row_scale)
+            rdt = self._rate * dt
+            lo = np.maximum(self._fmin, self._f_prev - rdt)
+            hi = np.minimum(self._fmax, self._f_prev + rdt)
+            f = np.where(ok, np.clip(f, np.minimum(lo, hi), hi), 0.0)
+            if not np.isfinite(f).all():  # cannot happen with finite data; never return NaN
+                f = np.zeros(self.n)
+                message += "; pseudo-inverse not finite: zero thrust"
+        tau_a = configuration_matrix(alpha, self._x, self._y) @ f
+        self._f_prev = f
+        self._sync_prev()
+        return _result(f, alpha, tau_a, tau - tau_a, f"fallback:{reason}", True, t_solve, it, message)
+
+    def cost(self, result: AllocationResult) -> float:
+        """QP cost of a result, ``sum_i k_i (f_i / max_thrust_i)^2 + rho_s |slack~|^2`` [-]."""
+        s = np.asarray(result.slack) * self._tau_scale
+        return float(np.sum(self._k * (np.asarray(result.f) / self._fmax) ** 2) + self.slack_weight * (s @ s))
+
+
+def _result(f, alpha, tau, slack, status, fallback, t_solve, it, message) -> AllocationResult:
+    for a in (f, alpha, tau, slack):
+        a.flags.writeable = False
+    return AllocationResult(f, alpha, tau, slack, status, fallback, t_solve, it, message)
+
+
+def _finite(name: str, v: Any) -> float:
+    try:
+        x = float(v)
+    except (TypeError, ValueError):
+        raise AllocationError(f"{name}={v!r} is not a number") from None
+    if not math.isfinite(x):
+        raise AllocationError(f"{name}={v!r} must be finite")
+    return x
+
+
+def _positive(name: str, v: Any) -> float:
+    x = _finite(name, v)
+    if x <= 0.0:
+        raise AllocationError(f"{name}={v!r} must be > 0")
+    return x
+
+
+# -- the readable reference (tests only) ---------------------------------------------------------------
+
+def allocate_reference(allocator: ThrustAllocator, tau_cmd: Any, dt: float | None = None, *,
+                       solver: str = "HIGHS", **solver_options: Any) -> AllocationResult:
+    """The same QP as :meth:`ThrustAllocator.allocate`, written with cvxpy in the body-frame force
+    components u_i (radial and tangential parts as projections on e(b), e(b + pi/2)) and built on
+    every call.
+
+    For tests and documentation only (slow). Uses the allocator's current state (previous command,
+    failures) and does not change it. ``solver`` and ``solver_options`` go to ``cvxpy.Problem.solve``;
+    the default, HiGHS's active-set QP solver, solves these small problems exactly, whereas
+    CLARABEL (interior point) hit its iteration limit on some with the heavily weighted slack.
+    The step data (intervals, frames, bounds) and the post-processing are shared with the OSQP
+    path; the variables, cost and constraints are written out here, independently of the OSQP
+    matrices. In the result, ``solve_time`` is the wall time of the cvxpy solve and
+    ``iterations`` is 0.
+
+    Raises
+    ------
+    AllocationError
+        Bad or non-finite tau_cmd, bad dt, or the reference solver did not reach the optimum.
+    """
+    import cvxpy as cp
+
+    al = allocator
+    tau = al._check_tau(tau_cmd)
+    if not np.isfinite(tau).all():
+        raise AllocationError(f"tau_cmd={tau.tolist()} is not finite")
+    g = al._geometry(al._check_dt(dt))
+    t0 = time.perf_counter()
+    naz, nfx = al._naz, al._nfx
+    U = cp.Variable((max(naz, 1), 2))   # scaled azimuth force components (f_x, f_y) in {B}
+    ff = cp.Variable(max(nfx, 1))       # scaled tunnel/fixed thrusts
+    s = cp.Variable(3)                  # scaled slack
+    Bu: Any = s
+    for j, i in enumerate(al._iaz):
+        Bu = Bu + (extended_columns(al._x[i], al._y[i]) * al._row_scale[:, None]) @ U[j]
+    for k, i in enumerate(al._ifx):
+        col = configuration_matrix(al._angle0[i:i + 1], al._x[i:i + 1], al._y[i:i + 1])[:, 0]
+        Bu = Bu + (col * al._row_scale) * ff[k]
+    balance = Bu == tau * al._tau_scale
+    cons = [balance]
+
+    def e(a: float) -> np.ndarray:
+        return np.array([math.cos(a), math.sin(a)])
+
+    phi = np.arctan2(al._poly_n[:, 1], al._poly_n[:, 0])
+    for j in range(naz):
+        u, b = U[j], float(g.b[j])
+        radial, tangential = e(b) @ u, e(b + HALF_PI) @ u
+        cons += [np.array([e(b + ph) for ph in phi]) @ u <= al._Rin[j],  # polygon, a vertex along b
+                 radial >= g.lp[j], radial <= g.hp[j], tangential >= g.lv[j], tangential <= g.hv[j]]
+    for k in range(nfx):
+        cons += [ff[k] >= g.lf[k], ff[k] <= g.hf[k]]
+    cost = al.slack_weight * cp.sum_squares(s)
+    if naz:
+        cost = cost + cp.sum_squares(cp.multiply(np.sqrt(al._wa)[:, None], U[:naz]))
+    if nfx:
+        cost = cost + cp.sum_squares(cp.multiply(np.sqrt(al._wf), ff[:nfx]))
+    prob = cp.Problem(cp.Minimize(cost), cons)
+    prob.solve(solver=solver, **solver_options)
+    if prob.status != "optimal":
+        raise AllocationError(f"reference solve with {solver} ended with status {prob.status!r}")
+    x = np.zeros(al._nv + 3)
+    if naz:  # to the allocator's variables (p, v) for the shared post-processing
+        Uv = np.asarray(U.value)[:naz]
+        cb, sb = np.cos(g.b), np.sin(g.b)
+        x[:naz] = Uv[:, 0] * cb + Uv[:, 1] * sb
+        x[naz:2 * naz] = -Uv[:, 0] * sb + Uv[:, 1] * cb
+    if nfx:
+        x[2 * naz:al._nv] = ff.value[:nfx]
+    # cvxpy's equality dual follows OSQP's convention (P x + q + A^T y = 0) for ``B u + s == tau``
+    y = np.asarray(balance.dual_value, dtype=float)
+    return al._finish(x, y, tau, g, "solved", time.perf_counter() - t0, 0, commit=False)
