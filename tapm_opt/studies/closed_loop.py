@@ -60,6 +60,11 @@ class ClosedLoopSettings:
         ``chase_time`` projected into ``chase_margin`` times the safe radius.
     eta_d : (3,)
         Fixed setpoint, or the heading of the chased setpoint [m, m, rad].
+    heading : {"fixed", "chasing"}
+        Heading setpoint ``eta_d[2]``, or the weather-optimal heading: the bow pointed into the
+        estimated mean environmental force in {E}, ``atan2(-b_y, -b_x)``, low-pass filtered with time
+        constant ``heading_chase_time`` from ``eta_d[2]``. A turret-moored vessel then weathervanes
+        slowly instead of spending thrust on a yaw moment against the weather.
     """
 
     duration: float = 3600.0
@@ -68,19 +73,22 @@ class ClosedLoopSettings:
     dt_log: float = 1.0
     true_state: bool = False
     setpoint: Literal["fixed", "chasing"] = "fixed"
+    heading: Literal["fixed", "chasing"] = "fixed"
     eta_d: tuple[float, float, float] = (0.0, 0.0, 0.0)
     chase_time: float = 300.0
     chase_margin: float = 0.8
+    heading_chase_time: float = 600.0
 
     def __post_init__(self) -> None:
-        for name in ("duration", "dt_control", "dt_log", "chase_time", "chase_margin"):
+        for name in ("duration", "dt_control", "dt_log", "chase_time", "chase_margin", "heading_chase_time"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ClosedLoopError(f"{name} = {v!r} must be a positive number")
         if self.controller_period is not None and not (math.isfinite(self.controller_period) and self.controller_period > 0):
             raise ClosedLoopError(f"controller_period = {self.controller_period!r} must be a positive number or None")
-        if self.setpoint not in ("fixed", "chasing"):
-            raise ClosedLoopError(f"setpoint = {self.setpoint!r} is not one of 'fixed', 'chasing'")
+        for name in ("setpoint", "heading"):
+            if getattr(self, name) not in ("fixed", "chasing"):
+                raise ClosedLoopError(f"{name} = {getattr(self, name)!r} is not one of 'fixed', 'chasing'")
         ratio = self.dt_log / self.dt_control
         if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
             raise ClosedLoopError(f"dt_log = {self.dt_log:g} s must be a whole multiple of dt_control = {self.dt_control:g} s")
@@ -148,6 +156,7 @@ def run_closed_loop(plant: Plant, controller: Any, settings: ClosedLoopSettings 
     t_wall0 = time.perf_counter()
     last = {"fallback": 0.0, "slack": 0.0}
     sp_eta = eta_d
+    psi_sp = float(eta_d[2])
 
     def log():
         row = np.concatenate([plant.sample_row(), tau_cmd, sp_eta, est_vals[0], est_vals[2],
@@ -175,7 +184,15 @@ def run_closed_loop(plant: Plant, controller: Any, settings: ClosedLoopSettings 
         if step == n_steps:
             break
         # setpoint
-        sp_eta = chase.update(s.dt_control, est_vals[0]) if chase is not None else eta_d
+        sp_eta = chase.update(s.dt_control, est_vals[0]) if chase is not None else eta_d.copy()
+        if s.heading == "chasing":
+            # weather-optimal heading: bow into the estimated mean environmental force in {E}
+            b_E = rot_z(est_vals[0][2]) @ np.asarray(est_vals[2], float)
+            if math.hypot(b_E[0], b_E[1]) > 1e3:
+                target = math.atan2(-b_E[1], -b_E[0])
+                a = math.exp(-s.dt_control / s.heading_chase_time)
+                psi_sp = psi_sp + (1 - a) * ((target - psi_sp + math.pi) % (2 * math.pi) - math.pi)
+            sp_eta = np.array([sp_eta[0], sp_eta[1], psi_sp])
         # controller at its own period
         if t >= next_ctrl - 1e-9:
             e = Estimate(t=t, eta=est_vals[0], nu=est_vals[1], tau_env=est_vals[2], tensions=m.tensions)
@@ -201,7 +218,7 @@ def run_closed_loop(plant: Plant, controller: Any, settings: ClosedLoopSettings 
     wall = time.perf_counter() - t_wall0
     diag = _diagnostics(controller, ctrl_times, alloc_times, alloc_fallbacks)
     md = {**plant.metadata(), "controller": type(controller).__name__, "controller_period": period,
-          "dt_control": s.dt_control, "true_state": s.true_state, "setpoint": s.setpoint,
+          "dt_control": s.dt_control, "true_state": s.true_state, "setpoint": s.setpoint, "heading": s.heading,
           "wall_time": wall, "diagnostics": diag, **(meta or {})}
     return rb.build(md)
 
