@@ -102,10 +102,10 @@ class MPCSettings:
     solver: Literal["sqp", "ipopt", "fatrop"] = "sqp"
     w_thrust: float = 1.0
     w_rate: float = 1.0
-    w_position: float = 50.0
+    w_position: float = 1.0
     w_position_in: float = 0.0
-    w_heading: float = 20.0
-    w_velocity: float = 0.0
+    w_heading: float = 1.0
+    w_velocity: float = 1.0
     w_terminal: float = 5.0
     dead_band: float = 0.0
     safe_radius: float | None = None
@@ -113,7 +113,7 @@ class MPCSettings:
     soft_l1: float = 1e3
     soft_l2: float = 1e2
     r_ref: float = 10.0
-    psi_ref: float = math.radians(5.0)
+    psi_ref: float = math.radians(10.0)
     nu_ref: float = 0.5
     r_rate_ref: float = math.radians(0.5)
     capacity_fraction: float = 0.6
@@ -140,8 +140,11 @@ class MPCSettings:
                               ("solver", ("sqp", "ipopt", "fatrop"))):
             if getattr(self, name) not in allowed:
                 raise MPCError(f"MPCSettings.{name} = {getattr(self, name)!r} is not one of {', '.join(allowed)}")
-        if self.safe_radius is not None and not (math.isfinite(self.safe_radius) and self.safe_radius > 0):
-            raise MPCError(f"MPCSettings.safe_radius = {self.safe_radius!r} must be a positive number or None")
+        for name, what, hi in (("safe_radius", "a positive number", math.inf),
+                               ("tension_utilisation", "a number in (0, 1]", 1.0)):
+            v = getattr(self, name)
+            if v is not None and not (isinstance(v, (int, float)) and math.isfinite(v) and 0 < v <= hi):
+                raise MPCError(f"MPCSettings.{name} = {v!r} must be {what} or None")
 
 
 @dataclass(frozen=True)
@@ -410,8 +413,11 @@ class _MPCBase:
         if eta.shape != (3,) or nu.shape != (3,) or not (np.all(np.isfinite(eta)) and np.all(np.isfinite(nu))):
             raise MPCError(f"estimate eta = {eta.tolist()}, nu = {nu.tolist()} must be finite 3-vectors")
         eta_d = np.asarray(sp.eta_d, float).copy()
-        eta_d[2] = eta[2] + _ssa(eta_d[2] - eta[2])  # heading setpoint unwrapped next to the heading
         tau_env = np.asarray(est.tau_env, float)
+        for name, v in (("estimate tau_env", tau_env), ("setpoint eta_d", eta_d)):
+            if v.shape != (3,) or not np.all(np.isfinite(v)):
+                raise MPCError(f"{name} = {v.tolist()} must be a finite 3-vector")
+        eta_d[2] = eta[2] + _ssa(eta_d[2] - eta[2])  # heading setpoint unwrapped next to the heading
         b_E = rot_z(eta[2]) @ tau_env
         u_prev = np.zeros(self._n_u) if self._u_prev is None else self._u_prev
         return np.concatenate([eta, nu, u_prev, eta_d, b_E])
@@ -534,7 +540,7 @@ class NonlinearMPC(_MPCBase):
                     "qpsol_options": {"print_iter": False, "print_header": False, "error_on_fail": False}}
             self._solver = ca.nlpsol("mpc", "sqpmethod", nlp, opts)
         else:
-            opts = {"print_time": False, "fatrop.print_level": 0}
+            opts = {"print_time": False, "fatrop.print_level": 0, "fatrop.max_iter": s.max_iter}
             self._solver = ca.nlpsol("mpc", "fatrop", nlp, opts)
         self._lam_x = None
         self._lam_g = None

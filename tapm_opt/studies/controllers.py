@@ -10,8 +10,12 @@ zero point — ``periods`` (surge, sway, yaw) [s], ``damping`` (-), ``integral_r
 (a Table 3 set: ``calm``, ``normal``, ``normal_restoring``, ``extreme``, ``extreme_restoring``, or a
 list of modes), ``tau_limit`` (default: the allocation's capacity box).
 
-MPC (``tapm_opt.control.mpc.MPCSettings``): every settings field; ``dead_band`` defaults to half the
+MPC (``tapm_opt.control.mpc.MPCSettings``): every settings field; ``dead_band`` defaults to 0.7 of the
 scenario's safe radius; ``period`` [s] is the re-solve period (default the prediction step).
+
+The defaults were tuned on the fpso design storm (``docs/controllers.md``): the PID as the
+softest restoring loop that keeps the vessel inside the safe circle, the MPC with a dead band at
+0.7 of the safe radius and soft heading and position weights.
 """
 
 from __future__ import annotations
@@ -31,8 +35,8 @@ __all__ = ["build_controller", "CONTROLLER_TYPES", "ControllerSpecError"]
 
 CONTROLLER_TYPES = ("pid", "mpc", "lmpc")
 
-PID_DEFAULTS = {"periods": (150.0, 150.0, 100.0), "damping": (0.8, 0.8, 0.8), "integral_ratio": 0.1,
-                "modes": "extreme_restoring", "tau_limit": None}
+PID_DEFAULTS = {"periods": (250.0, 250.0, 150.0), "damping": (0.8, 0.8, 0.8), "integral_ratio": 0.1,
+                "modes": "normal_restoring", "tau_limit": None}
 
 
 class ControllerSpecError(TapmError, ValueError):
@@ -81,7 +85,7 @@ def build_controller(scenario: Any, spec: Mapping[str, Any] | str, *, where: str
         _unknown(set(spec), allowed, where)
         period = spec.pop("period", None)
         if "dead_band" not in spec and scenario.limits.safe_radius is not None:
-            spec["dead_band"] = 0.5 * scenario.limits.safe_radius
+            spec["dead_band"] = 0.7 * scenario.limits.safe_radius
         settings = MPCSettings(**spec)
         ctrl = NonlinearMPC(scenario, settings) if kind == "mpc" else LinearMPC(scenario, settings)
         ctrl.period = float(period) if period is not None else settings.dt
