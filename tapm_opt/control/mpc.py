@@ -641,10 +641,10 @@ class LinearMPC(_MPCBase):
         if self._z is not None:
             self._qp.warm_start(x=self._shift(self._z))
         t0 = time.perf_counter()
-        res = self._qp.solve()
+        res = self._qp.solve(raise_error=False)
         dt = time.perf_counter() - t0
-        st = res.info.status_val
-        ok = st in (self._osqp_mod.constant("OSQP_SOLVED"),) and res.x is not None and np.all(np.isfinite(res.x))
+        st = int(res.info.status_val)
+        ok = st == int(self._osqp_mod.SolverStatus.OSQP_SOLVED) and res.x is not None and np.all(np.isfinite(res.x))
         z = np.asarray(res.x, float) if res.x is not None else np.full(self._nz, np.nan)
         cost = float(res.info.obj_val) if ok else math.nan
         return self._finish(t, z, ok, str(res.info.status), dt, int(res.info.iter), cost)
