@@ -282,11 +282,14 @@ def plant_forced_motion(scenario_name: str, dof: str, amplitude: float, period: 
 @click.option("--dt-control", type=float, default=1.0, show_default=True, help="Control/allocation period [s].")
 @click.option("--setpoint", type=click.Choice(["fixed", "chasing"]), default="fixed", show_default=True,
               help="Fixed setpoint at the field zero point, or setpoint chasing (survey eq. 38).")
+@click.option("--heading", type=click.Choice(["chasing", "fixed"]), default="chasing", show_default=True,
+              help="Weather-optimal heading (bow into the estimated mean environmental force) or fixed north.")
 @click.option("--true-state", is_flag=True, help="Give the controller the true LF state (no estimator).")
 @click.option("--option", "options", multiple=True, metavar="KEY=VALUE",
               help="Controller option, e.g. --option horizon=30 --option solver=ipopt (repeatable).")
 def simulate(scenario_name: str, controller: str, duration: float, out_dir: str, sea_state: str | None, seed: int,
-             segments: int | None, dt_control: float, setpoint: str, true_state: bool, options: tuple[str, ...]) -> None:
+             segments: int | None, dt_control: float, setpoint: str, heading: str, true_state: bool,
+             options: tuple[str, ...]) -> None:
     """Run CONTROLLER in closed loop against the FEM plant of SCENARIO and save the run.
 
     Writes OUT/result.npz (all channels, labelled; numpy.load reads it) and OUT/summary.json
@@ -310,7 +313,8 @@ def simulate(scenario_name: str, controller: str, duration: float, out_dir: str,
     sc = _load(scenario_name)
     ctrl = build_controller(sc, spec, where="--option")
     plant = Plant(sc, sea_state=sea_state, seed=seed, segments=segments)
-    settings = ClosedLoopSettings(duration=duration, dt_control=dt_control, true_state=true_state, setpoint=setpoint)
+    settings = ClosedLoopSettings(duration=duration, dt_control=dt_control, true_state=true_state, setpoint=setpoint,
+                                  heading=heading)
     res = run_closed_loop(plant, ctrl, settings, meta={"controller_spec": spec, "seed": seed})
     out = Path(out_dir)
     res.save(out / "result.npz")

@@ -91,7 +91,10 @@ class MPCSettings:
     polygon_sides : int
         Sides of the polygons approximating circles (dead band, safe circle, thrust circles).
     max_iter : int
-        Solver iteration limit.
+        Iteration limit of the NLP solver (SQP iterations or IPOPT iterations).
+    max_time : float
+        Wall-clock limit of one IPOPT solve [s]; SQP is bounded by ``max_iter`` and its QP solver's
+        own iteration limit.
     """
 
     horizon: int = 20
@@ -118,10 +121,11 @@ class MPCSettings:
     r_rate_ref: float = math.radians(0.5)
     capacity_fraction: float = 0.6
     polygon_sides: int = 16
-    max_iter: int = 100
+    max_iter: int = 30
+    max_time: float = 10.0
 
     def __post_init__(self) -> None:
-        pos = ("dt", "r_ref", "psi_ref", "nu_ref", "r_rate_ref", "capacity_fraction")
+        pos = ("dt", "r_ref", "psi_ref", "nu_ref", "r_rate_ref", "capacity_fraction", "max_time")
         nonneg = ("w_thrust", "w_rate", "w_position", "w_position_in", "w_heading", "w_velocity", "w_terminal",
                   "dead_band", "soft_l1", "soft_l2")
         for name in pos:
@@ -532,12 +536,13 @@ class NonlinearMPC(_MPCBase):
         s = settings
         if s.solver == "ipopt":
             opts = {"ipopt.print_level": 0, "print_time": False, "ipopt.max_iter": s.max_iter, "ipopt.tol": 1e-6,
-                    "ipopt.warm_start_init_point": "yes", "ipopt.sb": "yes"}
+                    "ipopt.warm_start_init_point": "yes", "ipopt.sb": "yes", "ipopt.max_cpu_time": s.max_time}
             self._solver = ca.nlpsol("mpc", "ipopt", nlp, opts)
         elif s.solver == "sqp":
             opts = {"qpsol": "qrqp", "print_time": False, "print_header": False, "print_iteration": False,
                     "print_status": False, "max_iter": s.max_iter, "error_on_fail": False,
-                    "qpsol_options": {"print_iter": False, "print_header": False, "error_on_fail": False}}
+                    "qpsol_options": {"print_iter": False, "print_header": False, "error_on_fail": False,
+                                      "max_iter": 500}}
             self._solver = ca.nlpsol("mpc", "sqpmethod", nlp, opts)
         else:
             opts = {"print_time": False, "fatrop.print_level": 0, "fatrop.max_iter": s.max_iter}
@@ -572,9 +577,10 @@ class LinearMPC(_MPCBase):
     """Linear MPC: the same problem with dynamics and tensions linearised about an operating point,
     solved as a sparse QP by OSQP (set up once; each step updates q, l, u and warm-starts).
 
-    The operating point is the setpoint pose at rest with zero thrust and the current environmental
-    load estimate; it is re-linearised (same sparsity, new matrix values) when the setpoint moves more
-    than ``relinearise_distance`` [m] or ``relinearise_heading`` [rad].
+    The operating point is the setpoint position with the vessel's estimated heading, at rest, with
+    zero thrust and the current environmental load estimate; it is re-linearised (same sparsity, new
+    matrix values) when the setpoint moves more than ``relinearise_distance`` [m] or the heading
+    more than ``relinearise_heading`` [rad] from the operating point.
     """
 
     def __init__(self, scenario: Any, settings: MPCSettings = MPCSettings(), *, relinearise_distance: float = 5.0,
@@ -628,7 +634,7 @@ class LinearMPC(_MPCBase):
 
     def _solve(self, t: float, p: np.ndarray) -> np.ndarray:
         n_u = self._n_u
-        x_op = np.concatenate([p[6 + n_u:9 + n_u], np.zeros(3)])
+        x_op = np.concatenate([p[6 + n_u:8 + n_u], p[2:3], np.zeros(3)])
         b_op = p[-3:]
         if (self._op is None or np.hypot(*(x_op[:2] - self._op[0][:2])) > self._reld
                 or abs(_ssa(x_op[2] - self._op[0][2])) > self._relh):
