@@ -1,49 +1,563 @@
-"""Key performance indicators of a closed-loop result (computed from saved results only)."""
+"""Key performance indicators of a closed-loop result (computed from saved results only).
+
+:func:`case_kpis` turns one :class:`~tapm_opt.results.Result` (and the scenario it was run with)
+into a flat ``{name: number}`` dict: offsets, heading error, line tensions, the structural
+reliability index of survey eq. (32), the DNV-OS-E301 (October 2008) line-strength check, thrust
+energy and a fuel proxy, and the controller's solve-time statistics. :func:`kpi_table` writes one
+row per case as CSV and Markdown. Every definition, unit and assumption is in ``docs/kpis.md``.
+
+:func:`basic_kpis` (used by ``tapm simulate``) is the historical subset of :func:`case_kpis`.
+"""
 
 from __future__ import annotations
 
-from typing import Any
+import csv
+import io
+import math
+import re
+from dataclasses import dataclass
+from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
+from ..errors import TapmError
 from ..results import Result
 
-__all__ = ["basic_kpis"]
+__all__ = [
+    "KpiError", "case_kpis", "basic_kpis", "kpi_table", "kpi_unit", "kpi_order",
+    "gumbel_k", "low_pass", "reliability_index", "ReliabilityTrace",
+    "DNV_E301_2008_FACTORS", "DNV_CAPACITY_FACTOR", "SFC_DEFAULT", "LP_WINDOW_DEFAULT", "DELTA_S_DEFAULT",
+]
+
+
+class KpiError(TapmError, ValueError):
+    """A result cannot be evaluated: a needed channel is missing, values are not finite, or an
+    option is out of range."""
+
+
+#: Partial safety factors (gamma_mean, gamma_dyn) of DNV-OS-E301, October 2008 edition, dynamic
+#: analysis, by limit state and consequence class. Read from secondary transcriptions
+#: (/work/shared/design/STANDARDS.md); to be checked against the standard itself.
+DNV_E301_2008_FACTORS: dict[tuple[str, int], tuple[float, float]] = {
+    ("ULS", 1): (1.10, 1.50),
+    ("ULS", 2): (1.40, 2.10),
+    ("ALS", 1): (1.00, 1.10),
+    ("ALS", 2): (1.00, 1.25),
+}
+#: Characteristic capacity S_C = 0.95 * MBS (DNV-OS-E301 definition for chain; applied to every line).
+DNV_CAPACITY_FACTOR = 0.95
+#: Common factor on T_C,mean + T_C,dyn in consequence class 1 when T_C,mean > 2/3 T_C,dyn
+#: (as transcribed in STANDARDS.md; applied by default, ``dnv_class1_common_factor=False`` disables it).
+DNV_CLASS1_COMMON_FACTOR = 1.3
+#: Specific fuel consumption of the fuel proxy [kg/kWh] (diesel-electric, ~200 g/kWh).
+SFC_DEFAULT = 0.2
+#: Width of the centred moving average that defines the low-frequency tension [s].
+LP_WINDOW_DEFAULT = 100.0
+#: Lower threshold of the reliability index (seed line-break example).
+DELTA_S_DEFAULT = 2.0
+
+_BREAK_RE = re.compile(r"line\s+(\S+)\s+broke")
+
+# Stable order of the KPI columns (kpi_order); per-line names follow the aggregate ones.
+_AGG_ORDER: tuple[tuple[str, str], ...] = (
+    ("duration", "s"),
+    ("offset_max", "m"), ("offset_mean", "m"), ("offset_std", "m"),
+    ("time_outside_safe", "s"), ("time_outside_alert", "s"),
+    ("heading_error_max", "deg"),
+    ("T_max", "N"), ("util_max", "-"),
+    ("delta_min", "-"), ("delta_frac_below", "-"),
+    ("dnv_uls_max", "-"), ("dnv_uls_pass", "lines"), ("dnv_uls_fail", "lines"),
+    ("dnv_als_max", "-"), ("dnv_als_pass", "lines"), ("dnv_als_fail", "lines"),
+    ("lines_broken", "lines"),
+    ("thrust_energy", "J"), ("thrust_power_mean", "W"), ("fuel", "kg"),
+    ("solver_time_median", "s"), ("solver_time_p95", "s"), ("solver_time_max", "s"),
+    ("solver_failures", "-"), ("solver_fallbacks", "-"), ("allocation_fallbacks", "-"),
+)
+_LINE_ORDER: tuple[tuple[str, str], ...] = (
+    ("T_max", "N"), ("T_mean", "N"), ("util_max", "-"), ("delta_min", "-"), ("delta_frac_below", "-"),
+    ("dnv_uls", "-"), ("dnv_als", "-"),
+)
+_UNITS = {**dict(_AGG_ORDER), **{f"{k}[]": u for k, u in _LINE_ORDER}, "utilisation_max": "-"}
+_DIAG_KEYS = ("solver_time_median", "solver_time_p95", "solver_time_max", "solver_failures", "solver_fallbacks",
+              "allocation_fallbacks")
+_COUNT_KEYS = {"dnv_uls_pass", "dnv_uls_fail", "dnv_als_pass", "dnv_als_fail", "lines_broken", "solver_failures",
+               "solver_fallbacks", "allocation_fallbacks"}
+_LABEL_ORDER = ("scenario", "sea_state", "controller", "condition", "seed")
+
+
+# -- building blocks ---------------------------------------------------------------------------
+
+def gumbel_k(n: float) -> float:
+    """Extreme-value factor k = sqrt(2 ln n) + gamma_E / sqrt(2 ln n) of a narrow-band Gaussian
+    process with ``n`` individual maxima in the considered period (Gumbel asymptote;
+    reliability-setpoint-riser-mooring §2.2). ``n`` must be > 1."""
+    if not (n > 1 and math.isfinite(n)):
+        raise KpiError(f"gumbel_k needs more than one maximum, got n = {n!r}")
+    s = math.sqrt(2.0 * math.log(n))
+    return s + float(np.euler_gamma) / s
+
+
+def _cumint(t: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Cumulative trapezoid integral of x over t, starting at 0."""
+    return np.concatenate([[0.0], np.cumsum(0.5 * (x[1:] + x[:-1]) * np.diff(t))])
+
+
+def _int_at(t: np.ndarray, x: np.ndarray, C: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    """Exact integral from t[0] to tau of the piecewise-linear interpolant of x."""
+    j = np.clip(np.searchsorted(t, tau, side="right") - 1, 0, len(t) - 2)
+    h = t[j + 1] - t[j]
+    s = np.clip(tau - t[j], 0.0, h)
+    slope = np.divide(x[j + 1] - x[j], h, out=np.zeros_like(h), where=h > 0)
+    return C[j] + x[j] * s + 0.5 * slope * s * s
+
+
+def _tmean(t: np.ndarray, x: np.ndarray) -> float:
+    """Time-weighted (trapezoid) mean; the plain mean for a single sample or zero duration."""
+    d = float(t[-1] - t[0]) if len(t) else 0.0
+    if len(t) < 2 or d <= 0:
+        return float(np.mean(x))
+    return float(np.trapezoid(x, t) / d)
+
+
+def _tstd(t: np.ndarray, x: np.ndarray) -> float:
+    """Time-weighted (trapezoid) standard deviation."""
+    m = _tmean(t, x)
+    return float(math.sqrt(max(_tmean(t, (x - m) ** 2), 0.0)))
+
+
+def _hold_weights(t: np.ndarray) -> np.ndarray:
+    """Zero-order-hold weights: sample i stands for [t_i, t_{i+1}); the last sample weighs 0."""
+    return np.diff(t, append=t[-1]) if len(t) else np.zeros(0)
+
+
+def low_pass(t: Sequence[float], x: Sequence[float], window: float = LP_WINDOW_DEFAULT) -> tuple[np.ndarray, np.ndarray]:
+    """Centred moving average of width ``window`` [s] of the piecewise-linear signal (t, x).
+
+    Returns ``(mask, x_lf)``: ``mask`` marks the samples where the whole window lies inside the
+    record (only there the average is defined), ``x_lf`` the average at those samples. A record
+    that is too short for any full window gives ``mask`` all true and ``x_lf`` the record's
+    time-weighted mean.
+    """
+    t = np.asarray(t, float)
+    x = np.asarray(x, float)
+    if not (window > 0 and math.isfinite(window)):
+        raise KpiError(f"low-pass window = {window!r} s must be a positive number")
+    half = 0.5 * window
+    eps = 1e-9 * max(1.0, abs(float(t[-1])) if len(t) else 1.0)
+    mask = (t - half >= t[0] - eps) & (t + half <= t[-1] + eps) if len(t) else np.zeros(0, bool)
+    if mask.sum() < 2:
+        return np.ones(len(t), bool), np.full(len(t), _tmean(t, x) if len(t) else 0.0)
+    C = _cumint(t, x)
+    tc = t[mask]
+    lf = (_int_at(t, x, C, np.minimum(tc + half, t[-1])) - _int_at(t, x, C, np.maximum(tc - half, t[0]))) / window
+    return mask, lf
+
+
+@dataclass(frozen=True)
+class ReliabilityTrace:
+    """The reliability index of one line over one stationary segment (see :func:`reliability_index`).
+
+    Attributes
+    ----------
+    time : ndarray
+        Instants where delta is evaluated [s] (full low-pass window inside the segment).
+    delta : ndarray
+        delta(t) = (T_b - k sigma - T_LF(t)) / sigma_b [-].
+    T_LF : ndarray
+        Low-frequency tension at those instants [N].
+    sigma : float
+        Standard deviation of the wave-frequency tension T - T_LF [N].
+    n : int
+        Zero up-crossings of the wave-frequency tension (the number of maxima).
+    k : float
+        Gumbel extreme factor for max(n, 2) maxima.
+    """
+
+    time: np.ndarray
+    delta: np.ndarray
+    T_LF: np.ndarray
+    sigma: float
+    n: int
+    k: float
+
+    def time_below(self, delta_s: float) -> float:
+        """Time [s] with delta < delta_s (zero-order hold)."""
+        return float(np.sum(_hold_weights(self.time)[self.delta < delta_s]))
+
+    @property
+    def span(self) -> float:
+        """Evaluated duration [s]."""
+        return float(self.time[-1] - self.time[0]) if len(self.time) else 0.0
+
+
+def reliability_index(t: Sequence[float], T: Sequence[float], T_b: float, sigma_b: float, *,
+                      window: float = LP_WINDOW_DEFAULT) -> ReliabilityTrace:
+    """Reliability index of survey eq. (32) for a tension record of one line.
+
+    T_LF is the centred moving average of width ``window`` (:func:`low_pass`), the wave-frequency
+    part is T - T_LF, sigma its time-weighted standard deviation, n its zero up-crossings (the
+    number of maxima of a narrow-band process), k = :func:`gumbel_k` (max(n, 2)), and
+    delta(t) = (T_b - k sigma - T_LF(t)) / sigma_b at the samples where the window fits.
+
+    Parameters
+    ----------
+    t, T : sequences
+        Times [s] (increasing) and tensions [N] of one stationary segment.
+    T_b : float
+        Mean breaking strength [N] (MBS of the scenario).
+    sigma_b : float
+        Standard deviation of the breaking strength [N], > 0.
+    """
+    t = np.asarray(t, float)
+    T = np.asarray(T, float)
+    if not sigma_b > 0:
+        raise KpiError(f"sigma_b = {sigma_b!r} N must be positive for the reliability index")
+    if len(t) < 2:
+        raise KpiError("the reliability index needs at least two samples")
+    mask, lf = low_pass(t, T, window)
+    tc = t[mask]
+    w = T[mask] - lf
+    sigma = _tstd(tc, w)
+    wd = w - _tmean(tc, w)
+    n = int(np.sum((wd[:-1] < 0) & (wd[1:] >= 0)))
+    k = gumbel_k(max(n, 2))
+    delta = (T_b - k * sigma - lf) / sigma_b
+    return ReliabilityTrace(time=tc, delta=delta, T_LF=lf, sigma=sigma, n=n, k=k)
+
+
+def _dnv_ratio(t: np.ndarray, T: np.ndarray, mbs: float, limit_state: str, consequence_class: int,
+               common_factor: bool) -> float:
+    g_mean, g_dyn = DNV_E301_2008_FACTORS[(limit_state, consequence_class)]
+    t_mean = _tmean(t, T)
+    t_dyn = float(T.max()) - t_mean
+    lhs = g_mean * t_mean + g_dyn * t_dyn
+    if common_factor and limit_state == "ULS" and consequence_class == 1 and t_mean > 2.0 / 3.0 * t_dyn:
+        lhs = DNV_CLASS1_COMMON_FACTOR * (t_mean + t_dyn)
+    return lhs / (DNV_CAPACITY_FACTOR * mbs)
+
+
+# -- case KPIs ---------------------------------------------------------------------------------
+
+def _channel(result: Result, name: str, what: str, mask: np.ndarray) -> np.ndarray:
+    if name not in result:
+        raise KpiError(f"result has no channel {name!r} (needed for {what}); channels are {', '.join(result.channels)}")
+    x = result[name][mask]
+    if not np.all(np.isfinite(x)):
+        i = int(np.flatnonzero(~np.isfinite(x))[0])
+        raise KpiError(f"channel {name!r} is not finite at t = {float(result.time[mask][i]):g} s")
+    return x
+
+
+def _break_times(result: Result, line_ids: Sequence[str]) -> dict[str, float]:
+    out: dict[str, float] = {}
+    for ev in result.meta.get("events", []) or []:
+        try:
+            te, text = float(ev[0]), str(ev[1])
+        except (TypeError, ValueError, IndexError):
+            raise KpiError(f"result.meta['events'] entry {ev!r} is not [time, text]") from None
+        m = _BREAK_RE.fullmatch(text.strip())
+        if not m:
+            continue
+        lid = m.group(1)
+        if lid not in line_ids:
+            raise KpiError(f"event {text!r} at t = {te:g} s names a line without a channel 'T_fairlead[{lid}]'")
+        out[lid] = min(te, out.get(lid, math.inf))
+    return out
+
+
+def _compute(result: Result, scenario: Any, *, t_start: float, lp_window: float, delta_s: float,
+             consequence_class: int, sfc: float, dnv_class1_common_factor: bool,
+             require_setpoint: bool = True) -> dict[str, float]:
+    if consequence_class not in (1, 2):
+        raise KpiError(f"consequence_class = {consequence_class!r} must be 1 or 2")
+    if not (sfc >= 0 and math.isfinite(sfc)):
+        raise KpiError(f"sfc = {sfc!r} kg/kWh must be a non-negative number")
+    if not math.isfinite(delta_s):
+        raise KpiError(f"delta_s = {delta_s!r} must be finite")
+    t_all = result.time
+    if len(t_all) < 2:
+        raise KpiError(f"the result has {len(t_all)} sample(s); KPIs need at least two")
+    if not math.isfinite(t_start) or t_start >= t_all[-1]:
+        raise KpiError(f"t_start = {t_start!r} s must be a number below the end of the record ({t_all[-1]:g} s)")
+    win = t_all >= t_start - 1e-9
+    if win.sum() < 2:
+        raise KpiError(f"fewer than two samples after t_start = {t_start:g} s")
+    t = t_all[win]
+    hold = _hold_weights(t)
+    out: dict[str, float] = {"duration": float(t[-1] - t[0])}
+
+    # offsets and heading
+    x = _channel(result, "x", "the offset KPIs", win)
+    y = _channel(result, "y", "the offset KPIs", win)
+    off = np.hypot(x, y)
+    lim = scenario.limits
+    out["offset_max"] = float(off.max())
+    out["offset_mean"] = _tmean(t, off)
+    out["offset_std"] = _tstd(t, off)
+    out["time_outside_safe"] = float(np.sum(hold[off > lim.safe_radius])) if lim.safe_radius else 0.0
+    out["time_outside_alert"] = float(np.sum(hold[off > lim.alert_radius])) if lim.alert_radius else 0.0
+    psi = _channel(result, "psi", "heading_error_max", win)
+    if require_setpoint or "psi_d" in result:
+        psi_d = _channel(result, "psi_d", "heading_error_max", win)
+    else:
+        psi_d = np.zeros_like(psi)
+    err = (psi - psi_d + np.pi) % (2 * np.pi) - np.pi
+    out["heading_error_max"] = float(np.degrees(np.abs(err).max()))
+
+    # lines
+    line_ids = [ln.id for ln in scenario.lines]
+    for lid in line_ids:
+        if f"T_fairlead[{lid}]" not in result:
+            raise KpiError(f"result has no channel 'T_fairlead[{lid}]' (scenario line {lid!r}); "
+                           f"channels are {', '.join(result.channels)}")
+    breaks = _break_times(result, line_ids)
+    t_b1 = min(breaks.values(), default=math.inf)
+    mbs_all = scenario.line_arrays["MBS"]
+    mbs_std_all = scenario.line_arrays["MBS_std"]
+    per: dict[str, dict[str, float]] = {k: {} for k, _ in _LINE_ORDER}
+    below_time: dict[str, float] = {}
+    eps = 1e-9 * max(1.0, abs(float(t[-1])))
+    for j, lid in enumerate(line_ids):
+        T = _channel(result, f"T_fairlead[{lid}]", f"the tension KPIs of line {lid}", win)
+        mbs, mbs_std = float(mbs_all[j]), float(mbs_std_all[j])
+        alive = t <= breaks.get(lid, math.inf) + eps  # the sample at the break time is logged before it
+        if alive.sum() == 0:
+            continue  # broken before t_start: no per-line KPIs
+        intact = alive & (t <= t_b1 + eps)
+        damaged = alive & ~intact
+        ta, Ta = t[alive], T[alive]
+        per["T_max"][lid] = float(Ta.max())
+        per["T_mean"][lid] = _tmean(ta, Ta)
+        per["util_max"][lid] = float(Ta.max() / mbs)
+        if intact.any():
+            per["dnv_uls"][lid] = _dnv_ratio(t[intact], T[intact], mbs, "ULS", consequence_class,
+                                             dnv_class1_common_factor)
+        if damaged.any():
+            per["dnv_als"][lid] = _dnv_ratio(t[damaged], T[damaged], mbs, "ALS", consequence_class,
+                                             dnv_class1_common_factor)
+        if mbs_std > 0:
+            traces = [reliability_index(t[seg], T[seg], mbs, mbs_std, window=lp_window)
+                      for seg in (intact, damaged) if seg.sum() >= 2]
+            span = sum(tr.span for tr in traces)
+            if traces:
+                per["delta_min"][lid] = float(min(tr.delta.min() for tr in traces))
+                below_time[lid] = sum(tr.time_below(delta_s) for tr in traces)
+                per["delta_frac_below"][lid] = below_time[lid] / span if span > 0 else float(
+                    any(bool(np.any(tr.delta < delta_s)) for tr in traces))
+    if per["T_max"]:
+        out["T_max"] = max(per["T_max"].values())
+        out["util_max"] = max(per["util_max"].values())
+    if per["delta_min"]:
+        out["delta_min"] = min(per["delta_min"].values())
+        out["delta_frac_below"] = max(per["delta_frac_below"].values())
+    for ls in ("uls", "als"):
+        r = per[f"dnv_{ls}"]
+        if r:
+            out[f"dnv_{ls}_max"] = max(r.values())
+        out[f"dnv_{ls}_pass"] = int(sum(v <= 1.0 for v in r.values()))
+        out[f"dnv_{ls}_fail"] = int(sum(v > 1.0 for v in r.values()))
+    out["lines_broken"] = len(breaks)
+
+    # thrust energy and fuel
+    th_ids = [th.id for th in scenario.thrusters]
+    if th_ids:
+        P = np.column_stack([_channel(result, f"P[{i}]", "thrust_energy", win) for i in th_ids]).sum(axis=1)
+        energy = float(np.trapezoid(P, t))
+    else:
+        energy = 0.0
+    out["thrust_energy"] = energy
+    out["thrust_power_mean"] = energy / out["duration"] if out["duration"] > 0 else 0.0
+    out["fuel"] = energy / 3.6e6 * sfc
+
+    # controller diagnostics (whole run)
+    diag = result.meta.get("diagnostics", {}) or {}
+    for k in _DIAG_KEYS:
+        v = diag.get(k)
+        if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v):
+            out[k] = int(v) if k in _COUNT_KEYS else float(v)
+
+    for k, _ in _LINE_ORDER:
+        for lid, v in per[k].items():
+            out[f"{k}[{lid}]"] = v
+    return out
+
+
+def case_kpis(result: Result, scenario: Any, *, t_start: float = 0.0, lp_window: float = LP_WINDOW_DEFAULT,
+              delta_s: float = DELTA_S_DEFAULT, consequence_class: int = 1, sfc: float = SFC_DEFAULT,
+              dnv_class1_common_factor: bool = True) -> dict[str, float]:
+    """All KPIs of one closed-loop run as a flat, JSON-serialisable ``{name: number}`` dict.
+
+    Parameters
+    ----------
+    result : Result
+        A closed-loop result (channels ``x, y, psi, psi_d, T_fairlead[<line>]`` for every scenario
+        line, ``P[<thruster>]`` for every scenario thruster; ``meta["events"]`` and
+        ``meta["diagnostics"]`` when present).
+    scenario : Scenario
+        The scenario the result was run with (MBS, MBS_std, limits, line and thruster ids).
+    t_start : float
+        Samples before this time [s] are left out of every statistic (start-up transient);
+        default 0. The solver statistics from ``meta["diagnostics"]`` always cover the whole run.
+    lp_window : float
+        Width [s] of the centred moving average defining the low-frequency tension (default 100).
+    delta_s : float
+        Reliability-index threshold for ``delta_frac_below`` (default 2).
+    consequence_class : int
+        DNV-OS-E301 consequence class, 1 (default) or 2.
+    sfc : float
+        Specific fuel consumption of the fuel proxy [kg/kWh] (default 0.2).
+    dnv_class1_common_factor : bool
+        Apply the class-1 common factor 1.3 on T_C,mean + T_C,dyn when T_C,mean > 2/3 T_C,dyn
+        (DNV-OS-E301 2008, Ch. 2 Sec. 2 as transcribed; default on, as the standard requires).
+
+    Returns
+    -------
+    dict
+        Names, units and definitions in ``docs/kpis.md``; order of columns: :func:`kpi_order`.
+        Every value is finite. Keys whose quantity does not exist for the case are left out
+        (``dnv_als*`` without a line break, per-line keys of a line broken before ``t_start``,
+        ``delta*`` of lines with MBS_std = 0, solver statistics without an MPC).
+
+    Raises
+    ------
+    KpiError
+        A needed channel is missing or not finite, or an option is out of range.
+    """
+    return _compute(result, scenario, t_start=t_start, lp_window=lp_window, delta_s=delta_s,
+                    consequence_class=consequence_class, sfc=sfc, dnv_class1_common_factor=dnv_class1_common_factor)
 
 
 def basic_kpis(result: Result, scenario: Any) -> dict[str, float]:
     """Offsets, heading error, tensions, thrust energy and solver statistics of one run.
 
-    Returns a flat dict: ``offset_max``/``offset_mean``/``offset_std`` [m] (horizontal distance of the
-    LF position from the field zero point), ``time_outside_safe``/``time_outside_alert`` [s],
-    ``heading_error_max`` [deg] (from the logged setpoint when present), ``T_max`` [N] and
-    ``utilisation_max`` (T/MBS) over all lines, ``thrust_energy`` [J] (integral of the summed
-    thruster power), and the controller's solve-time statistics when the result carries them.
+    The historical subset of :func:`case_kpis` (whole record): ``duration``, ``offset_max``/
+    ``offset_mean``/``offset_std`` [m], ``time_outside_safe``/``time_outside_alert`` [s],
+    ``heading_error_max`` [deg] (against ``psi_d`` when logged, else against 0), ``T_max`` [N],
+    ``utilisation_max`` (= ``util_max``, T/MBS), ``thrust_energy`` [J], and the solver statistics
+    when the result carries them.
     """
-    t = result.time
-    off = np.hypot(result["x"], result["y"])
-    dt = np.diff(t, append=t[-1])
-    lim = scenario.limits
-    out: dict[str, float] = {
-        "duration": float(t[-1] - t[0]),
-        "offset_max": float(off.max()),
-        "offset_mean": float(off.mean()),
-        "offset_std": float(off.std()),
-        "time_outside_safe": float(np.sum(dt[off > lim.safe_radius])) if lim.safe_radius else 0.0,
-        "time_outside_alert": float(np.sum(dt[off > lim.alert_radius])) if lim.alert_radius else 0.0,
-    }
-    psi_d = result["psi_d"] if "psi_d" in result else np.zeros_like(t)
-    err = (result["psi"] - psi_d + np.pi) % (2 * np.pi) - np.pi
-    out["heading_error_max"] = float(np.degrees(np.abs(err).max()))
-    T = result.group("T_fairlead")
-    ids = result.group_names("T_fairlead")
-    mbs = np.array([scenario.line_arrays["MBS"][scenario.line_index(i)] for i in ids])
-    out["T_max"] = float(T.max())
-    out["utilisation_max"] = float((T / mbs).max())
-    P = result.group("P").sum(axis=1)
-    out["thrust_energy"] = float(np.trapezoid(P, t))
-    diag = result.meta.get("diagnostics", {})
-    for k in ("solver_time_median", "solver_time_max", "solver_failures", "solver_fallbacks", "allocation_fallbacks"):
-        if k in diag:
-            out[k] = float(diag[k])
+    k = _compute(result, scenario, t_start=float(result.time[0]) if len(result.time) else 0.0,
+                 lp_window=LP_WINDOW_DEFAULT, delta_s=DELTA_S_DEFAULT, consequence_class=1, sfc=SFC_DEFAULT,
+                 dnv_class1_common_factor=False, require_setpoint=False)
+    keep = ("duration", "offset_max", "offset_mean", "offset_std", "time_outside_safe", "time_outside_alert",
+            "heading_error_max", "T_max")
+    out = {n: k[n] for n in keep if n in k}
+    if "util_max" in k:
+        out["utilisation_max"] = k["util_max"]
+    out["thrust_energy"] = k["thrust_energy"]
+    for n in ("solver_time_median", "solver_time_max", "solver_failures", "solver_fallbacks", "allocation_fallbacks"):
+        if n in k:
+            out[n] = float(k[n])
     return out
+
+
+# -- tables ------------------------------------------------------------------------------------
+
+_PER_LINE_RE = re.compile(r"^(.*)\[(.*)\]$")
+
+
+def _natural(s: str) -> tuple:
+    return tuple((0, int(p), "") if p.isdigit() else (1, 0, p) for p in re.split(r"(\d+)", s) if p)
+
+
+def kpi_unit(name: str) -> str:
+    """Unit of a KPI name (``"N"``, ``"m"``, ``"-"``, ...); ``""`` for an unknown name."""
+    m = _PER_LINE_RE.match(name)
+    return _UNITS.get(f"{m.group(1)}[]" if m else name, "")
+
+
+def kpi_order(names: Iterable[str]) -> list[str]:
+    """Sort KPI names into the documented column order: the aggregate KPIs in their fixed order,
+    then the per-line KPIs grouped by quantity (T_max, T_mean, util_max, delta_min,
+    delta_frac_below, dnv_uls, dnv_als) with line ids in natural order, then any other names
+    alphabetically."""
+    names = list(dict.fromkeys(names))
+    agg = [k for k, _ in _AGG_ORDER]
+    line_q = [k for k, _ in _LINE_ORDER]
+
+    def key(n: str) -> tuple:
+        if n in agg:
+            return (0, agg.index(n), ())
+        m = _PER_LINE_RE.match(n)
+        if m and m.group(1) in line_q:
+            return (1, line_q.index(m.group(1)), _natural(m.group(2)))
+        return (2, 0, (n,))
+
+    return sorted(names, key=key)
+
+
+def _row_parts(row: Mapping[str, Any]) -> tuple[Any, Any, dict, dict]:
+    labels = dict(row.get("labels") or {})
+    if "kpis" in row:
+        kpis = dict(row.get("kpis") or {})
+    else:
+        kpis = {k: v for k, v in row.items() if k not in ("id", "name", "labels")}
+    return row.get("id", ""), row.get("name", ""), labels, kpis
+
+
+def _md_number(v: Any) -> str:
+    if v is None or v == "":
+        return ""
+    if isinstance(v, bool):
+        return str(v)
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    if isinstance(v, (float, np.floating)):
+        f = float(v)
+        if not math.isfinite(f):
+            return str(f)
+        if f == 0:
+            return "0"
+        if f.is_integer() and abs(f) < 1e6:
+            return str(int(f))
+        a = abs(f)
+        return f"{f:.3e}" if (a >= 1e6 or a < 1e-3) else f"{f:.4g}"
+    return str(v).replace("|", "\\|").replace("\n", " ")
+
+
+def _csv_value(v: Any) -> str:
+    if v is None:
+        return ""
+    if isinstance(v, bool):
+        return str(v)
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    if isinstance(v, (float, np.floating)):
+        return repr(float(v))
+    return str(v)
+
+
+def kpi_table(rows: Sequence[Mapping[str, Any]]) -> tuple[str, str]:
+    """CSV text and Markdown text of one row per case.
+
+    Each row is ``{"id", "name", "labels": {...}, "kpis": {...}}`` (or a flat dict: every key
+    other than id, name and labels is a KPI). Columns: ``id``, ``name``, the labels (scenario,
+    sea_state, controller, condition, seed, then any other label in order of appearance), then
+    the union of the KPI names in :func:`kpi_order`. A KPI a case lacks is an empty cell. The
+    CSV holds full precision (``repr``); the Markdown rounds to 4 significant digits and adds
+    the unit to each KPI header.
+    """
+    parts = [_row_parts(r) for r in rows]
+    label_cols = [c for c in _LABEL_ORDER if any(c in p[2] for p in parts)]
+    for p in parts:
+        for c in p[2]:
+            if c not in label_cols:
+                label_cols.append(c)
+    kpi_cols = kpi_order(k for p in parts for k in p[3])
+    header = ["id", "name", *label_cols, *kpi_cols]
+
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(header)
+    for rid, name, labels, kpis in parts:
+        w.writerow([_csv_value(rid), _csv_value(name), *(_csv_value(labels.get(c)) for c in label_cols),
+                    *(_csv_value(kpis.get(c)) for c in kpi_cols)])
+
+    md_head = ["id", "name", *label_cols, *(f"{c} [{kpi_unit(c)}]" if kpi_unit(c) else c for c in kpi_cols)]
+    lines = ["| " + " | ".join(md_head) + " |",
+             "|" + "|".join(["---"] * (2 + len(label_cols)) + ["---:"] * len(kpi_cols)) + "|"]
+    for rid, name, labels, kpis in parts:
+        cells = [_md_number(rid), _md_number(name), *(_md_number(labels.get(c)) for c in label_cols),
+                 *(_md_number(kpis.get(c)) for c in kpi_cols)]
+        lines.append("| " + " | ".join(cells) + " |")
+    return buf.getvalue(), "\n".join(lines) + "\n"
