@@ -19,7 +19,7 @@ from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
-from ._io import atomic_write_text, csv_text
+from ._io import atomic_write_text, csv_text, publish
 from .errors import TapmError
 
 __all__ = ["Result", "ResultError", "ResultBuilder"]
@@ -117,7 +117,7 @@ class Result:
                 fh.write(buf.getvalue())
                 fh.flush()
                 os.fsync(fh.fileno())
-            os.replace(tmp, path)
+            publish(tmp, path)
         except BaseException:
             Path(tmp).unlink(missing_ok=True)
             raise
