@@ -348,6 +348,55 @@ def _parse_value(text: str):
         return text
 
 
+# ------------------------------------------------------------------------------------------
+# tapm gains
+# ------------------------------------------------------------------------------------------
+
+
+@cli.command()
+@click.argument("scenario_name", metavar="SCENARIO")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), required=True, help="Directory for gains.csv/.md/.json.")
+@click.option("--sea-states", default=None, help="Sea-state ids, comma-separated (default: all of the scenario's).")
+@click.option("--broken", default="each", show_default=True,
+              help="'each' (intact plus every single line broken), 'none' (intact only), or line ids, comma-separated.")
+@click.option("--headings", default="0", show_default=True,
+              help="Headings [deg], comma-separated; 'weathervane' adds the heading where the mean load has no yaw moment.")
+def gains(scenario_name: str, out_dir: str, sea_states: str | None, broken: str, headings: str) -> None:
+    """Gain tables of SCENARIO: PID (pole placement) and LQR gains per condition.
+
+    A condition is a sea-state class x mooring intact or one line broken x heading; each is
+    linearised at the offset equilibrium under that condition's mean environmental load. Every row
+    records closed-loop poles, natural periods, damping ratios and stability margins.
+    """
+    from .design.gains import gain_table, write_gain_tables
+
+    sc = _load(scenario_name)
+    ss = None if sea_states is None else [x.strip() for x in sea_states.split(",") if x.strip()]
+    if broken == "each":
+        br = "each"
+    elif broken == "none":
+        br = ()
+    else:
+        br = [x.strip() for x in broken.split(",") if x.strip()]
+    hs: list = []
+    for h in headings.split(","):
+        h = h.strip()
+        if h == "weathervane":
+            hs.append("weathervane")
+        elif h:
+            try:
+                hs.append(math.radians(float(h)))
+            except ValueError:
+                raise click.BadParameter(f"--headings entry {h!r} is neither a number of degrees nor 'weathervane'") from None
+    table = gain_table(sc, sea_states=ss, broken=br, headings=tuple(hs))
+    paths = write_gain_tables(table, out_dir)
+    n = len(table.rows)
+    stable = sum(1 for r in table.rows if r.pid.stable)
+    click.echo(f"{sc.name}: {n} conditions, {stable} with a stable PID loop")
+    for p in paths:
+        click.echo(f"wrote {p}")
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``tapm`` console script."""
     try:

@@ -105,3 +105,16 @@ def test_help_everywhere(cmd):
     res = subprocess.run([sys.executable, "-m", "tapm_opt", *cmd, "--help"], capture_output=True, text=True)
     assert res.returncode == 0
     assert "Usage:" in res.stdout
+
+
+def test_gains_writes_tables_that_load_back(capsys, tmp_path):
+    from tapm_opt.design.gains import load_gain_table
+
+    code, out, err = run(capsys, "gains", "fpso", "--out", str(tmp_path), "--sea-states", "calm",
+                         "--broken", "none", "--headings", "0")
+    assert code == 0, err
+    table = load_gain_table(tmp_path / "gains.json")
+    assert len(table.rows) == 1 and table.rows[0].pid.stable
+    assert (tmp_path / "gains.csv").exists() and (tmp_path / "gains.md").exists()
+    code, _, err = run(capsys, "gains", "fpso", "--out", str(tmp_path / "x"), "--headings", "north")
+    assert code == 2 and "--headings" in err
