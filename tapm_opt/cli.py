@@ -397,6 +397,24 @@ def gains(scenario_name: str, out_dir: str, sea_states: str | None, broken: str,
         click.echo(f"wrote {p}")
 
 
+# ------------------------------------------------------------------------------------------
+# tapm report
+# ------------------------------------------------------------------------------------------
+
+
+@cli.command()
+@click.argument("study_dir", metavar="DIR", type=click.Path())
+@click.option("--html", "out_html", type=click.Path(dir_okay=False), default=None, help="HTML file (default DIR/report.html).")
+@click.option("--md", "out_md", type=click.Path(dir_okay=False), default=None, help="Markdown file (default DIR/report.md).")
+def report(study_dir: str, out_html: str | None, out_md: str | None) -> None:
+    """Write the HTML and Markdown report of the study results in DIR (saved results only)."""
+    from .report import write_report
+
+    html, md = write_report(study_dir, out_html=out_html, out_md=out_md)
+    click.echo(f"wrote {html}")
+    click.echo(f"wrote {md}")
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``tapm`` console script."""
     try:

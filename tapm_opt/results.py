@@ -11,15 +11,13 @@ from __future__ import annotations
 
 import io
 import json
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
-from ._io import atomic_write_text, csv_text, publish
+from ._io import atomic_write_bytes, atomic_write_text, csv_text
 from .errors import TapmError
 
 __all__ = ["Result", "ResultError", "ResultBuilder"]
@@ -111,16 +109,7 @@ class Result:
         np.savez_compressed(buf, time=self.time, data=self.data, channels=np.array(self.channels, dtype=str),
                             units=np.array(self.units, dtype=str),
                             meta=np.array(json.dumps({"format": FORMAT, **self.meta}, default=_json_default)))
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                fh.write(buf.getvalue())
-                fh.flush()
-                os.fsync(fh.fileno())
-            publish(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
+        atomic_write_bytes(path, buf.getvalue())
         return path
 
     @classmethod

@@ -1,0 +1,306 @@
+"""The study report (tapm report): self-contained HTML + Markdown from a study directory's saved files."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+
+import numpy as np
+import pytest
+
+import tapm_opt
+from tapm_opt.config import load_scenario, scenario_to_dict
+from tapm_opt.errors import TapmError
+from tapm_opt.report import BEST_MARK, ReportError, kpi_direction, write_report
+from tapm_opt.report.figures import decimate
+from tapm_opt.results import Result
+
+SC = load_scenario("fpso")
+LINES = [ln.id for ln in SC.lines]
+THR = [t.id for t in SC.thrusters]
+
+# Known KPI numbers (exact in 4 significant digits so the rounded table reproduces them).
+KPIS = {
+    "PID": {"duration": 1200.0, "offset_max": 23.5, "offset_mean": 11.25, "time_outside_safe": 0.0,
+            "T_max": 5.25e6, "util_max": 0.309, "delta_min": 4.125, "lines_broken": 1,
+            "thrust_energy": 2.25e9, "fuel": 125.0,
+            **{f"delta_min[{i}]": 4.125 + 0.5 * k for k, i in enumerate(LINES)}},
+    "MPC": {"duration": 1200.0, "offset_max": 18.75, "offset_mean": 12.5, "time_outside_safe": 0.0,
+            "T_max": 4.875e6, "util_max": 0.287, "delta_min": 5.5, "lines_broken": 1,
+            "thrust_energy": 1.5e9, "fuel": 83.33, "solver_time_median": 0.0125,
+            **{f"delta_min[{i}]": 5.5 + 0.25 * k for k, i in enumerate(LINES)}},
+}
+GAINS_MD = ("# Gain table — fpso\n\nOne row per condition.\n\n| sea state | broken | Kp x, y [kN/m] |\n"
+            "|---|---|---|\n| storm (extreme) | intact | 210, 547 |\n")
+FAIL_MSG = "QP solver returned NaN at t = 812 s (status 'primal infeasible')"
+
+
+def _case_id(inputs: dict) -> str:
+    return hashlib.sha256(json.dumps(inputs, sort_keys=True, separators=(",", ":")).encode()).hexdigest()[:12]
+
+
+def _result(controller: str, seed: int) -> Result:
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, 1200.0 + 0.5, 0.5)
+    amp = 20.0 if controller == "PID" else 15.0
+    x = amp * np.sin(2 * np.pi * t / 400.0) + 0.3 * rng.standard_normal(len(t))
+    y = 0.6 * amp * np.sin(2 * np.pi * t / 300.0 + 0.5)
+    psi = np.radians(10.0 + 5.0 * np.sin(2 * np.pi * t / 500.0))
+    ch: list[tuple[str, str, np.ndarray]] = [
+        ("x", "m", x), ("y", "m", y), ("psi", "rad", psi),
+        ("x_d", "m", np.zeros_like(t)), ("y_d", "m", np.zeros_like(t)), ("psi_d", "rad", np.radians(8.0) + 0 * t)]
+    for k, lid in enumerate(LINES):
+        T = 2.0e6 + 0.5e5 * k + 1.5e6 * x / 40.0 * np.cos(np.radians(30 * k)) + 1e5 * np.sin(2 * np.pi * t / 11.0)
+        if lid == "7":
+            T = np.where(t > 600.0, 0.0, T)
+        ch.append((f"T_fairlead[{lid}]", "N", np.maximum(T, 0.0)))
+    for k, tid in enumerate(THR):
+        f = 3e5 + 2e5 * np.sin(2 * np.pi * t / 200.0 + k)
+        ch.append((f"f[{tid}]", "N", f))
+        ch.append((f"P[{tid}]", "W", 1e6 * (f / 1e6) ** 1.5))
+    meta = {"scenario": "fpso", "events": [[600.0, "line 7 broke"]],
+            "diagnostics": {"solver_time_median": 0.0125} if controller == "MPC" else {}}
+    return Result(time=t, data=np.column_stack([c[2] for c in ch]), channels=tuple(c[0] for c in ch),
+                  units=tuple(c[1] for c in ch), meta=meta)
+
+
+def make_study(root, *, with_failed: bool = True, with_csv: bool = True):
+    """A study directory following the shared contract: PID and MPC (same labels otherwise), and
+    optionally a failed third case."""
+    root.mkdir(parents=True, exist_ok=True)
+    sc_dict = scenario_to_dict(SC)
+    sc_dict["faults"] = [{"kind": "line_break", "line": "7", "time": 600.0}]
+    cases = []
+    specs = [("PID", {"type": "pid"}), ("MPC", {"type": "mpc", "horizon": 20})]
+    if with_failed:
+        specs.append(("LMPC", {"type": "lmpc"}))
+    for name, ctrl in specs:
+        inputs = {"scenario": sc_dict, "scenario_name": "fpso", "sea_state": "operational", "controller": ctrl,
+                  "seed": 1, "duration": 1200.0, "segments": None,
+                  "closed_loop": {"dt_control": 1.0, "dt_log": 0.5, "setpoint": "fixed", "heading": "chasing",
+                                  "true_state": False}}
+        cid = _case_id(inputs)
+        labels = {"scenario": "fpso", "sea_state": "operational", "controller": name,
+                  "condition": "line 7 broken at 600 s", "seed": 1}
+        entry = {"id": cid, "name": f"fpso-operational-{name.lower()}", "labels": labels, "inputs": inputs}
+        cases.append(entry)
+        d = root / "cases" / cid
+        d.mkdir(parents=True)
+        cj = {**entry, "tapm_opt_version": tapm_opt.__version__, "started": "2024-01-01T00:00:00"}
+        if name in KPIS:
+            _result(name, seed=len(cases)).save(d / "result.npz")
+            (d / "kpis.json").write_text(json.dumps(KPIS[name]))
+            cj.update(finished="2024-01-01T00:10:00", wall_time=600.0)
+        else:
+            (d / "error.json").write_text(json.dumps({"type": "SolverError", "message": FAIL_MSG,
+                                                      "traceback": "Traceback (most recent call last):\n  ..."}))
+        (d / "case.json").write_text(json.dumps(cj))
+    (root / "study.json").write_text(json.dumps({"name": "controller-comparison", "description": "PID vs MPC after a "
+                                                 "line break", "study_file": "cmp.toml", "cases": cases,
+                                                 "tapm_opt_version": tapm_opt.__version__}))
+    (root / "study.toml").write_text('name = "controller-comparison"\n# compare <PID> & MPC\n'
+                                     'controllers = ["pid", "mpc"]\n')
+    (root / "gains").mkdir()
+    (root / "gains" / "gains.md").write_text(GAINS_MD)
+    if with_csv:
+        keys = sorted({k for v in KPIS.values() for k in v})
+        lines = ["id,name,scenario,sea_state,controller,condition,seed," + ",".join(keys)]
+        for c in cases:
+            k = KPIS.get(c["labels"]["controller"])
+            if k is None:
+                continue
+            lines.append(",".join([c["id"], c["name"], "fpso", "operational", c["labels"]["controller"],
+                                   c["labels"]["condition"], "1"] + [repr(k[n]) if n in k else "" for n in keys]))
+        (root / "kpis.csv").write_text("\n".join(lines) + "\n")
+    return root, cases
+
+
+@pytest.fixture(scope="module")
+def report(tmp_path_factory):
+    root, cases = make_study(tmp_path_factory.mktemp("study") / "out")
+    html_path, md_path = write_report(root)
+    return root, cases, html_path, md_path
+
+
+def _side_by_side(md: str) -> dict[str, dict[str, str]]:
+    """Parse the first side-by-side KPI table of report.md back: {kpi: {controller: cell}}."""
+    lines = md.splitlines()
+    i = next(k for k, ln in enumerate(lines) if ln.startswith("### Side by side"))
+    while not lines[i].startswith("|"):
+        i += 1
+    rows = []
+    while i < len(lines) and lines[i].startswith("|"):
+        rows.append([c.strip() for c in lines[i].strip().strip("|").split("|")])
+        i += 1
+    head = rows[0]
+    out = {}
+    for r in rows[2:]:
+        out[r[0].strip("`")] = dict(zip(head[3:], r[3:]))
+    return out
+
+
+def _value(cell: str) -> float:
+    return float(cell.replace("**", "").replace(BEST_MARK, "").strip())
+
+
+def test_report_files_exist_and_html_is_self_contained(report):
+    root, cases, html_path, md_path = report
+    assert html_path == root / "report.html" and md_path == root / "report.md"
+    page = html_path.read_text()
+    imgs = re.findall(r"<img\b[^>]*>", page)
+    assert len(imgs) >= 1 + 3 * 2  # layout + 3 figures per finished case
+    for tag in imgs:
+        src = re.search(r'src="([^"]*)"', tag).group(1)
+        assert src.startswith("data:image/png;base64,")
+    assert 'src="http' not in page and "href=\"http" not in page and "<link" not in page and "<script" not in page
+    assert 'id="fig-layout"' in page
+    for c in cases[:2]:
+        for kind in ("motion", "lines", "thrusters"):
+            assert f'id="fig-case_{c["id"]}_{kind}"' in page
+    assert html_path.stat().st_size < 5e6
+    # the study file verbatim (escaped) in a <pre>, and the case list with labels
+    assert "# compare &lt;PID&gt; &amp; MPC" in page
+    assert "line 7 broken at 600 s" in page
+
+
+def test_markdown_links_figures_relatively(report):
+    root, cases, _, md_path = report
+    md = md_path.read_text()
+    links = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", md)
+    assert "report_files/layout.png" in links
+    assert f"report_files/case_{cases[0]['id']}_motion.png" in links
+    for ln in links:
+        p = md_path.parent / ln
+        assert p.is_file() and p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_side_by_side_numbers_equal_kpis_json_and_better_is_marked(report):
+    _, _, _, md_path = report
+    tab = _side_by_side(md_path.read_text())
+    for kpi in ("offset_max", "offset_mean", "T_max", "util_max", "delta_min", "thrust_energy", "fuel"):
+        for ctrl in ("PID", "MPC"):
+            assert _value(tab[kpi][ctrl]) == pytest.approx(KPIS[ctrl][kpi], rel=1e-12), (kpi, ctrl)
+    # lower is better: offset_max (MPC 18.75 < PID 23.5); also offset_mean where PID is better
+    assert BEST_MARK in tab["offset_max"]["MPC"] and BEST_MARK not in tab["offset_max"]["PID"]
+    assert BEST_MARK in tab["offset_mean"]["PID"] and BEST_MARK not in tab["offset_mean"]["MPC"]
+    # higher is better: delta_min (MPC 5.5 > PID 4.125)
+    assert BEST_MARK in tab["delta_min"]["MPC"] and BEST_MARK not in tab["delta_min"]["PID"]
+    # equal values and neutral KPIs are not marked
+    assert BEST_MARK not in tab["duration"]["PID"] + tab["duration"]["MPC"]
+    assert BEST_MARK not in tab["time_outside_safe"]["PID"] + tab["time_outside_safe"]["MPC"]
+    # a KPI only one controller has is shown but not marked
+    assert tab["solver_time_median"]["PID"] == "" and BEST_MARK not in tab["solver_time_median"]["MPC"]
+
+
+def test_better_convention():
+    for k in ("offset_max", "time_outside_alert", "T_max", "util_max", "thrust_energy", "fuel",
+              "solver_time_p95", "solver_failures", "T_max[3]"):
+        assert kpi_direction(k) == -1, k
+    for k in ("delta_min", "delta_min[7]"):
+        assert kpi_direction(k) == 1, k
+    assert kpi_direction("duration") == 0 and kpi_direction("lines_broken") == 0
+
+
+def test_full_kpi_table_and_per_line_delta(report):
+    _, _, html_path, md_path = report
+    md = md_path.read_text()
+    assert "### All KPIs" in md
+    full = md.split("### All KPIs", 1)[1]
+    assert "`offset_max [m]`" in full and "`delta_min[12] [-]`" in full
+    # per-line delta_min table of the PID case (from kpis.json): line 12 = 4.125 + 0.5 * 11
+    assert "Per-line KPIs" in md
+    assert re.search(r"\| 12 \|(?:[^\n]*\|)? 9\.625 \|", md)
+
+
+def test_failed_case_is_listed_with_its_message(report):
+    _, cases, html_path, md_path = report
+    md = md_path.read_text()
+    failed = md.split("## 6 Failed cases", 1)[1]
+    assert cases[2]["id"] in failed and FAIL_MSG in failed and "SolverError" in failed
+    page = html_path.read_text()
+    assert "primal infeasible" in page.split('id="failed"', 1)[1]
+    assert "No case failed" not in failed
+
+
+def test_missing_study_dir_raises_naming_the_path(tmp_path):
+    missing = tmp_path / "nope"
+    with pytest.raises(ReportError, match=re.escape(str(missing))) as ei:
+        write_report(missing)
+    assert isinstance(ei.value, TapmError)
+    assert not missing.exists()
+
+
+@pytest.mark.parametrize("content", [None, "{not json", json.dumps({"name": "x"}),
+                                     json.dumps({"cases": [{"id": "../evil"}]})])
+def test_invalid_study_dir_raises_and_writes_nothing(tmp_path, content):
+    d = tmp_path / "study"
+    d.mkdir()
+    if content is not None:
+        (d / "study.json").write_text(content)
+    before = sorted(p.name for p in d.iterdir())
+    with pytest.raises(ReportError, match=re.escape(str(d))):
+        write_report(d)
+    assert sorted(p.name for p in d.iterdir()) == before  # no report.html/.md, no report_files/
+
+
+def test_a_file_instead_of_a_directory(tmp_path):
+    f = tmp_path / "study.json"
+    f.write_text("{}")
+    with pytest.raises(ReportError, match="not a study directory"):
+        write_report(f)
+
+
+def test_explicit_outputs_and_missing_csv(tmp_path):
+    root, cases = make_study(tmp_path / "s", with_failed=False, with_csv=False)
+    h, m = write_report(root, out_html=tmp_path / "o" / "r.html", out_md=tmp_path / "o" / "r.md")
+    assert h.is_file() and m.is_file()
+    md = m.read_text()
+    assert "r_files/layout.png" in md and (tmp_path / "o" / "r_files" / "layout.png").is_file()
+    assert "kpis.csv` is missing" in md and "No case failed" in md
+    assert not (root / "report.html").exists()
+
+
+def test_decimate_keeps_extremes_and_bounds_points():
+    t = np.linspace(0, 100, 100_001)
+    y = np.sin(t) + (t == t[54321]) * 10.0 - (t == t[7]) * 5.0
+    td, yd = decimate(t, y, 2000)
+    assert len(td) <= 2000 and np.all(np.diff(td) > 0)
+    assert yd.max() == y.max() and yd.min() == y.min()
+    assert td[0] == t[0] and td[-1] == t[-1]
+
+
+def test_reliability_trace_matches_the_kpi_definition():
+    """The delta(t) curves of the tension figure use the same segments (split at the first break,
+    broken line only while alive) as case_kpis, so their minima equal the per-line delta_min."""
+    kpis = pytest.importorskip("tapm_opt.studies.kpis")
+    from tapm_opt.report.report import _reliability
+
+    res = _result("PID", seed=3)
+    traces, delta_s = _reliability(res, SC)
+    ref = kpis.case_kpis(res, SC)
+    assert delta_s == kpis.DELTA_S_DEFAULT
+    assert set(traces) == set(LINES)
+    for lid, segs in traces.items():
+        assert min(float(d.min()) for _, d in segs) == pytest.approx(ref[f"delta_min[{lid}]"], rel=1e-12)
+    assert max(float(t.max()) for t, _ in traces["7"]) <= 600.0  # line 7 broke at 600 s
+
+
+def test_gain_tables_are_included(report):
+    _, _, html_path, md_path = report
+    md = md_path.read_text().split("## 5 Gains", 1)[1].split("## 6", 1)[0]
+    assert "| storm (extreme) | intact | 210, 547 |" in md and "### Gain table — fpso" in md
+    page = html_path.read_text().split('id="gains"', 1)[1].split('id="failed"', 1)[0]
+    assert "<th>Kp x, y [kN/m]</th>" in page and "<td>210, 547</td>" in page
+
+
+def test_an_unreadable_result_is_reported_not_fatal(tmp_path):
+    root, cases = make_study(tmp_path / "s", with_failed=False)
+    (root / "cases" / cases[1]["id"] / "result.npz").write_bytes(b"not a zip file")
+    _, m = write_report(root)
+    md = m.read_text()
+    assert "Problems met while writing this report" in md
+    assert f"case {cases[1]['id']}: cannot read" in md
+    assert f"report_files/case_{cases[0]['id']}_motion.png" in md  # the other case is still drawn
+    # its KPIs (kpis.json) are still compared side by side
+    assert "| `offset_max` | m | lower |" in md
