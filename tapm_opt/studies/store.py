@@ -1,0 +1,290 @@
+"""On-disk layout of a study run, and reading it back.
+
+A study run directory ``DIR`` (the shared contract of the study workbench)::
+
+    DIR/study.toml                 copy of the study file as loaded
+    DIR/study.json                 {"name", "description", "study_file", "cases": [{"id", "name", "labels", "inputs"}],
+                                    "tapm_opt_version"}
+    DIR/cases/<id>/case.json       {"id", "name", "labels", "inputs", "tapm_opt_version", "started", "finished",
+                                    "wall_time"}  ("finished" and "wall_time" only once the case is done)
+    DIR/cases/<id>/result.npz      the closed-loop :class:`~tapm_opt.results.Result`
+    DIR/cases/<id>/kpis.json       flat {kpi_name: number}
+    DIR/cases/<id>/error.json      a failed case only: {"type", "message", "traceback"}
+    DIR/kpis.csv, DIR/kpis.md      one row per case
+
+``<id>`` is :func:`case_id` of the case's ``inputs``: the first 12 hex digits of the SHA-256 of their
+canonical JSON, so the same inputs always land in the same folder and a re-run finds them.
+
+Every file is written atomically (temporary file in the same folder, then ``os.replace``): a reader,
+or a run killed at any instant, sees either the old file or the new one, never half of one. A case
+is *finished* when ``case.json`` holds ``"finished"`` and ``result.npz`` and ``kpis.json`` exist;
+a worker writes ``case.json`` last, so a killed case is never taken for a finished one.
+
+The report and other tools read a run through :func:`load_study_results`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any, Literal, Mapping
+
+import numpy as np
+
+from .._io import atomic_write_text
+from ..errors import IssuesError, ScenarioIssue, TapmError
+
+__all__ = [
+    "StudyError",
+    "StudyIssue",
+    "CaseRecord",
+    "case_id",
+    "canonical_json",
+    "case_dir",
+    "write_json",
+    "read_json",
+    "is_finished",
+    "case_status",
+    "load_study_results",
+    "now_iso",
+    "CASES", "STUDY_JSON", "STUDY_TOML", "CASE_JSON", "RESULT_NPZ", "KPIS_JSON", "ERROR_JSON", "KPIS_CSV",
+    "KPIS_MD",
+]
+
+CASES = "cases"
+STUDY_JSON = "study.json"
+STUDY_TOML = "study.toml"
+CASE_JSON = "case.json"
+RESULT_NPZ = "result.npz"
+KPIS_JSON = "kpis.json"
+ERROR_JSON = "error.json"
+KPIS_CSV = "kpis.csv"
+KPIS_MD = "kpis.md"
+
+#: One problem of a study file: ``path`` (e.g. ``controllers[1].type``) and ``message``.
+StudyIssue = ScenarioIssue
+
+
+class StudyError(IssuesError):
+    """A study file is invalid, or a study directory cannot be read.
+
+    Carries *all* problems found (``issues``), each naming its field path, e.g.
+    ``cases.controllers[1].type = 'lqr' is not one of pid, mpc, lmpc``.
+    """
+
+    what = "study"
+
+
+# -- ids and JSON ------------------------------------------------------------------------------
+
+
+def _json_default(o: Any) -> Any:
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, (np.floating, np.integer, np.bool_)):
+        return o.item()
+    if isinstance(o, (tuple, set, frozenset)):
+        return list(o)
+    if isinstance(o, Path):
+        return str(o)
+    raise TypeError(f"{type(o).__name__} is not JSON serialisable")
+
+
+def canonical_json(obj: Any) -> str:
+    """JSON with sorted keys and no spaces (the text a case id is hashed from).
+
+    Raises
+    ------
+    ValueError
+        If ``obj`` holds a NaN or an infinity (not JSON, and not a reproducible input).
+    """
+    return json.dumps(obj, sort_keys=True, separators=(",", ":"), allow_nan=False, default=_json_default)
+
+
+def case_id(inputs: Mapping[str, Any]) -> str:
+    """Id of a case: the first 12 hex digits of the SHA-256 of :func:`canonical_json` of ``inputs``."""
+    return hashlib.sha256(canonical_json(inputs).encode("utf-8")).hexdigest()[:12]
+
+
+def case_dir(out_dir: str | Path, cid: str) -> Path:
+    """``out_dir/cases/<cid>``."""
+    return Path(out_dir) / CASES / cid
+
+
+def now_iso() -> str:
+    """The current UTC time, ISO 8601 with microseconds."""
+    return datetime.now(timezone.utc).isoformat(timespec="microseconds")
+
+
+def write_json(path: str | Path, obj: Any) -> Path:
+    """Write ``obj`` as indented JSON, atomically (numpy scalars and arrays become plain JSON)."""
+    return atomic_write_text(path, json.dumps(obj, indent=2, default=_json_default, allow_nan=False) + "\n")
+
+
+def read_json(path: str | Path) -> Any:
+    """Read a JSON file.
+
+    Raises
+    ------
+    StudyError
+        If the file is missing or is not valid JSON (the message names the file).
+    """
+    path = Path(path)
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise StudyError(f"{path} does not exist") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise StudyError(f"cannot read {path}: {exc}") from None
+
+
+def _read_json_or_none(path: Path) -> Any:
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return None
+
+
+# -- state of a case ---------------------------------------------------------------------------
+
+
+def is_finished(cdir: str | Path) -> bool:
+    """True when the case in ``cdir`` is finished: ``case.json`` holds ``"finished"`` and
+    ``result.npz`` and ``kpis.json`` are files."""
+    cdir = Path(cdir)
+    if not ((cdir / RESULT_NPZ).is_file() and (cdir / KPIS_JSON).is_file()):
+        return False
+    meta = _read_json_or_none(cdir / CASE_JSON)
+    return isinstance(meta, dict) and bool(meta.get("finished"))
+
+
+CaseStatus = Literal["finished", "failed", "started", "missing"]
+
+
+def case_status(cdir: str | Path) -> CaseStatus:
+    """``"finished"`` (:func:`is_finished`), ``"failed"`` (``error.json``), ``"started"`` (a
+    ``case.json`` without ``"finished"``: running, or killed while running) or ``"missing"``."""
+    cdir = Path(cdir)
+    if is_finished(cdir):
+        return "finished"
+    if (cdir / ERROR_JSON).is_file():
+        return "failed"
+    if (cdir / CASE_JSON).is_file():
+        return "started"
+    return "missing"
+
+
+# -- reading a run back ------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class CaseRecord:
+    """One case of a study run as found on disk.
+
+    Attributes
+    ----------
+    id, name : str
+        Case id (folder name) and display name.
+    labels : dict
+        ``{"scenario", "sea_state", "controller", "condition", "seed"}``.
+    inputs : dict
+        Everything the case was run from (see :func:`tapm_opt.studies.study.run_case`).
+    result_path : Path or None
+        ``result.npz`` of a finished case, else None.
+    kpis : dict or None
+        ``kpis.json`` of a finished case, else None.
+    error : dict or None
+        ``error.json`` (``type``, ``message``, ``traceback``) of a failed case, else None.
+    meta : dict
+        ``case.json`` (``started``, ``finished``, ``wall_time``, ``tapm_opt_version``), or {} if absent.
+    """
+
+    id: str
+    name: str
+    labels: dict
+    inputs: dict
+    result_path: Path | None
+    kpis: dict | None
+    error: dict | None
+    meta: dict
+
+    @property
+    def status(self) -> CaseStatus:
+        """``"finished"``, ``"failed"``, ``"started"`` or ``"missing"`` (not run yet)."""
+        if self.result_path is not None and self.kpis is not None:
+            return "finished"
+        if self.error is not None:
+            return "failed"
+        return "started" if self.meta else "missing"
+
+    def load_result(self) -> Any:
+        """The case's :class:`~tapm_opt.results.Result`.
+
+        Raises
+        ------
+        StudyError
+            If the case is not finished.
+        """
+        from ..results import Result
+
+        if self.result_path is None:
+            raise StudyError(f"case {self.id} ({self.name}) has no result: it is {self.status}")
+        return Result.load(self.result_path)
+
+    def scenario(self) -> Any:
+        """The scenario the case ran with (its faults included)."""
+        from ..config import scenario_from_dict
+
+        return scenario_from_dict(self.inputs["scenario"], source=f"case {self.id}")
+
+
+def load_study_results(out_dir: str | Path) -> list[CaseRecord]:
+    """Every case of the study run in ``out_dir``, in study order.
+
+    The cases are those listed in ``study.json``; without it (a run killed before writing it), those
+    found under ``cases/`` (in the order of their folder names). Cases not run yet have
+    ``status == "missing"``.
+
+    Raises
+    ------
+    StudyError
+        If ``out_dir`` is not a study run directory.
+    """
+    out = Path(out_dir)
+    if not out.is_dir():
+        raise StudyError(f"{out} is not a directory")
+    study = _read_json_or_none(out / STUDY_JSON)
+    if (out / STUDY_JSON).exists() and not isinstance(study, dict):
+        raise StudyError(f"cannot read {out / STUDY_JSON}: not a JSON object")
+    if study is not None:
+        entries = list(study.get("cases") or [])
+    else:
+        cases_dir = out / CASES
+        if not cases_dir.is_dir():
+            raise StudyError(f"{out} is not a study run directory (no {STUDY_JSON} and no {CASES}/)")
+        entries = []
+        for d in sorted(p for p in cases_dir.iterdir() if p.is_dir()):
+            meta = _read_json_or_none(d / CASE_JSON)
+            if isinstance(meta, dict) and meta.get("id") == d.name:
+                entries.append(meta)
+    records = []
+    for e in entries:
+        cid = str(e["id"])
+        d = case_dir(out, cid)
+        meta = _read_json_or_none(d / CASE_JSON)
+        meta = meta if isinstance(meta, dict) else {}
+        finished = is_finished(d)
+        kpis = _read_json_or_none(d / KPIS_JSON) if finished else None
+        if finished and not isinstance(kpis, dict):
+            finished, kpis = False, None
+        error = None if finished else _read_json_or_none(d / ERROR_JSON)
+        records.append(CaseRecord(
+            id=cid, name=str(meta.get("name", e.get("name", cid))), labels=dict(meta.get("labels", e.get("labels", {}))),
+            inputs=dict(meta.get("inputs", e.get("inputs", {}))), result_path=(d / RESULT_NPZ) if finished else None,
+            kpis=kpis, error=error if isinstance(error, dict) else None,
+            meta={k: v for k, v in meta.items() if k not in ("id", "name", "labels", "inputs")}))
+    return records
+
