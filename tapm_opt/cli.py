@@ -276,7 +276,7 @@ def plant_forced_motion(scenario_name: str, dof: str, amplitude: float, period: 
               help="PID modes, nonlinear MPC, or linear MPC (OSQP).")
 @click.option("--duration", type=float, default=3600.0, show_default=True, help="Simulated time [s].")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), required=True, help="Run directory to write.")
-@click.option("--sea-state", default=None, help="Sea state id (default: the scenario's first), or 'calm'.")
+@click.option("--sea-state", default=None, help="Sea state id (default: the scenario's first), or 'none'.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of waves, wind and sensor noise.")
 @click.option("--segments", type=click.IntRange(2, 1000), default=None, help="FEM segments per line.")
 @click.option("--dt-control", type=float, default=1.0, show_default=True, help="Control/allocation period [s].")
@@ -319,7 +319,7 @@ def simulate(scenario_name: str, controller: str, duration: float, out_dir: str,
     out = Path(out_dir)
     res.save(out / "result.npz")
     k = basic_kpis(res, sc)
-    summary = {"scenario": sc.name, "controller": spec, "sea_state": plant.sea_state.id if plant.sea_state else "calm",
+    summary = {"scenario": sc.name, "controller": spec, "sea_state": plant.sea_state.id if plant.sea_state else "none",
                "seed": seed, "duration": duration, "kpis": k, "diagnostics": res.meta.get("diagnostics", {}),
                "events": plant.events, "wall_time": res.meta.get("wall_time")}
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2, default=float))
@@ -413,6 +413,84 @@ def report(study_dir: str, out_html: str | None, out_md: str | None) -> None:
     html, md = write_report(study_dir, out_html=out_html, out_md=out_md)
     click.echo(f"wrote {html}")
     click.echo(f"wrote {md}")
+
+
+# ------------------------------------------------------------------------------------------
+# tapm study run, tapm compare
+# ------------------------------------------------------------------------------------------
+
+
+@cli.group()
+def study() -> None:
+    """Design studies: many closed-loop cases, in parallel, resumable."""
+
+
+@study.command("run")
+@click.argument("study_file", metavar="STUDY.toml", type=click.Path(dir_okay=False))
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), required=True, help="Study output directory.")
+@click.option("--workers", type=click.IntRange(1, 256), default=None, help="Local worker processes (default: CPU count).")
+@click.option("--scheduler", default=None, help="Dask distributed scheduler address (tcp://host:port); needs the 'dask' extra.")
+@click.option("--no-progress", is_flag=True, help="No progress bar.")
+def study_run(study_file: str, out_dir: str, workers: int | None, scheduler: str | None, no_progress: bool) -> None:
+    """Run every case of STUDY.toml not yet finished in OUT (re-running resumes), then the KPI table."""
+    from .studies.study import load_study, run_study
+
+    st = load_study(study_file)
+    summary = run_study(st, out_dir, workers=workers, scheduler=scheduler, progress=not no_progress)
+    click.echo(str(summary))
+
+
+@cli.command()
+@click.argument("scenario_name", metavar="[SCENARIO]", default="fpso")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="tapm_compare", show_default=True,
+              help="Output directory (results, KPI tables, report).")
+@click.option("--workers", type=click.IntRange(1, 256), default=None, help="Local worker processes (default: CPU count).")
+@click.option("--duration", type=float, default=None, help="Override the study's duration [s].")
+def compare(scenario_name: str, out_dir: str, workers: int | None, duration: float | None) -> None:
+    """The main job: MPC against PID in a storm with a line break half-way, and the report.
+
+    Runs the default study (tapm_opt/studies/builtin/mpc_vs_pid.toml, also studies/mpc_vs_pid.toml)
+    on SCENARIO (default: the built-in fpso), writes OUT/report.html and OUT/report.md and prints the
+    headline KPIs. Re-running resumes.
+    """
+    import tomllib
+
+    from .report import write_report
+    from .studies.study import run_study, study_from_dict
+
+    path = Path(__file__).parent / "studies" / "builtin" / "mpc_vs_pid.toml"
+    data = tomllib.loads(path.read_text(encoding="utf-8"))
+    data["study"]["scenario"] = scenario_name
+    if duration is not None:
+        if not (math.isfinite(duration) and duration > 0):
+            raise click.BadParameter(f"--duration = {duration} must be a positive number of seconds")
+        data["study"]["duration"] = duration
+    st = study_from_dict(data, base_dir=Path.cwd(), source=str(path))
+    summary = run_study(st, out_dir, workers=workers, progress=True)
+    html, md = write_report(out_dir)
+    click.echo(str(summary))
+    _print_headlines(Path(out_dir), [c.id for c in st.cases])
+    click.echo(f"report: {html}")
+    click.echo(f"        {md}")
+
+
+def _print_headlines(out: Path, ids: list[str]) -> None:
+    import json
+
+    rows = []
+    for case_dir in (out / "cases" / i for i in ids):
+        kf, cf = case_dir / "kpis.json", case_dir / "case.json"
+        if kf.exists() and cf.exists():
+            case = json.loads(cf.read_text())
+            rows.append((case["labels"], json.loads(kf.read_text())))
+    if not rows:
+        return
+    click.echo(f"  {'case':42s} {'offset max':>10} {'outside safe':>12} {'T/MBS max':>9} {'delta min':>9} {'energy':>10}")
+    for labels, k in rows:
+        name = f"{labels.get('controller')}, {labels.get('sea_state')}, {labels.get('condition')}"
+        dmin = k.get("delta_min", float("nan"))
+        click.echo(f"  {name[:42]:42s} {k['offset_max']:8.1f} m {k['time_outside_safe']:10.0f} s "
+                   f"{k['util_max']:9.3f} {dmin:9.2f} {k['thrust_energy'] / 3.6e9:6.2f} MWh")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -48,7 +48,7 @@ def zero_crossings(t: np.ndarray, x: np.ndarray) -> np.ndarray:
 @pytest.fixture(scope="module")
 def decay():
     """aamo4 released from x = 30 m in calm water with no thrust (lines settled there first)."""
-    plant = Plant(scenario("aamo4"), sea_state="calm", segments=10, eta0=(30.0, 0.0, 0.0))
+    plant = Plant(scenario("aamo4"), sea_state="none", segments=10, eta0=(30.0, 0.0, 0.0))
     assert plant.settle_info.converged
     return run_open_loop(plant, 900.0, dt_log=1.0)
 
@@ -99,7 +99,7 @@ def test_free_decay_stays_in_surge(decay):
 @pytest.fixture(scope="module")
 def broken():
     fault = Fault(kind="line_break", line="1", time=60.0)
-    plant = Plant(scenario("aamo4"), sea_state="calm", segments=10, faults=[fault])
+    plant = Plant(scenario("aamo4"), sea_state="none", segments=10, faults=[fault])
     return plant, run_open_loop(plant, 200.0, dt_log=1.0)
 
 
@@ -252,7 +252,7 @@ def winch():
         ln = d["lines"][0]
         ln.update(winch_max_rate=0.5, min_length=2240.0, max_length=2265.0)
 
-    plant = Plant(variant("aamo4", edit), sea_state="calm", segments=10)
+    plant = Plant(variant("aamo4", edit), sea_state="none", segments=10)
     out = run_open_loop(plant, 60.0, winch_cmd=[1.0, 0.0, 0.0, 0.0], dt_log=1.0)
     back = run_open_loop(plant, 120.0, winch_cmd=[-1.0, 0.0, 0.0, 0.0], dt_log=1.0)
     return out, back
@@ -295,12 +295,12 @@ def test_winch_keeps_the_length_within_its_limits(winch):
 
 @pytest.fixture(scope="module")
 def calm_fpso():
-    return Plant(scenario("fpso"), sea_state="calm", segments=4)
+    return Plant(scenario("fpso"), sea_state="none", segments=4)
 
 
 @pytest.fixture(scope="module")
 def calm_aamo4():
-    return Plant(scenario("aamo4"), sea_state="calm", segments=4)
+    return Plant(scenario("aamo4"), sea_state="none", segments=4)
 
 
 @pytest.mark.parametrize("cmd,match", [
@@ -317,7 +317,7 @@ def test_bad_winch_command(calm_aamo4, cmd, match):
 
 def test_fault_on_a_missing_line():
     with pytest.raises(PlantError, match=r"line_break.*'99'.*does not exist.*\['1', '2', '3', '4'\]"):
-        Plant(scenario("aamo4"), sea_state="calm", segments=4,
+        Plant(scenario("aamo4"), sea_state="none", segments=4,
               faults=[Fault(kind="line_break", line="99", time=1.0)])
 
 
@@ -343,13 +343,13 @@ def test_bad_plant_settings():
     with pytest.raises(PlantError, match="hurricane.*normal"):
         Plant(sc, sea_state="hurricane", segments=4)
     with pytest.raises(PlantError, match="outer_dt"):
-        Plant(sc, sea_state="calm", segments=4, outer_dt=0.0)
+        Plant(sc, sea_state="none", segments=4, outer_dt=0.0)
     with pytest.raises(PlantError, match="eta0"):
-        Plant(sc, sea_state="calm", segments=4, eta0=(1.0, 2.0))
+        Plant(sc, sea_state="none", segments=4, eta0=(1.0, 2.0))
     with pytest.raises(ModelError, match="segments"):
-        Plant(sc, sea_state="calm", segments=1)
+        Plant(sc, sea_state="none", segments=1)
     with pytest.raises(ModelError, match="safety"):
-        Plant(sc, sea_state="calm", segments=4, safety=1.5)
+        Plant(sc, sea_state="none", segments=4, safety=1.5)
 
 
 def test_bad_run_settings(calm_aamo4):

@@ -50,7 +50,8 @@ class Plant:
     ----------
     scenario : Scenario
     sea_state : str, SeaState or None
-        Sea state (id or object); default the scenario's first one; ``"calm"`` for none.
+        Sea state (id or object); default the scenario's first one; ``"none"`` for no environment
+        (still water, no wind, no waves).
     seed : int
         Seed of every random process (waves, wind, sensor noise).
     segments : int, optional
@@ -296,7 +297,7 @@ def _sea_state(scenario: Any, sea_state: Any):
     if sea_state is None:
         return scenario.sea_states[0] if scenario.sea_states else None
     if isinstance(sea_state, str):
-        if sea_state == "calm":
+        if sea_state == "none":
             return None
         try:
             return scenario.sea_state(sea_state)
