@@ -35,11 +35,13 @@ class ScenarioIssue:
         return f"{self.path}{sep}{self.message}"
 
 
-class ScenarioError(TapmError, ValueError):
-    """A scenario file or dictionary is invalid.
+class IssuesError(TapmError, ValueError):
+    """An input with one or more problems, each naming its field path (``issues``).
 
-    Carries *all* problems found (``issues``), not only the first one.
+    Subclasses set ``what``, the kind of input, used in the message ("invalid <what>: ...").
     """
+
+    what = "input"
 
     def __init__(self, issues: list[ScenarioIssue] | ScenarioIssue | str, *, source: str = ""):
         if isinstance(issues, str):
@@ -48,13 +50,22 @@ class ScenarioError(TapmError, ValueError):
             issues = [issues]
         self.issues: tuple[ScenarioIssue, ...] = tuple(issues)
         self.source = source
-        head = f"invalid scenario {source}" if source else "invalid scenario"
+        head = f"invalid {self.what} {source}" if source else f"invalid {self.what}"
         if len(self.issues) == 1:
             msg = f"{head}: {self.issues[0]}"
         else:
             body = "\n".join(f"  - {i}" for i in self.issues)
             msg = f"{head}: {len(self.issues)} problems\n{body}"
         super().__init__(msg)
+
+
+class ScenarioError(IssuesError):
+    """A scenario file or dictionary is invalid.
+
+    Carries *all* problems found (``issues``), not only the first one.
+    """
+
+    what = "scenario"
 
 
 class CatenaryError(TapmError, ValueError):

@@ -210,6 +210,12 @@ def _check_inputs(**arrays: np.ndarray) -> None:
             raise CatenaryError(f"{name} = {float(arr[idx])!r}{where} {what}")
 
 
+def _hanging_length(ZF, w, EA):
+    """Length of a line hanging vertically with no horizontal tension over a height ZF:
+    the root of ZF = Ls + w Ls^2 / (2 EA), in a form without cancellation."""
+    return 2.0 * ZF / (1.0 + np.sqrt(1.0 + 2.0 * w * ZF / EA))
+
+
 def _initial_guess(XF, ZF, L, EA, w):
     """Peyrot & Goulois (1979) starting point, raised for lines stretched beyond their length."""
     d = np.hypot(XF, ZF)
@@ -355,8 +361,7 @@ def solve(XF, ZF, L, EA, w, *, CB=0.0, tol: float = 1e-9, max_iter: int = 60) ->
             out["dHZ"][m] = out["dVX"][m] = k1 * XF[m] * ZF[m]
             regime[m] = WEIGHTLESS
         heavy = ~m
-        # hanging length of a vertical line with no horizontal tension: ZF = Ls + w Ls^2/(2 EA)
-        Ls = 2.0 * ZF / (1.0 + np.sqrt(1.0 + 2.0 * w * ZF / EA))
+        Ls = _hanging_length(ZF, w, EA)
         m = heavy & (Ls <= L) & (L - Ls >= XF)
         if np.any(m):
             out["VF"][m] = w[m] * Ls[m]
@@ -462,7 +467,8 @@ def line_profile(XF: float, ZF: float, L: float, EA: float, w: float, *, CB: flo
         LB = float(sol.LBot)
         on_bed = s <= LB
         x = np.where(on_bed, XF * s / max(LB, 1e-300), XF)
-        sv = np.maximum(s - LB, 0.0)
+        Ls = float(_hanging_length(ZF, w, EA))  # not L - LBot: no cancellation
+        sv = np.clip(Ls - (L - s), 0.0, Ls)  # hanging arc length, exact at the fairlead
         z = sv + w * sv * sv / (2 * EA)
         T = w * sv
     else:  # touchdown, suspended, vertical; seabed (LB = L) through the same friction integral

@@ -29,6 +29,7 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 
 from .._io import atomic_write_bytes, atomic_write_text
+from ..studies.kpis import format_number
 from .data import CaseInfo, ReportError, StudyData, read_study
 from . import figures as figs
 
@@ -199,24 +200,8 @@ class RawMarkdown:
 
 
 def _fmt(v: Any) -> str:
-    """4 significant digits (same rules as the Markdown KPI table); integers as integers."""
-    if v is None or v == "":
-        return ""
-    if isinstance(v, bool):
-        return str(v)
-    if isinstance(v, (int, np.integer)):
-        return str(int(v))
-    if isinstance(v, (float, np.floating)):
-        f = float(v)
-        if not math.isfinite(f):
-            return str(f)
-        if f == 0:
-            return "0"
-        if f.is_integer() and abs(f) < 1e6:
-            return str(int(f))
-        a = abs(f)
-        return f"{f:.3e}" if (a >= 1e6 or a < 1e-3) else f"{f:.4g}"
-    return str(v)
+    """The KPI tables' number format (one definition: :func:`tapm_opt.studies.kpis.format_number`)."""
+    return format_number(v)
 
 
 def _fmt_text(s: str) -> str:

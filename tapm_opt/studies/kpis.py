@@ -495,7 +495,8 @@ def _row_parts(row: Mapping[str, Any]) -> tuple[Any, Any, dict, dict]:
     return row.get("id", ""), row.get("name", ""), labels, kpis
 
 
-def _md_number(v: Any) -> str:
+def format_number(v: Any) -> str:
+    """A KPI value for tables: 4 significant digits, integers as integers, empty for missing."""
     if v is None or v == "":
         return ""
     if isinstance(v, bool):
@@ -557,7 +558,7 @@ def kpi_table(rows: Sequence[Mapping[str, Any]]) -> tuple[str, str]:
     lines = ["| " + " | ".join(md_head) + " |",
              "|" + "|".join(["---"] * (2 + len(label_cols)) + ["---:"] * len(kpi_cols)) + "|"]
     for rid, name, labels, kpis in parts:
-        cells = [_md_number(rid), _md_number(name), *(_md_number(labels.get(c)) for c in label_cols),
-                 *(_md_number(kpis.get(c)) for c in kpi_cols)]
+        cells = [format_number(rid), format_number(name), *(format_number(labels.get(c)) for c in label_cols),
+                 *(format_number(kpis.get(c)) for c in kpi_cols)]
         lines.append("| " + " | ".join(cells) + " |")
     return buf.getvalue(), "\n".join(lines) + "\n"
