@@ -32,17 +32,11 @@ import osqp
 
 from tapm_opt import load_scenario
 from tapm_opt.control.allocation import ThrustAllocator
+from _machine import machine_info as _machine_info  # noqa: E402  (benchmarks/ is on sys.path when run)
 
 
 def machine_info() -> str:
-    cpu = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo") as fh:
-            cpu = next(line.split(":", 1)[1].strip() for line in fh if line.startswith("model name"))
-    except (OSError, StopIteration):
-        pass
-    return (f"machine: {cpu}, {os.cpu_count()} CPUs, {platform.system()} {platform.release()}\n"
-            f"python {platform.python_version()}, numpy {np.__version__}, osqp {osqp.__version__}")
+    return _machine_info(f"osqp {osqp.__version__}")
 
 
 def calibration() -> str:

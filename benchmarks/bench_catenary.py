@@ -21,17 +21,9 @@ import casadi
 import numpy as np
 
 from tapm_opt.models import catenary as cat
+from _machine import machine_info  # noqa: E402  (benchmarks/ is on sys.path when run)
 
 
-def machine_info() -> str:
-    cpu = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo") as fh:
-            cpu = next(line.split(":", 1)[1].strip() for line in fh if line.startswith("model name"))
-    except (OSError, StopIteration):
-        pass
-    return (f"machine: {cpu}, {os.cpu_count()} CPUs, {platform.system()} {platform.release()}\n"
-            f"python {platform.python_version()}, numpy {np.__version__}, casadi {casadi.__version__}")
 
 
 def configurations(n: int, seed: int = 0):

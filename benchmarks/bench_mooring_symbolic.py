@@ -29,17 +29,9 @@ import numpy as np
 import tapm_opt
 from tapm_opt.config import builtin_scenarios, scenario_from_dict, scenario_to_dict
 from tapm_opt.models.mooring import MooringModel
+from _machine import machine_info  # noqa: E402  (benchmarks/ is on sys.path when run)
 
 
-def machine_info() -> str:
-    cpu = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo") as fh:
-            cpu = next(line.split(":", 1)[1].strip() for line in fh if line.startswith("model name"))
-    except (OSError, StopIteration):
-        pass
-    return (f"machine: {cpu}, {os.cpu_count()} CPUs, {platform.system()} {platform.release()}\n"
-            f"python {platform.python_version()}, numpy {np.__version__}, casadi {ca.__version__}")
 
 
 def eight_line_scenario():

@@ -43,24 +43,12 @@ from tapm_opt.config import scenario_from_dict, scenario_to_dict
 from tapm_opt.control.estimate import Estimate, Setpoint
 from tapm_opt.control.mpc import LinearMPC, MPCSettings, NonlinearMPC
 from tapm_opt.geometry import rot_z
+from _machine import machine_info  # noqa: E402  (benchmarks/ is on sys.path when run)
 
 TARGET_NMPC_N20 = 5e-3  # [s] median, fastest nonlinear path
 TARGET_LMPC_N50 = 1e-3  # [s] median, linear MPC
 
 
-def machine_info() -> str:
-    cpu = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo") as fh:
-            cpu = next(line.split(":", 1)[1].strip() for line in fh if line.startswith("model name"))
-    except (OSError, StopIteration):
-        pass
-    try:
-        load = "load average " + ", ".join(f"{v:.2f}" for v in os.getloadavg())
-    except OSError:
-        load = "load average n/a"
-    return (f"machine: {cpu}, {os.cpu_count()} CPUs, {platform.system()} {platform.release()}, {load}\n"
-            f"python {platform.python_version()}, numpy {np.__version__}, casadi {ca.__version__}")
 
 
 def ren8_with_thrusters():

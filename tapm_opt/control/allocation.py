@@ -411,7 +411,7 @@ class ThrustAllocator:
         vals: list[float] = []
         dyn = [(r, c0 + j) for c0 in (0, naz) for r in range(3) for j in range(naz)]
         for r, c in dyn:
-            rows.append(r), cols.append(c), vals.append(1.0)     # placeholders, structurally non-zero
+            rows.append(r), cols.append(c), vals.append(1.0)     # structural non-zeros; values set on update
         for k in range(nfx):
             for r in range(3):
                 if Bf[r, k] != 0.0:
