@@ -298,21 +298,16 @@ def moored_function(params: VesselParams, tau_moor: ca.Function | None, *, form:
             isinstance(tau_moor, ca.Function) and tau_moor.n_in() == 1 and tau_moor.n_out() >= 1
             and tau_moor.numel_in(0) == 3 and tau_moor.numel_out(0) == 3):
         raise ModelError(f"tau_moor must be a casadi.Function eta(3) -> tau(3), got {tau_moor!r}")
-    for Sym in (ca.SX, ca.MX):  # SX when tau_moor can be evaluated on SX, else MX
-        x, tau_thr, tau_env, v_c = (Sym.sym(n, k) for n, k in
-                                    (("x", 6), ("tau_thr", 3), ("tau_env", 3), ("v_c", 2)))
-        eta, nu = x[0:3], x[3:6]
-        tau = tau_thr + tau_env - ca.mtimes(D_moor, nu)
-        try:
-            if tau_moor is not None:
-                tau = tau + ca.reshape(tau_moor.call([eta])[0], 3, 1)
-        except (RuntimeError, NotImplementedError):
-            continue
-        eta_dot, nu_dot = vessel_rhs(eta, nu, tau, v_c, params, form=form)
-        return ca.Function(f"moored_{form}", [x, tau_thr, tau_env, v_c],
-                           [ca.vertcat(eta_dot, nu_dot)],
-                           ["x", "tau_thr", "tau_env", "v_c"], ["x_dot"])
-    raise ModelError(f"tau_moor={tau_moor.name()} cannot be evaluated symbolically")
+    # SX symbols: CasADi embeds MX Functions (even a rootfinder) in SX expressions as calls
+    x, tau_thr, tau_env, v_c = (ca.SX.sym(n, k) for n, k in
+                                (("x", 6), ("tau_thr", 3), ("tau_env", 3), ("v_c", 2)))
+    eta, nu = x[0:3], x[3:6]
+    tau = tau_thr + tau_env - ca.mtimes(D_moor, nu)
+    if tau_moor is not None:
+        tau = tau + ca.reshape(tau_moor.call([eta])[0], 3, 1)
+    eta_dot, nu_dot = vessel_rhs(eta, nu, tau, v_c, params, form=form)
+    return ca.Function(f"moored_{form}", [x, tau_thr, tau_env, v_c], [ca.vertcat(eta_dot, nu_dot)],
+                       ["x", "tau_thr", "tau_env", "v_c"], ["x_dot"])
 
 
 def _check_moored(fn: Any) -> None:

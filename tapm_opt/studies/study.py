@@ -95,7 +95,7 @@ from typing import Any, Callable, Mapping, Sequence
 
 from .._io import atomic_write_text
 from ..config import Fault, builtin_scenarios, load_scenario, scenario_from_dict, scenario_to_dict
-from ..config.loader import BUILTIN_DIR
+from ..config.loader import BUILTIN_DIR, _fmt, _is_number  # the scenario loader's value checks
 from ..errors import ScenarioError
 from . import store
 from .controllers import CONTROLLER_TYPES, PID_DEFAULTS, ControllerSpecError, build_controller
@@ -222,17 +222,6 @@ _FAULT_KEYS = {"line_break": {"line", "time", "time_fraction"}, "thruster_failur
 _CASE_KEYS = {"name", "sea_state", "controller", "condition", "seed", "duration"}
 _NAMES = {"pid": "PID", "mpc": "NMPC", "lmpc": "MPC"}
 
-
-def _fmt(v: Any) -> str:
-    if isinstance(v, float):
-        return f"{v:g}"
-    if isinstance(v, str):
-        return repr(v)
-    return str(v)
-
-
-def _is_number(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
 class _Checker:
