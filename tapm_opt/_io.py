@@ -58,3 +58,12 @@ def csv_text(header: Sequence[str], rows: Iterable[Sequence[object]], *, comment
     for row in rows:
         writer.writerow([repr(float(v)) if isinstance(v, float) else v for v in row])
     return buf.getvalue()
+
+
+def readonly(value: object, dtype: object = float):
+    """A read-only numpy copy of ``value`` (callers keep their arrays; frozen objects stay frozen)."""
+    import numpy as np
+
+    arr = np.array(value, dtype=dtype)
+    arr.flags.writeable = False
+    return arr

@@ -24,6 +24,9 @@ __all__ = [
     "fairleads_T",
     "fairleads_B",
     "fairleads_E",
+    "turret_position",
+    "turret_offset",
+    "body_from_turret",
 ]
 
 
@@ -158,3 +161,48 @@ def fairleads_E(eta, p_cot_B, p_T, alpha_t):
     cx, cy = rot2_apply(psi, p_cot_B[0], p_cot_B[1])
     tx, ty = rot2_apply(psi + alpha_t, p_T[:, 0], p_T[:, 1])
     return x + cx + tx, y + cy + ty
+
+
+def turret_position(eta, p_cot_B):
+    """Horizontal position of the centre of turret (COT) in {E}: p + R2(psi) p_cot^B (eq. 5 with
+    r = 0).
+
+    Parameters
+    ----------
+    eta : array_like, shape (3,) or (..., 3), or CasADi 3-vector
+        Body-origin pose (x [m], y [m], psi [rad]) in {E}; a numpy array of shape (..., 3) gives
+        one turret position per row.
+    p_cot_B : array_like, shape (2,)
+        Centre of turret in {B} [m].
+
+    Returns
+    -------
+    (x, y) : floats, ndarrays of shape (...), or CasADi scalars — the COT in {E} [m].
+    """
+    if bk.is_symbolic(eta):
+        x, y, psi = eta[0], eta[1], eta[2]
+    else:
+        eta = np.asarray(eta, dtype=float)
+        x, y, psi = eta[..., 0], eta[..., 1], eta[..., 2]
+    cx, cy = rot2_apply(psi, float(p_cot_B[0]), float(p_cot_B[1]))
+    return x + cx, y + cy
+
+
+def turret_offset(eta, p_cot_B):
+    """Turret-referenced offset: the COT's horizontal position relative to where it rests at the
+    field zero point (eta = 0), ``p + R2(psi) p_cot^B - p_cot^B`` [m].
+
+    This is the position every safety measure of tapm_opt refers to (offsets, safe and alert
+    circles, position setpoints and errors): the mooring acts at the turret, and a pure rotation
+    of the hull about the turret has offset zero. Same arguments and shapes as
+    :func:`turret_position`.
+    """
+    x, y = turret_position(eta, p_cot_B)
+    return x - float(p_cot_B[0]), y - float(p_cot_B[1])
+
+
+def body_from_turret(p_turret_offset, psi, p_cot_B):
+    """Body-origin position (x, y) [m] that puts the turret at ``p_turret_offset`` (relative to its
+    field-zero-point position) with heading ``psi`` [rad]: the inverse of :func:`turret_offset`."""
+    cx, cy = rot2_apply(psi, float(p_cot_B[0]), float(p_cot_B[1]))
+    return (p_turret_offset[0] + float(p_cot_B[0]) - cx, p_turret_offset[1] + float(p_cot_B[1]) - cy)

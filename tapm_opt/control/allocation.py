@@ -65,7 +65,7 @@ import scipy.sparse as sp
 from ..config import schema
 from ..errors import TapmError
 from ..geometry import ssa
-from ..models.thrust import configuration_matrix, extended_columns
+from ..models.thrust import configuration_matrix, extended_columns, merge_sectors
 
 __all__ = [
     "AllocationError",
@@ -194,40 +194,6 @@ def pseudo_inverse(T: Any, tau: Any, weights: Any = None, *, row_scale: Any = No
 
 
 # -- sectors -----------------------------------------------------------------------------------------
-
-def _merge_sectors(sectors: Sequence[Sequence[float]], where: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
-    """Union of forbidden arcs ``(from, to)`` (counter-clockwise, i.e. increasing angle, from
-    ``from`` to ``to``) as sorted disjoint ``(starts, widths)`` [rad]."""
-    ivs: list[tuple[float, float]] = []
-    for k, sec in enumerate(sectors):
-        if len(sec) != 2 or not all(math.isfinite(float(v)) for v in sec):
-            raise AllocationError(f"{where}.forbidden_sectors[{k}]={tuple(sec)!r} must be two finite angles (from, to) [rad]")
-        a, b = float(sec[0]), float(sec[1])
-        w = (b - a) % TWO_PI
-        if w <= 0.0:
-            continue
-        a %= TWO_PI
-        if a + w > TWO_PI:
-            ivs += [(a, TWO_PI), (0.0, a + w - TWO_PI)]
-        else:
-            ivs.append((a, a + w))
-    if not ivs:
-        return (), ()
-    ivs.sort()
-    merged = [list(ivs[0])]
-    for s, e in ivs[1:]:
-        if s <= merged[-1][1]:
-            merged[-1][1] = max(merged[-1][1], e)
-        else:
-            merged.append([s, e])
-    if len(merged) > 1 and merged[0][0] <= 0.0 and merged[-1][1] >= TWO_PI:  # joins across 0
-        last = merged.pop()
-        merged[0] = [last[0], merged[0][1] + TWO_PI]
-    widths = tuple(e - s for s, e in merged)
-    if sum(widths) >= TWO_PI * (1.0 - 1e-12):
-        raise AllocationError(f"{where}.forbidden_sectors forbid every direction")
-    return tuple(s % TWO_PI for s, _ in merged), widths
-
 
 def _arc(alpha: float, starts: tuple[float, ...], widths: tuple[float, ...]) -> tuple[float, float]:
     """Allowed arc relative to alpha, ``(lo, hi)`` [rad]: the arc containing alpha (lo <= 0 <= hi),
@@ -369,7 +335,7 @@ class ThrustAllocator:
             arate.append(_INF if ar is None else _positive(f"{p}.max_azimuth_rate", ar))
             if th.forbidden_sectors and not az:
                 raise AllocationError(f"{p}.forbidden_sectors are only allowed for azimuth thrusters, not {th.kind!r}")
-            sectors.append(_merge_sectors(th.forbidden_sectors, p) if az else ((), ()))
+            sectors.append(merge_sectors(th.forbidden_sectors, p, error=AllocationError) if az else ((), ()))
         self._x, self._y = np.array(x), np.array(y)
         self._azimuth = np.array([th.kind == "azimuth" for th in ths])
         self._angle0 = ssa(np.array(ang))
