@@ -8,6 +8,8 @@ from __future__ import annotations
 import csv
 import dataclasses
 import math
+import subprocess
+import sys
 import warnings
 
 import control
@@ -41,6 +43,7 @@ from tapm_opt.design.gains import (
 )
 from tapm_opt.geometry import rot_z
 from tapm_opt.models.mooring import MooringModel
+from tapm_opt.models.system import ThrusterSet
 from tapm_opt.plant.environment import Environment
 
 SEA_STATES = ("normal", "extreme")
@@ -200,9 +203,15 @@ def test_head_current_load_is_linear_plus_quadratic_drag(fpso):
 # --- LQR ----------------------------------------------------------------------------------
 
 def test_lqr_rows_match_python_control(fpso, table):
+    # the one capacity model: largest |X|, |Y|, |N| each attainable alone (LP)
+    capacity = ThrusterSet.from_scenario(fpso).max_tau()
     f = np.array([t.max_thrust for t in fpso.thrusters])
     arm = np.array([math.hypot(*t.position) for t in fpso.thrusters])
-    capacity = np.array([f.sum(), f.sum(), (f * arm).sum()])  # 7.2 MN, 7.2 MN, ~1e9 N m
+    bound = np.array([f.sum(), f.sum(), (f * arm).sum()])  # 7.2 MN, 7.2 MN, ~1e9 N m
+    assert np.all(capacity <= bound)  # each thruster at full thrust in the best direction
+    # surge: the six azimuths all push ahead with no sway or yaw (y symmetric), less the 0.03 %
+    # of the 128-gon inscribed in each thrust disk
+    assert capacity[0] == pytest.approx(bound[0], rel=5e-4)
     for r in table:
         q = r.lqr
         K, _, _ = control.lqr(r.A, r.B, np.diag(q.Q), np.diag(q.R))
@@ -215,6 +224,7 @@ def test_lqr_rows_match_python_control(fpso, table):
         w = DEFAULT_LQR[r.condition.sea_class]
         np.testing.assert_allclose(q.Q, 1.0 / np.r_[w.eta_ref, w.nu_ref] ** 2, rtol=1e-12)
         np.testing.assert_allclose(q.R, 1.0 / (w.tau_share * capacity) ** 2, rtol=1e-12)
+    assert table.meta["lqr_capacity"]["max_tau"] == capacity.tolist()
 
 
 # --- margins ------------------------------------------------------------------------------
@@ -326,6 +336,29 @@ def test_switch_is_bumpless_in_the_integral(table):
     kept = np.array(sched.integral_load)
     sched.select(sea_state="normal")  # back to a mode set without the mean mode
     np.testing.assert_allclose(sched.integral_load, [0.0, 0.0, kept[2]], rtol=1e-12, atol=1e-9)
+
+
+def test_scheduler_reads_the_table_with_the_one_format_module(table, tmp_path):
+    """The scheduler takes a GainTable, its dict or its file through control.gain_table, and
+    never imports the design code."""
+    write_gain_tables(table, tmp_path)
+    from_obj, from_dict = GainScheduledPID(table), GainScheduledPID(table.to_dict())
+    from_file = GainScheduledPID.from_json(tmp_path)
+    assert from_obj.conditions == from_dict.conditions == from_file.conditions
+    assert from_obj.conditions == tuple(r.condition for r in table.rows)
+    np.testing.assert_array_equal(_drive(from_dict), _drive(from_obj))
+    np.testing.assert_array_equal(_drive(from_file), _drive(GainScheduledPID(table)))
+    code = ("import sys, tapm_opt.control.scheduled; "
+            "print(sorted(m for m in sys.modules if m.startswith('tapm_opt.design')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
+    bad = table.to_dict()
+    bad["rows"][0]["pid"]["Kp"] = [1.0, -2.0, 3.0]
+    with pytest.raises(ControlError, match="Kp"):
+        GainScheduledPID(bad)
+    bad["rows"][0]["pid"].pop("Kp")
+    with pytest.raises(GainTableError, match="malformed gain table"):
+        GainScheduledPID(bad)
 
 
 def test_scheduler_rejects_unknown_conditions(fpso, table):

@@ -1,11 +1,12 @@
 """Gain-scheduled TAPM PID: one :class:`~tapm_opt.control.pid.TAPMPID` per operating condition.
 
-The gains come from a gain table (``tapm_opt.design.gains``, ``docs/gains.md``), read from its
-JSON file without the code that made it: this module knows the file format
-(``tapm_opt.gains/1``), not the design code, so the import direction stays config -> models ->
-control -> design. A supervisor (sea-state detection, line-break detection, [S] §4.5 Fig. 9)
-calls :meth:`GainScheduledPID.select` when the condition changes; the controller switches to that
-condition's gains and to the mode set of its sea-state class ([S] Table 3).
+The gains come from a gain table (``docs/gains.md``), read with
+:mod:`tapm_opt.control.gain_table` — the one reader and writer of the format
+``tapm_opt.gains/1``, which the design code (``tapm_opt.design.gains``) writes with — so the
+import direction stays config -> models -> control -> design. A supervisor (sea-state detection,
+line-break detection, [S] §4.5 Fig. 9) calls :meth:`GainScheduledPID.select` when the condition
+changes; the controller switches to that condition's gains and to the mode set of its sea-state
+class ([S] Table 3).
 
 Switching is bumpless in the integral: the integral load ``K_i R(psi)^T xi`` in {B} that the old
 controller applied is handed to the new one (its xi is rescaled to its own K_i) for every
@@ -18,50 +19,24 @@ switch (a step of (K_p,new - K_p,old) e), which is small while the vessel is nea
 
 from __future__ import annotations
 
-import json
 import math
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any, Mapping
 
 import numpy as np
 
 from ..geometry import rot_z, ssa
-from .estimate import Estimate, Setpoint
-from .pid import H_PSI, H_XY, MODE_SETS, ControlError, PIDGains, TAPMPID
+from ..interfaces import ControllerStep, Estimate, Setpoint
+from .gain_table import FORMAT as TABLE_FORMAT
+from .gain_table import Condition, GainTable, load_gain_table
+from .pid import H_PSI, H_XY, MODE_SETS, ControlError, TAPMPID
 
 __all__ = ["GainScheduledPID", "ScheduledCondition", "TABLE_FORMAT"]
 
-#: Gain-table file format this module reads.
-TABLE_FORMAT = "tapm_opt.gains/1"
-
-
-@dataclass(frozen=True, kw_only=True)
-class ScheduledCondition:
-    """One operating condition of the schedule.
-
-    Attributes
-    ----------
-    sea_state : str
-        Sea-state id.
-    sea_class : str
-        ``"calm"``, ``"normal"`` or ``"extreme"``.
-    mode_set : str
-        Key of :data:`~tapm_opt.control.pid.MODE_SETS` used in this condition.
-    broken : str
-        ``"intact"`` or the id of the broken line.
-    heading : float
-        Heading the gains were designed at [rad].
-    weathervane : bool
-        The heading is the condition's weathervane heading.
-    """
-
-    sea_state: str
-    sea_class: str
-    mode_set: str
-    broken: str
-    heading: float
-    weathervane: bool = False
+#: One operating condition of the schedule: the table's
+#: :class:`~tapm_opt.control.gain_table.Condition` (sea_state, sea_class, mode_set, broken,
+#: heading [rad], weathervane).
+ScheduledCondition = Condition
 
 
 class _ScheduledTAPMPID(TAPMPID):
@@ -78,31 +53,13 @@ class _ScheduledTAPMPID(TAPMPID):
         self._tau_unsat = np.array(tau_prev, dtype=float)
 
 
-def _gain(row: Mapping[str, Any], name: str, where: str) -> np.ndarray:
-    try:
-        arr = np.asarray(row[name], dtype=float)
-    except (KeyError, TypeError, ValueError):
-        raise ControlError(f"{where}.pid.{name} is missing or not numeric") from None
-    if arr.shape != (3,) or not np.all(np.isfinite(arr)):
-        raise ControlError(f"{where}.pid.{name} must be 3 finite numbers, got {arr.tolist()}")
-    return arr
-
-
-def _table_dict(table: Any) -> dict:
-    if hasattr(table, "to_dict"):
-        table = table.to_dict()
-    if not isinstance(table, Mapping):
-        raise ControlError(f"table must be a gain table (GainTable or its JSON dict), got "
-                           f"{type(table).__name__}")
-    meta = table.get("meta", {})
-    if not isinstance(meta, Mapping) or meta.get("format") != TABLE_FORMAT:
-        raise ControlError(f"not a gain table: meta.format="
-                           f"{meta.get('format') if isinstance(meta, Mapping) else None!r}, "
-                           f"expected {TABLE_FORMAT!r}")
-    rows = table.get("rows")
-    if not isinstance(rows, Sequence) or not rows:
-        raise ControlError("the gain table has no rows")
-    return dict(table)
+def _as_table(table: Any) -> GainTable:
+    if isinstance(table, GainTable):
+        return table
+    if isinstance(table, Mapping):
+        return GainTable.from_dict(table)
+    raise ControlError(f"table must be a gain table (GainTable or its JSON dict), got "
+                       f"{type(table).__name__}")
 
 
 class GainScheduledPID:
@@ -114,13 +71,16 @@ class GainScheduledPID:
     Parameters
     ----------
     table : GainTable or mapping
-        A ``tapm_opt.design.gains.GainTable`` or its JSON dict (``GainTable.to_dict()``, the
-        content of ``gains.json``).
+        A :class:`~tapm_opt.control.gain_table.GainTable` or its JSON dict
+        (``GainTable.to_dict()``, the content of ``gains.json``).
     scenario : Scenario, optional
         If given, the table must have been made for it (same name) and its broken-line ids must
         be line ids of the scenario.
-    tau_limit, integral_limit, anti_windup, env_feedforward
-        Passed to every :class:`~tapm_opt.control.pid.TAPMPID`.
+    tau_limit, integral_limit, anti_windup, env_feedforward, reference_point
+        Passed to every :class:`~tapm_opt.control.pid.TAPMPID` (``reference_point``: the centre of
+        turret in {B} for turret-referenced positions, see :class:`~tapm_opt.control.pid.TAPMPID`).
+    period : float or None
+        Update period [s] for the closed-loop runner (None: the runner's control period).
 
     Notes
     -----
@@ -131,33 +91,25 @@ class GainScheduledPID:
 
     def __init__(self, table: Any, *, scenario: Any = None, tau_limit: Any = None,
                  integral_limit: Any = None, anti_windup: bool = True,
-                 env_feedforward: bool = False) -> None:
-        data = _table_dict(table)
-        self._meta = dict(data["meta"])
-        conds: list[ScheduledCondition] = []
+                 env_feedforward: bool = False, reference_point: Any = (0.0, 0.0),
+                 period: float | None = None) -> None:
+        tab = _as_table(table)
+        if not tab.rows:
+            raise ControlError("the gain table has no rows")
+        self._meta = dict(tab.meta)
+        conds: list[Condition] = []
         ctrls: list[_ScheduledTAPMPID] = []
-        for i, row in enumerate(data["rows"]):
-            where = f"rows[{i}]"
-            try:
-                c = row["condition"]
-                cond = ScheduledCondition(
-                    sea_state=str(c["sea_state"]), sea_class=str(c["sea_class"]),
-                    mode_set=str(c["mode_set"]), broken=str(c["broken"]),
-                    heading=float(c["heading"]), weathervane=bool(c.get("weathervane", False)))
-                pid = row["pid"]
-            except (KeyError, TypeError, ValueError) as exc:
-                raise ControlError(f"{where}: malformed condition ({type(exc).__name__}: "
-                                   f"{exc})") from None
+        for i, row in enumerate(tab.rows):
+            cond = row.condition
             if cond.mode_set not in MODE_SETS:
-                raise ControlError(f"{where}.condition.mode_set={cond.mode_set!r} is not one of "
-                                   f"{tuple(MODE_SETS)}")
-            gains = PIDGains(Kp=_gain(pid, "Kp", where), Ki=_gain(pid, "Ki", where),
-                             Kd=_gain(pid, "Kd", where))
+                raise ControlError(f"rows[{i}].condition.mode_set={cond.mode_set!r} is not one "
+                                   f"of {tuple(MODE_SETS)}")
             conds.append(cond)
-            ctrls.append(_ScheduledTAPMPID(gains, modes=cond.mode_set, tau_limit=tau_limit,
+            ctrls.append(_ScheduledTAPMPID(row.pid.gains, modes=cond.mode_set, tau_limit=tau_limit,
                                            integral_limit=integral_limit,
                                            anti_windup=anti_windup,
-                                           env_feedforward=env_feedforward))
+                                           env_feedforward=env_feedforward,
+                                           reference_point=reference_point, period=period))
         if scenario is not None:
             name = self._meta.get("scenario")
             if name != scenario.name:
@@ -178,21 +130,20 @@ class GainScheduledPID:
         self._t: float | None = None
         self._psi = 0.0
         self._tau = np.zeros(3)
+        self.period = ctrls[0].period
 
     @classmethod
     def from_json(cls, path: str | Path, **kwargs: Any) -> GainScheduledPID:
         """Controller from ``gains.json`` (or a folder holding it); ``kwargs`` as for the
-        constructor (e.g. ``scenario=``, ``tau_limit=``)."""
-        p = Path(path)
-        if p.is_dir():
-            p = p / "gains.json"
-        try:
-            data = json.loads(p.read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise ControlError(f"no gain table at {p}") from None
-        except (OSError, json.JSONDecodeError) as exc:
-            raise ControlError(f"cannot read the gain table {p}: {exc}") from None
-        return cls(data, **kwargs)
+        constructor (e.g. ``scenario=``, ``tau_limit=``).
+
+        Raises
+        ------
+        GainTableError
+            (a :class:`~tapm_opt.control.pid.ControlError`) Missing or unreadable file, or not a
+            gain table.
+        """
+        return cls(load_gain_table(path), **kwargs)
 
     # -- schedule ------------------------------------------------------------------------
     @property
@@ -323,6 +274,10 @@ class GainScheduledPID:
         self._psi = float(np.asarray(estimate.eta, dtype=float)[2])
         self._tau = np.array(tau, dtype=float)
         return tau
+
+    def last_step(self) -> ControllerStep | None:
+        """Diagnostics of the active controller's latest update."""
+        return self.controller.last_step()
 
     @property
     def integral_load(self) -> np.ndarray:

@@ -24,17 +24,13 @@ import casadi as ca
 import numpy as np
 
 from .. import _backend as bk
+from .._io import readonly
 from ..errors import ModelError
-from ..geometry import fairleads_E, rot_z
+from ..geometry import fairleads_E, rot2_apply, rot_z
 from . import catenary
+from .statics import EquilibriumError, solve_equilibrium
 
 __all__ = ["MooringModel", "LinearMooring"]
-
-
-def _ro(a: Any) -> np.ndarray:
-    arr = np.array(a, dtype=float)
-    arr.setflags(write=False)
-    return arr
 
 
 @dataclass(frozen=True, eq=False)
@@ -99,17 +95,17 @@ class MooringModel:
         zf = env.water_depth - scenario.turret.fairlead_depth
         return cls(
             line_ids=tuple(i for i, k in zip(ids, keep) if k),
-            anchors=_ro(scenario.anchors[keep, :2]),
-            p_T=_ro(scenario.fairleads_T[keep]),
-            p_cot_B=_ro(scenario.turret.position),
+            anchors=readonly(scenario.anchors[keep, :2]),
+            p_T=readonly(scenario.fairleads_T[keep]),
+            p_cot_B=readonly(scenario.turret.position),
             turret_angle=float(scenario.turret.angle),
             turret_mode=scenario.turret.mode,
-            ZF=_ro(np.full(int(keep.sum()), zf)),
-            L=_ro(la["L"][keep]),
-            EA=_ro(la["EA"][keep]),
-            w=_ro(la["w"][keep]),
-            CB=_ro(la["CB"][keep]),
-            MBS=_ro(la["MBS"][keep]),
+            ZF=readonly(np.full(int(keep.sum()), zf)),
+            L=readonly(la["L"][keep]),
+            EA=readonly(la["EA"][keep]),
+            w=readonly(la["w"][keep]),
+            CB=readonly(la["CB"][keep]),
+            MBS=readonly(la["MBS"][keep]),
         )
 
     @property
@@ -166,9 +162,7 @@ class MooringModel:
         if self.turret_mode == "locked":
             Nz = bk.sum_((fx - x) * f_y - (fy - y) * f_x)
         else:
-            c, s = bk.cos(psi), bk.sin(psi)
-            cx = c * self.p_cot_B[0] - s * self.p_cot_B[1]
-            cy = s * self.p_cot_B[0] + c * self.p_cot_B[1]
+            cx, cy = rot2_apply(psi, self.p_cot_B[0], self.p_cot_B[1])   # R2(psi) p_cot^B (eq. 5)
             Nz = cx * Fy - cy * Fx
         if bk.is_symbolic(eta, f_x, f_y):
             return ca.mtimes(rot_z(psi).T, ca.vertcat(Fx, Fy, Nz))
@@ -316,14 +310,88 @@ class MooringModel:
         _, _, XF0 = self.spans(eta0)
         return LinearMooring(
             model=self,
-            eta0=_ro(eta0),
-            g0=_ro(self.tau_from_H(eta0, sol.HF)),
-            G_mo=_ro(rot_z(eta0[2]) @ K),
-            H0=_ro(sol.HF),
-            k=_ro(sol.dHF_dXF),
-            XF0=_ro(XF0),
-            D_mo=_ro(np.zeros((3, 3)) if D_mo is None else D_mo),
+            eta0=readonly(eta0),
+            g0=readonly(self.tau_from_H(eta0, sol.HF)),
+            G_mo=readonly(rot_z(eta0[2]) @ K),
+            H0=readonly(sol.HF),
+            k=readonly(sol.dHF_dXF),
+            XF0=readonly(XF0),
+            D_mo=readonly(np.zeros((3, 3)) if D_mo is None else D_mo),
         )
+
+    # -- static equilibrium ------------------------------------------------------------------
+    def equilibrium(self, tau_env, *, psi: float | None = None, eta_guess=(0.0, 0.0, 0.0),
+                    tol: float = 1e-9) -> np.ndarray:
+        """Pose where the mooring balances a constant load in {B}: ``tau_moor(eta) + tau_env = 0``.
+
+        ``psi=None``: x, y and psi all balance (the vessel at rest without thrust). ``psi``
+        given: the heading is held there (by the heading controller) and x, y balance X and Y;
+        the yaw moment ``tau_moor[N] + tau_env[N]`` at that pose is left to the thrusters.
+        Solved by :func:`~tapm_opt.models.statics.solve_equilibrium` (Powell, exact
+        :meth:`stiffness` as Jacobian, load continuation if the direct solve fails) on the
+        residual scaled by ``max(|tau_env|, 1 kN)`` over the balanced components.
+
+        Parameters
+        ----------
+        tau_env : array_like, shape (3,)
+            Load on the vessel in {B} besides the mooring (X [N], Y [N], N [N m]).
+        psi : float, optional
+            Heading held [rad]; None: free.
+        eta_guess : array_like, shape (3,)
+            Start point (x [m], y [m], psi [rad]); with ``psi`` given only x, y are used.
+        tol : float
+            Largest accepted scaled residual [-].
+
+        Returns
+        -------
+        ndarray, shape (3,)
+            (x [m], y [m], psi [rad]) in {E}.
+
+        Raises
+        ------
+        EquilibriumError
+            No equilibrium (the load exceeds what the lines hold, or, free turret with ``psi``
+            free, a body-fixed yaw moment other than ``x_cot Y`` that makes the hull weathervane).
+        """
+        tau_env = np.asarray(tau_env, dtype=float)
+        if tau_env.shape != (3,) or not np.all(np.isfinite(tau_env)):
+            raise ModelError(f"tau_env = {np.ravel(tau_env).tolist()} must be 3 finite numbers "
+                             f"(X [N], Y [N], N [N m])")
+        guess = self._check_eta(eta_guess)
+        if psi is None:
+            scale = max(float(np.max(np.abs(tau_env))), 1.0e3)
+
+            def residual(eta, s):
+                return (self.force(eta) + s * tau_env) / scale
+
+            def jacobian(eta, s):
+                return -self.stiffness(eta) / scale
+
+            start = guess
+        else:
+            psi = float(psi)
+            scale = max(float(np.max(np.abs(tau_env[:2]))), 1.0e3)
+
+            def residual(xy, s):
+                return (self.force(np.r_[xy, psi])[:2] + s * tau_env[:2]) / scale
+
+            def jacobian(xy, s):
+                return -self.stiffness(np.r_[xy, psi])[:2, :2] / scale
+
+            start = guess[:2]
+        try:
+            root = solve_equilibrium(residual, jacobian, start, tol=tol)
+        except EquilibriumError as exc:
+            held = "free" if psi is None else f"held at {np.degrees(psi):g} deg"
+            hint = ""
+            if psi is None and self.turret_mode == "free":
+                hint = (f"; with a free turret the hull can balance a body-fixed load only if "
+                        f"N = x_cot Y (x_cot = {self.p_cot_B[0]:g} m), else it weathervanes")
+            raise EquilibriumError(
+                f"no mooring equilibrium for tau_env = {tau_env.tolist()} (heading {held}) with "
+                f"lines {list(self.line_ids)}: {exc.reason}{hint}",
+                residual=exc.residual, reason=exc.reason) from None
+        return root if psi is None else np.r_[root, psi]
 
 
 @dataclass(frozen=True, eq=False)

@@ -23,11 +23,11 @@ from typing import Any, Literal
 import casadi as ca
 import control
 import numpy as np
-import scipy.optimize
 
 from .. import _backend as bk
 from ..errors import ModelError
 from ..geometry import rot2_apply, rot_z
+from .statics import EquilibriumError, solve_equilibrium
 
 __all__ = ["VesselParams", "coriolis", "vessel_rhs", "vessel_function", "moored_function",
            "linearise", "equilibrium", "FORMS", "STATE_NAMES", "INPUT_NAMES"]
@@ -373,7 +373,10 @@ def equilibrium(fn: ca.Function, tau_env: Any, *, tau_thr: Any = 0.0, v_c: Any =
     """Position and heading eta0 where the vessel rests (nu = 0, x_dot = 0).
 
     Solves nu_dot(eta, nu=0) = 0, i.e. tau_moor(eta) + tau_env + tau_thr (+ current drag in
-    the rich form) = 0, with Powell's hybrid method (scipy) and the exact CasADi Jacobian.
+    the rich form) = 0, with :func:`~tapm_opt.models.statics.solve_equilibrium` (Powell's hybrid
+    method, the exact CasADi Jacobian; continuation in tau_env and tau_thr if the direct solve
+    fails). For the catenary mooring of a scenario without a vessel model,
+    :meth:`~tapm_opt.models.mooring.MooringModel.equilibrium` solves the same balance.
 
     Parameters
     ----------
@@ -403,19 +406,19 @@ def equilibrium(fn: ca.Function, tau_env: Any, *, tau_thr: Any = 0.0, v_c: Any =
     tau_env, tau_thr = _point("tau_env", tau_env, 3), _point("tau_thr", tau_thr, 3)
     v_c, eta_guess = _point("v_c", v_c, 2), _point("eta_guess", eta_guess, 3)
     eta = ca.SX.sym("eta", 3) if fn.is_a("SXFunction") else ca.MX.sym("eta", 3)
-    res = fn(ca.vertcat(eta, ca.DM.zeros(3)), tau_thr, tau_env, v_c)[3:6]
-    g = ca.Function("g_eq", [eta], [res, ca.jacobian(res, eta)])
+    s = ca.SX.sym("s") if fn.is_a("SXFunction") else ca.MX.sym("s")
+    res = fn(ca.vertcat(eta, ca.DM.zeros(3)), s * tau_thr, s * tau_env, v_c)[3:6]
+    g = ca.Function("g_eq", [eta, s], [res, ca.jacobian(res, eta)])
 
-    def f(e):
-        return np.asarray(g(e)[0].full()).ravel()
+    def f(e, s):
+        return np.asarray(g(e, s)[0].full()).ravel()
 
-    def J(e):
-        return np.asarray(g(e)[1].full())
+    def J(e, s):
+        return np.asarray(g(e, s)[1].full())
 
-    sol = scipy.optimize.root(f, eta_guess, jac=J, method="hybr")
-    resid = np.max(np.abs(f(sol.x))) if np.all(np.isfinite(sol.x)) else np.inf
-    if not resid <= tol:  # judged on the residual, not on sol.success alone
-        raise ModelError(
+    try:
+        return solve_equilibrium(f, J, eta_guess, tol=tol)
+    except EquilibriumError as exc:
+        raise EquilibriumError(
             f"equilibrium not found for tau_env={tau_env.tolist()}, tau_thr={tau_thr.tolist()}: "
-            f"{sol.message.strip()} (residual {resid:.3g} > tol={tol:g})")
-    return np.array(sol.x, dtype=float)
+            f"{exc.reason}", residual=exc.residual, reason=exc.reason) from None

@@ -15,6 +15,7 @@ import numpy as np
 
 from ..config import schema
 from ..errors import TapmError
+from ..models.environment import HullWindLoad
 
 __all__ = ["PlantError", "jonswap", "npd_spectrum", "CurrentProfile", "WaveParams", "WaveField",
            "WindParams", "Wind", "Environment"]
@@ -301,12 +302,9 @@ class Wind:
     """Mean wind plus NPD gusts (fixed direction), and the wind load (Fossen 2011 §8.1).
 
     ``V(t) = max(0, U(z) + sum_k b_k cos(2 pi f_k t + phi_k))``, ``b_k = sqrt(2 S_NPD(f_k) df_k)``.
-    With the vessel velocity relative to the air ``(u_rw, v_rw) = (u, v) - V (cos, sin)(beta_w -
-    psi)``, ``V_rw = |(u_rw, v_rw)|`` and ``gamma = atan2(v_rw, u_rw)`` the angle the relative
-    wind comes FROM, relative to the bow, + to starboard: ``(X, Y, N) = -1/2 rho_a V_rw^2 (c_x
-    cos(gamma) A_F, c_y sin(gamma) A_L, c_n sin(2 gamma) A_L L_pp)``. This is Fossen's ``C_X =
-    -c_x cos g``, ``C_Y = c_y sin g``, ``C_N = c_n sin 2g`` with ``g = -gamma`` (positive for wind
-    from port). The moment turns the bow away from the wind (broadside).
+    The load is :meth:`tapm_opt.models.environment.HullWindLoad.tau` (``hull``) of the relative
+    wind: ``-1/2 rho_a V_rw^2 (c_x cos(gamma) A_F, c_y sin(gamma) A_L, c_n sin(2 gamma) A_L
+    L_pp)``, gamma the angle the relative wind comes FROM, + to starboard.
 
     Parameters
     ----------
@@ -332,7 +330,7 @@ class Wind:
         self.amplitude = np.sqrt(2.0 * npd_spectrum(self.freq, self.U10, p.height) * df)
         self._w = 2.0 * math.pi * self.freq
         self.mean_speed = self.U10 * (1.0 + 0.0573 * math.sqrt(1.0 + 0.148 * self.U10) * math.log(p.height / 10))
-        self._k = -0.5 * rho_a * np.array([p.c_x * A_F, p.c_y * A_L, 2.0 * p.c_n * A_L * L])
+        self.hull = HullWindLoad(c_x=p.c_x, c_y=p.c_y, c_n=p.c_n, A_F=A_F, A_L=A_L, L_pp=L, rho_a=rho_a)
 
     def speed(self, t: Any) -> Any:
         """Wind speed V(t) at the reference height [m/s], float or shape of ``t``."""
@@ -347,14 +345,13 @@ class Wind:
         """Wind load (X [N], Y [N], N [N m]) in {B}, shape (3,), at time t [s], LF heading psi
         [rad] and vessel velocity nu = (u, v, r) in {B} [m/s, m/s, rad/s] (None: at rest)."""
         V = self.speed(float(t))
-        b = self.direction - _num("psi", psi, unit="rad")
-        u_rw, v_rw = -V * math.cos(b), -V * math.sin(b)
-        if nu is not None:
-            nu = np.asarray(nu, dtype=float)
-            if nu.shape != (3,) or not np.all(np.isfinite(nu)):
-                raise PlantError(f"nu={nu.tolist()} must be 3 finite numbers (u, v, r) in {{B}}")
-            u_rw, v_rw = u_rw + float(nu[0]), v_rw + float(nu[1])
-        return self._k * np.array([math.hypot(u_rw, v_rw) * u_rw, math.hypot(u_rw, v_rw) * v_rw, u_rw * v_rw])
+        psi = _num("psi", psi, unit="rad")
+        if nu is None:
+            return self.hull.tau(V, self.direction, psi)
+        nu = np.asarray(nu, dtype=float)
+        if nu.shape != (3,) or not np.all(np.isfinite(nu)):
+            raise PlantError(f"nu={nu.tolist()} must be 3 finite numbers (u, v, r) in {{B}}")
+        return self.hull.tau(V, self.direction, psi, float(nu[0]), float(nu[1]))
 
 
 class Environment:

@@ -1,0 +1,110 @@
+"""Environmental loads of the models: the wind load on the hull (Fossen 2011 §8.1).
+
+One definition of the wind-load formula. The plant's gusty wind
+(:meth:`tapm_opt.plant.environment.Wind.tau_wind`, with the vessel velocity) and the mean load of
+the gain design (:func:`tapm_opt.design.loads.mean_environmental_load`, mean speed, vessel at
+rest) both evaluate :meth:`HullWindLoad.tau`.
+
+With the wind speed V going to ``beta_w`` in {E} and the vessel velocity (u, v) in {B}, the
+velocity of the vessel relative to the air in {B} is
+
+    (u_rw, v_rw) = (u, v) - V (cos(beta_w - psi), sin(beta_w - psi)),
+
+``V_rw = |(u_rw, v_rw)|`` and ``gamma = atan2(v_rw, u_rw)`` is the angle the relative wind comes
+FROM, relative to the bow, + to starboard. The load in {B} is
+
+    (X, Y, N) = -1/2 rho_a V_rw^2 (c_x cos(gamma) A_F, c_y sin(gamma) A_L,
+                                   c_n sin(2 gamma) A_L L_pp)
+              = k * (V_rw u_rw, V_rw v_rw, u_rw v_rw),
+
+with ``k = -1/2 rho_a (c_x A_F, c_y A_L, 2 c_n A_L L_pp)``.
+This is Fossen's ``C_X = -c_x cos g``, ``C_Y = c_y sin g``, ``C_N = c_n sin 2g`` with ``g = -gamma``
+(positive for wind from port). The moment turns the bow away from the wind (broadside).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .._io import readonly
+from ..errors import ModelError
+
+__all__ = ["HullWindLoad"]
+
+
+def _nonneg(name: str, value: Any, *, strict: bool = False) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ModelError(f"{name}={value!r} is not a number") from None
+    if not math.isfinite(v) or v < 0.0 or (strict and v == 0.0):
+        raise ModelError(f"{name}={value!r} must be finite and {'>' if strict else '>='} 0")
+    return v
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class HullWindLoad:
+    """Wind-load model of a hull (module docstring).
+
+    Parameters
+    ----------
+    c_x, c_y, c_n : float
+        Wind-load coefficients [-], >= 0 (a large tanker/FPSO: 0.7-0.9, 0.8-0.95, 0.08-0.1).
+    A_F, A_L : float
+        Frontal and lateral projected wind areas [m^2], >= 0.
+    L_pp : float
+        Length between perpendiculars [m], >= 0.
+    rho_a : float
+        Air density [kg/m^3], > 0.
+    """
+
+    c_x: float
+    c_y: float
+    c_n: float
+    A_F: float
+    A_L: float
+    L_pp: float
+    rho_a: float
+
+    def __post_init__(self) -> None:
+        for name in ("c_x", "c_y", "c_n", "A_F", "A_L", "L_pp"):
+            object.__setattr__(self, name, _nonneg(name, getattr(self, name)))
+        object.__setattr__(self, "rho_a", _nonneg("rho_a", self.rho_a, strict=True))
+        object.__setattr__(self, "_k", readonly(-0.5 * self.rho_a * np.array(
+            [self.c_x * self.A_F, self.c_y * self.A_L, 2.0 * self.c_n * self.A_L * self.L_pp])))
+
+    @property
+    def k(self) -> np.ndarray:
+        """``-1/2 rho_a (c_x A_F, c_y A_L, 2 c_n A_L L_pp)`` [kg/m, kg/m, kg], shape (3,)."""
+        return self._k
+
+    def tau(self, V: Any, beta_w: Any, psi: Any, u: Any = 0.0, v: Any = 0.0) -> np.ndarray:
+        """Wind load on the hull in {B} (module docstring); arguments broadcast together.
+
+        Parameters
+        ----------
+        V : float or array_like
+            Wind speed [m/s], >= 0.
+        beta_w : float or array_like
+            Direction the wind is going to, in {E} from north [rad].
+        psi : float or array_like
+            Vessel heading [rad].
+        u, v : float or array_like
+            Vessel surge and sway velocity in {B} [m/s] (0: at rest).
+
+        Returns
+        -------
+        ndarray, shape broadcast + (3,)
+            (X [N], Y [N], N [N m]) in {B}.
+        """
+        b = np.subtract(beta_w, psi)
+        u_rw = u - V * np.cos(b)
+        v_rw = v - V * np.sin(b)
+        V_rw = np.hypot(u_rw, v_rw)
+        parts = (V_rw * u_rw, V_rw * v_rw, u_rw * v_rw)
+        # np.array for one load: a control-loop call, several times faster than np.stack
+        return self._k * (np.array(parts) if np.ndim(V_rw) == 0 else np.stack(parts, axis=-1))
