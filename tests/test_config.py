@@ -363,6 +363,39 @@ def test_line_reach_uses_the_max_strain_when_given():
     assert "max strain 0.5 %" in issue_at(issues_of(data), "lines[0].length").message
 
 
+def test_line_reach_uses_the_fairleads_of_eq3_with_the_turret_angle():
+    """ren8 line 0 (radial, fairlead at 20 m on the anchor's side): turning the turret by 180 deg
+    puts its fairlead on the far side, 40 m further from the anchor, out of reach."""
+    data = base("ren8")
+    data["lines"][0]["length"] = 2180.0  # reaches at turret angle 0 (see above)
+    scenario_from_dict(data)
+    data["turret"]["angle_deg"] = 180.0
+    ln, env, tur = data["lines"][0], data["environment"], data["turret"]
+    g = math.radians(ln["fairlead_angle_deg"])
+    r = tur["fairlead_radius"]
+    fx, fy = tur["position"][0] - r * math.cos(g), tur["position"][1] - r * math.sin(g)   # R2(pi) p^T
+    dist = math.hypot(math.hypot(ln["anchor"][0] - fx, ln["anchor"][1] - fy), env["water_depth"] - tur["fairlead_depth"])
+    message = issue_at(issues_of(data), "lines[0].length").message
+    assert f"(distance {dist:.0f} m)" in message and dist > 2180.0 * 1.005
+
+
+def test_scenario_fairleads_are_eq2():
+    sc = builtin("ren8")
+    r = sc.turret.fairlead_radius
+    g = np.array([ln.fairlead_angle for ln in sc.lines])
+    np.testing.assert_allclose(sc.fairleads_T, np.column_stack([r * np.cos(g), r * np.sin(g)]), atol=1e-12)
+    assert not sc.fairleads_T.flags.writeable
+
+
+def test_submerged_weight_from_density_is_seed_fem_eq2():
+    """w = rho_0 g (rho_c - rho_w) / rho_c (line-tension-control-fem eq. 2, unstretched)."""
+    env = schema.Environment(water_depth=1000.0, water_density=1025.0, gravity=9.81)
+    lt = schema.LineType(id="chain", diameter=0.137, mass_per_length=375.0, density=7850.0, EA=1.6e9, MBS=1.7e7,
+                         MBS_std=8.5e5, Cd_normal=2.4, Cd_tangential=1.15, Ca_normal=1.0)
+    assert lt.w(env) == pytest.approx(375.0 * 9.81 * (7850.0 - 1025.0) / 7850.0, rel=1e-14)
+    assert dataclasses.replace(lt, density=None, submerged_weight=3200.0).w(env) == 3200.0
+
+
 def test_azimuth_thruster_without_azimuth_rate():
     data = base("fpso")
     del data["thrusters"][2]["max_azimuth_rate_deg_s"]

@@ -3,7 +3,8 @@
 Static limit against the elastic catenary (and its second-order convergence in the number of
 segments), a settled line at rest, energy dissipation of the symplectic-Euler scheme, convergence
 of forced-motion results in time step and segments, the direction and symmetry of the tension
-response, the damping's dependence on amplitude and period, and the divergence diagnostics.
+response, the damping's dependence on amplitude and period, the divergence diagnostics, the node
+loads (weight, drag, added mass) in closed form and the fairlead kinematics.
 """
 
 from __future__ import annotations
@@ -15,10 +16,10 @@ import numpy as np
 import pytest
 
 import tapm_opt
-from tapm_opt.config import scenario_from_dict
+from tapm_opt.config import scenario_from_dict, scenario_to_dict
 from tapm_opt.errors import ModelError
 from tapm_opt.models.mooring import MooringModel
-from tapm_opt.plant.fem import SimulationDiverged
+from tapm_opt.plant.fem import FEMLines, LineSet, SimulationDiverged
 from tapm_opt.plant.forced_motion import forced_motion
 from tapm_opt.plant.mooring_fem import MooringFEM
 
@@ -362,3 +363,77 @@ def test_check_health_flags_a_non_finite_node():
     with pytest.raises(SimulationDiverged, match="non-finite") as info:
         fem.check_health()
     assert (info.value.line, info.value.node) == ("5", 3)
+
+
+# ------------------------------------------------------------------------------------------
+# node loads in closed form (seed line-tension-control-fem eq. 2-5) and fairlead kinematics
+# ------------------------------------------------------------------------------------------
+
+RHO_W = 1025.0
+
+
+def straight_line(**coef) -> FEMLines:
+    """One 800 m line held straight at its unstretched length along x, 500 m deep in 1000 m of
+    water: no tension and no seabed contact, so an interior node feels only weight and drag."""
+    n, L = 8, 800.0
+    c = dict(Cdn=2.4, Cdt=0.4, Can=1.0, Cat=0.5, **coef)
+    one = lambda v: np.array([float(v)])  # noqa: E731
+    ls = LineSet(ids=("a",), L=one(L), EA=one(8e8), w=one(770.0), mass=one(90.0), d=one(0.12),
+                 Cdn=one(c["Cdn"]), Cdt=one(c["Cdt"]), Can=one(c["Can"]), Cat=one(c["Cat"]),
+                 segments=np.array([n]), damping_ratio=one(0.0), mu=one(0.0))
+    fem = FEMLines(ls, np.array([[0.0, 0.0, 500.0]]), water_depth=1000.0, rho_w=RHO_W)
+    fem.r[:] = np.column_stack([np.linspace(0.0, L, n + 1), np.zeros(n + 1), np.full(n + 1, 500.0)])
+    return fem
+
+
+def test_node_weight_and_added_mass_are_seed_eq2_and_eq5():
+    """At rest in still water an interior node sinks with a = w / (m + C_MN rho pi d^2 / 4): its
+    weight per length over its mass plus the normal added mass per length."""
+    fem = straight_line()
+    a, T = fem.accelerations(fem.r, np.zeros_like(fem.r), np.zeros_like(fem.r))
+    inner = slice(1, -1)
+    m_an = 1.0 * RHO_W * math.pi * 0.12**2 / 4.0
+    np.testing.assert_allclose(a[inner, 2], 770.0 / (90.0 + m_an), rtol=1e-9)
+    np.testing.assert_allclose(a[inner, :2], 0.0, atol=1e-9)
+    assert np.max(T) < 1e-3  # [N]: the line is not stretched
+
+
+@pytest.mark.parametrize("axis", ["normal", "tangential"])
+def test_node_drag_in_a_uniform_current_is_seed_eq3_and_eq4(axis):
+    """A node at rest in a current V: drag 1/2 rho C d V^2 per length along the current (C_DN
+    across the line, C_DT along it), accelerating it through the mass plus the added mass of that
+    direction (C_MN across, the tangential coefficient along)."""
+    V = 1.5
+    fem = straight_line()
+    k = 1 if axis == "normal" else 0
+    vc = np.zeros_like(fem.r)
+    vc[:, k] = V
+    a, _ = fem.accelerations(fem.r, np.zeros_like(fem.r), vc)
+    Cd, Ca = (2.4, 1.0) if axis == "normal" else (0.4, 0.5)
+    expected = 0.5 * RHO_W * Cd * 0.12 * V**2 / (90.0 + Ca * RHO_W * math.pi * 0.12**2 / 4.0)
+    np.testing.assert_allclose(a[1:-1, k], expected, rtol=1e-9)
+    np.testing.assert_allclose(a[1:-1, 1 - k], 0.0, atol=1e-9)
+
+
+@pytest.mark.parametrize("mode", ["free", "locked"])
+def test_fairlead_velocities_are_the_time_derivative_of_eq5(mode):
+    """MooringFEM.fairlead_state: the velocities equal the central difference of the positions
+    (survey eq. 5) along a smooth pose history, for a weathervaning and a locked turret."""
+    data = scenario_to_dict(scenario("fpso"))
+    data["turret"]["mode"] = mode
+    m = MooringFEM(scenario_from_dict(data), segments=4)
+
+    def eta(t):
+        return np.array([30.0 * math.sin(0.1 * t), -20.0 * math.cos(0.07 * t), 0.4 * math.sin(0.05 * t)])
+
+    def eta_dot(t):
+        return np.array([3.0 * math.cos(0.1 * t), 1.4 * math.sin(0.07 * t), 0.02 * math.cos(0.05 * t)])
+
+    h = 1e-4
+    for t in (0.0, 7.0, 31.0):
+        r, v = m.fairlead_state(eta(t), eta_dot(t))
+        r_p, _ = m.fairlead_state(eta(t + h), eta_dot(t + h))
+        r_m, _ = m.fairlead_state(eta(t - h), eta_dot(t - h))
+        np.testing.assert_allclose(v, (r_p - r_m) / (2.0 * h), atol=1e-6)
+        assert np.all(v[:, 2] == 0.0) and np.all(r[:, 2] == m.fairlead_z)
+

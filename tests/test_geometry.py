@@ -1,5 +1,6 @@
 """Tests of frames and kinematics (tapm_opt.geometry, survey eq. 1–6): rotation properties,
-angle wrapping, fairlead positions against the scalar form of eq. (6), numpy vs CasADi paths."""
+angle wrapping, fairlead positions against the scalar form of eq. (6), the turret position and
+turret-referenced offset, numpy vs CasADi paths."""
 
 from __future__ import annotations
 
@@ -11,7 +12,19 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tapm_opt.geometry import R, R2, fairleads_B, fairleads_E, fairleads_T, rot2_apply, rot_z, ssa
+from tapm_opt.geometry import (
+    R,
+    R2,
+    body_from_turret,
+    fairleads_B,
+    fairleads_E,
+    fairleads_T,
+    rot2_apply,
+    rot_z,
+    ssa,
+    turret_offset,
+    turret_position,
+)
 
 angles = st.floats(-50.0, 50.0, allow_nan=False)
 wide_angles = st.floats(-1e4, 1e4, allow_nan=False)
@@ -184,3 +197,37 @@ def test_numpy_and_casadi_paths_agree(sym):
     np.testing.assert_allclose(Jn[:6, 2], -rel[:, 1], atol=1e-12)
     np.testing.assert_allclose(Jn[6:, 2], rel[:, 0], atol=1e-12)
     np.testing.assert_allclose(Jn[:6, 0], 1.0) and np.testing.assert_allclose(Jn[6:, 1], 1.0)
+
+
+@settings(max_examples=100, deadline=None)
+@given(coords, coords, angles, coords, coords)
+def test_turret_position_is_eq5_without_fairlead_radius(x, y, psi, xc, yc):
+    """The centre of turret is a fairlead with r = 0 (eq. 5); turret_offset subtracts where it
+    rests at eta = 0, and body_from_turret inverts that."""
+    eta, p_cot = np.array([x, y, psi]), np.array([xc, yc])
+    fx, fy = fairleads_E(eta, p_cot, np.zeros((1, 2)), 0.3)
+    tx, ty = turret_position(eta, p_cot)
+    np.testing.assert_allclose([tx, ty], [fx[0], fy[0]], rtol=1e-12, atol=1e-9)
+    ox, oy = turret_offset(eta, p_cot)
+    np.testing.assert_allclose([ox, oy], [tx - xc, ty - yc], rtol=1e-12, atol=1e-9)
+    bx, by = body_from_turret((ox, oy), psi, p_cot)
+    np.testing.assert_allclose([bx, by], [x, y], rtol=1e-9, atol=1e-8)
+
+
+def test_turret_offset_of_rotations_about_the_turret_is_zero_and_rows_vectorise():
+    p_cot = np.array([91.44, 0.0])
+    psi = np.linspace(-3.0, 3.0, 13)
+    x, y = body_from_turret((0.0, 0.0), psi, p_cot)
+    ox, oy = turret_offset(np.column_stack([x, y, psi]), p_cot)
+    assert ox.shape == psi.shape
+    np.testing.assert_allclose(np.hypot(ox, oy), 0.0, atol=1e-12)
+    # a half turn about the body origin swings the turret 2 |p_cot| aft
+    np.testing.assert_allclose(turret_offset([0.0, 0.0, np.pi], p_cot), (-2 * 91.44, 0.0), atol=1e-12)
+
+
+def test_turret_offset_on_casadi_matches_numpy():
+    eta = ca.SX.sym("eta", 3)
+    p_cot = np.array([45.0, 3.0])
+    f = ca.Function("off", [eta], [ca.vertcat(*turret_offset(eta, p_cot))])
+    for e in ([0.0, 0.0, 0.0], [10.0, -4.0, 0.7], [-30.0, 12.0, -2.5]):
+        np.testing.assert_allclose(np.array(f(e)).ravel(), turret_offset(np.array(e), p_cot), atol=1e-12)

@@ -13,7 +13,9 @@ import tapm_opt
 from tapm_opt.config import load_scenario, scenario_to_dict
 from tapm_opt.errors import TapmError
 from tapm_opt.report import BEST_MARK, ReportError, kpi_direction, write_report
-from tapm_opt.report.figures import decimate
+from tapm_opt.geometry import body_from_turret
+from tapm_opt.report.figures import decimate, motion_figure
+from tapm_opt.report.series import turret_position_of, turret_track
 from tapm_opt.results import Result
 
 SC = load_scenario("fpso")
@@ -274,10 +276,10 @@ def test_reliability_trace_matches_the_kpi_definition():
     """The delta(t) curves of the tension figure use the same segments (split at the first break,
     broken line only while alive) as case_kpis, so their minima equal the per-line delta_min."""
     kpis = pytest.importorskip("tapm_opt.studies.kpis")
-    from tapm_opt.report.report import _reliability
+    from tapm_opt.report.series import reliability_traces
 
     res = _result("PID", seed=3)
-    traces, delta_s = _reliability(res, SC)
+    traces, delta_s = reliability_traces(res, SC)
     ref = kpis.case_kpis(res, SC)
     assert delta_s == kpis.DELTA_S_DEFAULT
     assert set(traces) == set(LINES)
@@ -304,3 +306,65 @@ def test_an_unreadable_result_is_reported_not_fatal(tmp_path):
     assert f"report_files/case_{cases[0]['id']}_motion.png" in md  # the other case is still drawn
     # its KPIs (kpis.json) are still compared side by side
     assert "| `offset_max` | m | lower |" in md
+
+
+def _pose_result(psi, x, y, *, meta=None, setpoint=None) -> Result:
+    t = np.arange(len(psi), dtype=float)
+    ch = [("x", "m", x), ("y", "m", y), ("psi", "rad", psi)]
+    if setpoint is not None:
+        ch += [("x_d", "m", np.full(len(t), setpoint[0])), ("y_d", "m", np.full(len(t), setpoint[1]))]
+    return Result(time=t, data=np.column_stack([c[2] for c in ch]), channels=tuple(c[0] for c in ch),
+                  units=tuple(c[1] for c in ch), meta=meta or {})
+
+
+def test_a_hull_rotating_about_a_fixed_turret_has_turret_offset_zero():
+    """The body origin swings on a 91 m arm about the turret, which stays where it rests: every
+    plotted offset (trajectory, offset curve, max-offset marker) is zero."""
+    p_cot = np.array(SC.turret.position, dtype=float)
+    assert np.hypot(*p_cot) > 50.0
+    psi = np.radians(np.linspace(-120.0, 150.0, 541))
+    x, y = body_from_turret((0.0, 0.0), psi, p_cot)
+    res = _pose_result(psi, x, y)
+    assert np.hypot(x, y).max() > 150.0           # the body origin moves far ...
+    track = turret_track(res, turret_position_of(res, SC))
+    np.testing.assert_allclose(track.x, 0.0, atol=1e-9)   # ... the turret does not
+    np.testing.assert_allclose(track.y, 0.0, atol=1e-9)
+    np.testing.assert_allclose(track.offset, 0.0, atol=1e-9)
+    fig = motion_figure(res, SC, title="rotation about the turret")
+    plan, offset_axes = fig.axes[0], fig.axes[1]
+    traj = plan.lines[0]
+    np.testing.assert_allclose(traj.get_xdata(), 0.0, atol=1e-9)
+    np.testing.assert_allclose(traj.get_ydata(), 0.0, atol=1e-9)
+    np.testing.assert_allclose(offset_axes.lines[0].get_ydata(), 0.0, atol=1e-9)
+    assert offset_axes.get_ylabel() == "turret offset [m]"
+    assert plan.get_xlabel().startswith("turret offset") and plan.get_ylabel().startswith("turret offset")
+
+
+def test_turret_offsets_of_translation_and_half_turn():
+    """A translation moves the turret with the body; a half turn about the body origin puts the
+    turret 2 |p_cot| behind its rest position. The setpoint channels are turret offsets already."""
+    p_cot = np.array([91.44, 0.0])
+    n = 5
+    x, y = np.linspace(0.0, 20.0, n), np.linspace(0.0, -10.0, n)
+    tr = turret_track(_pose_result(np.zeros(n), x, y, setpoint=(3.0, -4.0)), p_cot)
+    np.testing.assert_allclose(tr.x, x, atol=1e-12)
+    np.testing.assert_allclose(tr.y, y, atol=1e-12)
+    np.testing.assert_allclose(tr.offset, np.hypot(x, y), atol=1e-12)
+    np.testing.assert_array_equal(tr.x_d, 3.0)
+    np.testing.assert_array_equal(tr.y_d, -4.0)
+    half = turret_track(_pose_result(np.full(n, np.pi), np.zeros(n), np.zeros(n)), p_cot)
+    np.testing.assert_allclose(half.x, -2.0 * p_cot[0], atol=1e-9)
+    np.testing.assert_allclose(half.offset, 2.0 * p_cot[0], atol=1e-9)
+    assert half.x_d is None and half.y_d is None
+
+
+def test_turret_position_comes_from_the_result_then_the_scenario():
+    z = np.zeros(3)
+    saved = _pose_result(z, z, z, meta={"turret_position_B": [12.0, -3.0]})
+    np.testing.assert_array_equal(turret_position_of(saved, SC), [12.0, -3.0])  # what the run used
+    plain = _pose_result(z, z, z)
+    np.testing.assert_array_equal(turret_position_of(plain, SC), SC.turret.position)
+    with pytest.raises(ReportError, match="turret position is unknown"):
+        turret_position_of(plain, None)
+    with pytest.raises(ReportError, match="turret_position_B"):
+        turret_position_of(_pose_result(z, z, z, meta={"turret_position_B": [1.0]}), SC)

@@ -19,6 +19,7 @@ from typing import Any, Literal, get_args, get_origin, get_type_hints
 import numpy as np
 
 from ..errors import ScenarioError, ScenarioIssue
+from ..geometry import fairleads_B
 from . import schema
 from .schema import Scenario
 
@@ -317,8 +318,8 @@ def validate(sc: Scenario) -> list[ScenarioIssue]:
             issues.append(ScenarioIssue(f"{p}.max_strain", f"= {t.max_strain:g} must be > 0"))
 
     # reach check: the line must span anchor -> fairlead at the field zero point within its strain limit
-    fl = sc.fairleads_T
-    c, s = math.cos(sc.turret.angle), math.sin(sc.turret.angle)
+    # (at eta = 0 the fairleads in {E} are those in {B}, eq. 3)
+    fl_x, fl_y = fairleads_B(sc.turret.position, sc.fairleads_T, sc.turret.angle)
     for i, ln in enumerate(sc.lines):
         p = f"lines[{i}]"
         if ln.type not in type_ids:
@@ -344,9 +345,8 @@ def validate(sc: Scenario) -> list[ScenarioIssue]:
             issues.append(ScenarioIssue(
                 f"{p}.winch_max_rate", "= 0 m/s: length limits are given but the line has no winch (set a rate)"))
         lt = sc.line_type(ln)
-        fx = sc.turret.position[0] + c * fl[i, 0] - s * fl[i, 1]
-        fy = sc.turret.position[1] + s * fl[i, 0] + c * fl[i, 1]
-        dist = math.hypot(math.hypot(ln.anchor[0] - fx, ln.anchor[1] - fy), env.water_depth - sc.turret.fairlead_depth)
+        dist = math.hypot(math.hypot(ln.anchor[0] - float(fl_x[i]), ln.anchor[1] - float(fl_y[i])),
+                          env.water_depth - sc.turret.fairlead_depth)
         reach = ln.length * (1.0 + lt.strain_limit)
         if reach < dist:
             lim = "max strain" if lt.max_strain is not None else "strain at MBS"

@@ -21,6 +21,9 @@ from typing import Any, Callable, Literal
 
 import numpy as np
 
+from .. import geometry
+from .._io import readonly
+
 Check = Callable[[Any], "str | None"]
 
 
@@ -88,12 +91,6 @@ Vec = tuple[float, ...]
 Mat = tuple[tuple[float, ...], ...]
 
 
-def _ro(a: Any) -> np.ndarray:
-    arr = np.array(a, dtype=float)
-    arr.setflags(write=False)
-    return arr
-
-
 @dataclass(frozen=True, kw_only=True)
 class Meta:
     """Identification of the scenario and where its numbers come from."""
@@ -152,17 +149,17 @@ class Vessel:
     @cached_property
     def M(self) -> np.ndarray:
         """Generalised mass matrix, shape (3, 3), read-only."""
-        return _ro(self.mass_matrix)
+        return readonly(self.mass_matrix)
 
     @cached_property
     def M_A(self) -> np.ndarray:
         """Added-mass matrix, shape (3, 3) (zeros when not given), read-only."""
-        return _ro(self.added_mass if self.added_mass is not None else np.zeros((3, 3)))
+        return readonly(self.added_mass if self.added_mass is not None else np.zeros((3, 3)))
 
     @cached_property
     def D_lin(self) -> np.ndarray:
         """Linear damping matrix, shape (3, 3), read-only."""
-        return _ro(self.linear_damping)
+        return readonly(self.linear_damping)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -429,14 +426,14 @@ class Scenario:
     @cached_property
     def anchors(self) -> np.ndarray:
         """Anchor positions in {E}, shape (n_lines, 3) [m]; z = water depth (down)."""
-        return _ro([(ln.anchor[0], ln.anchor[1], self.environment.water_depth) for ln in self.lines])
+        return readonly([(ln.anchor[0], ln.anchor[1], self.environment.water_depth) for ln in self.lines])
 
     @cached_property
     def fairleads_T(self) -> np.ndarray:
-        """Fairlead positions in {T}, shape (n_lines, 2) [m] (eq. 2)."""
+        """Fairlead positions in {T}, shape (n_lines, 2) [m] (eq. 2, :func:`tapm_opt.geometry.fairleads_T`)."""
         r = [self.turret.fairlead_radius if ln.fairlead_radius is None else ln.fairlead_radius for ln in self.lines]
         g = [ln.fairlead_angle for ln in self.lines]
-        return _ro(np.stack([np.multiply(r, np.cos(g)), np.multiply(r, np.sin(g))], axis=-1))
+        return readonly(geometry.fairleads_T(r, g))
 
     @cached_property
     def line_arrays(self) -> dict[str, np.ndarray]:
@@ -454,4 +451,4 @@ class Scenario:
             "strain_limit": [t.strain_limit for t in types],
             "segments": [ln.segments for ln in self.lines],
         }
-        return {k: _ro(v) for k, v in out.items()}
+        return {k: readonly(v) for k, v in out.items()}

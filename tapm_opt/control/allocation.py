@@ -1,8 +1,8 @@
 """Constrained thrust allocation: tau_cmd -> thruster commands (f, alpha) by a QP solved with OSQP.
 
-Extended-thrust formulation (``docs/controllers_allocation.md``). Forces are scaled by ``F_ref``
-(largest max_thrust) and moments by ``F_ref L_ref`` (L_ref: largest thruster lever), so the QP's
-variables and rows are of order one. Unknowns:
+Extended-thrust formulation (``docs/controllers.md``, "Thrust allocation"). Forces are scaled by
+``F_ref`` (largest max_thrust) and moments by ``F_ref L_ref`` (L_ref: largest thruster lever), so
+the QP's variables and rows are of order one. Unknowns:
 
 * azimuth i: its force ``u_i`` in {B}, in a local frame turned to the direction ``b_i`` it may
   point to this step: ``u_i = p_i e(b_i) + v_i e(b_i + pi/2)`` (radial p, tangential v), so that
@@ -18,23 +18,9 @@ The QP (``~``: scaled)::
                 n_k . (p_i, v_i) <= R_i cos(pi/m),  k = 0..m-1            inscribed m-gon, a vertex on b_i
                 lp_i <= p_i <= hp_i,  lv_i <= v_i <= hv_i,  lf_i <= f_i <= hf_i
 
-Rates and sectors are linearised about the previous command ``(f_p, alpha_p)``. The allowed
-direction interval is ``[-Da, Da]`` (``Da = max_azimuth_rate dt``) intersected with the allowed
-arc that contains alpha_p (forbidden sectors); b_i is its bisector, hw its half-width:
-
-* narrow (hw < pi/2): the plant can reach the annular sector |Delta f| <= r dt,
-  |Delta alpha| <= Da (r = max_thrust_rate), whose convex part is the wedge |v| <= tan(hw) p cut
-  by the band ``f_p - r dt <= p <= (f_p + r dt) cos(hw)``. The QP uses the rectangle inscribed in
-  it: ``p0 <= p <= (f_p + r dt) cos(hw)``, ``|v| <= tan(hw) p0`` with
-  ``p0 = max(f_p - r dt, f_p / 2)``. (The wedge's two half-planes are exact but made OSQP crawl:
-  a thin wedge is badly conditioned in any scaling. Keeping half the thrust for a step below
-  2 r dt leaves a low-thrust thruster room to turn.)
-* half (pi <= width < 2 pi: Da >= pi/2, or a sector-bounded arc): ``p >= 0`` (the half-plane
-  inside the interval closest to alpha_p) and the box ``|u - u_p| <= r dt / sqrt(2)`` per
-  component of the local frame (inscribed in the disc |Delta u| <= r dt);
-* free (no sector and Da >= pi, or no azimuth-rate limit): the box only;
-* empty (failed; or alpha_p inside a forbidden sector with no allowed direction within Da):
-  u = 0, and a live thruster turns toward the nearest allowed direction.
+Rates and sectors are linearised about the previous command ``(f_p, alpha_p)``: the direction
+intervals, local frames b_i and bounds of one step are those of
+:mod:`tapm_opt.control.allocation_step` (narrow, half, free or empty interval).
 
 The returned command is then clipped to the exact limits (|Delta f| <= r dt, f <= max_thrust,
 |Delta alpha| within the interval). An idle azimuth (|u_i| <= idle_tol F_ref) gets zero thrust and
@@ -47,25 +33,28 @@ updates the balance entries of A when the frames b_i moved, warm-starts from the
 solution, solves and checks ``info.status_val``. Anything but solved (or solved-inaccurate with a
 small primal residual) gives the saturated weighted pseudo-inverse at the previous azimuths,
 reported as a fallback.
+
+The error and result types and :func:`pseudo_inverse` are in
+:mod:`tapm_opt.control.allocation_base`, the cvxpy reference :func:`allocate_reference` in
+:mod:`tapm_opt.control.allocation_reference`; all are importable from here.
 """
 
 from __future__ import annotations
 
 import math
-import time
-import warnings
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 import osqp
 import scipy.sparse as sp
 
 from ..config import schema
-from ..errors import TapmError
 from ..geometry import ssa
 from ..models.thrust import configuration_matrix, extended_columns, merge_sectors
+from .allocation_base import AllocationError, AllocationResult, _finite, _positive, _result, pseudo_inverse
+from .allocation_reference import allocate_reference
+from .allocation_step import _BIG, _INF, _arc, _DtData, _Step, _StepBounds
 
 __all__ = [
     "AllocationError",
@@ -76,17 +65,6 @@ __all__ = [
     "pseudo_inverse",
 ]
 
-TWO_PI = 2.0 * math.pi
-HALF_PI = 0.5 * math.pi
-_SQRT1_2 = math.sqrt(0.5)
-#: In a narrow interval an azimuth keeps at least this fraction of its thrust for one step (when
-#: that is more than the thrust rate allows), so that it can still turn (module docstring).
-_KEEP = 0.5
-_INF = math.inf
-with warnings.catch_warnings():
-    warnings.simplefilter("ignore")
-    _BIG = float(osqp.constant("OSQP_INFTY"))  # OSQP's infinity (1e30): no clipping in update()
-
 _STATUS_NAMES = {int(s): s.name.removeprefix("OSQP_").lower() for s in osqp.SolverStatus}
 _SOLVED = int(osqp.SolverStatus.OSQP_SOLVED)
 _SOLVED_INACCURATE = int(osqp.SolverStatus.OSQP_SOLVED_INACCURATE)
@@ -96,7 +74,7 @@ _SOLVED_INACCURATE = int(osqp.SolverStatus.OSQP_SOLVED_INACCURATE)
 #: update). Tolerances act on the scaled problem (1e-5 = 1e-5 F_ref). A fixed
 #: ``adaptive_rho_interval`` keeps iteration counts reproducible (0 would adapt on timing).
 #: ``max_iter`` is generous: rate-limited transients with a demand far beyond reach are LP-like
-#: and can take thousands of ADMM iterations (docs/controllers_allocation.md).
+#: and can take thousands of ADMM iterations (docs/controllers.md, "Thrust allocation").
 OSQP_DEFAULTS: dict[str, Any] = dict(
     eps_abs=1e-5, eps_rel=1e-5, eps_prim_inf=1e-6, eps_dual_inf=1e-6, max_iter=10000, polishing=True,
     polish_refine_iter=3, warm_starting=True, adaptive_rho=True, adaptive_rho_interval=25,
@@ -104,146 +82,9 @@ OSQP_DEFAULTS: dict[str, Any] = dict(
 )
 
 
-class AllocationError(TapmError, ValueError):
-    """Thrust allocation was given an invalid argument (thruster data, tau shape, thruster id)."""
-
-@dataclass(frozen=True)
-class AllocationResult:
-    """Thruster commands for one tau_cmd.
-
-    Attributes
-    ----------
-    f : ndarray, shape (n,)
-        Thrust [N]: >= 0 for azimuths (along alpha), signed for tunnel/fixed thrusters
-        (in [-max_reverse_thrust, max_thrust]); exactly 0 for failed thrusters.
-    alpha : ndarray, shape (n,)
-        Thrust directions in {B} [rad] in [-pi, pi): commanded azimuths; the fixed angle of
-        tunnel/fixed thrusters.
-    tau : ndarray, shape (3,)
-        Generalised force the commands produce, ``T(alpha) f`` [N, N, N m].
-    slack : ndarray, shape (3,)
-        Unmet part ``tau_cmd - tau`` [N, N, N m] (NaN where tau_cmd was not finite).
-    status : str
-        ``"solved"``, ``"solved_inaccurate"`` (accepted, primal residual small) or
-        ``"fallback:<reason>"`` (reason: an OSQP status such as ``max_iter_reached``,
-        ``non_finite_solution`` or ``invalid_tau``).
-    fallback : bool
-        True when f, alpha come from the saturated pseudo-inverse (or are zero for invalid tau).
-    solve_time : float
-        OSQP solve + polish time [s] (0 when OSQP was not called).
-    iterations : int
-        ADMM iterations (0 when OSQP was not called).
-    message : str
-        Human-readable explanation.
-    """
-
-    f: np.ndarray
-    alpha: np.ndarray
-    tau: np.ndarray
-    slack: np.ndarray
-    status: str
-    fallback: bool
-    solve_time: float
-    iterations: int
-    message: str = ""
-
-    @property
-    def success(self) -> bool:
-        """True when the QP solution was used (not the fallback)."""
-        return not self.fallback
-
-
-def pseudo_inverse(T: Any, tau: Any, weights: Any = None, *, row_scale: Any = None,
-                   rcond: float = 1e-10) -> np.ndarray:
-    """Weighted least-norm solution of ``T f = tau``.
-
-    Minimises ``sum_i w_i f_i^2`` subject to ``T f = tau``, i.e.
-    ``f = W^-1 T^T (T W^-1 T^T)^-1 tau`` when T has full row rank. When ``T f = tau`` has no
-    solution (rank-deficient T), returns the least-norm minimiser of ``|S (T f - tau)|`` with
-    ``S = diag(row_scale)`` (computed as ``W^-1/2 pinv(S T W^-1/2) S tau``).
-
-    Parameters
-    ----------
-    T : array_like, shape (3, n)
-        Configuration matrix (or extended matrix B) [-, -, m].
-    tau : array_like, shape (3,)
-        Generalised force [N, N, N m].
-    weights : array_like, shape (n,), optional
-        w_i > 0 [1/N^2] (default ones). A column with weight inf is not used (f_i = 0).
-    row_scale : array_like, shape (3,), optional
-        Row scaling S (e.g. ``(1, 1, 1/L_ref)``) for the least-squares case; default ones.
-    rcond : float
-        Relative cut-off of small singular values (``numpy.linalg.pinv``).
-
-    Returns
-    -------
-    ndarray, shape (n,)
-        Forces [N].
-    """
-    T = np.asarray(T, dtype=float)
-    tau = np.asarray(tau, dtype=float)
-    if T.ndim != 2 or tau.shape != (T.shape[0],):
-        raise AllocationError(f"pseudo_inverse: T has shape {T.shape} and tau {tau.shape}; expected (k, n) and (k,)")
-    w = np.ones(T.shape[1]) if weights is None else np.asarray(weights, dtype=float)
-    if w.shape != (T.shape[1],) or not np.all(w > 0):
-        raise AllocationError(f"pseudo_inverse: weights must be {T.shape[1]} positive numbers, got {weights!r}")
-    S = np.ones(T.shape[0]) if row_scale is None else np.asarray(row_scale, dtype=float)
-    wi = 1.0 / np.sqrt(w)  # inf weight -> column unused
-    Ts = (S[:, None] * T) * wi[None, :]
-    return wi * (np.linalg.pinv(Ts, rcond=rcond) @ (S * tau))
-
-
-# -- sectors -----------------------------------------------------------------------------------------
-
-def _arc(alpha: float, starts: tuple[float, ...], widths: tuple[float, ...]) -> tuple[float, float]:
-    """Allowed arc relative to alpha, ``(lo, hi)`` [rad]: the arc containing alpha (lo <= 0 <= hi),
-    or, when alpha lies in a forbidden sector, the nearest allowed arc (lo > 0 or hi < 0)."""
-    K = len(starts)
-    for k in range(K):
-        t = (alpha - starts[k]) % TWO_PI
-        if 0.0 < t < widths[k]:
-            t2 = widths[k] - t
-            if t <= t2:  # leave clockwise: the allowed arc ending at starts[k]
-                w_prev = (starts[k] - starts[k - 1] - widths[k - 1]) % TWO_PI or TWO_PI - widths[k]
-                return -t - w_prev, -t
-            k1 = (k + 1) % K
-            w_next = (starts[k1] - starts[k] - widths[k]) % TWO_PI or TWO_PI - widths[k]
-            return t2, t2 + w_next
-    hi = min((s - alpha) % TWO_PI for s in starts)
-    lo = -min((alpha - s - w) % TWO_PI for s, w in zip(starts, widths))
-    return lo, hi
-
-
-class _Step(NamedTuple):
-    """Data of one step, scaled units; arrays (naz,) over the azimuths unless noted."""
-
-    b: np.ndarray        # local frame direction (bisector of the allowed interval) [rad]
-    olo: np.ndarray      # range of the reported direction, offset from b [rad]
-    ohi: np.ndarray
-    lp: np.ndarray       # bounds of the radial force p and the tangential force v
-    hp: np.ndarray
-    lv: np.ndarray
-    hv: np.ndarray
-    lm: np.ndarray       # bounds of the reported magnitude |u| (thrust rate, capacity)
-    hm: np.ndarray
-    lf: np.ndarray       # bounds of the tunnel/fixed thrusts, shape (nfx,)
-    hf: np.ndarray
-
-
-class _DtData(NamedTuple):
-    """Per-dt constants (cached)."""
-
-    dt: float
-    rdt_a: np.ndarray    # max_thrust_rate dt / F_ref of the azimuths
-    rdt_f: np.ndarray    # ... of the tunnel/fixed thrusters
-    D: np.ndarray        # max_azimuth_rate dt [rad] (inf: can point anywhere)
-    h: np.ndarray        # half-width of the box, rdt / sqrt(2)
-    simple: tuple        # fast-path constants (no azimuth has a sector or has failed)
-
-
 # -- the allocator -------------------------------------------------------------------------------------
 
-class ThrustAllocator:
+class ThrustAllocator(_StepBounds):
     """QP thrust allocation with an OSQP solver set up once (module docstring).
 
     Parameters
@@ -540,95 +381,6 @@ class ThrustAllocator:
             raise AllocationError(f"{name}[{i}]={float(a[i])!r} for thruster {self.ids[i]!r} is not finite")
         return a
 
-    # -- the QP data of one step -------------------------------------------------------------------
-    def _dt_data(self, dt: float) -> _DtData:
-        d = self._dtd
-        if d is not None and d.dt == dt:
-            return d
-        F, R = self.F_ref, self._R
-        rdt = self._rate * dt / F
-        rdt_a, rdt_f = rdt[self._iaz], rdt[self._ifx]
-        D = self._arate * dt
-        D = np.where(D >= math.pi, _INF, D)          # can point anywhere within dt
-        h = rdt_a * _SQRT1_2
-        narrow = D < HALF_PI
-        half = ~narrow & np.isfinite(D)
-        hw = np.where(narrow, D, HALF_PI)
-        olo = np.where(narrow | half, -hw, -_INF)
-        # without sectors (b = alpha_p): lp = max(fa - a0, fa a8 + a1); hp = max(min((fa + a2) a3, a4), fa a5);
-        # hv = max(lp a6, a7): the narrow rectangle or the box (module docstring)
-        simple = (olo, -olo, np.where(narrow, rdt_a, h), np.where(narrow, 0.0, np.where(half, 0.0, -R)),
-                  np.where(narrow, rdt_a, h), np.where(narrow, np.cos(hw), 1.0), np.where(narrow, _BIG, R),
-                  narrow.astype(float), np.where(narrow, np.tan(hw), 0.0), np.where(narrow, 0.0, np.minimum(R, h)),
-                  np.where(narrow, _KEEP, 0.0))
-        d = self._dtd = _DtData(dt, rdt_a, rdt_f, D, h, simple)
-        return d
-
-    def _geometry(self, dt: float) -> _Step:
-        """Direction intervals, local frames and bounds of one step (shared by OSQP and cvxpy)."""
-        d = self._dt_data(dt)
-        fa = self._fa_prev
-        if self._nfx:
-            lf = np.maximum(self._ffmin, self._ff_prev - d.rdt_f)
-            hf = np.minimum(self._ffmax, self._ff_prev + d.rdt_f)
-            if self._any_failed:
-                dead = self._failed[self._ifx]
-                lf[dead] = hf[dead] = 0.0
-        else:
-            lf = hf = fa[:0]
-        lm = np.maximum(fa - d.rdt_a, 0.0)
-        hm = np.minimum(fa + d.rdt_a, self._R)
-        if not (self._jsec or self._any_failed):  # fast path: b = alpha_p, modes fixed by dt
-            olo, ohi, a0, a1, a2, a3, a4, a5, a6, a7, a8 = d.simple
-            lp = np.maximum(fa - a0, fa * a8 + a1)
-            hp = np.maximum(np.minimum((fa + a2) * a3, a4), fa * a5)
-            hv = np.maximum(lp * a6, a7)
-            return _Step(self._aa_prev, olo, ohi, lp, hp, -hv, hv, lm, hm, lf, hf)
-        return self._geometry_general(d, fa, lm, hm, lf, hf)
-
-    def _geometry_general(self, d: _DtData, fa, lm, hm, lf, hf) -> _Step:
-        D, R = d.D, self._R
-        lo, hi = -D, D.copy()
-        aa = self._aa_prev
-        for j in self._jsec:
-            slo, shi = _arc(float(aa[j]), *self._sectors[j])
-            Dj = float(D[j])
-            if slo > Dj or shi < -Dj:  # out of its allowed arc and out of reach: empty, turn toward it
-                lo[j], hi[j] = math.nan, min(max(slo if slo > 0.0 else shi, -Dj), Dj)
-            else:
-                lo[j], hi[j] = max(slo, -Dj), min(shi, Dj)
-        dead = self._failed[self._iaz]
-        empty = dead | np.isnan(lo)
-        restricted = np.isfinite(lo) & ~dead
-        lo0, hi0 = np.where(restricted, lo, 0.0), np.where(restricted, hi, 0.0)
-        narrow = restricted & (hi0 - lo0 < math.pi)
-        half = restricted & ~narrow
-        c = np.clip(0.0, lo0 + HALF_PI, hi0 - HALF_PI)      # half-plane direction, closest to alpha_p
-        mid = np.where(narrow, 0.5 * (lo0 + hi0), np.where(half, c, 0.0))
-        hw = np.where(narrow, 0.5 * (hi0 - lo0), HALF_PI)
-        olo = np.where(restricted, -hw, -_INF)
-        ohi = -olo
-        e = empty & ~dead
-        olo[e] = ohi[e] = hi[e]                               # relative to b = alpha_p (mid = 0)
-        olo[dead] = ohi[dead] = 0.0
-        pp = fa * np.cos(mid)                                 # u_p in the local frame
-        lp = np.maximum(np.minimum(fa - d.rdt_a, pp), _KEEP * np.maximum(pp, 0.0))  # narrow: rectangle
-        hp = np.maximum((fa + d.rdt_a) * np.cos(hw), pp)
-        hv = lp * np.tan(np.where(narrow, hw, 0.0))
-        lv = -hv
-        box = ~(narrow | empty)
-        if box.any():  # box |Delta u| <= r dt / sqrt(2) about u_p (moved into the polygon)
-            m = self.polygon_sides
-            fb = np.minimum(fa, self._Rin / np.cos(np.mod(-mid, TWO_PI / m) - math.pi / m))
-            pb, vb = fb * np.cos(mid), -fb * np.sin(mid)
-            lp = np.where(box, np.maximum(np.maximum(-R, pb - d.h), np.where(half, 0.0, -R)), lp)
-            hp = np.where(box, np.minimum(R, pb + d.h), hp)
-            lv = np.where(box, np.maximum(-R, vb - d.h), lv)
-            hv = np.where(box, np.minimum(R, vb + d.h), hv)
-        if empty.any():
-            lp, hp, lv, hv, lm, hm = (np.where(empty, 0.0, v) for v in (lp, hp, lv, hv, lm, hm))
-        return _Step(aa + mid, olo, ohi, lp, hp, lv, hv, lm, hm, lf, hf)
-
     def _update_matrices(self, g: _Step) -> None:
         """Push the balance entries of the azimuths' (p, v) columns for the frames b to OSQP."""
         if (g.b == self._b_last).all():
@@ -791,102 +543,3 @@ class ThrustAllocator:
         """QP cost of a result, ``sum_i k_i (f_i / max_thrust_i)^2 + rho_s |slack~|^2`` [-]."""
         s = np.asarray(result.slack) * self._tau_scale
         return float(np.sum(self._k * (np.asarray(result.f) / self._fmax) ** 2) + self.slack_weight * (s @ s))
-
-
-def _result(f, alpha, tau, slack, status, fallback, t_solve, it, message) -> AllocationResult:
-    for a in (f, alpha, tau, slack):
-        a.flags.writeable = False
-    return AllocationResult(f, alpha, tau, slack, status, fallback, t_solve, it, message)
-
-
-def _finite(name: str, v: Any) -> float:
-    try:
-        x = float(v)
-    except (TypeError, ValueError):
-        raise AllocationError(f"{name}={v!r} is not a number") from None
-    if not math.isfinite(x):
-        raise AllocationError(f"{name}={v!r} must be finite")
-    return x
-
-
-def _positive(name: str, v: Any) -> float:
-    x = _finite(name, v)
-    if x <= 0.0:
-        raise AllocationError(f"{name}={v!r} must be > 0")
-    return x
-
-
-# -- the readable reference (tests only) ---------------------------------------------------------------
-
-def allocate_reference(allocator: ThrustAllocator, tau_cmd: Any, dt: float | None = None, *,
-                       solver: str = "HIGHS", **solver_options: Any) -> AllocationResult:
-    """The same QP as :meth:`ThrustAllocator.allocate`, written with cvxpy in the body-frame force
-    components u_i (radial and tangential parts as projections on e(b), e(b + pi/2)) and built on
-    every call.
-
-    For tests and documentation only (slow). Uses the allocator's current state (previous command,
-    failures) and does not change it. ``solver`` and ``solver_options`` go to ``cvxpy.Problem.solve``;
-    the default, HiGHS's active-set QP solver, solves these small problems exactly, whereas
-    CLARABEL (interior point) hit its iteration limit on some with the heavily weighted slack.
-    The step data (intervals, frames, bounds) and the post-processing are shared with the OSQP
-    path; the variables, cost and constraints are written out here, independently of the OSQP
-    matrices. In the result, ``solve_time`` is the wall time of the cvxpy solve and
-    ``iterations`` is 0.
-
-    Raises
-    ------
-    AllocationError
-        Bad or non-finite tau_cmd, bad dt, or the reference solver did not reach the optimum.
-    """
-    import cvxpy as cp
-
-    al = allocator
-    tau = al._check_tau(tau_cmd)
-    if not np.isfinite(tau).all():
-        raise AllocationError(f"tau_cmd={tau.tolist()} is not finite")
-    g = al._geometry(al._check_dt(dt))
-    t0 = time.perf_counter()
-    naz, nfx = al._naz, al._nfx
-    U = cp.Variable((max(naz, 1), 2))   # scaled azimuth force components (f_x, f_y) in {B}
-    ff = cp.Variable(max(nfx, 1))       # scaled tunnel/fixed thrusts
-    s = cp.Variable(3)                  # scaled slack
-    Bu: Any = s
-    for j, i in enumerate(al._iaz):
-        Bu = Bu + (extended_columns(al._x[i], al._y[i]) * al._row_scale[:, None]) @ U[j]
-    for k, i in enumerate(al._ifx):
-        col = configuration_matrix(al._angle0[i:i + 1], al._x[i:i + 1], al._y[i:i + 1])[:, 0]
-        Bu = Bu + (col * al._row_scale) * ff[k]
-    balance = Bu == tau * al._tau_scale
-    cons = [balance]
-
-    def e(a: float) -> np.ndarray:
-        return np.array([math.cos(a), math.sin(a)])
-
-    phi = np.arctan2(al._poly_n[:, 1], al._poly_n[:, 0])
-    for j in range(naz):
-        u, b = U[j], float(g.b[j])
-        radial, tangential = e(b) @ u, e(b + HALF_PI) @ u
-        cons += [np.array([e(b + ph) for ph in phi]) @ u <= al._Rin[j],  # polygon, a vertex along b
-                 radial >= g.lp[j], radial <= g.hp[j], tangential >= g.lv[j], tangential <= g.hv[j]]
-    for k in range(nfx):
-        cons += [ff[k] >= g.lf[k], ff[k] <= g.hf[k]]
-    cost = al.slack_weight * cp.sum_squares(s)
-    if naz:
-        cost = cost + cp.sum_squares(cp.multiply(np.sqrt(al._wa)[:, None], U[:naz]))
-    if nfx:
-        cost = cost + cp.sum_squares(cp.multiply(np.sqrt(al._wf), ff[:nfx]))
-    prob = cp.Problem(cp.Minimize(cost), cons)
-    prob.solve(solver=solver, **solver_options)
-    if prob.status != "optimal":
-        raise AllocationError(f"reference solve with {solver} ended with status {prob.status!r}")
-    x = np.zeros(al._nv + 3)
-    if naz:  # to the allocator's variables (p, v) for the shared post-processing
-        Uv = np.asarray(U.value)[:naz]
-        cb, sb = np.cos(g.b), np.sin(g.b)
-        x[:naz] = Uv[:, 0] * cb + Uv[:, 1] * sb
-        x[naz:2 * naz] = -Uv[:, 0] * sb + Uv[:, 1] * cb
-    if nfx:
-        x[2 * naz:al._nv] = ff.value[:nfx]
-    # cvxpy's equality dual follows OSQP's convention (P x + q + A^T y = 0) for ``B u + s == tau``
-    y = np.asarray(balance.dual_value, dtype=float)
-    return al._finish(x, y, tau, g, "solved", time.perf_counter() - t0, 0, commit=False)

@@ -14,6 +14,7 @@ from typing import Any, Callable
 import numpy as np
 
 from ..errors import ModelError
+from ..geometry import rot2_apply
 from ..models import catenary
 from ..models.mooring import MooringModel
 from .fem import FEMLines, LineSet
@@ -102,9 +103,7 @@ class MooringFEM:
         if g.turret_mode == "locked":
             rx, ry = fx - eta[0], fy - eta[1]
         else:
-            c, s = np.cos(eta[2]), np.sin(eta[2])
-            rx = c * g.p_cot_B[0] - s * g.p_cot_B[1]
-            ry = s * g.p_cot_B[0] + c * g.p_cot_B[1]
+            rx, ry = rot2_apply(eta[2], g.p_cot_B[0], g.p_cot_B[1])   # R2(psi) p_cot^B (eq. 5)
         v = np.zeros_like(r)
         v[:, 0] = eta_dot[0] - eta_dot[2] * ry
         v[:, 1] = eta_dot[1] + eta_dot[2] * rx

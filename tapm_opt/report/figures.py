@@ -1,7 +1,9 @@
 """Figures of the study report, drawn with matplotlib's object API (no pyplot, no global state).
 
 Plan views follow NED: y (east) on the horizontal axis, x (north) on the vertical axis, equal
-scale. Long time series are reduced to at most ``MAX_POINTS`` points per curve with a min/max
+scale. Case figures are turret-referenced (:mod:`tapm_opt.report.series`): trajectory, safe and
+alert circles and offsets are those of the centre of turret relative to its field-zero-point
+position. Long time series are reduced to at most ``MAX_POINTS`` points per curve with a min/max
 envelope per bucket so peaks survive. Every function returns a :class:`matplotlib.figure.Figure`;
 :func:`png_bytes` renders it with the Agg backend.
 """
@@ -16,6 +18,9 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Polygon
+
+from ..geometry import rot2_apply, turret_position
+from .series import TurretTrack, events_of, turret_position_of, turret_track
 
 __all__ = ["MAX_POINTS", "DPI", "decimate", "png_bytes", "layout_figure", "motion_figure", "tension_figure",
            "thruster_figure"]
@@ -71,19 +76,22 @@ def _scale(values: Sequence[float], unit: str) -> tuple[float, str]:
     return 1.0, unit
 
 
-def _circles(ax, limits: Any, *, label: bool = True) -> None:
+def _circles(ax, limits: Any, *, centre: Sequence[float] = (0.0, 0.0), label: bool = True) -> None:
+    """Safe and alert circles about ``centre`` = (x north, y east) [m] in the plotted frame."""
     if limits is None:
         return
     for r, c, name in ((limits.safe_radius, SAFE_COLOR, "safe"), (limits.alert_radius, ALERT_COLOR, "alert")):
         if r:
-            ax.add_patch(Circle((0.0, 0.0), r, fill=False, color=c, lw=1.5, ls="--",
+            ax.add_patch(Circle((float(centre[1]), float(centre[0])), r, fill=False, color=c, lw=1.5, ls="--",
                                 label=f"{name} circle (r = {r:g} m)" if label else None))
 
 
-def _ned_axes(ax, title: str) -> None:
+def _ned_axes(ax, title: str, *, quantity: str = "") -> None:
+    """Equal-scale plan view; ``quantity`` prefixes the axis labels (e.g. "turret offset")."""
     ax.set_aspect("equal", adjustable="box")
-    ax.set_xlabel("y (east) [m]")
-    ax.set_ylabel("x (north) [m]")
+    q = f"{quantity} " if quantity else ""
+    ax.set_xlabel(f"{q}y (east) [m]")
+    ax.set_ylabel(f"{q}x (north) [m]")
     ax.set_title(title)
     ax.grid(True, alpha=0.3)
 
@@ -103,11 +111,6 @@ def _events(axes: Sequence[Any], events: Sequence[Sequence[Any]]) -> None:
                      color=EVENT_COLOR)
 
 
-def _events_of(result: Any) -> list:
-    ev = result.meta.get("events", []) if isinstance(result.meta, dict) else []
-    return list(ev) if isinstance(ev, (list, tuple)) else []
-
-
 def _hull(vessel: Any) -> np.ndarray | None:
     """Schematic waterline outline in {B} (x fwd, y stbd), shape (k, 2); None if unknown."""
     L = getattr(vessel, "length_pp", None)
@@ -122,18 +125,17 @@ def _hull(vessel: Any) -> np.ndarray | None:
 
 
 def _to_E(p_B: np.ndarray, eta: Sequence[float]) -> np.ndarray:
-    c, s = math.cos(eta[2]), math.sin(eta[2])
-    x = eta[0] + c * p_B[:, 0] - s * p_B[:, 1]
-    y = eta[1] + s * p_B[:, 0] + c * p_B[:, 1]
-    return np.column_stack([x, y])
+    """Points (k, 2) given in {B} at pose ``eta`` as (x, y) in {E}: p + R2(psi) p^B (eq. 5)."""
+    x, y = rot2_apply(eta[2], p_B[:, 0], p_B[:, 1])
+    return np.column_stack([eta[0] + x, eta[1] + y])
 
 
 # -- scenario ----------------------------------------------------------------------------------
 
 def layout_figure(scenario: Any, *, title: str | None = None) -> Figure:
     """Plan view of the mooring at the field zero point (vessel at x = y = 0, heading 0):
-    anchors, lines as straight lines anchor -> fairlead, turret, fairleads, safe and alert
-    circles; left the whole pattern, right the vessel region."""
+    anchors, lines as straight lines anchor -> fairlead, turret, fairleads, and the safe and alert
+    circles about the turret centre's rest position; left the whole pattern, right the vessel region."""
     from ..models.mooring import MooringModel
 
     eta0 = (0.0, 0.0, 0.0)
@@ -141,7 +143,7 @@ def layout_figure(scenario: Any, *, title: str | None = None) -> Figure:
     fx, fy = (np.asarray(v, float) for v in mm.fairleads(np.array(eta0)))
     anchors = np.asarray(scenario.anchors, float)
     ids = [ln.id for ln in scenario.lines]
-    cot = _to_E(np.asarray([scenario.turret.position], float), eta0)[0]
+    cot = np.array(turret_position(eta0, scenario.turret.position), dtype=float)
     limits = scenario.limits
     hull = _hull(scenario.vessel)
 
@@ -151,7 +153,7 @@ def layout_figure(scenario: Any, *, title: str | None = None) -> Figure:
         for j in range(len(ids)):
             ax.plot([anchors[j, 1], fy[j]], [anchors[j, 0], fx[j]], color="0.45", lw=1,
                     label="mooring line (straight, anchor → fairlead)" if j == 0 else None)
-        _circles(ax, limits)
+        _circles(ax, limits, centre=cot)
         if hull is not None:
             h = _to_E(hull, eta0)
             ax.add_patch(Polygon(h[:, ::-1], closed=True, fc="lightsteelblue", ec="navy", lw=1, alpha=0.6,
@@ -178,7 +180,7 @@ def layout_figure(scenario: Any, *, title: str | None = None) -> Figure:
     ax1.legend(loc="upper center", bbox_to_anchor=(0.5, -0.09), ncols=3, fontsize=8)
 
     radii = [r for r in (limits.safe_radius, limits.alert_radius) if r]
-    extent = [1.25 * max(radii)] if radii else []
+    extent = [float(np.hypot(*cot)) + 1.15 * max(radii)] if radii else []
     if hull is not None:
         extent.append(1.1 * float(np.max(np.abs(hull))))
     extent.append(1.3 * float(np.max(np.hypot(fx, fy))))
@@ -193,10 +195,17 @@ def layout_figure(scenario: Any, *, title: str | None = None) -> Figure:
 
 # -- per case ----------------------------------------------------------------------------------
 
-def motion_figure(result: Any, scenario: Any | None, *, title: str) -> Figure:
-    """XY trajectory of the LF position with circles and setpoint; offset and heading vs time."""
-    t = result.time
-    x, y = result["x"], result["y"]
+def motion_figure(result: Any, scenario: Any | None, *, title: str, track: TurretTrack | None = None) -> Figure:
+    """Turret-referenced plan-view trajectory with the safe and alert circles and the setpoint;
+    turret offset and heading against time.
+
+    ``track`` defaults to :func:`~tapm_opt.report.series.turret_track` of the result with the
+    turret position of :func:`~tapm_opt.report.series.turret_position_of` (raises
+    :class:`~tapm_opt.report.data.ReportError` when that is unknown).
+    """
+    if track is None:
+        track = turret_track(result, turret_position_of(result, scenario))
+    t, x, y, off = track.t, track.x, track.y, track.offset
     limits = getattr(scenario, "limits", None)
     fig = Figure(figsize=(14, 6.6), layout="constrained")
     gs = fig.add_gridspec(2, 2, width_ratios=[1, 1.75])
@@ -207,15 +216,14 @@ def motion_figure(result: Any, scenario: Any | None, *, title: str) -> Figure:
     # plan view
     _circles(axp, limits)
     s = _stride(len(t))
-    axp.plot(y[s], x[s], color="tab:blue", lw=0.8, label="LF position (x, y)")
+    axp.plot(y[s], x[s], color="tab:blue", lw=0.8, label="turret centre (LF)")
     axp.plot(y[0], x[0], "o", color="tab:blue", ms=6, label=f"start (t = {t[0]:g} s)")
     axp.plot(y[-1], x[-1], "s", color="tab:blue", ms=6, label=f"end (t = {t[-1]:g} s)")
-    off = np.hypot(x, y)
     i = int(np.argmax(off))
-    axp.plot(y[i], x[i], "*", color="tab:red", ms=11, label=f"max offset {off[i]:.1f} m (t = {t[i]:g} s)")
-    has_sp = "x_d" in result and "y_d" in result
+    axp.plot(y[i], x[i], "*", color="tab:red", ms=11, label=f"max turret offset {off[i]:.1f} m (t = {t[i]:g} s)")
+    has_sp = track.x_d is not None and track.y_d is not None
     if has_sp:
-        xd, yd = result["x_d"], result["y_d"]
+        xd, yd = track.x_d, track.y_d
         if np.ptp(xd) < 1e-9 and np.ptp(yd) < 1e-9:
             axp.plot(yd[0], xd[0], "x", color="k", ms=10, mew=2, label="setpoint")
         else:
@@ -225,28 +233,28 @@ def motion_figure(result: Any, scenario: Any | None, *, title: str) -> Figure:
     r *= 1.15
     axp.set_xlim(-r, r)
     axp.set_ylim(-r, r)
-    _ned_axes(axp, "Trajectory (plan view, north up)")
+    _ned_axes(axp, "Turret trajectory (plan view, north up)", quantity="turret offset")
     axp.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncols=2, fontsize=7.5)
 
     # offset
     td, od = decimate(t, off)
-    axo.plot(td, od, color="tab:blue", lw=0.9, label="offset from field zero point")
+    axo.plot(td, od, color="tab:blue", lw=0.9, label="turret offset")
     if has_sp:
-        sp_off = np.hypot(result["x_d"], result["y_d"])
+        sp_off = np.hypot(track.x_d, track.y_d)
         if np.ptp(sp_off) > 1e-9 or sp_off[0] > 1e-9:
             tsd, sod = decimate(t, sp_off)
-            axo.plot(tsd, sod, color="k", ls="--", lw=1, label="setpoint offset")
+            axo.plot(tsd, sod, color="k", ls="--", lw=1, label="setpoint turret offset")
     if limits is not None:
         if limits.safe_radius:
             axo.axhline(limits.safe_radius, color=SAFE_COLOR, ls="--", lw=1.2, label=f"safe radius {limits.safe_radius:g} m")
         if limits.alert_radius:
             axo.axhline(limits.alert_radius, color=ALERT_COLOR, ls="--", lw=1.2,
                         label=f"alert radius {limits.alert_radius:g} m")
-    axo.set_ylabel("offset [m]")
+    axo.set_ylabel("turret offset [m]")
     top = max([float(off.max())] + [v for v in (getattr(limits, "safe_radius", None),
                                                 getattr(limits, "alert_radius", None)) if v])
     axo.set_ylim(0, 1.3 * top)
-    axo.set_title("Horizontal offset √(x² + y²)")
+    axo.set_title("Horizontal turret offset from its field-zero-point position")
     axo.grid(True, alpha=0.3)
 
     # heading
@@ -263,7 +271,7 @@ def motion_figure(result: Any, scenario: Any | None, *, title: str) -> Figure:
     axh.set_xlabel("time [s]")
     axh.set_title("Heading (from north, clockwise)")
     axh.grid(True, alpha=0.3)
-    _events([axo, axh], _events_of(result))
+    _events([axo, axh], events_of(result))
     axo.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7.5)
     axh.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7.5)
     axo.set_xlim(t[0], t[-1])
@@ -323,7 +331,7 @@ def tension_figure(result: Any, scenario: Any | None, *, title: str,
         axd.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7.5)
     axes[-1].set_xlabel("time [s]")
     axes[0].set_xlim(t[0], t[-1])
-    _events(list(axes), _events_of(result))
+    _events(list(axes), events_of(result))
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7.5)
     fig.suptitle(title, fontsize=12)
     return fig
@@ -368,7 +376,7 @@ def thruster_figure(result: Any, *, title: str) -> Figure | None:
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7.5)
     axes[-1].set_xlabel("time [s]")
     axes[0].set_xlim(t[0], t[-1])
-    _events(axes, _events_of(result))
+    _events(axes, events_of(result))
     fig.suptitle(title, fontsize=12)
     return fig
 
