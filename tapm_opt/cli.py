@@ -281,7 +281,7 @@ def plant_forced_motion(scenario_name: str, dof: str, amplitude: float, period: 
 @click.option("--segments", type=click.IntRange(2, 1000), default=None, help="FEM segments per line.")
 @click.option("--dt-control", type=float, default=1.0, show_default=True, help="Control/allocation period [s].")
 @click.option("--setpoint", type=click.Choice(["fixed", "chasing"]), default="fixed", show_default=True,
-              help="Fixed setpoint at the field zero point, or setpoint chasing (survey eq. 38).")
+              help="Fixed setpoint (turret at its field-zero-point position), or setpoint chasing (survey eq. 38).")
 @click.option("--heading", type=click.Choice(["chasing", "fixed"]), default="chasing", show_default=True,
               help="Weather-optimal heading (bow into the estimated mean environmental force) or fixed north.")
 @click.option("--true-state", is_flag=True, help="Give the controller the true LF state (no estimator).")
@@ -297,6 +297,7 @@ def simulate(scenario_name: str, controller: str, duration: float, out_dir: str,
     """
     import json
 
+    from .models.system import System
     from .plant.simulator import Plant
     from .studies.closed_loop import ClosedLoopSettings, run_closed_loop
     from .studies.controllers import build_controller
@@ -311,11 +312,12 @@ def simulate(scenario_name: str, controller: str, duration: float, out_dir: str,
         k, v = opt.split("=", 1)
         spec[k.strip()] = _parse_value(v.strip())
     sc = _load(scenario_name)
-    ctrl = build_controller(sc, spec, where="--option")
-    plant = Plant(sc, sea_state=sea_state, seed=seed, segments=segments)
+    system = System.from_scenario(sc)  # built once: controller, runner and estimator share it
+    ctrl = build_controller(system, spec, where="--option")
+    plant = Plant(system, sea_state=sea_state, seed=seed, segments=segments)
     settings = ClosedLoopSettings(duration=duration, dt_control=dt_control, true_state=true_state, setpoint=setpoint,
                                   heading=heading)
-    res = run_closed_loop(plant, ctrl, settings, meta={"controller_spec": spec, "seed": seed})
+    res = run_closed_loop(plant, ctrl, settings, system=system, meta={"controller_spec": spec, "seed": seed})
     out = Path(out_dir)
     res.save(out / "result.npz")
     k = basic_kpis(res, sc)
@@ -425,33 +427,83 @@ def study() -> None:
     """Design studies: many closed-loop cases, in parallel, resumable."""
 
 
+EXIT_CASES_FAILED = 1
+
+_workers_option = click.option(
+    "--workers", type=click.IntRange(0, 256), default=None,
+    help="Local worker processes (default: CPU count; 0: one case after the other in this process).")
+
+
+def _exit_if_failed(summary) -> None:
+    """With failed cases: name them, say how many, and exit with status 1."""
+    if summary.failed:
+        for cid in summary.failed:
+            click.echo(f"  failed: case {cid}: {summary.errors.get(cid, '')}", err=True)
+        click.echo(f"error: {len(summary.failed)} of {summary.n_cases} cases failed (traceback in "
+                   f"{Path(summary.out_dir) / 'cases' / '<id>' / 'error.json'}; re-running runs them again)", err=True)
+        sys.exit(EXIT_CASES_FAILED)
+
+
 @study.command("run")
 @click.argument("study_file", metavar="STUDY.toml", type=click.Path(dir_okay=False))
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), required=True, help="Study output directory.")
-@click.option("--workers", type=click.IntRange(1, 256), default=None, help="Local worker processes (default: CPU count).")
+@_workers_option
 @click.option("--scheduler", default=None, help="Dask distributed scheduler address (tcp://host:port); needs the 'dask' extra.")
 @click.option("--no-progress", is_flag=True, help="No progress bar.")
 def study_run(study_file: str, out_dir: str, workers: int | None, scheduler: str | None, no_progress: bool) -> None:
-    """Run every case of STUDY.toml not yet finished in OUT (re-running resumes), then the KPI table."""
+    """Run every case of STUDY.toml not yet finished in OUT (re-running resumes), then the KPI table.
+
+    Exit status 0 when every case finished, 1 when any case failed (each failed case has
+    OUT/cases/<id>/error.json), 2 for a bad study file or option, or when another run is writing
+    into OUT.
+    """
     from .studies.study import load_study, run_study
 
     st = load_study(study_file)
     summary = run_study(st, out_dir, workers=workers, scheduler=scheduler, progress=not no_progress)
     click.echo(str(summary))
+    _exit_if_failed(summary)
+
+
+def _compare_sea_state(sc, requested: str | None) -> tuple[str, str | None]:
+    """The sea state of ``tapm compare`` and a note saying why when it is not the one asked for.
+
+    ``requested`` if given; else ``storm``; else the scenario's most severe sea state: largest Hs,
+    then largest wind speed, then largest current speed.
+    """
+    ids = [s.id for s in sc.sea_states]
+    if requested is not None:
+        if requested not in ids:
+            raise click.BadParameter(f"{requested!r} is not a sea state of scenario {sc.name!r}; its sea states: "
+                                     f"{', '.join(ids) or 'none'}", param_hint="'--sea-state'")
+        return requested, None
+    if "storm" in ids:
+        return "storm", None
+    if not ids:
+        raise click.BadParameter(f"scenario {sc.name!r} defines no sea state", param_hint="SCENARIO")
+    worst = max(sc.sea_states, key=lambda s: (s.Hs, s.wind_speed, s.current_speed))
+    which = "its only sea state" if len(ids) == 1 else "its most severe sea state (largest Hs)"
+    return worst.id, (f"scenario {sc.name} has no sea state 'storm': using {which}, {worst.id!r} (Hs {worst.Hs:g} m, "
+                      f"Tp {worst.Tp:g} s, wind {worst.wind_speed:g} m/s, current {worst.current_speed:g} m/s)")
 
 
 @cli.command()
 @click.argument("scenario_name", metavar="[SCENARIO]", default="fpso")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default="tapm_compare", show_default=True,
               help="Output directory (results, KPI tables, report).")
-@click.option("--workers", type=click.IntRange(1, 256), default=None, help="Local worker processes (default: CPU count).")
+@_workers_option
 @click.option("--duration", type=float, default=None, help="Override the study's duration [s].")
-def compare(scenario_name: str, out_dir: str, workers: int | None, duration: float | None) -> None:
+@click.option("--sea-state", "sea_state", default=None,
+              help="Sea state id of SCENARIO (default: 'storm'; a scenario without one: its most severe, largest Hs).")
+def compare(scenario_name: str, out_dir: str, workers: int | None, duration: float | None,
+            sea_state: str | None) -> None:
     """The main job: MPC against PID in a storm with a line break half-way, and the report.
 
     Runs the default study (tapm_opt/studies/builtin/mpc_vs_pid.toml, also studies/mpc_vs_pid.toml)
-    on SCENARIO (default: the built-in fpso), writes OUT/report.html and OUT/report.md and prints the
-    headline KPIs. Re-running resumes.
+    on SCENARIO (default: the built-in fpso) in its sea state 'storm' (or --sea-state; a scenario
+    with no 'storm' runs in its most severe sea state, the one with the largest Hs, and the output
+    says which), writes OUT/report.html and OUT/report.md and prints the headline KPIs. Re-running
+    resumes. Exit status 1 when any case failed.
     """
     import tomllib
 
@@ -460,11 +512,22 @@ def compare(scenario_name: str, out_dir: str, workers: int | None, duration: flo
 
     path = Path(__file__).parent / "studies" / "builtin" / "mpc_vs_pid.toml"
     data = tomllib.loads(path.read_text(encoding="utf-8"))
-    data["study"]["scenario"] = scenario_name
     if duration is not None:
         if not (math.isfinite(duration) and duration > 0):
             raise click.BadParameter(f"--duration = {duration} must be a positive number of seconds")
         data["study"]["duration"] = duration
+    sc = _load(scenario_name)
+    sid, note = _compare_sea_state(sc, sea_state)
+    if note:
+        click.echo(note)
+    ss = sc.sea_state(sid)
+    brk = data["conditions"][0]["line_break"]
+    data["study"]["scenario"] = scenario_name
+    data["sea_states"] = [{"id": sid}]
+    data["study"]["description"] = (
+        f"PID control modes vs linear MPC on {sc.name} in sea state {sid} (Hs {ss.Hs:g} m, Tp {ss.Tp:g} s, wind "
+        f"{ss.wind_speed:g} m/s, current {ss.current_speed:g} m/s); line {brk['line']} breaks at "
+        f"{brk['time_fraction'] * data['study']['duration']:g} s")
     st = study_from_dict(data, base_dir=Path.cwd(), source=str(path))
     summary = run_study(st, out_dir, workers=workers, progress=True)
     html, md = write_report(out_dir)
@@ -472,25 +535,23 @@ def compare(scenario_name: str, out_dir: str, workers: int | None, duration: flo
     _print_headlines(Path(out_dir), [c.id for c in st.cases])
     click.echo(f"report: {html}")
     click.echo(f"        {md}")
+    _exit_if_failed(summary)
 
 
 def _print_headlines(out: Path, ids: list[str]) -> None:
-    import json
+    from .studies.store import load_study_results
 
-    rows = []
-    for case_dir in (out / "cases" / i for i in ids):
-        kf, cf = case_dir / "kpis.json", case_dir / "case.json"
-        if kf.exists() and cf.exists():
-            case = json.loads(cf.read_text())
-            rows.append((case["labels"], json.loads(kf.read_text())))
+    rows = [r for r in load_study_results(out) if r.id in ids and r.status == "finished"]
     if not rows:
         return
     click.echo(f"  {'case':42s} {'offset max':>10} {'outside safe':>12} {'T/MBS max':>9} {'delta min':>9} {'energy':>10}")
-    for labels, k in rows:
+    nan = float("nan")
+    for r in rows:
+        k, labels = r.kpis, r.labels
         name = f"{labels.get('controller')}, {labels.get('sea_state')}, {labels.get('condition')}"
-        dmin = k.get("delta_min", float("nan"))
-        click.echo(f"  {name[:42]:42s} {k['offset_max']:8.1f} m {k['time_outside_safe']:10.0f} s "
-                   f"{k['util_max']:9.3f} {dmin:9.2f} {k['thrust_energy'] / 3.6e9:6.2f} MWh")
+        click.echo(f"  {name[:42]:42s} {k.get('offset_max', nan):8.1f} m {k.get('time_outside_safe', nan):10.0f} s "
+                   f"{k.get('util_max', nan):9.3f} {k.get('delta_min', nan):9.2f} "
+                   f"{k.get('thrust_energy', nan) / 3.6e9:6.2f} MWh")
 
 
 def main(argv: list[str] | None = None) -> int:

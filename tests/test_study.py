@@ -22,7 +22,7 @@ import pytest
 
 from tapm_opt.config import scenario_from_dict
 from tapm_opt.results import Result
-from tapm_opt.studies import store
+from tapm_opt.studies import jobs, store
 from tapm_opt.studies import study as study_mod
 from tapm_opt.studies.study import StudyError, compute_kpis, expand_cases, load_study, run_case, run_study
 
@@ -184,14 +184,14 @@ def test_failed_case_in_process_then_retried(tiny, tmp_path, monkeypatch, capsys
     """workers=0 runs in this process; a raising run_case is recorded; a re-run retries only it."""
     out = tmp_path / "run"
     a, b = tiny.cases
-    real = study_mod.run_case
+    real = jobs.run_case
 
     def flaky(inputs):
         if store.case_id(inputs) == a.id:
             raise RuntimeError("solver exploded")
         return real(inputs)
 
-    monkeypatch.setattr(study_mod, "run_case", flaky)
+    monkeypatch.setattr(jobs, "run_case", flaky)
     s = run_study(tiny, out, workers=0, progress=True)
     assert s.failed == (a.id,) and s.finished == (b.id,)
     bar = capsys.readouterr().err
@@ -200,7 +200,7 @@ def test_failed_case_in_process_then_retried(tiny, tmp_path, monkeypatch, capsys
     assert json.loads((out / "cases" / a.id / "error.json").read_text())["message"] == "solver exploded"
 
     calls = []
-    monkeypatch.setattr(study_mod, "run_case", lambda inputs: calls.append(store.case_id(inputs)) or real(inputs))
+    monkeypatch.setattr(jobs, "run_case", lambda inputs: calls.append(store.case_id(inputs)) or real(inputs))
     s = run_study(tiny, out, workers=0, progress=False)
     assert calls == [a.id] and s.finished == (a.id,) and s.skipped == (b.id,)
     assert not (out / "cases" / a.id / "error.json").exists()
@@ -210,21 +210,62 @@ def test_failed_case_in_process_then_retried(tiny, tmp_path, monkeypatch, capsys
 # -- Dask ---------------------------------------------------------------------------------------
 
 
-def test_dask_local_cluster_same_results(tiny, tiny_run, tmp_path):
+def test_dask_workers_need_no_shared_files(tiny, tiny_run, tmp_path, monkeypatch):
+    """The Dask workers run in another directory and the output path is relative: they compute and
+    send the cases back, the client writes the store, and it equals the local run's."""
     distributed = pytest.importorskip("dask.distributed", reason="dask[distributed] is not installed (extra 'dask')")
-    out = tmp_path / "run"
+    client_dir, worker_dir = tmp_path / "client", tmp_path / "worker"
+    client_dir.mkdir()
+    worker_dir.mkdir()
+    monkeypatch.chdir(client_dir)
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as cl, \
-            distributed.Client(cl) as watcher:
-        with distributed.get_task_stream(watcher) as stream:
-            s = run_study(tiny, out, scheduler=cl.scheduler_address, progress=False)
+            distributed.Client(cl) as client:
+        client.run(os.chdir, str(worker_dir))
+        assert set(client.run(os.getcwd).values()) == {str(worker_dir)}
+        worker_pids = set(client.run(os.getpid).values())
+        with distributed.get_task_stream(client) as stream:
+            s = run_study(tiny, "run", scheduler=cl.scheduler_address, progress=False)
         tasks = [t["key"] for t in stream.data]
-    assert sorted(s.finished) == sorted(c.id for c in tiny.cases) and not s.failed
-    # the cases ran as Dask tasks, not on local processes
-    assert sorted(k.split("-")[2] for k in tasks if k.startswith("tapm-case-")) == sorted(s.finished), tasks
-    ref, _ = tiny_run
+    ids = [c.id for c in tiny.cases]
+    assert sorted(s.finished) == sorted(ids) and not s.failed
+    # the cases ran as Dask tasks, not on local processes, and the workers wrote nothing
+    assert sorted(k.split("-")[2] for k in tasks if k.startswith("tapm-case-")) == sorted(ids), tasks
+    assert not any(worker_dir.iterdir()), list(worker_dir.rglob("*"))
+    out, (ref, _) = client_dir / "run", tiny_run
+    assert [(r.id, r.status) for r in store.load_study_results(out)] == [(i, "finished") for i in ids]
     for c in tiny.cases:
-        assert _same_arrays(Result.load(out / "cases" / c.id / "result.npz"),
-                            Result.load(ref / "cases" / c.id / "result.npz")), c.name
+        d = out / "cases" / c.id
+        assert sorted(p.name for p in d.iterdir()) == ["case.json", "kpis.json", "result.npz"]
+        meta = json.loads((d / "case.json").read_text())
+        assert meta["worker"]["pid"] in worker_pids and meta["inputs"] == c.inputs and meta["finished"]
+        assert _same_arrays(Result.load(d / "result.npz"), Result.load(ref / "cases" / c.id / "result.npz")), c.name
+        k, k0 = (json.loads((x / "cases" / c.id / "kpis.json").read_text()) for x in (out, ref))
+        assert _deterministic_kpis(k) == _deterministic_kpis(k0) and len(_deterministic_kpis(k)) > 5
+    assert [r["id"] for r in csv.DictReader(open(out / "kpis.csv"))] == ids
+
+
+def test_dask_failed_case_is_recorded_by_the_client(tiny, tmp_path, monkeypatch):
+    """A case that raises on a Dask worker comes back as its error; the client writes error.json."""
+    distributed = pytest.importorskip("dask.distributed", reason="dask[distributed] is not installed (extra 'dask')")
+    a, b = tiny.cases
+    real = jobs.run_case
+
+    def flaky(inputs):
+        if store.case_id(inputs) == a.id:
+            raise RuntimeError("solver exploded on the worker")
+        return real(inputs)
+
+    monkeypatch.setattr(jobs, "run_case", flaky)   # in-process workers (threads) see the patch
+    out = tmp_path / "run"
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cl:
+        s = run_study(tiny, out, scheduler=cl, progress=False)
+    assert s.failed == (a.id,) and s.finished == (b.id,)
+    assert s.errors[a.id] == "RuntimeError: solver exploded on the worker"
+    err = json.loads((out / "cases" / a.id / "error.json").read_text())
+    assert err["type"] == "RuntimeError" and "flaky" in err["traceback"]
+    meta = json.loads((out / "cases" / a.id / "case.json").read_text())
+    assert "finished" not in meta and meta["worker"]["pid"] == os.getpid()
+    assert [r.status for r in store.load_study_results(out)] == ["failed", "finished"]
 
 
 def test_dask_missing_names_the_extra(tiny, tmp_path, monkeypatch):

@@ -5,8 +5,10 @@ A study run directory ``DIR`` (the shared contract of the study workbench)::
     DIR/study.toml                 copy of the study file as loaded
     DIR/study.json                 {"name", "description", "study_file", "cases": [{"id", "name", "labels", "inputs"}],
                                     "tapm_opt_version"}
-    DIR/cases/<id>/case.json       {"id", "name", "labels", "inputs", "tapm_opt_version", "started", "finished",
-                                    "wall_time"}  ("finished" and "wall_time" only once the case is done)
+    DIR/run.lock                   held (flock) by the run under way, with its pid and host: one run at a time
+    DIR/cases/<id>/case.json       {"id", "name", "labels", "inputs", "tapm_opt_version", "started", "worker",
+                                    "finished", "wall_time"}  ("worker": {"host", "pid"} of the process that ran
+                                    it; "finished" only once the case is done)
     DIR/cases/<id>/result.npz      the closed-loop :class:`~tapm_opt.results.Result`
     DIR/cases/<id>/kpis.json       flat {kpi_name: number}
     DIR/cases/<id>/error.json      a failed case only: {"type", "message", "traceback"}
@@ -18,19 +20,29 @@ canonical JSON, so the same inputs always land in the same folder and a re-run f
 Every file is written atomically (temporary file in the same folder, then ``os.replace``): a reader,
 or a run killed at any instant, sees either the old file or the new one, never half of one. A case
 is *finished* when ``case.json`` holds ``"finished"`` and ``result.npz`` and ``kpis.json`` exist;
-a worker writes ``case.json`` last, so a killed case is never taken for a finished one.
+``case.json`` is written last (by the local worker that ran the case, or by the client of a Dask
+run when the case comes back), so a killed case is never taken for a finished one.
+
+One run at a time writes into ``DIR``: :func:`study_lock` holds an exclusive ``flock`` on
+``DIR/run.lock`` for the whole run. The kernel releases it when the holder's file descriptor
+closes — when the run ends, however it ends (``kill -9`` included) — so a stale lock cannot stay
+behind. (``flock`` on network file systems is only as good as their lock support; on a platform
+without ``fcntl`` the directory is not locked.)
 
 The report and other tools read a run through :func:`load_study_results`.
 """
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
+import os
+import socket
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any, Literal, Mapping
+from typing import Any, Iterator, Literal, Mapping
 
 import numpy as np
 
@@ -40,6 +52,9 @@ from ..errors import IssuesError, ScenarioIssue, TapmError
 __all__ = [
     "StudyError",
     "StudyIssue",
+    "StudyRunError",
+    "StudyBusyError",
+    "study_lock",
     "CaseRecord",
     "case_id",
     "canonical_json",
@@ -51,7 +66,7 @@ __all__ = [
     "load_study_results",
     "now_iso",
     "CASES", "STUDY_JSON", "STUDY_TOML", "CASE_JSON", "RESULT_NPZ", "KPIS_JSON", "ERROR_JSON", "KPIS_CSV",
-    "KPIS_MD",
+    "KPIS_MD", "LOCK",
 ]
 
 CASES = "cases"
@@ -63,6 +78,7 @@ KPIS_JSON = "kpis.json"
 ERROR_JSON = "error.json"
 KPIS_CSV = "kpis.csv"
 KPIS_MD = "kpis.md"
+LOCK = "run.lock"
 
 #: One problem of a study file: ``path`` (e.g. ``controllers[1].type``) and ``message``.
 StudyIssue = ScenarioIssue
@@ -76,6 +92,35 @@ class StudyError(IssuesError):
     """
 
     what = "study"
+
+
+class StudyRunError(StudyError):
+    """A study cannot be run as asked: a bad option, an unusable output directory, Dask missing
+    or its scheduler out of reach. The message says what and names the value."""
+
+    def __init__(self, message: str):
+        super().__init__(message)
+        self.args = (message,)   # the message alone, without "invalid study: "
+
+
+class StudyBusyError(TapmError):
+    """Another run is writing into the study directory (it holds ``DIR/run.lock``).
+
+    Attributes
+    ----------
+    directory : Path
+        The study directory.
+    pid : int or None
+        Process id of the run holding it (None if it could not be read).
+    host : str or None
+        Host name of that run.
+    """
+
+    def __init__(self, directory: str | Path, pid: int | None, host: str | None):
+        self.directory, self.pid, self.host = Path(directory), pid, host
+        who = "another run" if pid is None else f"another run (pid {pid}" + (f" on {host})" if host else ")")
+        super().__init__(f"study directory {self.directory} is in use by {who}: one run at a time may write into "
+                         "it; wait for that run to end (or stop it), or choose another directory")
 
 
 # -- ids and JSON ------------------------------------------------------------------------------
@@ -175,6 +220,67 @@ def case_status(cdir: str | Path) -> CaseStatus:
     if (cdir / CASE_JSON).is_file():
         return "started"
     return "missing"
+
+
+# -- one run at a time ------------------------------------------------------------------------
+
+
+def _holder(fd: int) -> tuple[int | None, str | None]:
+    try:
+        words = os.pread(fd, 512, 0).decode("utf-8", "replace").split()
+    except OSError:   # pragma: no cover
+        return None, None
+    pid = int(words[0]) if words and words[0].isdigit() else None
+    return pid, (words[1] if len(words) > 1 else None)
+
+
+@contextlib.contextmanager
+def study_lock(out_dir: str | Path) -> Iterator[Path]:
+    """Hold the study directory ``out_dir`` for one run: an exclusive ``flock`` on ``out_dir/run.lock``.
+
+    The file gets the holder's pid and host name. The lock is released when the block ends, or
+    when the holding process dies in any way (the kernel closes its file descriptor).
+
+    Parameters
+    ----------
+    out_dir : path
+        An existing study run directory.
+
+    Yields
+    ------
+    Path
+        The lock file.
+
+    Raises
+    ------
+    StudyBusyError
+        Another process (or another block in this one) holds it; the message names the
+        directory and the holder's pid.
+    StudyRunError
+        The lock file cannot be opened or locked.
+    """
+    path = Path(out_dir) / LOCK
+    try:
+        import fcntl
+    except ImportError:   # pragma: no cover - not POSIX: no lock
+        yield path
+        return
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), 0o666)
+    except OSError as exc:
+        raise StudyRunError(f"cannot open the lock file {path}: {exc.strerror or exc}") from None
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:   # held by another open file description
+            raise StudyBusyError(out_dir, *_holder(fd)) from None
+        except OSError as exc:    # e.g. a file system without locks
+            raise StudyRunError(f"cannot lock {path}: {exc.strerror or exc}") from None
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()} {socket.gethostname()}\n".encode(), 0)
+        yield path
+    finally:
+        os.close(fd)   # releases the lock (the file stays: removing it would race with a new run)
 
 
 # -- reading a run back ------------------------------------------------------------------------

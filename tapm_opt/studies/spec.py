@@ -1,0 +1,534 @@
+"""Study files: parsing, validation and expansion into cases.
+
+The file format is documented in :mod:`tapm_opt.studies.study`. :func:`load_study` reads a file,
+:func:`study_from_dict` takes it parsed, :func:`expand_cases` checks everything (every problem is
+collected with its field path, then :class:`~tapm_opt.studies.store.StudyError` lists them all) and
+turns the product of sea states, controllers, conditions and seeds, plus the listed cases, into
+:class:`Case` objects whose inputs need nothing but themselves to run.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import json
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+from ..config import Fault, builtin_scenarios, load_scenario, scenario_from_dict, scenario_to_dict
+from ..config.loader import BUILTIN_DIR, _fmt, _is_number  # the scenario loader's value checks
+from ..errors import ScenarioError
+from . import store
+from ._checks import Checker
+from .controllers import CONTROLLER_TYPES, PID_DEFAULTS, ControllerSpecError, build_controller
+from .store import StudyError
+
+__all__ = ["Case", "Study", "load_study", "study_from_dict", "expand_cases"]
+
+
+@dataclass(frozen=True)
+class Case:
+    """One closed-loop run of a study.
+
+    Attributes
+    ----------
+    id : str
+        :func:`tapm_opt.studies.store.case_id` of ``inputs`` (12 hex digits).
+    name : str
+        Display name, e.g. ``"storm, PID, intact, seed 1"``.
+    labels : dict
+        ``{"scenario": str, "sea_state": str, "controller": str, "condition": str, "seed": int}``.
+    inputs : dict
+        ``{"scenario", "scenario_name", "sea_state", "controller", "seed", "duration", "segments",
+        "closed_loop"}`` — JSON-ready; the argument of
+        :func:`~tapm_opt.studies.jobs.run_case`. Do not mutate.
+    """
+
+    id: str
+    name: str
+    labels: dict
+    inputs: dict
+
+
+@dataclass(frozen=True)
+class Study:
+    """A validated study: its cases and where it came from.
+
+    Attributes
+    ----------
+    name, description : str
+    path : Path or None
+        The study file (None for a study built from a dictionary).
+    cases : tuple of Case
+        In file order: the product (sea states, then controllers, then conditions, then seeds
+        varying fastest), then the listed cases.
+    text : str
+        The study file's text as loaded (copied to ``DIR/study.toml``).
+    """
+
+    name: str
+    description: str
+    path: Path | None
+    cases: tuple[Case, ...]
+    text: str = field(default="", repr=False)
+
+    def case(self, key: str) -> Case:
+        """The case with this id or name."""
+        for c in self.cases:
+            if key in (c.id, c.name):
+                return c
+        raise KeyError(f"no case {key!r} in study {self.name!r}")
+
+
+# -- parsing and validation --------------------------------------------------------------------
+
+_STUDY_KEYS = {"name", "description", "scenario", "duration", "segments", "dt_control", "dt_log", "heading",
+               "setpoint", "true_state", "seeds", "mode"}
+_TOP_KEYS = {"study", "sea_states", "controllers", "conditions", "cases"}
+_CONDITION_KEYS = {"name", "line_break", "thruster_failure"}
+_FAULT_KEYS = {"line_break": {"line", "time", "time_fraction"}, "thruster_failure": {"thruster", "time", "time_fraction"}}
+_CASE_KEYS = {"name", "sea_state", "controller", "condition", "seed", "duration"}
+_NAMES = {"pid": "PID", "mpc": "NMPC", "lmpc": "MPC"}
+
+
+@dataclass(frozen=True)
+class _FaultSpec:
+    kind: str           # "line_break" | "thruster_failure"
+    target: str         # line or thruster id
+    time: float | None
+    fraction: float | None
+    path: str
+
+    def at(self, duration: float) -> float:
+        return float(self.time) if self.time is not None else float(self.fraction) * duration
+
+
+@dataclass(frozen=True)
+class _Condition:
+    name: str | None
+    faults: tuple[_FaultSpec, ...]
+    path: str
+
+    def label(self, duration: float) -> str:
+        if self.name is not None:
+            return self.name
+        if not self.faults:
+            return "intact"
+        parts = []
+        for f in self.faults:
+            verb = "broken" if f.kind == "line_break" else "failed"
+            what = "line" if f.kind == "line_break" else "thruster"
+            parts.append(f"{what} {f.target} {verb} at {f.at(duration):g} s")
+        return ", ".join(parts)
+
+
+def _resolve_scenario(value: str, base_dir: Path) -> str | Path:
+    """A built-in name as is; anything else as a path relative to the study file's folder."""
+    p = Path(value)
+    if not p.suffix and "/" not in value and "\\" not in value and (BUILTIN_DIR / f"{value}.toml").is_file():
+        return value
+    return p if p.is_absolute() else (base_dir / p)
+
+
+def _normalise_spec(kind: str, opts: dict) -> dict:
+    """Numbers in the form the controller takes them (``35`` and ``35.0`` give one case id)."""
+    from ..control.mpc import MPCSettings
+
+    out: dict = {"type": kind}
+    if kind == "pid":
+        for k, v in opts.items():
+            if k in ("periods", "damping", "tau_limit") and isinstance(v, list):
+                v = [float(x) if _is_number(x) else x for x in v]
+            elif k == "integral_ratio" and _is_number(v):
+                v = float(v)
+            out[k] = v
+        return out
+    floats = {f.name for f in dataclasses.fields(MPCSettings) if "float" in str(f.type)} | {"period"}
+    for k, v in opts.items():
+        out[k] = float(v) if (k in floats and _is_number(v)) else v
+    return out
+
+
+@dataclass
+class _Parsed:
+    """The sections of a study file after checking (None where a value was bad)."""
+
+    sc: Any = None
+    name: str | None = None
+    description: str = ""
+    duration: float | None = None
+    segments: int | None = None
+    closed_loop: dict = field(default_factory=dict)
+    mode: str | None = "product"
+    seeds: list = field(default_factory=list)
+    sea_states: list = field(default_factory=list)    # [(id, SeaState or None)]
+    controllers: list = field(default_factory=list)   # [(display name, normalised spec or None)]
+    conditions: list = field(default_factory=list)    # [_Condition]
+    listed: list = field(default_factory=list)        # [(path, i_ss, i_ctrl, i_cond, seed, duration or None, name)]
+
+
+def _parse_study_table(ck: Checker, data: Mapping, base_dir: Path, out: _Parsed) -> None:
+    if "study" not in data:
+        ck.err("study", "missing required section [study] (name, scenario, duration, ...)")
+    st = (ck.table(data["study"], "study") if "study" in data else None) or {}
+    ck.keys(st, _STUDY_KEYS, "study")
+    for key in ("name", "scenario", "duration"):
+        if key not in st:
+            ck.err(f"study.{key}", "missing required field")
+    out.name = ck.text(st["name"], "study.name") if "name" in st else None
+    out.description = st.get("description", "")
+    if not isinstance(out.description, str):
+        ck.err("study.description", f"must be text, got {type(out.description).__name__}")
+        out.description = ""
+    if "duration" in st:
+        out.duration = ck.number(st["duration"], "study.duration", unit="s", positive=True)
+    if "segments" in st:
+        out.segments = ck.integer(st["segments"], "study.segments", at_least=2)
+    dt_control = ck.number(st.get("dt_control", 1.0), "study.dt_control", unit="s", positive=True)
+    dt_log = ck.number(st.get("dt_log", 1.0), "study.dt_log", unit="s", positive=True)
+    if dt_control is not None and dt_log is not None:
+        ratio = dt_log / dt_control
+        if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
+            ck.err("study.dt_log", f"= {dt_log:g} s must be a whole multiple of dt_control = {dt_control:g} s")
+    out.closed_loop = {
+        "dt_control": dt_control, "dt_log": dt_log,
+        "setpoint": ck.choice(st.get("setpoint", "fixed"), ("fixed", "chasing"), "study.setpoint"),
+        "heading": ck.choice(st.get("heading", "chasing"), ("chasing", "fixed"), "study.heading"),
+        "true_state": ck.boolean(st.get("true_state", False), "study.true_state")}
+    out.mode = ck.choice(st.get("mode", "product"), ("product", "list"), "study.mode")
+    seeds = st.get("seeds", [1])
+    if not isinstance(seeds, list) or not seeds:
+        ck.err("study.seeds", f"must be a non-empty list of whole numbers, got {_fmt(seeds)}")
+        seeds = []
+    for i, s in enumerate(seeds):
+        v = ck.integer(s, f"study.seeds[{i}]", at_least=0)
+        if v is not None and v in out.seeds:
+            ck.err(f"study.seeds[{i}]", f"= {v} is given twice")
+        elif v is not None:
+            out.seeds.append(v)
+    scen = ck.text(st["scenario"], "study.scenario") if "scenario" in st else None
+    if scen is not None:
+        try:
+            out.sc = load_scenario(_resolve_scenario(scen, base_dir))
+        except ScenarioError as exc:
+            msg = str(exc)
+            if "no built-in scenario or file" in msg:
+                msg = (f"= {scen!r}: no built-in scenario or file of that name (relative paths are taken from "
+                       f"{base_dir}); built-in scenarios: {', '.join(builtin_scenarios())}")
+            ck.err("study.scenario", msg)
+
+
+def _parse_sea_states(ck: Checker, data: Mapping, out: _Parsed) -> None:
+    sc = out.sc
+    entries = ck.tables(data.get("sea_states", []), "sea_states")
+    for i, e in enumerate(entries):
+        p = f"sea_states[{i}]"
+        if "id" not in e:
+            ck.err(f"{p}.id", "missing required field (a sea-state id of the scenario, or the id of a new one)")
+            continue
+        sid = ck.text(e["id"], f"{p}.id", id_like=True)
+        if sid is None or sc is None:
+            out.sea_states.append((sid, None))
+            continue
+        known = [s.id for s in sc.sea_states]
+        if len(e) == 1:  # a sea state of the scenario
+            if sid not in known:
+                hint = difflib.get_close_matches(sid, known, n=1)
+                ck.err(f"{p}.id", f"= {sid!r} is not a sea state of scenario {sc.name!r} ("
+                       + (f"did you mean {hint[0]!r}? " if hint else "")
+                       + f"sea states: {', '.join(known)}); to define a new one give its fields (Hs, Tp, ...)")
+            out.sea_states.append((sid, sc.sea_state(sid) if sid in known else None))
+            continue
+        if sid in known:
+            ck.err(f"{p}.id", f"= {sid!r} is already a sea state of scenario {sc.name!r}: give only its id, "
+                   "or choose a new id for the new sea state")
+            out.sea_states.append((sid, None))
+            continue
+        # a new sea state: checked by the scenario loader, as part of the scenario
+        d = {**scenario_to_dict(sc), "sea_states": [dict(e)], "faults": []}
+        try:
+            out.sea_states.append((sid, scenario_from_dict(d).sea_states[0]))
+        except ScenarioError as exc:
+            for iss in exc.issues:
+                ck.err(iss.path.replace("sea_states[0]", p, 1) if iss.path.startswith("sea_states[0]") else p,
+                       iss.message)
+            out.sea_states.append((sid, None))
+    ck.unique(list(enumerate(s for s, _ in out.sea_states)), "sea_states", "id")
+    if "sea_states" in data and not entries and isinstance(data["sea_states"], list):
+        ck.err("sea_states", "is empty: give at least one [[sea_states]] or leave it out")
+    if "sea_states" not in data and sc is not None:
+        if not sc.sea_states:
+            ck.err("sea_states", f"scenario {sc.name!r} defines no sea state: give at least one [[sea_states]]")
+        else:
+            out.sea_states.append((sc.sea_states[0].id, sc.sea_states[0]))
+
+
+def _parse_controllers(ck: Checker, data: Mapping, out: _Parsed) -> None:
+    from ..control.mpc import MPCSettings
+
+    if "controllers" not in data:
+        ck.err("controllers", "missing: give at least one [[controllers]] (name, type, options)")
+    entries = ck.tables(data.get("controllers", []), "controllers")
+    if "controllers" in data and not entries and isinstance(data["controllers"], list):
+        ck.err("controllers", "is empty: give at least one [[controllers]]")
+    mpc_allowed = {f.name for f in dataclasses.fields(MPCSettings)} | {"period"}
+    for i, e in enumerate(entries):
+        p = f"controllers[{i}]"
+        if "type" not in e:
+            ck.err(f"{p}.type", f"missing required field ({', '.join(CONTROLLER_TYPES)})")
+        kind = ck.choice(e["type"], CONTROLLER_TYPES, f"{p}.type") if "type" in e else None
+        cname = ck.text(e["name"], f"{p}.name") if "name" in e else _NAMES.get(kind or "")
+        opts = {k: v for k, v in e.items() if k not in ("name", "type")}
+        spec = None
+        if kind is not None:
+            n_issues = len(ck.issues)
+            ck.keys(opts, (set(PID_DEFAULTS) if kind == "pid" else mpc_allowed) | {"name", "type"}, p)
+            if len(ck.issues) == n_issues:
+                spec = _normalise_spec(kind, opts)
+                if out.sc is not None:
+                    try:
+                        build_controller(out.sc, spec, where=p)   # dry build: checks every value
+                    except ControllerSpecError as exc:
+                        ck.err("", str(exc))
+                        spec = None
+        out.controllers.append((cname or f"controller {i + 1}", spec))
+    ck.unique(list(enumerate(n for n, _ in out.controllers)), "controllers", "name")
+
+
+def _parse_fault(ck: Checker, f: dict, kind: str, fp: str, sc: Any) -> _FaultSpec | None:
+    target_key = "line" if kind == "line_break" else "thruster"
+    ck.keys(f, _FAULT_KEYS[kind], fp)
+    target = None
+    if target_key not in f:
+        ck.err(f"{fp}.{target_key}", f"missing required field (the {target_key} id)")
+    else:
+        target = ck.text(f[target_key], f"{fp}.{target_key}", id_like=True)
+        ids = None if sc is None else [x.id for x in (sc.lines if kind == "line_break" else sc.thrusters)]
+        if target is not None and ids is not None and target not in ids:
+            hint = difflib.get_close_matches(target, ids, n=1)
+            ck.err(f"{fp}.{target_key}", f"= {target!r} is not a {target_key} of scenario {sc.name!r}"
+                   + (f" (did you mean {hint[0]!r}?)" if hint else "") + f"; {target_key}s: {', '.join(ids)}")
+            target = None
+    t = frac = None
+    if ("time" in f) == ("time_fraction" in f):
+        ck.err(fp, "give exactly one of 'time' [s] and 'time_fraction' (of the case's duration)")
+    elif "time" in f:
+        t = ck.number(f["time"], f"{fp}.time", unit="s", nonneg=True)
+    else:
+        frac = ck.number(f["time_fraction"], f"{fp}.time_fraction", nonneg=True, at_most=1.0)
+    if target is None or (t is None and frac is None):
+        return None
+    return _FaultSpec(kind, target, t, frac, fp)
+
+
+def _parse_conditions(ck: Checker, data: Mapping, out: _Parsed) -> None:
+    entries = ck.tables(data.get("conditions", []), "conditions")
+    for i, e in enumerate(entries):
+        p = f"conditions[{i}]"
+        ck.keys(e, _CONDITION_KEYS, p)
+        faults = []
+        for kind in ("line_break", "thruster_failure"):
+            if kind in e:
+                many = isinstance(e[kind], list)
+                for j, f in enumerate(ck.tables(e[kind], f"{p}.{kind}")):
+                    fs = _parse_fault(ck, f, kind, f"{p}.{kind}[{j}]" if many else f"{p}.{kind}", out.sc)
+                    if fs is not None:
+                        faults.append(fs)
+        out.conditions.append(_Condition(ck.text(e["name"], f"{p}.name") if "name" in e else None, tuple(faults), p))
+    if "conditions" not in data:
+        out.conditions.append(_Condition("intact", (), "conditions"))
+    elif not entries and isinstance(data["conditions"], list):
+        ck.err("conditions", "is empty: give at least one [[conditions]] or leave it out (intact)")
+    ck.unique(list(enumerate(c.name for c in out.conditions)), "conditions", "name")
+
+
+def _parse_listed(ck: Checker, data: Mapping, out: _Parsed) -> None:
+    entries = ck.tables(data.get("cases", []), "cases")
+    if out.mode == "list" and not entries:
+        ck.err("cases", "study.mode = 'list' needs at least one [[cases]] entry")
+    choices = {"sea_state": ([s for s, _ in out.sea_states], "sea state id", "sea_states"),
+               "controller": ([n for n, _ in out.controllers], "controller name", "controllers"),
+               "condition": ([c.name for c in out.conditions], "condition name", "conditions")}
+    for i, e in enumerate(entries):
+        p = f"cases[{i}]"
+        ck.keys(e, _CASE_KEYS, p)
+        picked = []
+        for key, (names, what, section) in choices.items():
+            if key not in e:
+                if key == "controller" and len(names) > 1:
+                    ck.err(f"{p}.{key}", f"missing: the study has {len(names)} controllers ({', '.join(names)})")
+                picked.append(0 if names and (key != "controller" or len(names) == 1) else None)
+                continue
+            v = ck.text(e[key], f"{p}.{key}", id_like=True)
+            if v is not None and v not in names:
+                hint = difflib.get_close_matches(v, [str(n) for n in names], n=1)
+                ck.err(f"{p}.{key}", f"= {v!r} is not a {what} of [[{section}]]"
+                       + (f" (did you mean {hint[0]!r}?)" if hint else "") + f"; defined: {', '.join(map(str, names))}")
+            picked.append(names.index(v) if v in names else None)
+        seed = ck.integer(e["seed"], f"{p}.seed", at_least=0) if "seed" in e else (out.seeds or [None])[0]
+        dur = ck.number(e["duration"], f"{p}.duration", unit="s", positive=True) if "duration" in e else None
+        cname = ck.text(e["name"], f"{p}.name") if "name" in e else None
+        if None not in picked and seed is not None and ("duration" not in e or dur is not None):
+            out.listed.append((p, *picked, seed, dur, cname))
+
+
+def _expand(ck: Checker, P: _Parsed) -> list[Case]:
+    sc, duration = P.sc, float(P.duration)
+    wanted = []
+    if P.mode == "product":
+        wanted = [("", a, b, c, s, duration, None) for a in range(len(P.sea_states))
+                  for b in range(len(P.controllers)) for c in range(len(P.conditions)) for s in P.seeds]
+    wanted += [(p, a, b, c, s, duration if d is None else d, n) for p, a, b, c, s, d, n in P.listed]
+    base = scenario_to_dict(sc)
+    cases: list[Case] = []
+    where: dict[str, str] = {}
+    for p, i_ss, i_ctrl, i_cond, seed, dur, cname in wanted:
+        sid, ss = P.sea_states[i_ss]
+        ctrl_name, spec = P.controllers[i_ctrl]
+        cond = P.conditions[i_cond]
+        late = [f for f in cond.faults if f.at(dur) > dur]
+        for f in late:
+            ck.err(f"{f.path}.time", f"= {f.at(dur):g} s is after the end of the run ({dur:g} s"
+                   + (f", {p}" if p else "") + ")")
+        if late:
+            continue
+        faults = [Fault(kind=f.kind, time=f.at(dur), **{"line" if f.kind == "line_break" else "thruster": f.target})
+                  for f in cond.faults]
+        sc_dict = {**base, "sea_states": [scenario_to_dict(ss)],
+                   "faults": list(base.get("faults", [])) + [scenario_to_dict(f) for f in faults]}
+        inputs = {"scenario": sc_dict, "scenario_name": sc.name, "sea_state": sid, "controller": spec,
+                  "seed": int(seed), "duration": float(dur), "segments": P.segments, "closed_loop": dict(P.closed_loop)}
+        labels = {"scenario": sc.name, "sea_state": sid, "controller": ctrl_name, "condition": cond.label(dur),
+                  "seed": int(seed)}
+        name = cname or (f"{sid}, {ctrl_name}, {labels['condition']}, seed {seed}"
+                         + (f", {dur:g} s" if dur != duration else ""))
+        cid = store.case_id(inputs)
+        here = p or f"sea_states[{i_ss}] x controllers[{i_ctrl}] x conditions[{i_cond}] x seed {seed}"
+        if cid in where:
+            if p and next(c for c in cases if c.id == cid).labels == labels:
+                continue  # a listed case that the product already has
+            ck.err(p or "cases", f"{here} has the same inputs as {where[cid]} (case {cid}): two names for one run; "
+                   "remove one")
+            continue
+        where[cid] = here
+        cases.append(Case(id=cid, name=name, labels=labels, inputs=inputs))
+    names = [c.name for c in cases]
+    for n in sorted({n for n in names if names.count(n) > 1}):
+        ck.err("cases", f"two cases are named {n!r}; give them distinct names")
+    if not cases and not ck.issues:
+        ck.err("cases", "the study has no case")
+    return cases
+
+
+def expand_cases(data: Mapping[str, Any], *, base_dir: str | Path = ".", source: str = "") -> tuple[Case, ...]:
+    """Validate a parsed study file and expand it into its cases.
+
+    Parameters
+    ----------
+    data : mapping
+        The study file as parsed TOML (see the module docstring).
+    base_dir : path
+        Folder that relative scenario paths are taken from (the study file's folder).
+    source : str
+        Name of the study in error messages.
+
+    Returns
+    -------
+    tuple of Case
+        The product (sea states, controllers, conditions, seeds; the last varying fastest) unless
+        ``mode = "list"``, then the listed cases that are not in it already.
+
+    Raises
+    ------
+    StudyError
+        With every problem found, each naming its field path.
+    """
+    if not isinstance(data, Mapping):
+        raise StudyError(f"a study must be a table of sections, got {type(data).__name__}", source=source)
+    ck = Checker()
+    ck.keys(data, _TOP_KEYS, "")
+    parsed = _Parsed()
+    _parse_study_table(ck, data, Path(base_dir), parsed)
+    _parse_sea_states(ck, data, parsed)
+    _parse_controllers(ck, data, parsed)
+    _parse_conditions(ck, data, parsed)
+    _parse_listed(ck, data, parsed)
+    if not ck.issues:
+        cases = _expand(ck, parsed)
+    if ck.issues:
+        raise StudyError(list(dict.fromkeys(ck.issues)), source=source)
+    return tuple(cases)
+
+
+def study_from_dict(data: Mapping[str, Any], *, base_dir: str | Path = ".", source: str = "",
+                    path: str | Path | None = None, text: str = "") -> Study:
+    """A validated :class:`Study` from a parsed study file (see :func:`expand_cases`)."""
+    cases = expand_cases(data, base_dir=base_dir, source=source)
+    st = data["study"]
+    return Study(name=st["name"], description=st.get("description", ""), path=None if path is None else Path(path),
+                 cases=cases, text=text or _to_toml(data))
+
+
+# -- TOML text of a study built in code -------------------------------------------------------
+
+
+def _toml_key(k: str) -> str:
+    return k if k and all(c.isascii() and (c.isalnum() or c in "_-") for c in k) else json.dumps(k)
+
+
+def _toml_value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        return repr(v) if math.isfinite(v) else ("nan" if math.isnan(v) else ("inf" if v > 0 else "-inf"))
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if isinstance(v, Mapping):
+        return "{ " + ", ".join(f"{_toml_key(k)} = {_toml_value(x)}" for k, x in v.items()) + " }"
+    raise TypeError(f"cannot write {type(v).__name__} to TOML")
+
+
+def _to_toml(data: Mapping[str, Any]) -> str:
+    """TOML text of a study dictionary (for ``DIR/study.toml`` of a study built without a file)."""
+    lines = ["# written by tapm_opt from a study built in code"]
+    for k, v in data.items():
+        if isinstance(v, Mapping):
+            lines += ["", f"[{_toml_key(k)}]", *(f"{_toml_key(a)} = {_toml_value(b)}" for a, b in v.items())]
+        elif isinstance(v, list) and v and all(isinstance(x, Mapping) for x in v):
+            for item in v:
+                lines += ["", f"[[{_toml_key(k)}]]", *(f"{_toml_key(a)} = {_toml_value(b)}" for a, b in item.items())]
+        else:
+            lines.insert(1, f"{_toml_key(k)} = {_toml_value(v)}")
+    return "\n".join(lines) + "\n"
+
+
+# -- reading a study file ----------------------------------------------------------------------
+
+
+def load_study(path: str | Path) -> Study:
+    """Read and validate a study file.
+
+    Raises
+    ------
+    StudyError
+        If the file is missing, is not valid TOML, or has any problem (all of them are listed).
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise StudyError(f"no study file {path}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise StudyError(f"cannot read {path}: {exc}") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise StudyError(f"{path.name} is not valid TOML: {exc}", source=str(path)) from None
+    return study_from_dict(data, base_dir=path.resolve().parent, source=str(path), path=path.resolve(), text=text)
