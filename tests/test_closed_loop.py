@@ -15,6 +15,9 @@ from tapm_opt.estimation.lowpass import EstimationError, LowPassEstimator
 from tapm_opt.models import MooringModel
 from tapm_opt.plant.simulator import Plant
 from tapm_opt.results import Result
+from tapm_opt.control.setpoint import FixedSetpoint, HeadingChasing
+from tapm_opt.geometry import body_from_turret
+from tapm_opt.interfaces import Estimate
 from tapm_opt.studies.closed_loop import ClosedLoopError, ClosedLoopSettings, SetpointChasing, run_closed_loop
 from tapm_opt.studies.controllers import ControllerSpecError, build_controller
 from tapm_opt.studies.kpis import basic_kpis
@@ -30,7 +33,7 @@ def test_lowpass_passes_constant_and_attenuates_wave_motion():
     out = []
     for k in range(3000):
         t = 0.2 * k
-        out.append(est.update(t, [20.0 + A * math.sin(2 * math.pi * t / T_wave), -5.0], 0.1, np.zeros(3))[0])
+        out.append(est.filter(t, [20.0 + A * math.sin(2 * math.pi * t / T_wave), -5.0], 0.1, np.zeros(3))[0])
     out = np.array(out)[-500:]
     assert np.allclose(out[:, 0].mean(), 20.0, atol=0.05)
     # |H| of a critically damped 2nd-order low pass at w: 1 / (1 + (w/wc)^2)
@@ -44,7 +47,7 @@ def test_lowpass_velocity_is_the_rate_in_body_frame():
     est = LowPassEstimator(MooringModel.from_scenario(FPSO), omega_c=2 * math.pi / 20)
     psi = math.radians(90.0)  # heading east: a northward motion is a port (negative sway) velocity
     for k in range(2000):
-        eta, nu, _ = est.update(0.5 * k, [0.3 * 0.5 * k, 0.0], psi, np.zeros(3))
+        eta, nu, _ = est.filter(0.5 * k, [0.3 * 0.5 * k, 0.0], psi, np.zeros(3))
     # (the sampled, held input lags a ramp by half a sample: 0.2 % here)
     assert nu[0] == pytest.approx(0.0, abs=1e-6) and nu[1] == pytest.approx(-0.3, rel=5e-3)
 
@@ -55,30 +58,55 @@ def test_environment_estimate_is_the_quasi_static_balance():
     eta = np.array([30.0, -10.0, 0.2])
     tau_thr = np.array([1e6, -2e5, 3e7])
     for k in range(400):
-        *_, tau_env = est.update(float(k), eta[:2], eta[2], tau_thr)
+        *_, tau_env = est.filter(float(k), eta[:2], eta[2], tau_thr)
     np.testing.assert_allclose(tau_env, -(model.force(eta) + tau_thr), rtol=1e-6, atol=1.0)
 
 
 def test_estimator_rejects_bad_input():
     est = LowPassEstimator(MooringModel.from_scenario(FPSO))
     with pytest.raises(EstimationError, match="finite"):
-        est.update(0.0, [math.nan, 0.0], 0.0, np.zeros(3))
+        est.filter(0.0, [math.nan, 0.0], 0.0, np.zeros(3))
     with pytest.raises(EstimationError, match="omega_c"):
         LowPassEstimator(MooringModel.from_scenario(FPSO), omega_c=-1.0)
 
 
 # -- setpoint and settings -----------------------------------------------------------------
 
+def _est(t, eta, tau_env=(0.0, 0.0, 0.0)):
+    return Estimate(t=t, eta=eta, nu=np.zeros(3), tau_env=tau_env)
+
+
 def test_setpoint_chasing_follows_and_is_projected_into_the_safe_circle():
     ch = SetpointChasing(T=100.0, R=40.0, psi_d=0.3)
     sp = None
-    for _ in range(2000):
-        sp = ch.update(1.0, np.array([30.0, 0.0, 0.0]))
+    for k in range(2000):
+        sp = ch.update(float(k), _est(k, [30.0, 0.0, 0.0])).eta_d
     assert sp[0] == pytest.approx(30.0, rel=1e-6) and sp[2] == 0.3
-    for _ in range(2000):
-        sp = ch.update(1.0, np.array([80.0, 60.0, 0.0]))
+    for k in range(2000, 4000):
+        sp = ch.update(float(k), _est(k, [80.0, 60.0, 0.0])).eta_d
     assert math.hypot(sp[0], sp[1]) == pytest.approx(40.0, rel=1e-9)
     assert math.atan2(sp[1], sp[0]) == pytest.approx(math.atan2(60.0, 80.0), rel=1e-6)
+
+
+def test_setpoint_chasing_follows_the_turret_not_the_body_origin():
+    """The hull turned 25 deg about a turret 10 m off: the chased setpoint is the turret offset."""
+    p_cot = np.array([91.44, 0.0])
+    psi = math.radians(25.0)
+    x, y = body_from_turret((8.0, -6.0), psi, p_cot)
+    ch = SetpointChasing(T=50.0, R=None, psi_d=0.0, p_cot_B=p_cot)
+    for k in range(2000):
+        sp = ch.update(float(k), _est(k, [x, y, psi])).eta_d
+    np.testing.assert_allclose(sp[:2], [8.0, -6.0], atol=1e-9)
+
+
+def test_heading_chasing_turns_the_bow_into_the_weather():
+    """A mean load toward the east (b_E = (0, 1 MN) in {E}) turns the heading setpoint until the bow
+    points into it: psi_d = atan2(-b_y, -b_x) = -90 deg; the position setpoint is untouched."""
+    layer = HeadingChasing(FixedSetpoint((0.0, 0.0, 0.3)), T=10.0, psi_0=0.3)
+    for k in range(400):
+        sp = layer.update(float(k), _est(k, [0.0, 0.0, 0.0], tau_env=(0.0, 1e6, 0.0))).eta_d
+    assert sp[2] == pytest.approx(-math.pi / 2, abs=1e-6)
+    assert tuple(sp[:2]) == (0.0, 0.0)
 
 
 @pytest.mark.parametrize("kw, field", [({"duration": -1.0}, "duration"), ({"dt_log": 1.5}, "dt_log"),

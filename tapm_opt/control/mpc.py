@@ -33,11 +33,11 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import TapmError
-from ..geometry import rot_z
+from ..geometry import R2, body_from_turret, rot_z, ssa, turret_offset
+from ..interfaces import ControllerStep, Estimate, Setpoint, ThrusterCommand
 from ..models.mooring import MooringModel
-from ..models.thrust import extended_columns
-from ..models.vessel import VesselParams, moored_function
-from .estimate import Estimate, Setpoint
+from ..models.system import CAPACITY_FRACTION, System, as_system
+from ..models.vessel import moored_function
 
 __all__ = ["MPCSettings", "MPCError", "NonlinearMPC", "LinearMPC", "build_problem", "MPCStep"]
 
@@ -77,9 +77,10 @@ class MPCSettings:
     w_terminal : float
         Multiplier of the state terms at the end of the horizon.
     dead_band : float
-        Radius of the dead band about the position setpoint [m] (0: none).
+        Radius of the dead band of the turret offset about the position setpoint [m] (0: none).
     safe_radius : float or None
-        Soft constraint radius about the field zero point [m] (None: from the scenario, or none).
+        Soft constraint radius of the turret offset about the field zero point [m] (None: from the
+        scenario, or none).
     tension_utilisation : float or None
         Soft tension limit as a fraction of MBS (None: the scenario's ``limits.tension_utilisation``).
     soft_l1, soft_l2 : float
@@ -87,7 +88,9 @@ class MPCSettings:
     r_ref, psi_ref, nu_ref, r_rate_ref : float
         Normalisation: position [m], heading [rad], speed [m/s], yaw rate [rad/s].
     capacity_fraction : float
-        ``decision="tau"``: fraction of the summed thrust used as the box on each of X, Y, N.
+        ``decision="tau"``: the thrust box on X, Y, N is
+        ``ThrusterSet.capacity_box(capacity_fraction)`` (the one capacity model,
+        ``models.system``).
     polygon_sides : int
         Sides of the polygons approximating circles (dead band, safe circle, thrust circles).
     max_iter : int
@@ -119,7 +122,7 @@ class MPCSettings:
     psi_ref: float = math.radians(10.0)
     nu_ref: float = 0.5
     r_rate_ref: float = math.radians(0.5)
-    capacity_fraction: float = 0.6
+    capacity_fraction: float = CAPACITY_FRACTION
     polygon_sides: int = 16
     max_iter: int = 30
     max_time: float = 10.0
@@ -151,19 +154,13 @@ class MPCSettings:
                 raise MPCError(f"MPCSettings.{name} = {v!r} must be {what} or None")
 
 
-@dataclass(frozen=True)
-class MPCStep:
-    """Diagnostics of one MPC update."""
+@dataclass(frozen=True, kw_only=True)
+class MPCStep(ControllerStep):
+    """Diagnostics of one MPC update: a :class:`~tapm_opt.interfaces.ControllerStep` with the
+    optimal cost and the largest normalised soft-constraint violation."""
 
-    t: float
-    success: bool
-    status: str
-    solve_time: float
-    iterations: int
-    fallback: bool
-    cost: float
-    active: tuple[str, ...]
-    max_soft_violation: float
+    cost: float = math.nan
+    max_soft_violation: float = 0.0
 
 
 # ------------------------------------------------------------------------------------------
@@ -187,43 +184,32 @@ class _Problem:
     B_thr: np.ndarray | None
 
 
-def _thruster_data(scenario: Any):
-    th = scenario.thrusters
-    if not th:
-        raise MPCError(f"scenario {scenario.name!r} has no thrusters: there is nothing to control")
-    cols, lo, hi, kinds, fmax, rate = [], [], [], [], [], []
-    for t in th:
-        if t.kind == "azimuth":
-            cols.append(extended_columns(*t.position))
-            kinds += ["az", "az"]
-            lo += [-t.max_thrust] * 2
-            hi += [t.max_thrust] * 2
-            fmax += [t.max_thrust] * 2
-            rate += [t.max_thrust_rate] * 2
-        else:
-            c, s = math.cos(t.angle), math.sin(t.angle)
-            cols.append(np.array([[c], [s], [t.position[0] * s - t.position[1] * c]]))
-            kinds.append("fixed")
-            lo.append(-t.max_reverse_thrust)
-            hi.append(t.max_thrust)
-            fmax.append(max(t.max_thrust, t.max_reverse_thrust))
-            rate.append(t.max_thrust_rate)
-    B = np.hstack(cols)
-    return B, np.array(lo), np.array(hi), kinds, np.array(fmax), np.array(rate)
-
-
 def _polygon(n: int) -> np.ndarray:
     """Outward unit normals of a regular n-gon circumscribing the unit circle."""
     a = 2 * np.pi * np.arange(n) / n
     return np.stack([np.cos(a), np.sin(a)], axis=1)
 
 
-def build_problem(scenario: Any, settings: MPCSettings, *, linear_about: tuple | None = None,
+def _turret(eta: Any, p_cot_B: np.ndarray, psi_op: Any) -> Any:
+    """Turret offset of the CasADi pose ``eta`` (``geometry.turret_offset``) expanded to first
+    order in the heading about ``psi_op`` (a number or a CasADi parameter):
+    ``p + R2(psi_op) c - c + R2'(psi_op) c (psi - psi_op)``, linear in eta. The error is
+    ``|c| (1 - cos(psi - psi_op))`` (1.4 m for the fpso's 91 m at 10 deg); the expansion keeps the
+    position terms convex, so the SQP's Hessian stays as definite as without the turret."""
+    c = ca.DM(np.asarray(p_cot_B, float))
+    Rp = ca.mtimes(R2(psi_op), c)
+    dRp = ca.vertcat(-Rp[1], Rp[0])
+    return eta[0:2] + Rp - c + dRp * (eta[2] - psi_op)
+
+
+def build_problem(system: Any, settings: MPCSettings, *, linear_about: tuple | None = None,
                   model: MooringModel | None = None) -> _Problem:
     """Write the MPC problem (module docstring) as CasADi expressions.
 
     Parameters
     ----------
+    system : System or Scenario
+        The vessel, line system and thrusters (a scenario is built into its :class:`System`).
     linear_about : (x_op (6,), u_op (3,), b_op (3,)) or None
         None: nonlinear prediction. Otherwise the dynamics are linearised about this point, the
         tensions about ``x_op``'s pose, and the heading error is used unwrapped: the problem is a QP.
@@ -233,8 +219,12 @@ def build_problem(scenario: Any, settings: MPCSettings, *, linear_about: tuple |
     """
     s = settings
     N = s.horizon
-    vp = VesselParams.from_scenario(scenario)
-    moor = model or MooringModel.from_scenario(scenario)
+    system = as_system(system)
+    if not system.thrusters.n:
+        raise MPCError(f"scenario {system.name!r} has no thrusters: there is nothing to control")
+    vp = system.vessel
+    moor = model or system.lines
+    p_cot = np.asarray(system.p_cot_B, float)
     eta_op = np.zeros(3) if linear_about is None else np.asarray(linear_about[0][:3], float)
     kind = s.mooring
     tau_moor = moor.force_function(kind, eta0=eta_op)
@@ -242,15 +232,17 @@ def build_problem(scenario: Any, settings: MPCSettings, *, linear_about: tuple |
         tau_moor = tau_moor.expand()  # pure SX: evaluated without the MX virtual machine
     rhs = moored_function(vp, tau_moor, form="design")
     # thrust variables
-    B_thr, u_lo, u_hi, kinds, fmax, rate = _thruster_data(scenario)
+    B_thr, u_lo, u_hi, kinds, owner = system.thrusters.extended()
+    fmax = np.maximum(np.abs(u_lo), np.abs(u_hi))
+    fmax = np.where(fmax > 0, fmax, system.thrusters.f_max[owner])  # a failed thruster keeps its scale
+    rate = system.thrusters.rate[owner]
     if s.decision == "tau":
-        # a box per DOF: the summed capacity of every thruster in that DOF, times a fraction that
-        # leaves room for the other two DOFs (each azimuth can push its full thrust any way)
-        cap = s.capacity_fraction * np.array([np.sum(fmax * np.abs(B_thr[i])) for i in range(3)])
+        # the one capacity model: a box the thrusters can deliver in X, Y and N at once
+        cap = np.asarray(system.thrusters.capacity_box(s.capacity_fraction), float)
         n_u = 3
         u_ref = cap
         u_lo_s, u_hi_s = -np.ones(3), np.ones(3)
-        rate_s = np.array([np.sum(rate * np.abs(B_thr[i])) for i in range(3)]) * s.capacity_fraction / cap
+        rate_s = np.asarray(system.thrusters.rate_box(s.capacity_fraction), float) / cap
         Bu = np.eye(3)
     else:
         n_u = B_thr.shape[1]
@@ -259,15 +251,17 @@ def build_problem(scenario: Any, settings: MPCSettings, *, linear_about: tuple |
         rate_s = rate / fmax
         Bu = B_thr
     x_ref = np.array([s.r_ref, s.r_ref, s.psi_ref, s.nu_ref, s.nu_ref, s.r_rate_ref])
-    la = scenario.line_arrays
-    util = scenario.limits.tension_utilisation if s.tension_utilisation is None else s.tension_utilisation
-    T_allow = util * la["MBS"][[scenario.line_index(i) for i in moor.line_ids]]
-    R_safe = scenario.limits.safe_radius if s.safe_radius is None else s.safe_radius
+    util = system.limits.tension_utilisation if s.tension_utilisation is None else s.tension_utilisation
+    T_allow = util * np.asarray(moor.MBS, float)
+    R_safe = system.limits.safe_radius if s.safe_radius is None else s.safe_radius
+    psi_lin = float(eta_op[2]) if linear_about is not None else None
     polyg = _polygon(s.polygon_sides)
 
     Sym = ca.MX if kind == "catenary" and linear_about is None else ca.SX
     p = Sym.sym("p", 6 + n_u + 3 + 3)
     x0, u_prev, eta_d, b_E = p[0:6], p[6:6 + n_u], p[6 + n_u:9 + n_u], p[9 + n_u:12 + n_u]
+    if psi_lin is None:
+        psi_lin = x0[2]  # the turret offset is expanded about the present heading
 
     # discrete dynamics (RK4) in SI, with thrust tau = Bu u
     xs, us, bs = ca.SX.sym("x", 6), ca.SX.sym("u", n_u), ca.SX.sym("b", 3)
@@ -330,16 +324,22 @@ def build_problem(scenario: Any, settings: MPCSettings, *, linear_about: tuple |
         g.append(U[:, k] - u_last)
         lbg += list(-rate_s * s.dt)
         ubg += list(rate_s * s.dt)
-        # thrust circles of azimuths (thruster decision)
+        # thrust circles of azimuths and the rate of their force vectors (thruster decision):
+        # |f| <= f_max and |f_k - f_k-1| <= rate dt, as inscribed polygons (so the magnitude too
+        # changes by at most rate dt)
         if s.decision == "thrusters":
             col = 0
             while col < n_u:
                 if kinds[col] == "az":
                     uv = U[col:col + 2, k]
+                    duv = uv - u_last[col:col + 2]
                     for nrm in polyg:
                         g.append(nrm[0] * uv[0] + nrm[1] * uv[1])
                         lbg.append(-ca.inf)
                         ubg.append(math.cos(math.pi / s.polygon_sides))  # inscribed polygon
+                        g.append(nrm[0] * duv[0] + nrm[1] * duv[1])
+                        lbg.append(-ca.inf)
+                        ubg.append(rate_s[col] * s.dt * math.cos(math.pi / s.polygon_sides))
                     col += 2
                 else:
                     col += 1
@@ -348,13 +348,18 @@ def build_problem(scenario: Any, settings: MPCSettings, *, linear_about: tuple |
         # state terms at k+1
         xe = X[:, k + 1] * Dx
         w_state = s.w_terminal if k == N - 1 else 1.0
-        dp = xe[0:2] - eta_d[0:2]
-        if s.dead_band > 0 or s.w_position > 0:
+        p_t = _turret(xe[0:3], p_cot, psi_lin)  # turret offset: the point safety refers to
+        dp = p_t - eta_d[0:2]
+        if s.dead_band > 0:
             for nrm in polyg:
                 g.append((nrm[0] * dp[0] + nrm[1] * dp[1]) / s.r_ref - S_db[k])
                 lbg.append(-ca.inf)
                 ubg.append(s.dead_band / s.r_ref)
             cost += w_state * s.w_position * S_db[k] ** 2
+        elif s.w_position > 0:
+            # no dead band: the distance itself, squared (the polygon's slack would put 16
+            # degenerate faces through the setpoint, on which the active-set QP solver cycles)
+            cost += w_state * s.w_position * ca.sumsqr(dp / s.r_ref)
         cost += w_state * s.w_position_in * ca.sumsqr(dp / s.r_ref)
         dpsi = xe[2] - eta_d[2]
         if linear_about is None:
@@ -362,10 +367,10 @@ def build_problem(scenario: Any, settings: MPCSettings, *, linear_about: tuple |
         else:
             cost += w_state * s.w_heading * (dpsi / s.psi_ref) ** 2
         cost += w_state * s.w_velocity * (ca.sumsqr(xe[3:5] / s.nu_ref) + (xe[5] / s.r_rate_ref) ** 2)
-        # soft: safe circle about the field zero point, line tensions
+        # soft: safe circle of the turret offset about the field zero point, line tensions
         if R_safe is not None:
             for nrm in polyg:
-                g.append((nrm[0] * xe[0] + nrm[1] * xe[1]) / R_safe - S_safe[k])
+                g.append((nrm[0] * p_t[0] + nrm[1] * p_t[1]) / R_safe - S_safe[k])
                 lbg.append(-ca.inf)
                 ubg.append(1.0)
         T = tension(xe[0:3])
@@ -378,7 +383,7 @@ def build_problem(scenario: Any, settings: MPCSettings, *, linear_about: tuple |
     ubz = np.concatenate([np.full(nX, np.inf), np.tile(u_hi_s, N), np.full(3 * N, np.inf)])
     idx = {"X": slice(0, nX), "U": slice(nX, nX + nU), "S_db": slice(nX + nU, nX + nU + N),
            "S_safe": slice(nX + nU + N, nX + nU + 2 * N), "S_T": slice(nX + nU + 2 * N, nX + nU + 3 * N)}
-    scale = {"x": x_ref, "u": u_ref, "T_allow": T_allow, "R_safe": R_safe}
+    scale = {"x": x_ref, "u": u_ref, "T_allow": T_allow, "R_safe": R_safe, "p_cot_B": p_cot}
     return _Problem(z=z, p=p, f=cost, g=g, lbz=lbz, ubz=ubz, lbg=np.array(lbg, float), ubg=np.array(ubg, float),
                     idx=idx, scale=scale, n_u=n_u, B_thr=Bu if s.decision == "thrusters" else None)
 
@@ -396,12 +401,17 @@ def _jac(fn: ca.Function, x: np.ndarray) -> np.ndarray:
 class _MPCBase:
     """Shared parts: parameters, warm start by shifting, applying the first move, diagnostics."""
 
-    def __init__(self, scenario: Any, settings: MPCSettings):
+    def __init__(self, system: Any, settings: MPCSettings, *, period: float | None = None):
         if not isinstance(settings, MPCSettings):
             raise MPCError(f"settings must be MPCSettings, got {type(settings).__name__}")
-        self.scenario = scenario
+        if period is not None and not (isinstance(period, (int, float)) and math.isfinite(period) and period > 0):
+            raise MPCError(f"period = {period!r} must be a positive number [s] or None")
+        self.system = as_system(system)
         self.settings = settings
-        self.model = MooringModel.from_scenario(scenario)
+        self.period = float(period) if period is not None else settings.dt
+        self.model = self.system.lines
+        self._failed: frozenset[str] = frozenset()
+        self._prob: _Problem | None = None
         self._z: np.ndarray | None = None
         self._u_prev: np.ndarray | None = None
         self.diagnostics: list[MPCStep] = []
@@ -421,7 +431,7 @@ class _MPCBase:
         for name, v in (("estimate tau_env", tau_env), ("setpoint eta_d", eta_d)):
             if v.shape != (3,) or not np.all(np.isfinite(v)):
                 raise MPCError(f"{name} = {v.tolist()} must be a finite 3-vector")
-        eta_d[2] = eta[2] + _ssa(eta_d[2] - eta[2])  # heading setpoint unwrapped next to the heading
+        eta_d[2] = eta[2] + ssa(eta_d[2] - eta[2])  # heading setpoint unwrapped next to the heading
         b_E = rot_z(eta[2]) @ tau_env
         u_prev = np.zeros(self._n_u) if self._u_prev is None else self._u_prev
         return np.concatenate([eta, nu, u_prev, eta_d, b_E])
@@ -478,14 +488,46 @@ class _MPCBase:
                                         fallback=fallback, cost=cost, active=tuple(active), max_soft_violation=soft))
         return u0
 
+    def last_step(self) -> MPCStep | None:
+        """Diagnostics of the latest update (:class:`MPCStep`)."""
+        return self.diagnostics[-1] if self.diagnostics else None
+
+    def set_failed_thrusters(self, failed: frozenset[str]) -> None:
+        """Thruster feedback reports ``failed``: the thrust bounds of the following solves are those
+        of the remaining thrusters (``decision="tau"``: the capacity box of the reduced
+        :class:`~tapm_opt.models.system.ThrusterSet`; ``"thrusters"``: zero force for a failed one)."""
+        failed = frozenset(failed)
+        if failed == self._failed:
+            return
+        self.system.thrusters.without(failed)  # unknown ids raise here
+        self._failed = failed
+        if self._prob is not None:
+            self._apply_u_bounds()
+
+    def _apply_u_bounds(self) -> None:
+        """Write the thrust bounds of the thrusters that have not failed into the problem (after
+        each (re)build and each change of the failed set)."""
+        if not self._failed:
+            return
+        ths = self.system.thrusters.without(self._failed)
+        N = self.settings.horizon
+        if self.settings.decision == "tau":
+            lim = np.asarray(ths.capacity_box(self.settings.capacity_fraction)) / self._prob.scale["u"]
+            lo, hi = -lim, lim
+        else:
+            _, lo_si, hi_si, _, _ = ths.extended()
+            lo, hi = lo_si / self._prob.scale["u"], hi_si / self._prob.scale["u"]
+        sl = self._prob.idx["U"]
+        self._prob.lbz[sl], self._prob.ubz[sl] = np.tile(lo, N), np.tile(hi, N)
+
     def tau_from_u(self, u: np.ndarray) -> np.ndarray:
         """Generalised thrust [N, N, N m] of a decision vector (identity for ``decision="tau"``)."""
         return u if self._prob.B_thr is None else self._prob.B_thr @ u
 
-    def thruster_command(self, u: np.ndarray):
+    def thruster_forces(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(f, alpha) of every thruster from the thruster decision vector (``decision="thrusters"``)."""
         f, alpha, col = [], [], 0
-        for t in self.scenario.thrusters:
+        for t in self.system.thrusters.specs:
             if t.kind == "azimuth":
                 fx, fy = u[col], u[col + 1]
                 f.append(math.hypot(fx, fy))
@@ -497,11 +539,14 @@ class _MPCBase:
                 col += 1
         return np.array(f), np.array(alpha)
 
-    def last_thruster_command(self):
-        """(f, alpha) of the move applied last (``decision="thrusters"``)."""
+    def thruster_command(self) -> ThrusterCommand:
+        """Thrust and azimuth of every thruster for the move applied last (``decision="thrusters"``;
+        the :class:`~tapm_opt.interfaces.ThrusterController` method)."""
+        ths = self.system.thrusters
         if self._u_prev is None:
-            return np.zeros(len(self.scenario.thrusters)), np.array([t.angle for t in self.scenario.thrusters])
-        return self.thruster_command(self._u_prev)
+            return ThrusterCommand(f=np.zeros(ths.n), alpha=np.array([t.angle for t in ths.specs]))
+        f, alpha = self.thruster_forces(self._u_prev)
+        return ThrusterCommand(f=f, alpha=alpha)
 
     def update(self, t: float, estimate: Estimate, setpoint: Setpoint) -> np.ndarray:
         """Solve the MPC at time ``t`` and return the generalised thrust tau (3,) in {B} [N, N, N m]."""
@@ -516,10 +561,6 @@ class _MPCBase:
         self.diagnostics = []
 
 
-def _ssa(a: float) -> float:
-    return (a + math.pi) % (2 * math.pi) - math.pi
-
-
 class NonlinearMPC(_MPCBase):
     """Nonlinear MPC on the design model with the chosen mooring model (CasADi NLP).
 
@@ -527,9 +568,9 @@ class NonlinearMPC(_MPCBase):
     thrust, setpoint, environmental load) and warm-starts from the shifted previous solution.
     """
 
-    def __init__(self, scenario: Any, settings: MPCSettings = MPCSettings()):
-        super().__init__(scenario, settings)
-        prob = build_problem(scenario, settings, model=self.model)
+    def __init__(self, system: Any, settings: MPCSettings = MPCSettings(), *, period: float | None = None):
+        super().__init__(system, settings, period=period)
+        prob = build_problem(self.system, settings, model=self.model)
         self._prob = prob
         self._n_u = prob.n_u
         nlp = {"x": prob.z, "p": prob.p, "f": prob.f, "g": prob.g}
@@ -583,9 +624,10 @@ class LinearMPC(_MPCBase):
     more than ``relinearise_heading`` [rad] from the operating point.
     """
 
-    def __init__(self, scenario: Any, settings: MPCSettings = MPCSettings(), *, relinearise_distance: float = 5.0,
-                 relinearise_heading: float = math.radians(5.0), eps_abs: float = 1e-5, eps_rel: float = 1e-5):
-        super().__init__(scenario, settings)
+    def __init__(self, system: Any, settings: MPCSettings = MPCSettings(), *, relinearise_distance: float = 5.0,
+                 relinearise_heading: float = math.radians(5.0), eps_abs: float = 1e-5, eps_rel: float = 1e-5,
+                 period: float | None = None):
+        super().__init__(system, settings, period=period)
         import osqp
 
         self._osqp_mod = osqp
@@ -593,12 +635,13 @@ class LinearMPC(_MPCBase):
         self._eps = (eps_abs, eps_rel)
         self._op = None
         self._qp = None
-        self._n_u = 3 if settings.decision == "tau" else _thruster_data(scenario)[0].shape[1]
+        self._n_u = 3 if settings.decision == "tau" else self.system.thrusters.extended()[0].shape[1]
 
     def _setup(self, x_op: np.ndarray, b_op: np.ndarray) -> None:
-        prob = build_problem(self.scenario, self.settings, linear_about=(x_op, np.zeros(self._n_u), b_op),
+        prob = build_problem(self.system, self.settings, linear_about=(x_op, np.zeros(self._n_u), b_op),
                              model=self.model)
         self._prob, self._n_u = prob, prob.n_u
+        self._apply_u_bounds()
         z, p = prob.z, prob.p
         H = ca.hessian(prob.f, z)[0]
         fH = ca.Function("H", [p], [H])
@@ -632,12 +675,21 @@ class LinearMPC(_MPCBase):
             self._qp.update(Px=Hm.data, Ax=Aq.data)
         self._op = (x_op.copy(), b_op.copy())
 
+    def _apply_u_bounds(self) -> None:
+        super()._apply_u_bounds()
+        if hasattr(self, "_lbz"):  # the QP's copies of the bounds
+            big = 1e20
+            self._lbz = np.where(np.isfinite(self._prob.lbz), self._prob.lbz, -big)
+            self._ubz = np.where(np.isfinite(self._prob.ubz), self._prob.ubz, big)
+
     def _solve(self, t: float, p: np.ndarray) -> np.ndarray:
         n_u = self._n_u
-        x_op = np.concatenate([p[6 + n_u:8 + n_u], p[2:3], np.zeros(3)])
+        # operating point: the body pose that puts the turret at the setpoint with the present heading
+        psi = float(p[2])
+        x_op = np.concatenate([body_from_turret(p[6 + n_u:8 + n_u], psi, self.system.p_cot_B), [psi], np.zeros(3)])
         b_op = p[-3:]
         if (self._op is None or np.hypot(*(x_op[:2] - self._op[0][:2])) > self._reld
-                or abs(_ssa(x_op[2] - self._op[0][2])) > self._relh):
+                or abs(ssa(x_op[2] - self._op[0][2])) > self._relh):
             self._setup(x_op, b_op)
         q = self._fq(p)
         g0 = self._fg0(p)

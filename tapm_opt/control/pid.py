@@ -12,7 +12,10 @@ and H_xy = diag(1, 1, 0) (xi_dot = eta - eta_d, heading error wrapped with ``ssa
     3. surge-sway restoring -H_xy K_p R^T (eta - eta_d)
     4. surge-sway mean      -H_xy K_i R^T xi
 
-The enabled modes are summed; :data:`MODE_SETS` holds the combinations of [S] Table 3.
+The enabled modes are summed; :data:`MODE_SETS` holds the combinations of [S] Table 3. The
+position in eta - eta_d is that of the controller's reference point — the centre of turret for a
+turret-moored vessel, as a turret offset (``geometry.turret_offset``) — so a hull turning about
+the turret gives no position error.
 [S] writes the damping term on accelerations (nu_dot - nu_d_dot); this module follows [G] and
 feeds back velocities: with K_d in N s/m a D-term on acceleration has the wrong units, and
 "damping" means a load proportional to velocity.
@@ -32,12 +35,14 @@ from typing import Any, Literal, Mapping, Sequence
 
 import control
 import numpy as np
-import scipy.optimize
 
+from .._io import readonly
 from ..errors import TapmError
-from ..geometry import rot_z, ssa
+from ..geometry import rot_z, ssa, turret_offset
+from ..interfaces import ControllerStep
 from ..models.mooring import MooringModel
-from ..models.vessel import VesselParams, linearise, moored_function
+from ..models.system import as_system
+from ..models.vessel import linearise, moored_function
 from .estimate import Estimate, Setpoint
 
 __all__ = [
@@ -60,10 +65,7 @@ __all__ = [
 _X, _Y, _PSI = 0, 1, 2
 
 
-def _ro(a: Any, dtype: Any = float) -> np.ndarray:
-    arr = np.array(a, dtype=dtype)
-    arr.flags.writeable = False
-    return arr
+
 
 
 class ControlError(TapmError, ValueError):
@@ -87,8 +89,8 @@ MODE_SETS: Mapping[str, tuple[str, ...]] = MappingProxyType({
 })
 
 #: Projections of [S] Table 2 onto heading and onto surge-sway.
-H_PSI = _ro(np.diag([0.0, 0.0, 1.0]))
-H_XY = _ro(np.diag([1.0, 1.0, 0.0]))
+H_PSI = readonly(np.diag([0.0, 0.0, 1.0]))
+H_XY = readonly(np.diag([1.0, 1.0, 0.0]))
 
 
 def _resolve_modes(modes: str | Sequence[str]) -> tuple[str, ...]:
@@ -229,6 +231,13 @@ class TAPMPID:
         If True, subtract ``estimate.tau_env`` from the command (mean-load feedforward, the
         alternative to integral action of Aalbers et al. in [S] §4.2.1). Default False: in TAPM
         the mooring should carry the mean load.
+    reference_point : array_like shape (2,)
+        Point of the hull in {B} [m] whose position is controlled: the centre of turret for a
+        turret-moored vessel (the DP reference point, [S] §4.2.1), so that the position error is
+        the turret offset (``geometry.turret_offset``) minus the setpoint and the surge-sway
+        damping acts on that point's velocity. Default (0, 0): the body origin.
+    period : float or None
+        Update period [s] for the closed-loop runner (None: the runner's control period).
 
     Notes
     -----
@@ -241,17 +250,25 @@ class TAPMPID:
 
     def __init__(self, gains: PIDGains, *, modes: str | Sequence[str] = MODES,
                  tau_limit: Any = None, integral_limit: Any = None, anti_windup: bool = True,
-                 env_feedforward: bool = False) -> None:
+                 env_feedforward: bool = False, reference_point: Any = (0.0, 0.0),
+                 period: float | None = None) -> None:
         if not isinstance(gains, PIDGains):
             raise ControlError(f"gains must be a PIDGains, got {type(gains).__name__}")
         self._gains = gains
         self._tau_limit = _limit("tau_limit", tau_limit, allow_zero=False)
         il = _limit("integral_limit", integral_limit, allow_zero=True)
         if il is None:
-            il = self._tau_limit if self._tau_limit is not None else _ro(np.full(3, np.inf))
+            il = self._tau_limit if self._tau_limit is not None else readonly(np.full(3, np.inf))
         self._integral_limit = il
         self._anti_windup = bool(anti_windup)
         self._env_ff = bool(env_feedforward)
+        rp = np.asarray(reference_point, dtype=float)
+        if rp.shape != (2,) or not np.all(np.isfinite(rp)):
+            raise ControlError(f"reference_point={reference_point!r} must be 2 finite numbers (x, y) in {{B}} [m]")
+        self._p_ref = rp
+        if period is not None and not (np.isfinite(period) and period > 0):
+            raise ControlError(f"period={period!r} must be a positive number [s] or None")
+        self.period = None if period is None else float(period)
         self._xi = np.zeros(3)
         self.set_modes(modes)
         self.reset()
@@ -272,6 +289,12 @@ class TAPMPID:
         self._sat = np.zeros(3, dtype=bool)
         self._tau_unsat = np.zeros(3)
         self._psi = 0.0
+        self._last: ControllerStep | None = None
+
+    def last_step(self) -> ControllerStep | None:
+        """Diagnostics of the latest update: ``active`` holds ``"saturated"`` when ``tau_limit``
+        clipped the command."""
+        return self._last
 
     def set_modes(self, modes: str | Sequence[str]) -> None:
         """Switch the enabled modes (e.g. from a sea-state supervisor, [S] Table 3).
@@ -310,17 +333,17 @@ class TAPMPID:
     @property
     def integral(self) -> np.ndarray:
         """Integral state xi in {E} (x [m s], y [m s], psi [rad s]), a read-only copy."""
-        return _ro(self._xi)
+        return readonly(self._xi)
 
     @property
     def integral_load(self) -> np.ndarray:
         """Integral part of the last command, -K_i R^T xi in {B} [N, N, N m] (projected)."""
-        return _ro(-(self._Ki @ (rot_z(self._psi).T @ self._xi)))
+        return readonly(-(self._Ki @ (rot_z(self._psi).T @ self._xi)))
 
     @property
     def saturated(self) -> np.ndarray:
         """Per DOF: was the last command clipped by ``tau_limit``? Read-only (3,) bool."""
-        return _ro(self._sat, dtype=bool)
+        return readonly(self._sat, dtype=bool)
 
     # -- control law ---------------------------------------------------------------------
     def update(self, t: float, estimate: Estimate, setpoint: Setpoint) -> np.ndarray:
@@ -334,7 +357,8 @@ class TAPMPID:
             ``eta`` (3,) in {E} [m, m, rad], ``nu`` (3,) in {B} [m/s, m/s, rad/s], ``tau_env``
             (3,) [N, N, N m] (used only with ``env_feedforward``).
         setpoint : Setpoint
-            ``eta_d`` (3,) in {E}, ``nu_d`` (3,) in {B}.
+            ``eta_d`` (3,): turret offset (x [m], y [m]) in {E} and heading [rad]; ``nu_d`` (3,)
+            in {B}.
 
         Returns
         -------
@@ -361,8 +385,11 @@ class TAPMPID:
             raise ControlError(f"t={t} s is earlier than the previous call at {self._t_prev} s; "
                                f"call reset() to restart the controller")
 
-        e = eta - eta_d
-        e[_PSI] = ssa(e[_PSI])
+        # position error of the reference point (turret offset) and its velocity in {B}
+        e = np.empty(3)
+        e[:2] = np.asarray(turret_offset(eta, self._p_ref)) - eta_d[:2]
+        e[_PSI] = ssa(eta[_PSI] - eta_d[_PSI])
+        nu = nu + np.array([-nu[_PSI] * self._p_ref[1], nu[_PSI] * self._p_ref[0], 0.0])
         Rt = rot_z(eta[_PSI]).T
         e_b = Rt @ e
         if self._t_prev is not None and t > self._t_prev:
@@ -377,6 +404,7 @@ class TAPMPID:
         if self._tau_limit is not None:
             self._sat = np.abs(tau) > self._tau_limit
             tau = np.clip(tau, -self._tau_limit, self._tau_limit)
+        self._last = ControllerStep(t=t, active=("saturated",) if np.any(self._sat) else ())
         return np.array(tau)
 
     def _integrate(self, e_b: np.ndarray, Rt: np.ndarray, dt: float) -> None:
@@ -594,7 +622,7 @@ class PIDDesign:
     natural_periods: np.ndarray
     damping_ratios: np.ndarray
     clamped: tuple[str, ...] = ()
-    eta_op: np.ndarray = field(default_factory=lambda: _ro(np.zeros(3)))
+    eta_op: np.ndarray = field(default_factory=lambda: readonly(np.zeros(3)))
 
     @property
     def stable(self) -> bool:
@@ -700,40 +728,22 @@ def design_gains(plant: Any, *, periods: Any, damping: Any, integral_ratio: floa
         periods_cl = np.where(wn > 0.0, 2.0 * np.pi / np.where(wn > 0.0, wn, 1.0), np.inf)
 
     return PIDDesign(
-        gains=gains, periods=_ro(periods), damping=_ro(zeta), integral_ratio=ratio,
-        M=_ro(M), D=_ro(D), K=_ro(K), plant=full,
-        designed_poles=_ro(wanted, complex), decoupled_poles=_ro(np.array(achieved), complex),
-        poles=_ro(poles, complex), natural_periods=_ro(periods_cl),
-        damping_ratios=_ro(zeta_cl), clamped=tuple(clamped),
+        gains=gains, periods=readonly(periods), damping=readonly(zeta), integral_ratio=ratio,
+        M=readonly(M), D=readonly(D), K=readonly(K), plant=full,
+        designed_poles=readonly(wanted, complex), decoupled_poles=readonly(np.array(achieved), complex),
+        poles=readonly(poles, complex), natural_periods=readonly(periods_cl),
+        damping_ratios=readonly(zeta_cl), clamped=tuple(clamped),
     )
 
 
 def _mooring_equilibrium(moor: MooringModel, tau_env: np.ndarray, eta_guess: np.ndarray
                          ) -> np.ndarray:
-    """Pose where tau_moor(eta) + tau_env = 0 (no thrust, at rest), Powell's method with the
-    exact stiffness as Jacobian."""
-    scale = max(float(np.max(np.abs(tau_env))), 1.0e3)
-
-    def f(e):
-        return (moor.force(e) + tau_env) / scale
-
-    def jac(e):
-        return -moor.stiffness(e) / scale
-
+    """Pose where tau_moor(eta) + tau_env = 0 (no thrust, at rest, heading free):
+    :meth:`~tapm_opt.models.mooring.MooringModel.equilibrium`, its error as a ControlError."""
     try:
-        sol = scipy.optimize.root(f, eta_guess, jac=jac, method="hybr")
-        resid = float(np.max(np.abs(f(sol.x))))
+        return moor.equilibrium(tau_env, eta_guess=eta_guess)
     except TapmError as exc:
-        raise ControlError(f"no mooring equilibrium for tau_env={tau_env.tolist()}: the search "
-                           f"left the catenary's domain ({exc})") from None
-    if not resid <= 1e-8:
-        hint = ""
-        if moor.turret_mode == "free":
-            hint = (f"; with a free turret the hull can balance a body-fixed load only if "
-                    f"N = x_cot Y (x_cot = {moor.p_cot_B[0]:g} m), else it weathervanes")
-        raise ControlError(f"no mooring equilibrium for tau_env={tau_env.tolist()} from "
-                           f"eta0={eta_guess.tolist()}: relative residual {resid:.3g}{hint}")
-    return np.array(sol.x)
+        raise ControlError(f"{exc} (from eta0={np.asarray(eta_guess).tolist()})") from None
 
 
 def design_from_scenario(scenario: Any, *, periods: Any, damping: Any,
@@ -743,15 +753,17 @@ def design_from_scenario(scenario: Any, *, periods: Any, damping: Any,
                          method: Literal["formula", "acker"] = "formula") -> PIDDesign:
     """Gains for a scenario's vessel and catenary mooring, linearised at the offset equilibrium.
 
-    The vessel rests where the catenary mooring balances ``tau_env`` (Powell's method on
-    ``MooringModel.force`` from ``eta0``); the design model (vessel design form, [S] eq. 31,
-    with the catenary restoring load) is linearised there with
-    :func:`~tapm_opt.models.vessel.linearise`, so K is the exact catenary stiffness
-    ``MooringModel.stiffness`` at that pose. Then :func:`design_gains`.
+    The vessel rests where the catenary mooring balances ``tau_env``
+    (:meth:`~tapm_opt.models.mooring.MooringModel.equilibrium` from ``eta0``, heading free); the
+    design model (vessel design form, [S] eq. 31, with the catenary restoring load) is
+    linearised there with :func:`~tapm_opt.models.vessel.linearise`, so K is the exact
+    catenary stiffness ``MooringModel.stiffness`` at that pose. Then :func:`design_gains`.
 
     Parameters
     ----------
-    scenario : Scenario
+    scenario : Scenario or System
+        The scenario, or the :class:`~tapm_opt.models.system.System` built from it (its vessel and
+        line system are used as they are).
     periods, damping, integral_ratio, method
         As for :func:`design_gains`.
     eta0 : array_like, shape (3,)
@@ -771,11 +783,12 @@ def design_from_scenario(scenario: Any, *, periods: Any, damping: Any,
     """
     eta0 = _vec3("eta0", eta0)
     tau_env = _vec3("tau_env", tau_env)
-    params = VesselParams.from_scenario(scenario)
-    moor = MooringModel.from_scenario(scenario, broken=broken)
+    system = as_system(scenario)
+    params = system.vessel
+    moor = system.with_broken(broken).lines if broken else system.lines
     eta_eq = _mooring_equilibrium(moor, tau_env, eta0)
     fn = moored_function(params, moor.force_function("catenary", eta0=eta_eq), D_moor=D_moor)
     plant = linearise(fn, np.r_[eta_eq, np.zeros(3)], tau_env0=tau_env, outputs="state")
     design = design_gains(plant, periods=periods, damping=damping, integral_ratio=integral_ratio,
                           method=method)
-    return replace(design, eta_op=_ro(eta_eq))
+    return replace(design, eta_op=readonly(eta_eq))

@@ -22,9 +22,10 @@ import numpy as np
 
 from ..errors import TapmError
 from ..geometry import rot_z, ssa
+from ..interfaces import Estimate, Measurement
 from ..models.mooring import MooringModel
 
-__all__ = ["LowPassEstimator", "EstimationError"]
+__all__ = ["LowPassEstimator", "TrueStateEstimator", "EstimationError"]
 
 
 class EstimationError(TapmError, ValueError):
@@ -60,7 +61,16 @@ class LowPassEstimator:
     def reset(self) -> None:
         self._y, self._yd, self._psi_prev, self._b, self._t = None, np.zeros(3), None, None, None
 
-    def update(self, t: float, position: np.ndarray, heading: float, tau_thr: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def update(self, t: float, measurement: Measurement) -> Estimate:
+        """The :class:`~tapm_opt.interfaces.Estimator` step: filter the measured position and
+        heading; the thrust in the load balance is the thruster feedback ``measurement.tau_thr``
+        (zero when the measurement carries none)."""
+        m = measurement
+        tau_thr = np.zeros(3) if m.tau_thr is None else m.tau_thr
+        eta, nu, tau_env = self.filter(t, m.position, m.heading, tau_thr)
+        return Estimate(t=t, eta=eta, nu=nu, tau_env=tau_env, tensions=m.tensions)
+
+    def filter(self, t: float, position: np.ndarray, heading: float, tau_thr: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Feed one measurement; returns (eta_hat (3,), nu_hat (3,), tau_env_hat (3,) in {B}).
 
         Parameters
@@ -108,3 +118,17 @@ class LowPassEstimator:
         c1 = ed + w * e
         self._y = z + (e + c1 * dt) * ex
         self._yd = (c1 - w * (e + c1 * dt)) * ex
+
+
+class TrueStateEstimator:
+    """Validation estimator: hands on the plant's true LF state and mean environmental load
+    (``measurement.truth``), to separate controller performance from estimation error."""
+
+    def update(self, t: float, measurement: Measurement) -> Estimate:
+        tr = measurement.truth
+        if tr is None:
+            raise EstimationError("the measurement carries no truth: TrueStateEstimator needs a simulated plant")
+        return Estimate(t=t, eta=tr.eta, nu=tr.nu, tau_env=tr.tau_env, tensions=measurement.tensions)
+
+    def reset(self) -> None:
+        pass

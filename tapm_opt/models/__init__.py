@@ -3,7 +3,10 @@
 from . import catenary
 from .catenary import CatenarySolution
 from .characteristics import line_characteristics, offset_curves
+from .environment import HullWindLoad
 from .mooring import LinearMooring, MooringModel
+from .statics import EquilibriumError
+from .system import System, ThrusterSet
 from .vessel import (
     VesselParams,
     coriolis,
@@ -19,6 +22,10 @@ __all__ = [
     "CatenarySolution",
     "line_characteristics",
     "offset_curves",
+    "HullWindLoad",
+    "EquilibriumError",
+    "System",
+    "ThrusterSet",
     "LinearMooring",
     "MooringModel",
     "VesselParams",

@@ -35,7 +35,7 @@ from .mooring import MooringModel
 from .thrust import configuration_matrix, extended_columns, merge_sectors
 from .vessel import VesselParams
 
-__all__ = ["System", "ThrusterSet", "CAPACITY_FRACTION", "Limits"]
+__all__ = ["System", "ThrusterSet", "CAPACITY_FRACTION", "Limits", "as_system"]
 
 #: Fraction of each single-DOF thrust maximum that the capacity box allows in X, Y and N at once.
 CAPACITY_FRACTION = 0.6
@@ -317,3 +317,10 @@ class System:
         """Allowed fairlead tension of each line of ``lines`` [N]: utilisation × MBS."""
         u = self.limits.tension_utilisation if utilisation is None else utilisation
         return readonly(u * self.lines.MBS)
+
+
+def as_system(system_or_scenario: Any) -> System:
+    """``system_or_scenario`` as a :class:`System` (a scenario is built into one)."""
+    if isinstance(system_or_scenario, System):
+        return system_or_scenario
+    return System.from_scenario(system_or_scenario)

@@ -25,6 +25,7 @@ from typing import Any, Literal
 import numpy as np
 
 from ..errors import ModelError
+from ..geometry import rot_z
 from ..models import catenary
 from ..models.mooring import MooringModel
 from .mooring_fem import MooringFEM, SettleInfo
@@ -142,8 +143,7 @@ def forced_motion(scenario: Any, *, dof: Literal["surge", "sway", "yaw"] = "surg
 
     def load_E(eta):
         tau_b = plant.tau(eta)
-        c, s = math.cos(eta[2]), math.sin(eta[2])
-        return np.array([c * tau_b[0] - s * tau_b[1], s * tau_b[0] + c * tau_b[1], tau_b[2]])
+        return rot_z(eta[2]) @ tau_b
 
     j = 0
     e, ed = pose(0.0)

@@ -10,13 +10,14 @@ is wrapped with ``ssa``. Noise is drawn from three independent generators spawne
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from .._io import readonly
 from ..config import schema
 from ..geometry import ssa
+from ..interfaces import Measurement
 from .environment import PlantError, _num
 
 __all__ = ["SensorSpec", "Measurement", "Sensors"]
@@ -34,39 +35,6 @@ def _check_spec(spec: SensorSpec) -> None:
         _num(f"sensors.{name}", getattr(spec, name), lo=0.0)
     for name in ("gnss_rate", "heading_rate", "tension_rate"):
         _num(f"sensors.{name}", getattr(spec, name), lo=0.0, strict=True, unit="Hz")
-
-
-def _ro(a: Any) -> np.ndarray:
-    a = np.array(a, dtype=float)
-    a.flags.writeable = False
-    return a
-
-
-@dataclass(frozen=True, kw_only=True)
-class Measurement:
-    """What the sensors report at time ``t``; arrays are read-only.
-
-    Attributes
-    ----------
-    t : float
-        Time of the request [s].
-    position : ndarray, shape (2,)
-        Measured (x, y) in {E} [m] (held since ``t_position``).
-    heading : float
-        Measured heading [rad] in [-pi, pi) (held since ``t_heading``).
-    tensions : ndarray, shape (n_lines,)
-        Measured fairlead tensions [N] (held since ``t_tensions``).
-    t_position, t_heading, t_tensions : float
-        Times [s] at which each held value was sampled.
-    """
-
-    t: float
-    position: np.ndarray = field(repr=False)
-    heading: float
-    tensions: np.ndarray = field(repr=False)
-    t_position: float
-    t_heading: float
-    t_tensions: float
 
 
 class Sensors:
@@ -98,7 +66,7 @@ class Sensors:
             std = np.zeros(0)
         else:
             raise PlantError("give MBS: the tension noise is sensors.tension_std_rel times each line's MBS")
-        self.tension_std = _ro(std)
+        self.tension_std = readonly(std)
         self._rates = (spec.gnss_rate, spec.heading_rate, spec.tension_rate)
         self._rngs = [np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(3)]
         self._next: list[float] = [-math.inf] * 3  # next sample index k per sensor
@@ -137,11 +105,11 @@ class Sensors:
                              f"bad lines {bad}")
         s = self.spec
         if self._due(_GNSS, t):
-            self._held[_GNSS] = _ro(eta[:2] + s.gnss_std * self._rngs[_GNSS].standard_normal(2))
+            self._held[_GNSS] = readonly(eta[:2] + s.gnss_std * self._rngs[_GNSS].standard_normal(2))
         if self._due(_HEADING, t):
             self._held[_HEADING] = float(ssa(eta[2] + s.heading_std * self._rngs[_HEADING].standard_normal()))
         if self._due(_TENSION, t):
-            self._held[_TENSION] = _ro(T + self.tension_std * self._rngs[_TENSION].standard_normal(self.n_lines))
+            self._held[_TENSION] = readonly(T + self.tension_std * self._rngs[_TENSION].standard_normal(self.n_lines))
         return Measurement(t=t, position=self._held[_GNSS], heading=self._held[_HEADING],
                            tensions=self._held[_TENSION], t_position=self._t_held[_GNSS],
                            t_heading=self._t_held[_HEADING], t_tensions=self._t_held[_TENSION])

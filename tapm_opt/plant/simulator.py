@@ -18,29 +18,23 @@ The controller sees the plant only through :meth:`Plant.measure` (sensors), as a
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import replace
 from typing import Any, Callable, Sequence
 
 import numpy as np
 
 from ..geometry import rot_z
+from ..interfaces import Measurement, ThrusterCommand, Truth
+from ..models.system import System
 from ..models.vessel import VesselParams, vessel_rhs
 from ..results import Result, ResultBuilder
 from .environment import Environment, PlantError
 from .fem import SimulationDiverged
 from .mooring_fem import MooringFEM, SettleInfo
-from .sensors import Measurement, Sensors
+from .sensors import Sensors
 from .thrusters import ThrusterBank
 
 __all__ = ["Plant", "ThrusterCommand", "run_open_loop", "PlantError", "SimulationDiverged"]
-
-
-@dataclass(frozen=True)
-class ThrusterCommand:
-    """Commanded thrust ``f`` [N] (n,) and azimuth ``alpha`` [rad] (n,) of every thruster."""
-
-    f: np.ndarray
-    alpha: np.ndarray | None = None
 
 
 class Plant:
@@ -48,7 +42,8 @@ class Plant:
 
     Parameters
     ----------
-    scenario : Scenario
+    scenario : Scenario or System
+        The scenario (a :class:`~tapm_opt.models.system.System` stands for its scenario).
     sea_state : str, SeaState or None
         Sea state (id or object); default the scenario's first one; ``"none"`` for no environment
         (still water, no wind, no waves).
@@ -71,6 +66,8 @@ class Plant:
                  eta0: Any = None, safety: float = 0.9):
         if not (math.isfinite(outer_dt) and outer_dt > 0):
             raise PlantError(f"outer_dt = {outer_dt!r} s must be a positive number")
+        if isinstance(scenario, System):
+            scenario = scenario.scenario
         self.scenario = scenario
         self.outer_dt = float(outer_dt)
         ss = _sea_state(scenario, sea_state)
@@ -156,8 +153,14 @@ class Plant:
             self._outer_step(h)
 
     def measure(self) -> Measurement:
-        """Sensor readings at the current time (GNSS, heading, tension cells)."""
-        return self.sensors.sample(self.t, self.eta_total, self.mooring.fairlead_tension())
+        """Sensor readings at the current time (GNSS, heading, tension cells), the thruster
+        feedback (delivered thrust and azimuth, failure flags, the generalised thrust they give)
+        and, for validation estimators only, the true LF state (:class:`~tapm_opt.interfaces.Truth`)."""
+        m = self.sensors.sample(self.t, self.eta_total, self.mooring.fairlead_tension())
+        th = self.thrusters
+        truth = Truth(eta=self.eta, nu=self.nu, tau_env=self.loads["tau_wind"] + self.loads["tau_drift"])
+        return replace(m, thruster_f=th.f, thruster_alpha=th.alpha, thruster_failed=th.failed, tau_thr=th.tau(),
+                       truth=truth)
 
     # -- checks ----------------------------------------------------------------------------
     def _check_cmd(self, cmd: Any) -> ThrusterCommand:

@@ -1,37 +1,46 @@
 """Closed loop: plant -> sensors -> estimate -> setpoint -> controller -> allocation -> thrusters.
 
-The runner owns time and rates. Every control period ``dt_control`` it reads the sensors, updates
-the estimate (a low-pass filter of the measurements, or the true LF state when ``true_state=True``),
-the setpoint (fixed, or chased by the low-pass filter of survey eq. 38 and projected into the safe
-circle), asks the controller for a generalised thrust at the controller's own period (held in
-between), allocates it to the thrusters (unless the controller optimises thruster forces itself)
-and steps the plant. Controller diagnostics (solve times, statuses, active constraints, fallbacks)
-go into the result.
+The runner owns time and rates and knows the components only through the protocols of
+:mod:`tapm_opt.interfaces`. Every control period ``dt_control`` it reads the plant's measurement
+(sensors and thruster feedback), updates the :class:`~tapm_opt.interfaces.Estimator` (the low-pass
+estimator, or the plant's truth when ``true_state=True``), the
+:class:`~tapm_opt.interfaces.SetpointLayer` (fixed, or chased by the low-pass filter of survey
+eq. 38 and projected into the safe circle, with the heading fixed or weather-optimal), asks the
+:class:`~tapm_opt.interfaces.Controller` for a generalised thrust at its own period (held in
+between), allocates it to the thrusters (unless the controller is a
+:class:`~tapm_opt.interfaces.ThrusterController` that owns the allocation) and steps the plant.
+Each update's :class:`~tapm_opt.interfaces.ControllerStep` (solve time, status, active constraints,
+fallback) is summarised in the result's diagnostics.
 
-Faults: a thruster failure is reported to the allocator (and an MPC that allocates) at once; a line
-break is not reported to the controller (no line-break detection yet) — the estimator's
-environmental-load estimate absorbs the lost line force.
+Positions of setpoints are turret offsets (``geometry.turret_offset``).
+
+Faults: a thruster failure reaches the allocator (and a :class:`~tapm_opt.interfaces.FaultAware`
+controller) through the thruster feedback of the measurement; a line break is not reported to the
+controller (no line-break detection yet) — the estimator's environmental-load estimate absorbs the
+lost line force.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from collections import Counter
+from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
 
 from ..control.allocation import ThrustAllocator
-from ..control.estimate import Estimate, Setpoint
+from ..control.setpoint import FixedSetpoint, HeadingChasing, SetpointChasing
 from ..errors import TapmError
-from ..estimation.lowpass import LowPassEstimator
-from ..geometry import rot_z
-from ..models.mooring import MooringModel
-from ..plant.simulator import Plant, ThrusterCommand
+from ..estimation.lowpass import LowPassEstimator, TrueStateEstimator
+from ..interfaces import (Controller, ControllerStep, Estimate, Estimator, FaultAware, Setpoint, SetpointLayer,
+                          ThrusterCommand, ThrusterController)
+from ..models.system import System
+from ..plant.simulator import Plant
 from ..results import Result, ResultBuilder
 
-__all__ = ["ClosedLoopSettings", "SetpointChasing", "run_closed_loop", "ClosedLoopError"]
+__all__ = ["ClosedLoopSettings", "SetpointChasing", "run_closed_loop", "default_setpoint_layer", "ClosedLoopError"]
 
 
 class ClosedLoopError(TapmError, ValueError):
@@ -94,49 +103,56 @@ class ClosedLoopSettings:
             raise ClosedLoopError(f"dt_log = {self.dt_log:g} s must be a whole multiple of dt_control = {self.dt_control:g} s")
 
 
-class SetpointChasing:
-    """Low-pass setpoint chasing (survey eq. 38): ``p_sp' = -(p_sp - p) / T``, projected into the
-    circle of radius ``R`` about the field zero point (``Pr_Safe``, Table 2)."""
-
-    def __init__(self, T: float, R: float | None, psi_d: float):
-        self.T, self.R, self.psi_d = T, R, psi_d
-        self.p: np.ndarray | None = None
-
-    def update(self, dt: float, p: np.ndarray) -> np.ndarray:
-        if self.p is None:
-            self.p = np.array(p[:2], float)
-        else:
-            a = math.exp(-dt / self.T)
-            self.p = a * self.p + (1 - a) * np.asarray(p[:2], float)
-        if self.R is not None:
-            r = float(np.hypot(*self.p))
-            if r > self.R:
-                self.p = self.p * (self.R / r)
-        return np.array([self.p[0], self.p[1], self.psi_d])
+def default_setpoint_layer(system: System, settings: ClosedLoopSettings) -> Any:
+    """The setpoint layer a :class:`ClosedLoopSettings` describes (fixed or chasing, with the
+    heading fixed or chased)."""
+    s = settings
+    R = system.limits.safe_radius
+    if s.setpoint == "chasing":
+        layer: Any = SetpointChasing(s.chase_time, None if R is None else s.chase_margin * R, s.eta_d[2],
+                                     p_cot_B=system.p_cot_B)
+    else:
+        layer = FixedSetpoint(s.eta_d)
+    if s.heading == "chasing":
+        layer = HeadingChasing(layer, s.heading_chase_time, s.eta_d[2])
+    return layer
 
 
-def run_closed_loop(plant: Plant, controller: Any, settings: ClosedLoopSettings = ClosedLoopSettings(), *,
-                    allocator: ThrustAllocator | None = None, meta: dict | None = None) -> Result:
+def run_closed_loop(plant: Plant, controller: Controller, settings: ClosedLoopSettings = ClosedLoopSettings(), *,
+                    system: System | None = None, estimator: Estimator | None = None,
+                    setpoint_layer: SetpointLayer | None = None, allocator: ThrustAllocator | None = None,
+                    meta: dict | None = None) -> Result:
     """Run ``controller`` against ``plant`` and return the labelled result.
+
+    The runner owns time, rates and logging and talks to the components only through the
+    protocols of :mod:`tapm_opt.interfaces` and the plant only through ``measure()`` / ``step()``.
 
     Parameters
     ----------
     plant : Plant
-    controller : object with ``update(t, estimate, setpoint) -> tau`` (and optionally ``period``,
-        ``owns_allocation``, ``thruster_command(u)``, ``diagnostics``)
+    controller : Controller
+        ``update(t, estimate, setpoint) -> tau_cmd``, ``period``, ``reset()``, ``last_step()``;
+        a :class:`~tapm_opt.interfaces.ThrusterController` is applied without allocation.
     settings : ClosedLoopSettings
+    system : System, optional
+        The system the control side is designed on (default: built from the plant's scenario).
+    estimator : Estimator, optional
+        Default: the low-pass estimator on ``system.lines`` (``settings.true_state``: the plant's
+        truth).
+    setpoint_layer : SetpointLayer, optional
+        Default: :func:`default_setpoint_layer` of the settings.
     allocator : ThrustAllocator, optional
-        Default: built from the plant's scenario.
+        Default: built from the system's thrusters.
     """
     s = settings
-    sc = plant.scenario
-    alloc = allocator or ThrustAllocator.from_scenario(sc, dt=s.dt_control)
-    owns = bool(getattr(controller, "owns_allocation", False))
-    period = s.controller_period or getattr(controller, "period", None) or s.dt_control
+    system = system or System.from_scenario(plant.scenario)
+    alloc = allocator or ThrustAllocator(system.thrusters.specs, dt=s.dt_control)
+    owns = isinstance(controller, ThrusterController) and bool(controller.owns_allocation)
+    period = s.controller_period or controller.period or s.dt_control
     period = max(period, s.dt_control)
-    est = LowPassEstimator(MooringModel.from_scenario(sc))
-    chase = SetpointChasing(s.chase_time, None if sc.limits.safe_radius is None else s.chase_margin * sc.limits.safe_radius,
-                            s.eta_d[2]) if s.setpoint == "chasing" else None
+    if estimator is None:
+        estimator = TrueStateEstimator() if s.true_state else LowPassEstimator(system.lines)
+    layer = setpoint_layer or default_setpoint_layer(system, s)
     extra = [("tau_cmd[X]", "N"), ("tau_cmd[Y]", "N"), ("tau_cmd[N]", "N m"),
              ("x_d", "m"), ("y_d", "m"), ("psi_d", "rad"),
              ("x_hat", "m"), ("y_hat", "m"), ("psi_hat", "rad"),
@@ -146,64 +162,49 @@ def run_closed_loop(plant: Plant, controller: Any, settings: ClosedLoopSettings 
     n_steps = int(round(s.duration / s.dt_control))
     log_every = int(round(s.dt_log / s.dt_control))
     tau_cmd = np.zeros(3)
-    tau_applied = np.zeros(3)
     next_ctrl = 0.0
-    eta_d = np.asarray(s.eta_d, float)
-    failed_known: set[str] = set()
+    ids = system.thrusters.ids
+    failed_known: frozenset[str] = frozenset()
     alloc_fallbacks = 0
-    alloc_times = []
-    ctrl_times = []
+    alloc_times: list[float] = []
+    ctrl_times: list[float] = []
+    steps: list[ControllerStep] = []
     t_wall0 = time.perf_counter()
     last = {"fallback": 0.0, "slack": 0.0}
-    sp_eta = eta_d
-    psi_sp = float(eta_d[2])
+    sp = Setpoint(eta_d=np.asarray(s.eta_d, float))
+    est: Estimate | None = None
 
-    def log():
-        row = np.concatenate([plant.sample_row(), tau_cmd, sp_eta, est_vals[0], est_vals[2],
-                              [last["fallback"], last["slack"]]])
-        rb.append(plant.t, row)
-
-    est_vals = (plant.eta.copy(), plant.nu.copy(), np.zeros(3))
     for step in range(n_steps + 1):
         t = plant.t
-        # faults known to the control system: thruster failures
-        for i, tid in enumerate(plant.thrusters.ids):
-            if plant.thrusters.failed[i] and tid not in failed_known:
-                failed_known.add(tid)
-                alloc.set_failed(tid)
-        # sensing and estimation
         m = plant.measure()
-        if s.true_state:
-            loads = plant.loads
-            tau_env_true = loads["tau_wind"] + loads["tau_drift"]
-            est_vals = (plant.eta.copy(), plant.nu.copy(), tau_env_true)
-        else:
-            est_vals = est.update(t, m.position, m.heading, tau_applied)
+        # thruster feedback: failures reach the allocation and fault-aware controllers
+        if m.thruster_failed is not None:
+            failed = frozenset(tid for tid, f in zip(ids, m.thruster_failed) if f)
+            if failed != failed_known:
+                for tid in failed - failed_known:
+                    alloc.set_failed(tid)
+                if isinstance(controller, FaultAware):
+                    controller.set_failed_thrusters(failed)
+                failed_known = failed
+        est = estimator.update(t, m)
         if step % log_every == 0:
-            log()
+            rb.append(plant.t, np.concatenate([plant.sample_row(), tau_cmd, sp.eta_d, est.eta, est.tau_env,
+                                               [last["fallback"], last["slack"]]]))
         if step == n_steps:
             break
-        # setpoint
-        sp_eta = chase.update(s.dt_control, est_vals[0]) if chase is not None else eta_d.copy()
-        if s.heading == "chasing":
-            # weather-optimal heading: bow into the estimated mean environmental force in {E}
-            b_E = rot_z(est_vals[0][2]) @ np.asarray(est_vals[2], float)
-            if math.hypot(b_E[0], b_E[1]) > 1e3:
-                target = math.atan2(-b_E[1], -b_E[0])
-                a = math.exp(-s.dt_control / s.heading_chase_time)
-                psi_sp = psi_sp + (1 - a) * ((target - psi_sp + math.pi) % (2 * math.pi) - math.pi)
-            sp_eta = np.array([sp_eta[0], sp_eta[1], psi_sp])
+        sp = layer.update(t, est)
         # controller at its own period
         if t >= next_ctrl - 1e-9:
-            e = Estimate(t=t, eta=est_vals[0], nu=est_vals[1], tau_env=est_vals[2], tensions=m.tensions)
             w0 = time.perf_counter()
-            tau_cmd = np.asarray(controller.update(t, e, Setpoint(eta_d=sp_eta)), float)
+            tau_cmd = np.asarray(controller.update(t, est, sp), float)
             ctrl_times.append(time.perf_counter() - w0)
+            info = controller.last_step()
+            if info is not None:
+                steps.append(info)
             next_ctrl += period
         # allocation
         if owns:
-            f, alpha = controller.last_thruster_command()
-            cmd = ThrusterCommand(f=f, alpha=alpha)
+            cmd = controller.thruster_command()
             last["fallback"], last["slack"] = 0.0, 0.0
         else:
             w0 = time.perf_counter()
@@ -213,34 +214,38 @@ def run_closed_loop(plant: Plant, controller: Any, settings: ClosedLoopSettings 
             last["fallback"] = float(ar.fallback)
             last["slack"] = float(np.linalg.norm(ar.slack) / max(np.linalg.norm(tau_cmd), 1.0))
             cmd = ThrusterCommand(f=np.asarray(ar.f, float), alpha=np.asarray(ar.alpha, float))
-        tau_applied = plant.thrusters.tau()
         plant.step(s.dt_control, cmd)
     wall = time.perf_counter() - t_wall0
-    diag = _diagnostics(controller, ctrl_times, alloc_times, alloc_fallbacks)
+    diag = _diagnostics(steps, ctrl_times, alloc_times, alloc_fallbacks)
     md = {**plant.metadata(), "controller": type(controller).__name__, "controller_period": period,
           "dt_control": s.dt_control, "true_state": s.true_state, "setpoint": s.setpoint, "heading": s.heading,
+          "estimator": type(estimator).__name__, "setpoint_layer": type(layer).__name__,
+          "turret_position_B": [float(v) for v in system.p_cot_B],
           "wall_time": wall, "diagnostics": diag, **(meta or {})}
     return rb.build(md)
 
 
-def _diagnostics(controller: Any, ctrl_times: list, alloc_times: list, alloc_fallbacks: int) -> dict:
+def _diagnostics(steps: list[ControllerStep], ctrl_times: list, alloc_times: list, alloc_fallbacks: int) -> dict:
     out: dict = {"controller_calls": len(ctrl_times),
                  "controller_time_median": float(np.median(ctrl_times)) if ctrl_times else 0.0,
                  "controller_time_max": float(np.max(ctrl_times)) if ctrl_times else 0.0,
                  "allocation_calls": len(alloc_times),
                  "allocation_time_median": float(np.median(alloc_times)) if alloc_times else 0.0,
                  "allocation_fallbacks": alloc_fallbacks}
-    steps = getattr(controller, "diagnostics", None)
     if steps:
-        st = [d.solve_time for d in steps]
+        active = Counter(name for d in steps for name in d.active)
+        out["active_constraints"] = dict(sorted(active.items()))
+        out["controller_failures"] = int(sum(not d.success for d in steps))
+        out["controller_fallbacks"] = int(sum(d.fallback for d in steps))
+    solved = [d for d in steps if d.solve_time is not None]
+    if solved:
+        st = [d.solve_time for d in solved]
         out.update({
             "solver_time_median": float(np.median(st)), "solver_time_p95": float(np.percentile(st, 95)),
             "solver_time_max": float(np.max(st)),
-            "solver_failures": int(sum(not d.success for d in steps)),
-            "solver_fallbacks": int(sum(d.fallback for d in steps)),
-            "solver_iterations_median": float(np.median([d.iterations for d in steps])),
-            "active_constraints": {k: int(sum(k in d.active for d in steps))
-                                   for k in ("safe_circle", "tension", "dead_band", "thrust_capacity")},
-            "statuses": sorted({d.status for d in steps}),
+            "solver_failures": int(sum(not d.success for d in solved)),
+            "solver_fallbacks": int(sum(d.fallback for d in solved)),
+            "solver_iterations_median": float(np.median([d.iterations for d in solved])),
+            "statuses": sorted({d.status for d in solved}),
         })
     return out

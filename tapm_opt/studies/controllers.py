@@ -8,7 +8,9 @@ heading, and restore only near the edge.
 PID (``tapm_opt.control.pid``): gains by pole placement on the design model linearised at the field
 zero point — ``periods`` (surge, sway, yaw) [s], ``damping`` (-), ``integral_ratio`` —, ``modes``
 (a Table 3 set: ``calm``, ``normal``, ``normal_restoring``, ``extreme``, ``extreme_restoring``, or a
-list of modes), ``tau_limit`` (default: the allocation's capacity box).
+list of modes), ``tau_limit`` (default: the capacity box of the thrusters,
+``models.system.ThrusterSet.capacity_box``, the same box the MPC uses). Its position loop acts on
+the turret offset (the reference point is the centre of turret).
 
 MPC (``tapm_opt.control.mpc.MPCSettings``): every settings field; ``dead_band`` defaults to 0.7 of the
 scenario's safe radius; ``period`` [s] is the re-solve period (default the prediction step).
@@ -30,6 +32,7 @@ import numpy as np
 from ..control.mpc import LinearMPC, MPCError, MPCSettings, NonlinearMPC
 from ..control.pid import MODE_SETS, TAPMPID, ControlError, design_from_scenario
 from ..errors import TapmError
+from ..models.system import as_system
 
 __all__ = ["build_controller", "CONTROLLER_TYPES", "ControllerSpecError"]
 
@@ -50,8 +53,15 @@ def _unknown(keys: set[str], allowed: set[str], where: str) -> None:
                                                                     f"; allowed: {', '.join(sorted(allowed))}"))
 
 
-def build_controller(scenario: Any, spec: Mapping[str, Any] | str, *, where: str = "controller") -> Any:
-    """A controller object (``update(t, estimate, setpoint) -> tau``) from a specification.
+def build_controller(system: Any, spec: Mapping[str, Any] | str, *, where: str = "controller") -> Any:
+    """A :class:`~tapm_opt.interfaces.Controller` from a specification.
+
+    Parameters
+    ----------
+    system : System or Scenario
+        The system the controller is designed on (a scenario is built into its System).
+    spec : mapping or str
+        ``{"type": ..., option: value, ...}`` (module docstring) or just the type.
 
     Raises
     ------
@@ -66,6 +76,7 @@ def build_controller(scenario: Any, spec: Mapping[str, Any] | str, *, where: str
         hint = difflib.get_close_matches(str(kind), CONTROLLER_TYPES, n=1)
         raise ControllerSpecError(f"{where}.type = {kind!r} is not one of {', '.join(CONTROLLER_TYPES)}"
                                   + (f" (did you mean {hint[0]!r}?)" if hint else ""))
+    system = as_system(system)
     try:
         if kind == "pid":
             _unknown(set(spec), set(PID_DEFAULTS), where)
@@ -74,43 +85,22 @@ def build_controller(scenario: Any, spec: Mapping[str, Any] | str, *, where: str
                 raise ControllerSpecError(f"{where}.modes = {o['modes']!r} is not one of {', '.join(MODE_SETS)}")
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")  # clamped gains are reported in the design
-                design = design_from_scenario(scenario, periods=tuple(o["periods"]), damping=tuple(o["damping"]),
+                design = design_from_scenario(system, periods=tuple(o["periods"]), damping=tuple(o["damping"]),
                                               integral_ratio=float(o["integral_ratio"]))
-            tau_limit = o["tau_limit"] if o["tau_limit"] is not None else _capacity_box(scenario)
+            tau_limit = o["tau_limit"] if o["tau_limit"] is not None else system.thrusters.capacity_box()
             ctrl = TAPMPID.from_design(design, modes=o["modes"] if isinstance(o["modes"], str) else tuple(o["modes"]),
-                                       tau_limit=np.asarray(tau_limit, float))
+                                       tau_limit=np.asarray(tau_limit, float), reference_point=system.p_cot_B)
             ctrl.design = design
             return ctrl
         allowed = {f.name for f in fields(MPCSettings)} | {"period"}
         _unknown(set(spec), allowed, where)
         period = spec.pop("period", None)
-        if "dead_band" not in spec and scenario.limits.safe_radius is not None:
-            spec["dead_band"] = 0.7 * scenario.limits.safe_radius
+        if "dead_band" not in spec and system.limits.safe_radius is not None:
+            spec["dead_band"] = 0.7 * system.limits.safe_radius
         settings = MPCSettings(**spec)
-        ctrl = NonlinearMPC(scenario, settings) if kind == "mpc" else LinearMPC(scenario, settings)
-        ctrl.period = float(period) if period is not None else settings.dt
-        return ctrl
+        cls = NonlinearMPC if kind == "mpc" else LinearMPC
+        return cls(system, settings, period=None if period is None else float(period))
     except (MPCError, ControlError) as exc:
         raise ControllerSpecError(f"{where}: {exc}") from None
     except TypeError as exc:
         raise ControllerSpecError(f"{where}: {exc}") from None
-
-
-def _capacity_box(scenario: Any) -> np.ndarray:
-    """|X|, |Y|, |N| each reachable alone with every thruster, times 0.6 (room for the others)."""
-    from ..models.thrust import configuration_matrix
-
-    th = scenario.thrusters
-    if not th:
-        return np.zeros(3)
-    x = np.array([t.position[0] for t in th])
-    y = np.array([t.position[1] for t in th])
-    fmax = np.array([t.max_thrust for t in th])
-    # an azimuth can point its full thrust anywhere: its best contribution to each DOF
-    best = np.array([fmax.sum(), fmax.sum(), np.sum(fmax * np.hypot(x, y))])
-    fixed = [i for i, t in enumerate(th) if t.kind != "azimuth"]
-    if fixed:
-        T = np.abs(configuration_matrix(np.array([th[i].angle for i in fixed]), x[fixed], y[fixed]))
-        best = best - np.array([fmax[fixed].sum(), fmax[fixed].sum(), np.sum(fmax[fixed] * np.hypot(x[fixed], y[fixed]))])
-        best = best + T @ fmax[fixed]
-    return 0.6 * best

@@ -1,7 +1,8 @@
 """Key performance indicators of a closed-loop result (computed from saved results only).
 
 :func:`case_kpis` turns one :class:`~tapm_opt.results.Result` (and the scenario it was run with)
-into a flat ``{name: number}`` dict: offsets, heading error, line tensions, the structural
+into a flat ``{name: number}`` dict: offsets (of the centre of turret from its field-zero-point
+position, ``geometry.turret_offset``), heading error, line tensions, the structural
 reliability index of survey eq. (32), the DNV-OS-E301 (October 2008) line-strength check, thrust
 energy and a fuel proxy, and the controller's solve-time statistics. :func:`kpi_table` writes one
 row per case as CSV and Markdown. Every definition, unit and assumption is in ``docs/kpis.md``.
@@ -21,6 +22,7 @@ from typing import Any, Iterable, Mapping, Sequence
 import numpy as np
 
 from ..errors import TapmError
+from ..geometry import turret_offset
 from ..results import Result
 
 __all__ = [
@@ -37,7 +39,7 @@ class KpiError(TapmError, ValueError):
 
 #: Partial safety factors (gamma_mean, gamma_dyn) of DNV-OS-E301, October 2008 edition, dynamic
 #: analysis, by limit state and consequence class. Read from secondary transcriptions
-#: (/work/shared/design/STANDARDS.md); to be checked against the standard itself.
+#: (the project's standards notes); to be checked against the standard itself.
 DNV_E301_2008_FACTORS: dict[tuple[str, int], tuple[float, float]] = {
     ("ULS", 1): (1.10, 1.50),
     ("ULS", 2): (1.40, 2.10),
@@ -287,9 +289,11 @@ def _compute(result: Result, scenario: Any, *, t_start: float, lp_window: float,
     out: dict[str, float] = {"duration": float(t[-1] - t[0])}
 
     # offsets and heading
+    # turret-referenced: the centre of turret relative to its field-zero-point position
     x = _channel(result, "x", "the offset KPIs", win)
     y = _channel(result, "y", "the offset KPIs", win)
-    off = np.hypot(x, y)
+    psi_o = _channel(result, "psi", "the offset KPIs", win)
+    off = np.hypot(*turret_offset(np.stack([x, y, psi_o], axis=-1), scenario.turret.position))
     lim = scenario.limits
     out["offset_max"] = float(off.max())
     out["offset_mean"] = _tmean(t, off)
@@ -495,37 +499,39 @@ def _row_parts(row: Mapping[str, Any]) -> tuple[Any, Any, dict, dict]:
     return row.get("id", ""), row.get("name", ""), labels, kpis
 
 
-def format_number(v: Any) -> str:
-    """A KPI value for tables: 4 significant digits, integers as integers, empty for missing."""
-    if v is None or v == "":
+def _scalar_text(v: Any, float_text: Any, other_text: Any = str) -> str:
+    """Text of a KPI value: empty for missing, booleans and integers as such, floats through
+    ``float_text``, anything else through ``other_text``."""
+    if v is None or (isinstance(v, str) and v == ""):
         return ""
     if isinstance(v, bool):
         return str(v)
     if isinstance(v, (int, np.integer)):
         return str(int(v))
     if isinstance(v, (float, np.floating)):
-        f = float(v)
-        if not math.isfinite(f):
-            return str(f)
-        if f == 0:
-            return "0"
-        if f.is_integer() and abs(f) < 1e6:
-            return str(int(f))
-        a = abs(f)
-        return f"{f:.3e}" if (a >= 1e6 or a < 1e-3) else f"{f:.4g}"
-    return str(v).replace("|", "\\|").replace("\n", " ")
+        return float_text(float(v))
+    return other_text(v)
+
+
+def _table_float(f: float) -> str:
+    if not math.isfinite(f):
+        return str(f)
+    if f == 0:
+        return "0"
+    if f.is_integer() and abs(f) < 1e6:
+        return str(int(f))
+    a = abs(f)
+    return f"{f:.3e}" if (a >= 1e6 or a < 1e-3) else f"{f:.4g}"
+
+
+def format_number(v: Any) -> str:
+    """A KPI value for tables: 4 significant digits, integers as integers, empty for missing."""
+    return _scalar_text(v, _table_float, lambda x: str(x).replace("|", "\\|").replace("\n", " "))
 
 
 def _csv_value(v: Any) -> str:
-    if v is None:
-        return ""
-    if isinstance(v, bool):
-        return str(v)
-    if isinstance(v, (int, np.integer)):
-        return str(int(v))
-    if isinstance(v, (float, np.floating)):
-        return repr(float(v))
-    return str(v)
+    """A KPI value for CSV: floats at full precision (``repr``)."""
+    return _scalar_text(v, repr)
 
 
 def kpi_table(rows: Sequence[Mapping[str, Any]]) -> tuple[str, str]:

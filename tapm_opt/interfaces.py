@@ -1,0 +1,249 @@
+"""The seams of the control loop: what flows between plant, estimator, setpoint layer, controller
+and allocation, and the small protocols each component implements.
+
+::
+
+    plant.measure() -> Measurement -> Estimator -> Estimate -> SetpointLayer -> Setpoint
+                    -> Controller -> tau_cmd -> allocation -> ThrusterCommand -> plant.step
+
+The closed-loop runner (:func:`tapm_opt.studies.closed_loop.run_closed_loop`) knows only these
+protocols and the :class:`Measurement`; it never reads a component's or the plant's internals.
+A third-party component needs nothing but the methods below (``typing.Protocol``: no base class
+to inherit). Data objects are frozen; their arrays are read-only float copies.
+
+Position convention: every position in a :class:`Setpoint` and every safety measure refers to the
+centre of turret, as an offset from where it rests at the field zero point
+(:func:`tapm_opt.geometry.turret_offset`); ``Estimate.eta`` is the body origin's pose.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from ._io import readonly
+
+__all__ = ["Measurement", "Truth", "Estimate", "Setpoint", "ThrusterCommand", "ControllerStep",
+           "Controller", "ThrusterController", "FaultAware", "Estimator", "SetpointLayer"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Truth:
+    """The plant's true low-frequency state, for validation estimators only (a real vessel has
+    none). ``eta`` (3,) [m, m, rad] in {E}; ``nu`` (3,) [m/s, m/s, rad/s] in {B}; ``tau_env`` (3,)
+    the slowly varying wind and wave-drift load in {B} [N, N, N m]."""
+
+    eta: np.ndarray
+    nu: np.ndarray
+    tau_env: np.ndarray
+
+    def __post_init__(self) -> None:
+        for name in ("eta", "nu", "tau_env"):
+            object.__setattr__(self, name, readonly(getattr(self, name)))
+
+
+@dataclass(frozen=True, kw_only=True)
+class Measurement:
+    """What the vessel's sensors and thruster feedback report at time ``t``; arrays are read-only.
+
+    Attributes
+    ----------
+    t : float
+        Time of the request [s].
+    position : ndarray, shape (2,)
+        Measured (x, y) of the body origin in {E} [m] (held since ``t_position``).
+    heading : float
+        Measured heading [rad] in [-pi, pi) (held since ``t_heading``).
+    tensions : ndarray, shape (n_lines,)
+        Measured fairlead tensions [N] (held since ``t_tensions``).
+    t_position, t_heading, t_tensions : float
+        Times [s] at which each held value was sampled.
+    thruster_f, thruster_alpha : ndarray, shape (n_thrusters,) or None
+        Thruster feedback: delivered thrust [N] and azimuth [rad] of each thruster.
+    thruster_failed : ndarray of bool, shape (n_thrusters,) or None
+        Thruster feedback: True where a thruster reports a failure.
+    tau_thr : ndarray, shape (3,) or None
+        Generalised thrust the thrusters deliver in {B} [N, N, N m], from the feedback.
+    truth : Truth or None
+        The plant's true LF state (validation only; see :class:`Truth`).
+    """
+
+    t: float
+    position: np.ndarray
+    heading: float
+    tensions: np.ndarray
+    t_position: float
+    t_heading: float
+    t_tensions: float
+    thruster_f: np.ndarray | None = None
+    thruster_alpha: np.ndarray | None = None
+    thruster_failed: np.ndarray | None = None
+    tau_thr: np.ndarray | None = None
+    truth: Truth | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("position", "tensions", "thruster_f", "thruster_alpha", "tau_thr"):
+            v = getattr(self, name)
+            if v is not None:
+                object.__setattr__(self, name, readonly(v))
+        if self.thruster_failed is not None:
+            object.__setattr__(self, "thruster_failed", readonly(self.thruster_failed, dtype=bool))
+
+
+@dataclass(frozen=True, eq=False)
+class Estimate:
+    """State estimate handed to setpoint layers and controllers.
+
+    Parameters
+    ----------
+    t : float
+        Time of the estimate [s].
+    eta : ndarray, shape (3,)
+        Low-frequency position and heading of the body origin in {E} (x [m], y [m], psi [rad]).
+    nu : ndarray, shape (3,)
+        Low-frequency velocity in {B} (u [m/s], v [m/s], r [rad/s]).
+    tau_env : ndarray, shape (3,)
+        Estimated slowly varying environmental load in {B} (X [N], Y [N], N [N m]); zeros if
+        unknown.
+    tensions : ndarray, shape (n_lines,), optional
+        Measured fairlead tensions [N], if available.
+    """
+
+    t: float
+    eta: np.ndarray
+    nu: np.ndarray
+    tau_env: np.ndarray
+    tensions: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "t", float(self.t))
+        for name in ("eta", "nu", "tau_env"):
+            object.__setattr__(self, name, readonly(getattr(self, name)))
+        if self.tensions is not None:
+            object.__setattr__(self, "tensions", readonly(self.tensions))
+
+
+@dataclass(frozen=True, eq=False)
+class Setpoint:
+    """Desired motion handed to controllers.
+
+    Parameters
+    ----------
+    eta_d : ndarray, shape (3,)
+        Desired turret offset (x [m], y [m]: the centre of turret relative to its field-zero-point
+        position, in {E}) and heading psi [rad].
+    nu_d : ndarray, shape (3,)
+        Desired velocity in {B} (u [m/s], v [m/s], r [rad/s]); zeros by default.
+    """
+
+    eta_d: np.ndarray
+    nu_d: np.ndarray = field(default_factory=lambda: readonly(np.zeros(3)))
+
+    def __post_init__(self) -> None:
+        for name in ("eta_d", "nu_d"):
+            object.__setattr__(self, name, readonly(getattr(self, name)))
+
+
+@dataclass(frozen=True)
+class ThrusterCommand:
+    """Commanded thrust ``f`` [N] and azimuth ``alpha`` [rad] of each thruster, shape (n,)
+    (``alpha`` None: keep the azimuths)."""
+
+    f: np.ndarray
+    alpha: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class ControllerStep:
+    """Diagnostics of one controller update.
+
+    Attributes
+    ----------
+    t : float
+        Time of the update [s].
+    success : bool
+        False when the controller could not compute its law (e.g. a failed solve).
+    status : str
+        Solver or controller status text.
+    solve_time : float or None
+        Wall time of the optimisation [s]; None for a controller that solves nothing.
+    iterations : int
+        Solver iterations (0 if none).
+    fallback : bool
+        True when a fallback command was applied.
+    active : tuple of str
+        Names of the constraints or limits active in this update (e.g. ``"safe_circle"``,
+        ``"thrust_capacity"``, ``"saturated"``); counted by the runner.
+    """
+
+    t: float
+    success: bool = True
+    status: str = "ok"
+    solve_time: float | None = None
+    iterations: int = 0
+    fallback: bool = False
+    active: tuple[str, ...] = ()
+
+
+@runtime_checkable
+class Controller(Protocol):
+    """A motion controller: generalised thrust from the estimate and the setpoint."""
+
+    #: Update period [s] (None: the runner's control period).
+    period: float | None
+
+    def update(self, t: float, estimate: Estimate, setpoint: Setpoint) -> np.ndarray:
+        """Commanded generalised thrust ``tau_cmd`` (3,) in {B} [N, N, N m]."""
+        ...
+
+    def reset(self) -> None:
+        ...
+
+    def last_step(self) -> ControllerStep | None:
+        """Diagnostics of the latest :meth:`update` (None before the first)."""
+        ...
+
+
+@runtime_checkable
+class ThrusterController(Controller, Protocol):
+    """A controller that can also allocate: when ``owns_allocation`` is True the runner applies its
+    thruster command as it is, without the thrust allocation."""
+
+    #: True when :meth:`thruster_command` is to be applied instead of allocating ``tau_cmd``.
+    owns_allocation: bool
+
+    def thruster_command(self) -> ThrusterCommand:
+        """Thruster forces and azimuths of the latest update."""
+        ...
+
+
+@runtime_checkable
+class FaultAware(Protocol):
+    """A component that is told which thrusters the feedback reports as failed."""
+
+    def set_failed_thrusters(self, failed: frozenset[str]) -> None:
+        ...
+
+
+@runtime_checkable
+class Estimator(Protocol):
+    """A state estimator: an :class:`Estimate` from each :class:`Measurement`."""
+
+    def update(self, t: float, measurement: Measurement) -> Estimate:
+        ...
+
+    def reset(self) -> None:
+        ...
+
+
+@runtime_checkable
+class SetpointLayer(Protocol):
+    """A setpoint generator: the :class:`Setpoint` for the current estimate."""
+
+    def update(self, t: float, estimate: Estimate) -> Setpoint:
+        ...
+
+    def reset(self) -> None:
+        ...
