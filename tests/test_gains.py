@@ -18,16 +18,8 @@ import pytest
 
 import tapm_opt
 from tapm_opt.control.estimate import Estimate, Setpoint
-from tapm_opt.control.pid import (
-    MODE_SETS,
-    MODES,
-    ControlError,
-    TAPMPID,
-    closed_loop,
-    design_from_scenario,
-    designed_poles,
-    dof_plant,
-)
+from tapm_opt.control.pid import MODE_SETS, MODES, TAPMPID, ControlError
+from tapm_opt.control.pid_design import closed_loop, design_from_scenario, designed_poles, dof_plant
 from tapm_opt.control.scheduled import GainScheduledPID
 from tapm_opt.design.gains import (
     CLASS_MODE_SETS,

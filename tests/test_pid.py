@@ -14,20 +14,9 @@ from hypothesis import strategies as st
 
 import tapm_opt
 from tapm_opt.control.estimate import Estimate, Setpoint
-from tapm_opt.control.pid import (
-    MODE_SETS,
-    MODES,
-    ControlError,
-    GainClampWarning,
-    PIDDesign,
-    PIDGains,
-    TAPMPID,
-    closed_loop,
-    design_from_scenario,
-    design_gains,
-    designed_poles,
-    dof_plant,
-)
+from tapm_opt.control.pid import MODE_SETS, MODES, TAPMPID, ControlError, GainClampWarning, PIDGains
+from tapm_opt.control.pid_design import (PIDDesign, closed_loop, design_from_scenario, design_gains, designed_poles,
+                                         dof_plant)
 from tapm_opt.errors import TapmError
 from tapm_opt.geometry import rot_z
 from tapm_opt.models.mooring import MooringModel

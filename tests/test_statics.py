@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 import tapm_opt
-from tapm_opt.control.pid import ControlError, design_from_scenario
+from tapm_opt.control.pid import ControlError
+from tapm_opt.control.pid_design import design_from_scenario
 from tapm_opt.errors import ModelError
 from tapm_opt.models.mooring import MooringModel
 from tapm_opt.models.statics import EquilibriumError, solve_equilibrium

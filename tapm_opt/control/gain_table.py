@@ -85,7 +85,7 @@ class Condition:
 
 @dataclass(frozen=True, kw_only=True, eq=False)
 class PIDRow:
-    """PID design of one condition (:func:`~tapm_opt.control.pid.design_gains`).
+    """PID design of one condition (:func:`~tapm_opt.control.pid_design.design_gains`).
 
     Attributes
     ----------

@@ -17,7 +17,8 @@ import control
 import numpy as np
 
 from .._io import readonly
-from ..control.pid import MODES, PIDGains, closed_loop
+from ..control.pid import MODES, PIDGains
+from ..control.pid_design import closed_loop
 from ..estimation.lowpass import LowPassEstimator
 
 __all__ = ["ESTIMATOR_CUTOFF", "GM_INF", "loop_lag", "margins", "sorted_damp"]

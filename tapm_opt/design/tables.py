@@ -12,7 +12,7 @@ intact or with one line broken, and a vessel heading. For each condition:
    mooring does not balance is the heading controller's steady thrust ``tau_thr``;
 3. the design model ([S] eq. 31, catenary restoring load) **linearised there**
    (:func:`~tapm_opt.models.vessel.linearise`), so K is the catenary stiffness at the offset;
-4. **PID gains** by per-DOF pole placement (:func:`~tapm_opt.control.pid.design_gains`) and
+4. **PID gains** by per-DOF pole placement (:func:`~tapm_opt.control.pid_design.design_gains`) and
    **LQR gains** (``control.lqr``) on the same 6-state model, with their closed-loop poles,
    natural periods, damping ratios and (PID) loop-at-a-time stability margins
    (:mod:`tapm_opt.design.margins`).
@@ -44,7 +44,8 @@ from ..control.gain_table import (
     LQRRow,
     PIDRow,
 )
-from ..control.pid import MODE_SETS, GainClampWarning, closed_loop, design_gains
+from ..control.pid import MODE_SETS, GainClampWarning
+from ..control.pid_design import closed_loop, design_gains
 from ..errors import TapmError
 from ..geometry import ssa
 from ..models.mooring import MooringModel

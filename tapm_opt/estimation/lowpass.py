@@ -16,7 +16,6 @@ the model still contains shows up as part of the "environment".
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
 

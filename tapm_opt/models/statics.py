@@ -2,7 +2,7 @@
 
 Every rest point in the project — the pose where the catenary mooring balances a mean load
 (:meth:`~tapm_opt.models.mooring.MooringModel.equilibrium`, used by the gain design and by
-:func:`~tapm_opt.control.pid.design_from_scenario`) and the rest state of a CasADi vessel model
+:func:`~tapm_opt.control.pid_design.design_from_scenario`) and the rest state of a CasADi vessel model
 (:func:`~tapm_opt.models.vessel.equilibrium`) — is found by :func:`solve_equilibrium`: Powell's
 hybrid method (``scipy.optimize.root``, ``method="hybr"``) with the exact Jacobian, judged on the
 residual (not on the solver's ``success`` flag), and, if the direct solve fails, continuation in

@@ -30,7 +30,8 @@ from typing import Any, Mapping
 import numpy as np
 
 from ..control.mpc import LinearMPC, MPCError, MPCSettings, NonlinearMPC
-from ..control.pid import MODE_SETS, TAPMPID, ControlError, design_from_scenario
+from ..control.pid import MODE_SETS, TAPMPID, ControlError
+from ..control.pid_design import design_from_scenario
 from ..errors import TapmError
 from ..models.system import as_system
 
