@@ -9,7 +9,7 @@ Public entry points::
 from .config import Scenario, load_scenario, scenario_from_dict
 from .errors import CatenaryError, ModelError, ScenarioError, TapmError
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
 __all__ = [
     "Scenario",

@@ -183,6 +183,8 @@ def turret_position(eta, p_cot_B):
         x, y, psi = eta[0], eta[1], eta[2]
     else:
         eta = np.asarray(eta, dtype=float)
+        if eta.ndim == 0 or eta.shape[-1] != 3:
+            raise ValueError(f"eta must have 3 components (x, y, psi) along its last axis, got shape {eta.shape}")
         x, y, psi = eta[..., 0], eta[..., 1], eta[..., 2]
     cx, cy = rot2_apply(psi, float(p_cot_B[0]), float(p_cot_B[1]))
     return x + cx, y + cy

@@ -307,8 +307,18 @@ def test_scheduled_pid_from_json_equals_tapmpid_of_the_row(fpso, table, tmp_path
         assert (active.sea_state, active.broken, active.mode_set) == (c.sea_state, c.broken,
                                                                       c.mode_set)
         assert sched.modes == MODE_SETS[CLASS_MODE_SETS[c.sea_class]]
-        direct = TAPMPID(r.pid.gains, modes=c.mode_set, tau_limit=limit)
+        # with a scenario the scheduled PID is turret-referenced, as the one build_controller makes
+        direct = TAPMPID(r.pid.gains, modes=c.mode_set, tau_limit=limit, reference_point=fpso.turret.position)
         np.testing.assert_array_equal(_drive(sched), _drive(direct))
+
+
+def test_scheduled_pid_takes_the_capacity_box_and_the_turret_from_its_scenario(fpso, table):
+    from tapm_opt.models.system import ThrusterSet
+
+    sched = GainScheduledPID(table, scenario=fpso)
+    np.testing.assert_allclose(sched.controller.tau_limit, ThrusterSet.from_scenario(fpso).capacity_box())
+    plain = GainScheduledPID(table)
+    assert plain.controller.tau_limit is None
 
 
 def test_switch_is_bumpless_in_the_integral(table):
@@ -409,3 +419,19 @@ def _yaw(sc, psi):
     load's moment about the turret, N_env - x_cot Y_env)."""
     tau = mean_environmental_load(sc, "normal", psi).total
     return tau[2] - sc.turret.position[0] * tau[1] + sc.turret.position[1] * tau[0]
+
+
+def test_row_offsets_are_turret_offsets_and_survive_the_file(fpso, tmp_path):
+    from tapm_opt.geometry import turret_offset
+
+    table = gain_table(fpso, sea_states=["storm"], broken=[], headings=[0.0, "weathervane"])
+    write_gain_tables(table, tmp_path)
+    back = load_gain_table(tmp_path / "gains.json")
+    for r, b in zip(table, back):
+        np.testing.assert_allclose(r.p_cot_B, fpso.turret.position)
+        assert r.offset == pytest.approx(float(np.hypot(*turret_offset(r.eta, fpso.turret.position))), rel=1e-12)
+        assert b.offset == pytest.approx(r.offset, rel=1e-12)
+    turned = [r for r in table if abs(r.eta[2]) > 0.05]
+    assert turned, "the table has no row with the hull turned"
+    for r in turned:  # turned about the turret: the body origin is further off than the turret
+        assert r.offset < float(np.hypot(r.eta[0], r.eta[1]))

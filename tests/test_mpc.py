@@ -298,13 +298,16 @@ def rollout(ctrl, fn, x0, b_E, dt):
     return np.array(xs)
 
 
-@pytest.mark.parametrize("solver", ["ipopt"])
+SQP_30DEG = ("SQP (qrqp on the exact, indefinite Hessian, no convexification) may stop with "
+             "Search_Direction_Becomes_Too_Small at a 30 deg heading; the outcome differs between machines")
+
+
+@pytest.mark.parametrize("solver", ["ipopt", pytest.param("sqp", marks=pytest.mark.known_defect(reason=SQP_30DEG))])
 def test_safe_circle_is_kept_when_it_can_be(fpso, plant_fn, solver):
     """6 MN (fixed in {E}; the vessel heads 30 deg off it) push the turret from 45 m to ~70 m; the
     thrusters (4.3 MN) can hold it at 50 m: the MPC does so with no soft violation, and its plan,
     rolled out through the independent model, keeps the turret inside the circle. Without the circle
-    the same MPC lets it drift out (the constraint is what acts). (SQP is left out: on this case its
-    outcome depends on the machine — a defect of the MPC, not of the circle.)"""
+    the same MPC lets it drift out (the constraint is what acts)."""
     b = np.array([6.0e6, 0.0, 0.0])
     psi0 = math.radians(30.0)
     x0 = np.array([*body_from_turret((45.0, 0.0), psi0, fpso.turret.position), psi0, 0.0, 0.0, 0.0])
@@ -348,6 +351,10 @@ def test_safe_circle_violated_only_when_infeasible(fpso, cls):
 @pytest.mark.parametrize("cls,solver", [
     pytest.param(LinearMPC, "sqp", id="linear"),
     pytest.param(NonlinearMPC, "ipopt", id="nonlinear-ipopt"),
+    pytest.param(NonlinearMPC, "sqp", id="nonlinear-sqp", marks=pytest.mark.known_defect(
+        reason="SQP started at the exact optimum without multipliers: the QP step is 0 while the dual "
+               "infeasibility (the L1 soft-penalty gradient) is not, so sqpmethod stops with "
+               "Search_Direction_Becomes_Too_Small and the MPC reports a failure and falls back")),
 ])
 def test_no_thrust_at_a_loaded_equilibrium(fpso, cls, solver):
     """The vessel rests at its setpoint (25 m off, heading 30 deg) where a load fixed in {E} balances
@@ -403,6 +410,9 @@ def sqp_first_moves(fpso):
 
 @pytest.mark.parametrize("solver,case", [
     ("ipopt", "quadratic"), ("fatrop", "quadratic"), ("ipopt", "dead_band"),
+    pytest.param("fatrop", "dead_band", marks=pytest.mark.known_defect(
+        reason="fatrop, given the NLP without its stage structure, stops with status '1' once the "
+               "dead-band polygon is in the problem")),
 ])
 def test_nlp_solvers_agree(fpso, sqp_first_moves, solver, case):
     """IPOPT and fatrop give SQP's first move to 1e-3 of the capacity (the problem is the same NLP)."""

@@ -432,3 +432,24 @@ def test_run_case_is_deterministic(tiny, tiny_run):
     # a different seed gives a different run
     r3, _ = run_case({**c.inputs, "seed": 2})
     assert not np.array_equal(r1.data, r3.data)
+
+
+def test_resume_reruns_cases_of_another_code_version(tiny, tiny_run, tmp_path):
+    """A finished case recorded by another tapm_opt version is run again (a study never mixes the
+    results of two versions); the others are reused."""
+    import json
+    import shutil
+
+    src, _ = tiny_run
+    out = tmp_path / "copy"
+    shutil.copytree(src, out)
+    a, b = tiny.cases
+    cj = out / "cases" / a.id / "case.json"
+    meta = json.loads(cj.read_text())
+    meta["tapm_opt_version"] = "0.0.1"
+    cj.write_text(json.dumps(meta))
+    s = run_study(tiny, out, workers=0, progress=False)
+    assert s.finished == (a.id,) and s.skipped == (b.id,) and not s.failed
+    from tapm_opt import __version__
+
+    assert json.loads(cj.read_text())["tapm_opt_version"] == __version__

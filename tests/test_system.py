@@ -23,7 +23,7 @@ from tapm_opt.interfaces import (Controller, ControllerStep, Estimate, Setpoint,
 from tapm_opt.models.system import CAPACITY_FRACTION, System, ThrusterSet
 from tapm_opt.plant.simulator import Plant
 from tapm_opt.results import ResultBuilder
-from tapm_opt.studies.closed_loop import ClosedLoopSettings, run_closed_loop
+from tapm_opt.studies.closed_loop import ClosedLoopError, ClosedLoopSettings, run_closed_loop
 from tapm_opt.studies.controllers import build_controller
 from tapm_opt.studies.kpis import basic_kpis
 
@@ -106,6 +106,21 @@ def test_forbidden_sector_cuts_the_capacity_at_its_chord():
     cap = ThrusterSet(specs=(th,)).max_tau()
     assert cap[0] == pytest.approx(1e6 * math.cos(math.radians(45.0)), rel=1e-3)
     assert cap[1] == pytest.approx(1e6, rel=1e-3)
+
+
+def test_forbidden_sector_wider_than_half_a_turn_leaves_a_convex_wedge():
+    """Two azimuths at the origin, one allowed only within +-60 deg of ahead (forbidden 60 -> 300
+    deg), one only within +-60 deg of astern: X alone F each way; Y alone 2 F sin 60 deg (both
+    at 60 / 120 deg, their x parts cancel). A direction in the forbidden side is not attainable."""
+    fwd = _azimuth("f", 0.0, 0.0, sectors=[(math.radians(60.0), math.radians(300.0))])
+    aft = _azimuth("a", 0.0, 0.0, sectors=[(math.radians(240.0), math.radians(120.0))])
+    cap = ThrusterSet(specs=(fwd, aft)).max_tau()
+    assert cap[0] == pytest.approx(1e6, rel=1e-3)
+    assert cap[1] == pytest.approx(2e6 * math.sin(math.radians(60.0)), rel=1e-3)
+    A, b = ThrusterSet(specs=(fwd,))._hull_rows()
+    for deg, ok in ((0.0, True), (30.0, True), (-30.0, True), (90.0, False), (180.0, False)):
+        u = 0.9e6 * np.array([math.cos(math.radians(deg)), math.sin(math.radians(deg))])
+        assert bool(np.all(A @ u <= b + 1e-6)) == ok, deg
 
 
 def test_failed_thruster_id_is_checked():
@@ -237,8 +252,54 @@ def test_the_runner_uses_only_the_protocols_and_the_plant_interface():
     tree = ast.parse((PKG / "studies" / "closed_loop.py").read_text())
     plant_attrs = {n.attr for n in ast.walk(tree)
                    if isinstance(n, ast.Attribute) and isinstance(n.value, ast.Name) and n.value.id == "plant"}
-    assert plant_attrs <= {"measure", "step", "t", "scenario", "channels", "sample_row", "metadata"}, plant_attrs
+    assert plant_attrs <= {"measure", "step", "system", "channels", "sample_row", "metadata"}, plant_attrs
     probes = [n for n in ast.walk(tree) if isinstance(n, ast.Call) and isinstance(n.func, ast.Name)
               and n.func.id in ("getattr", "hasattr") and isinstance(n.args[0], ast.Name)
               and n.args[0].id in ("controller", "estimator", "layer", "plant", "alloc")]
     assert not probes
+
+
+def test_runner_refuses_an_object_that_is_not_a_controller():
+    class NoPeriod:
+        def update(self, t, estimate, setpoint):
+            return np.zeros(3)
+
+    plant = Plant(FPSO, sea_state="none", seed=0, segments=4)
+    with pytest.raises(ClosedLoopError, match="NoPeriod is not a Controller"):
+        run_closed_loop(plant, NoPeriod(), ClosedLoopSettings(duration=2.0))
+
+
+def test_measurements_carry_the_truth_only_on_request():
+    plant = Plant(FPSO, sea_state="normal", seed=0, segments=4, eta0=(3.0, 1.0, 0.1))
+    m = plant.measure()
+    assert m.truth is None and m.thruster_failed is not None and m.tau_thr is not None
+    np.testing.assert_allclose(plant.measure(truth=True).truth.eta, (3.0, 1.0, 0.1))
+
+
+def test_turret_offset_rejects_a_pose_without_heading():
+    with pytest.raises(ValueError, match="3 components"):
+        turret_offset([1.0, 2.0], FPSO.turret.position)
+
+
+def test_pid_saturation_follows_the_thrusters_that_are_left():
+    system = System.from_scenario(FPSO)
+    pid = build_controller(system, {"type": "pid"})
+    failed = frozenset(t.id for t in FPSO.thrusters[:3])
+    pid.set_failed_thrusters(failed)
+    np.testing.assert_allclose(pid.tau_limit, system.thrusters.without(failed).capacity_box(), rtol=1e-12)
+    pid.set_failed_thrusters(frozenset())
+    np.testing.assert_allclose(pid.tau_limit, system.thrusters.capacity_box(), rtol=1e-12)
+
+
+def test_mpc_thrust_bounds_come_back_when_a_failure_clears():
+    from tapm_opt.control.mpc import NonlinearMPC
+
+    ctrl = NonlinearMPC(FPSO, MPCSettings(decision="thrusters", horizon=5))
+    U = ctrl._prob.idx["U"]
+    intact = ctrl._prob.ubz[U].copy()
+    ctrl.set_failed_thrusters(frozenset({FPSO.thrusters[0].id}))
+    assert np.count_nonzero(ctrl._prob.ubz[U] == 0.0) == 2 * 5  # (f_x, f_y) of one azimuth, 5 stages
+    ctrl.update(0.0, Estimate(0.0, np.zeros(3), np.zeros(3), np.zeros(3)), Setpoint(np.zeros(3)))
+    assert "thrust_capacity" not in ctrl.last_step().active  # a dead thruster is not a capacity limit
+    ctrl.set_failed_thrusters(frozenset())
+    np.testing.assert_array_equal(ctrl._prob.ubz[U], intact)

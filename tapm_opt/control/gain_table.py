@@ -15,14 +15,14 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import MISSING, dataclass, field, fields
 from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
 
 from .._io import atomic_write_text, csv_text, readonly
-from ..geometry import ssa
+from ..geometry import ssa, turret_offset
 from .pid import ControlError, PIDGains
 
 __all__ = [
@@ -39,7 +39,6 @@ __all__ = [
 
 #: Format tag of the files, ``meta["format"]``.
 FORMAT = "tapm_opt.gains/1"
-_X, _Y = 0, 1
 
 
 class GainTableError(ControlError):
@@ -188,6 +187,8 @@ class GainRow:
         Linearised design model, states (eta, nu), inputs tau in {B}.
     pid : PIDRow
     lqr : LQRRow
+    p_cot_B : ndarray, shape (2,)
+        Centre of turret in {B} [m], the reference of :attr:`offset`.
     """
 
     condition: Condition
@@ -204,11 +205,13 @@ class GainRow:
     B: np.ndarray
     pid: PIDRow
     lqr: LQRRow
+    p_cot_B: np.ndarray = field(default_factory=lambda: readonly(np.zeros(2)))
 
     @property
     def offset(self) -> float:
-        """Horizontal distance of the equilibrium from the field zero point [m]."""
-        return float(math.hypot(self.eta[_X], self.eta[_Y]))
+        """Turret offset of the equilibrium [m]: the centre of turret's distance from its
+        field-zero-point position (``geometry.turret_offset``)."""
+        return float(math.hypot(*turret_offset(self.eta, self.p_cot_B)))
 
 
 @dataclass(frozen=True, eq=False)
@@ -355,6 +358,8 @@ def _dc_to_dict(obj: Any) -> dict:
 def _from(cls: type, data: Mapping[str, Any]) -> Any:
     kw = {}
     for f in fields(cls):
+        if f.name not in data and f.default_factory is not MISSING:
+            continue  # a field added later, with a default (tables written before it)
         v = data[f.name]
         if f.type == "bool":
             kw[f.name] = bool(v)

@@ -59,6 +59,7 @@ class _MPCBase:
         self.period = float(period) if period is not None else settings.dt
         self.model = self.system.lines
         self._failed: frozenset[str] = frozenset()
+        self._bounds_changed = False
         self._prob: _Problem | None = None
         self._z: np.ndarray | None = None
         self._u_prev: np.ndarray | None = None
@@ -130,7 +131,9 @@ class _MPCBase:
         if float(np.max(z[idx["S_db"]], initial=0.0)) > 1e-4:
             active.append("dead_band")
         us = z[idx["U"]].reshape(N, self._n_u)[0]
-        if np.any(np.abs(us) >= np.minimum(-self._prob.lbz[idx["U"]][:self._n_u], self._prob.ubz[idx["U"]][:self._n_u]) - 1e-4):
+        lo, hi = self._prob.lbz[idx["U"]][:self._n_u], self._prob.ubz[idx["U"]][:self._n_u]
+        free = hi > lo  # a failed thruster's column (bounds 0, 0) is not a capacity limit
+        if np.any(free & (np.abs(us) >= np.minimum(-lo, hi) - 1e-4)):
             active.append("thrust_capacity")
         self.diagnostics.append(MPCStep(t=t, success=ok, status=status, solve_time=solve_time, iterations=it,
                                         fallback=fallback, cost=cost, active=tuple(active), max_soft_violation=soft))
@@ -149,15 +152,17 @@ class _MPCBase:
             return
         self.system.thrusters.without(failed)  # unknown ids raise here
         self._failed = failed
+        self._bounds_changed = True
         if self._prob is not None:
             self._apply_u_bounds()
 
     def _apply_u_bounds(self) -> None:
         """Write the thrust bounds of the thrusters that have not failed into the problem (after
         each (re)build and each change of the failed set)."""
-        if not self._failed:
-            return
-        ths = self.system.thrusters.without(self._failed)
+        if not (self._failed or self._bounds_changed):
+            return  # a problem is built with the intact bounds
+        ths = self.system.thrusters.without(self._failed) if self._failed else self.system.thrusters
+        self._bounds_changed = False
         N = self.settings.horizon
         if self.settings.decision == "tau":
             lim = np.asarray(ths.capacity_box(self.settings.capacity_fraction)) / self._prob.scale["u"]
@@ -268,8 +273,9 @@ class LinearMPC(_MPCBase):
 
     The operating point is the setpoint position with the vessel's estimated heading, at rest, with
     zero thrust and the current environmental load estimate; it is re-linearised (same sparsity, new
-    matrix values) when the setpoint moves more than ``relinearise_distance`` [m] or the heading
-    more than ``relinearise_heading`` [rad] from the operating point.
+    matrix values) when the turret setpoint moves more than ``relinearise_distance`` [m] or the
+    heading more than ``relinearise_heading`` [rad] from the operating point. :attr:`relinearisations`
+    counts the set-ups.
     """
 
     def __init__(self, system: Any, settings: MPCSettings = MPCSettings(), *, relinearise_distance: float = 5.0,
@@ -282,6 +288,8 @@ class LinearMPC(_MPCBase):
         self._reld, self._relh = relinearise_distance, relinearise_heading
         self._eps = (eps_abs, eps_rel)
         self._op = None
+        self._op_sp = np.zeros(2)
+        self.relinearisations = 0
         self._qp = None
         self._n_u = 3 if settings.decision == "tau" else self.system.thrusters.extended()[0].shape[1]
 
@@ -322,6 +330,7 @@ class LinearMPC(_MPCBase):
         else:
             self._qp.update(Px=Hm.data, Ax=Aq.data)
         self._op = (x_op.copy(), b_op.copy())
+        self.relinearisations += 1
 
     def _apply_u_bounds(self) -> None:
         super()._apply_u_bounds()
@@ -336,9 +345,13 @@ class LinearMPC(_MPCBase):
         psi = float(p[2])
         x_op = np.concatenate([body_from_turret(p[6 + n_u:8 + n_u], psi, self.system.p_cot_B), [psi], np.zeros(3)])
         b_op = p[-3:]
-        if (self._op is None or np.hypot(*(x_op[:2] - self._op[0][:2])) > self._reld
+        # re-linearise when the turret setpoint or the heading moves (the body pose of the operating
+        # point also moves |p_cot| dpsi with the heading alone: that is what the heading test is for)
+        p_sp = p[6 + n_u:8 + n_u]
+        if (self._op is None or np.hypot(*(p_sp - self._op_sp)) > self._reld
                 or abs(ssa(x_op[2] - self._op[0][2])) > self._relh):
             self._setup(x_op, b_op)
+            self._op_sp = np.array(p_sp, float)
         q = self._fq(p)
         g0 = self._fg0(p)
         l = np.concatenate([self._lbg - g0, self._lbz])

@@ -228,6 +228,11 @@ class TAPMPID:
         damping acts on that point's velocity. Default (0, 0): the body origin.
     period : float or None
         Update period [s] for the closed-loop runner (None: the runner's control period).
+    thrusters : ThrusterSet, optional
+        The thrusters behind ``tau_limit``: when the thruster feedback reports failures
+        (:meth:`set_failed_thrusters`), ``tau_limit`` shrinks by the ratio of the remaining
+        thrusters' capacity box to the intact one (``models.system.ThrusterSet``). Without it the
+        limit stays.
 
     Notes
     -----
@@ -241,11 +246,13 @@ class TAPMPID:
     def __init__(self, gains: PIDGains, *, modes: str | Sequence[str] = MODES,
                  tau_limit: Any = None, integral_limit: Any = None, anti_windup: bool = True,
                  env_feedforward: bool = False, reference_point: Any = (0.0, 0.0),
-                 period: float | None = None) -> None:
+                 period: float | None = None, thrusters: Any = None) -> None:
         if not isinstance(gains, PIDGains):
             raise ControlError(f"gains must be a PIDGains, got {type(gains).__name__}")
         self._gains = gains
         self._tau_limit = _limit("tau_limit", tau_limit, allow_zero=False)
+        self._tau_limit_intact = self._tau_limit
+        self._thrusters = thrusters
         il = _limit("integral_limit", integral_limit, allow_zero=True)
         if il is None:
             il = self._tau_limit if self._tau_limit is not None else readonly(np.full(3, np.inf))
@@ -286,6 +293,17 @@ class TAPMPID:
         """Diagnostics of the latest update: ``active`` holds ``"saturated"`` when ``tau_limit``
         clipped the command."""
         return self._last
+
+    def set_failed_thrusters(self, failed: frozenset[str]) -> None:
+        """Thruster feedback reports ``failed`` (the :class:`~tapm_opt.interfaces.FaultAware`
+        method): scale ``tau_limit`` to what the remaining thrusters can deliver."""
+        if self._thrusters is None or self._tau_limit_intact is None:
+            return
+        intact = np.asarray(self._thrusters.capacity_box(), float)
+        left = np.asarray(self._thrusters.without(failed).capacity_box(), float) if failed else intact
+        ratio = np.divide(left, intact, out=np.zeros(3), where=intact > 0)
+        # a DOF the remaining thrusters cannot serve keeps a tiny limit (tau_limit must stay > 0)
+        self._tau_limit = readonly(np.maximum(self._tau_limit_intact * ratio, 1e-9 * self._tau_limit_intact))
 
     def set_modes(self, modes: str | Sequence[str]) -> None:
         """Switch the enabled modes (e.g. from a sea-state supervisor, [S] Table 3).

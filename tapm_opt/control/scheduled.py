@@ -27,6 +27,7 @@ import numpy as np
 
 from ..geometry import rot_z, ssa
 from ..interfaces import ControllerStep, Estimate, Setpoint
+from ..models.system import as_system
 from .gain_table import FORMAT as TABLE_FORMAT
 from .gain_table import Condition, GainTable, load_gain_table
 from .pid import H_PSI, H_XY, MODE_SETS, ControlError, TAPMPID
@@ -73,12 +74,14 @@ class GainScheduledPID:
     table : GainTable or mapping
         A :class:`~tapm_opt.control.gain_table.GainTable` or its JSON dict
         (``GainTable.to_dict()``, the content of ``gains.json``).
-    scenario : Scenario, optional
+    scenario : Scenario or System, optional
         If given, the table must have been made for it (same name) and its broken-line ids must
-        be line ids of the scenario.
+        be line ids of the scenario; it also gives the defaults of ``tau_limit`` (the thrusters'
+        capacity box, ``models.system.ThrusterSet.capacity_box``) and ``reference_point`` (the
+        centre of turret, so positions are turret offsets).
     tau_limit, integral_limit, anti_windup, env_feedforward, reference_point
-        Passed to every :class:`~tapm_opt.control.pid.TAPMPID` (``reference_point``: the centre of
-        turret in {B} for turret-referenced positions, see :class:`~tapm_opt.control.pid.TAPMPID`).
+        Passed to every :class:`~tapm_opt.control.pid.TAPMPID`. Without a scenario the defaults are
+        no saturation and the body origin.
     period : float or None
         Update period [s] for the closed-loop runner (None: the runner's control period).
 
@@ -91,9 +94,15 @@ class GainScheduledPID:
 
     def __init__(self, table: Any, *, scenario: Any = None, tau_limit: Any = None,
                  integral_limit: Any = None, anti_windup: bool = True,
-                 env_feedforward: bool = False, reference_point: Any = (0.0, 0.0),
+                 env_feedforward: bool = False, reference_point: Any = None,
                  period: float | None = None) -> None:
         tab = _as_table(table)
+        system = None if scenario is None else as_system(scenario)
+        scenario = None if system is None else system.scenario
+        if reference_point is None:
+            reference_point = (0.0, 0.0) if system is None else system.p_cot_B
+        if tau_limit is None and system is not None and system.thrusters.n:
+            tau_limit = system.thrusters.capacity_box()
         if not tab.rows:
             raise ControlError("the gain table has no rows")
         self._meta = dict(tab.meta)

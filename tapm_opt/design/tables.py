@@ -247,7 +247,8 @@ def _design_condition(scenario: Any, params: VesselParams, thrusters: ThrusterSe
     return GainRow(condition=cond, tau_env=readonly(tau_env), tau_wind=load.wind,
                    tau_drift=load.drift, tau_current=load.current, tau_thr=readonly(tau_thr),
                    eta=readonly(eta), M=readonly(d.M), D=readonly(d.D), K=readonly(d.K),
-                   A=readonly(A), B=readonly(B), pid=pid, lqr=lqr_row)
+                   A=readonly(A), B=readonly(B), pid=pid, lqr=lqr_row,
+                   p_cot_B=readonly(scenario.turret.position))
 
 
 def _per_class(name: str, value: Any, defaults: Mapping[str, Any], convert) -> dict[str, Any]:

@@ -112,12 +112,14 @@ class ThrusterSet:
         return readonly([t.id not in self.failed for t in self.specs], dtype=bool)
 
     def index(self, thruster: int | str) -> int:
+        """Position of a thruster given by its id (str) or its index (int, not bool)."""
         ids = self.ids
-        if isinstance(thruster, (int, np.integer)) and 0 <= int(thruster) < len(ids):
+        if isinstance(thruster, str) and thruster in ids:
+            return ids.index(thruster)
+        if isinstance(thruster, (int, np.integer)) and not isinstance(thruster, (bool, np.bool_)) \
+                and 0 <= int(thruster) < len(ids):
             return int(thruster)
-        if str(thruster) in ids:
-            return ids.index(str(thruster))
-        raise ModelError(f"thruster {thruster!r} is not one of {list(ids)}")
+        raise ModelError(f"thruster {thruster!r} is neither an id in {list(ids)} nor an index 0..{len(ids) - 1}")
 
     def without(self, failed: Iterable[str | int]) -> "ThrusterSet":
         """The same thrusters with ``failed`` (ids or indices) added to the failed ones."""
@@ -187,11 +189,12 @@ class ThrusterSet:
                     r[j], r[j + 1] = math.cos(mid), math.sin(mid)
                     rows.append(r)
                     rhs.append(fmax * math.cos(0.5 * w))
-                else:  # the allowed region is a sector narrower than pi: the two edge rays
+                else:  # the allowed region is a sector narrower than pi, from s0 + w to s0 + 2 pi
+                    # (counter-clockwise): u must lie counter-clockwise of the ray s0 + w and
+                    # clockwise of the ray s0; each row is the normal pointing out of it
                     for edge, sgn in ((s0, -1.0), (s0 + w, 1.0)):
                         r = np.zeros(n_u)
-                        # normal pointing into the forbidden side of the ray at angle ``edge``
-                        r[j], r[j + 1] = -sgn * math.sin(edge), sgn * math.cos(edge)
+                        r[j], r[j + 1] = sgn * math.sin(edge), -sgn * math.cos(edge)
                         rows.append(r)
                         rhs.append(0.0)
             j += 2
@@ -290,11 +293,16 @@ class System:
         return str(self.scenario.name)
 
     def with_broken(self, broken: Iterable[str | int]) -> "System":
-        """The system with the lines ``broken`` (ids) removed from its line system."""
+        """The system with the lines ``broken`` (line ids, as in the scenario) removed from its line
+        system. Unknown ids raise :class:`~tapm_opt.errors.ModelError`."""
         ids = [ln.id for ln in self.scenario.lines]
+        if isinstance(broken, (str, bytes)):
+            broken = [broken]
         b = []
         for k in broken:
-            s = ids[int(k)] if isinstance(k, (int, np.integer)) and not str(k) in ids else str(k)
+            s = str(k)
+            if isinstance(k, (bool, np.bool_)) or s not in ids:
+                raise ModelError(f"broken line {k!r} is not a line id; lines are {ids}")
             if s not in b:
                 b.append(s)
         allb = tuple(dict.fromkeys((*self.broken, *b)))

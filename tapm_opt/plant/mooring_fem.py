@@ -69,14 +69,21 @@ class MooringFEM:
         ``current(z) -> (n, 3)`` current velocity in {E} at depths z [m]; default none.
     safety : float
         Fraction of the stability limit used as time step (see ``FEMLines.stable_dt``).
+    geometry : MooringModel, optional
+        The scenario's intact line system for the turret and fairlead geometry (default: built
+        from the scenario).
     """
 
     def __init__(self, scenario: Any, *, segments: int | None = None,
-                 current: Callable[[np.ndarray], np.ndarray] | None = None, safety: float = 0.9):
+                 current: Callable[[np.ndarray], np.ndarray] | None = None, safety: float = 0.9,
+                 geometry: MooringModel | None = None):
         if not (0.0 < safety <= 1.0):
             raise ModelError(f"safety = {safety!r} must be in (0, 1]")
         self.scenario = scenario
-        self.geometry = MooringModel.from_scenario(scenario)
+        if geometry is not None and geometry.n_lines != len(scenario.lines):
+            raise ModelError(f"geometry has {geometry.n_lines} lines, the scenario {len(scenario.lines)}: the "
+                             f"FEM plant needs the intact line system")
+        self.geometry = geometry if geometry is not None else MooringModel.from_scenario(scenario)
         env = scenario.environment
         self.fem = FEMLines(line_set_from_scenario(scenario, segments=segments), np.array(scenario.anchors),
                             water_depth=env.water_depth, rho_w=env.water_density)

@@ -26,7 +26,7 @@ import numpy as np
 from ..geometry import rot_z
 from ..interfaces import Measurement, ThrusterCommand, Truth
 from ..models.system import System
-from ..models.vessel import VesselParams, vessel_rhs
+from ..models.vessel import vessel_rhs
 from ..results import Result, ResultBuilder
 from .environment import Environment, PlantError
 from .fem import SimulationDiverged
@@ -66,8 +66,10 @@ class Plant:
                  eta0: Any = None, safety: float = 0.9):
         if not (math.isfinite(outer_dt) and outer_dt > 0):
             raise PlantError(f"outer_dt = {outer_dt!r} s must be a positive number")
-        if isinstance(scenario, System):
-            scenario = scenario.scenario
+        system = scenario if isinstance(scenario, System) else System.from_scenario(scenario)
+        #: The system the plant was built from (its truth is intact: broken lines come from faults).
+        self.system = system if not system.broken else System.from_scenario(system.scenario)
+        scenario = system.scenario
         self.scenario = scenario
         self.outer_dt = float(outer_dt)
         ss = _sea_state(scenario, sea_state)
@@ -76,10 +78,11 @@ class Plant:
         self.env = Environment(scenario, ss, seed=ss_seed) if ss is not None else None
         self.wave_frequency = bool(wave_frequency) and self.env is not None and ss.Hs > 0
         current = self.env.current_at if (self.env is not None and ss.current_speed > 0) else None
-        self.mooring = MooringFEM(scenario, segments=segments, current=current, safety=safety)
+        self.mooring = MooringFEM(scenario, segments=segments, current=current, safety=safety,
+                                  geometry=self.system.lines)
         self.thrusters = ThrusterBank.from_scenario(scenario)
         self.sensors = Sensors.from_scenario(scenario, seed=noise_seed)
-        self.vessel = VesselParams.from_scenario(scenario)
+        self.vessel = self.system.vessel
         self._v_c = np.zeros(2) if current is None else np.asarray(self.env.current.surface[:2], dtype=float)
         self.line_ids = tuple(ln.id for ln in scenario.lines)
         self._winch_rate_max = np.array([ln.winch_max_rate for ln in scenario.lines])
@@ -152,15 +155,16 @@ class Plant:
         for _ in range(n):
             self._outer_step(h)
 
-    def measure(self) -> Measurement:
-        """Sensor readings at the current time (GNSS, heading, tension cells), the thruster
-        feedback (delivered thrust and azimuth, failure flags, the generalised thrust they give)
-        and, for validation estimators only, the true LF state (:class:`~tapm_opt.interfaces.Truth`)."""
+    def measure(self, *, truth: bool = False) -> Measurement:
+        """Sensor readings at the current time (GNSS, heading, tension cells) and the thruster
+        feedback (delivered thrust and azimuth, failure flags, the generalised thrust they give);
+        with ``truth=True`` also the true LF state (:class:`~tapm_opt.interfaces.Truth`), for
+        validation estimators only."""
         m = self.sensors.sample(self.t, self.eta_total, self.mooring.fairlead_tension())
         th = self.thrusters
-        truth = Truth(eta=self.eta, nu=self.nu, tau_env=self.loads["tau_wind"] + self.loads["tau_drift"])
+        tr = Truth(eta=self.eta, nu=self.nu, tau_env=self.loads["tau_wind"] + self.loads["tau_drift"]) if truth else None
         return replace(m, thruster_f=th.f, thruster_alpha=th.alpha, thruster_failed=th.failed, tau_thr=th.tau(),
-                       truth=truth)
+                       truth=tr)
 
     # -- checks ----------------------------------------------------------------------------
     def _check_cmd(self, cmd: Any) -> ThrusterCommand:

@@ -68,7 +68,8 @@ class ClosedLoopSettings:
         Fixed setpoint ``eta_d``, or setpoint chasing (survey eq. 38) with time constant
         ``chase_time`` projected into ``chase_margin`` times the safe radius.
     eta_d : (3,)
-        Fixed setpoint, or the heading of the chased setpoint [m, m, rad].
+        Fixed setpoint — turret offset x [m], y [m] (the centre of turret relative to its
+        field-zero-point position) and heading [rad] — or the heading of the chased setpoint.
     heading : {"fixed", "chasing"}
         Heading setpoint ``eta_d[2]``, or the weather-optimal heading: the bow pointed into the
         estimated mean environmental force in {E}, ``atan2(-b_y, -b_x)``, low-pass filtered with time
@@ -135,7 +136,8 @@ def run_closed_loop(plant: Plant, controller: Controller, settings: ClosedLoopSe
         a :class:`~tapm_opt.interfaces.ThrusterController` is applied without allocation.
     settings : ClosedLoopSettings
     system : System, optional
-        The system the control side is designed on (default: built from the plant's scenario).
+        The system the control side is designed on (default: the plant's ``system``, the one it was
+        built from).
     estimator : Estimator, optional
         Default: the low-pass estimator on ``system.lines`` (``settings.true_state``: the plant's
         truth).
@@ -145,7 +147,14 @@ def run_closed_loop(plant: Plant, controller: Controller, settings: ClosedLoopSe
         Default: built from the system's thrusters.
     """
     s = settings
-    system = system or System.from_scenario(plant.scenario)
+    for name, obj, proto in (("controller", controller, Controller), ("estimator", estimator, Estimator),
+                             ("setpoint_layer", setpoint_layer, SetpointLayer)):
+        if obj is not None and not isinstance(obj, proto):
+            need = {"controller": "period, update(t, estimate, setpoint), reset() and last_step()",
+                    "estimator": "update(t, measurement) and reset()",
+                    "setpoint_layer": "update(t, estimate) and reset()"}[name]
+            raise ClosedLoopError(f"{name} {type(obj).__name__} is not a {proto.__name__}: it needs {need}")
+    system = system or plant.system
     alloc = allocator or ThrustAllocator(system.thrusters.specs, dt=s.dt_control)
     owns = isinstance(controller, ThrusterController) and bool(controller.owns_allocation)
     period = s.controller_period or controller.period or s.dt_control
@@ -175,8 +184,8 @@ def run_closed_loop(plant: Plant, controller: Controller, settings: ClosedLoopSe
     est: Estimate | None = None
 
     for step in range(n_steps + 1):
-        t = plant.t
-        m = plant.measure()
+        m = plant.measure(truth=s.true_state)
+        t = m.t
         # thruster feedback: failures reach the allocation and fault-aware controllers
         if m.thruster_failed is not None:
             failed = frozenset(tid for tid, f in zip(ids, m.thruster_failed) if f)
@@ -188,7 +197,7 @@ def run_closed_loop(plant: Plant, controller: Controller, settings: ClosedLoopSe
                 failed_known = failed
         est = estimator.update(t, m)
         if step % log_every == 0:
-            rb.append(plant.t, np.concatenate([plant.sample_row(), tau_cmd, sp.eta_d, est.eta, est.tau_env,
+            rb.append(t, np.concatenate([plant.sample_row(), tau_cmd, sp.eta_d, est.eta, est.tau_env,
                                                [last["fallback"], last["slack"]]]))
         if step == n_steps:
             break

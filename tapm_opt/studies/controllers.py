@@ -89,8 +89,14 @@ def build_controller(system: Any, spec: Mapping[str, Any] | str, *, where: str =
                 design = design_from_scenario(system, periods=tuple(o["periods"]), damping=tuple(o["damping"]),
                                               integral_ratio=float(o["integral_ratio"]))
             tau_limit = o["tau_limit"] if o["tau_limit"] is not None else system.thrusters.capacity_box()
+            try:
+                tau_limit = np.broadcast_to(np.asarray(tau_limit, dtype=float), (3,))
+            except (TypeError, ValueError):
+                raise ControllerSpecError(f"{where}.tau_limit = {o['tau_limit']!r} must be a number or 3 numbers "
+                                          f"(X [N], Y [N], N [N m])") from None
             ctrl = TAPMPID.from_design(design, modes=o["modes"] if isinstance(o["modes"], str) else tuple(o["modes"]),
-                                       tau_limit=np.asarray(tau_limit, float), reference_point=system.p_cot_B)
+                                       tau_limit=tau_limit, reference_point=system.p_cot_B,
+                                       thrusters=system.thrusters)
             ctrl.design = design
             return ctrl
         allowed = {f.name for f in fields(MPCSettings)} | {"period"}
@@ -101,7 +107,9 @@ def build_controller(system: Any, spec: Mapping[str, Any] | str, *, where: str =
         settings = MPCSettings(**spec)
         cls = NonlinearMPC if kind == "mpc" else LinearMPC
         return cls(system, settings, period=None if period is None else float(period))
+    except ControllerSpecError:
+        raise
     except (MPCError, ControlError) as exc:
         raise ControllerSpecError(f"{where}: {exc}") from None
-    except TypeError as exc:
+    except (TypeError, ValueError) as exc:
         raise ControllerSpecError(f"{where}: {exc}") from None

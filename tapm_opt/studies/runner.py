@@ -183,7 +183,9 @@ def _run_locked(study: Study, out: Path, workers: int | None, client: Any, progr
         "cases": [{"id": c.id, "name": c.name, "labels": c.labels, "inputs": c.inputs} for c in study.cases],
         "tapm_opt_version": __version__})
 
-    skipped = [c.id for c in study.cases if store.is_finished(store.case_dir(out, c.id))]
+    # resume: finished cases of this code version are not run again (a case run by another version
+    # is, so one study never mixes results of two versions)
+    skipped = [c.id for c in study.cases if store.is_finished(store.case_dir(out, c.id), version=__version__)]
     todo = [c for c in study.cases if c.id not in set(skipped)]
     bar = _Progress(len(study.cases), len(skipped), progress, study.name)
     outcomes: dict[str, dict] = {}

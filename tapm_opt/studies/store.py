@@ -196,14 +196,17 @@ def _read_json_or_none(path: Path) -> Any:
 # -- state of a case ---------------------------------------------------------------------------
 
 
-def is_finished(cdir: str | Path) -> bool:
+def is_finished(cdir: str | Path, *, version: str | None = None) -> bool:
     """True when the case in ``cdir`` is finished: ``case.json`` holds ``"finished"`` and
-    ``result.npz`` and ``kpis.json`` are files."""
+    ``result.npz`` and ``kpis.json`` are files; with ``version``, also that the case was run by
+    that ``tapm_opt`` version (a result of another version is not reused)."""
     cdir = Path(cdir)
     if not ((cdir / RESULT_NPZ).is_file() and (cdir / KPIS_JSON).is_file()):
         return False
     meta = _read_json_or_none(cdir / CASE_JSON)
-    return isinstance(meta, dict) and bool(meta.get("finished"))
+    if not (isinstance(meta, dict) and bool(meta.get("finished"))):
+        return False
+    return version is None or meta.get("tapm_opt_version") == version
 
 
 CaseStatus = Literal["finished", "failed", "started", "missing"]
