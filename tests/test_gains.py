@@ -87,10 +87,10 @@ def test_coupled_poles_are_those_of_the_stored_model(table):
     """The MIMO poles recorded are the closed loop of the row's (A, B) with its gains."""
     for r in table:
         plant = control.ss(r.A, r.B, np.eye(6), np.zeros((6, 3)))
-        got = closed_loop(plant, r.pid.gains, MODES).poles()
+        got = closed_loop(plant, r.pid.gains, MODES, reference_point=r.p_cot_B).poles()
         np.testing.assert_allclose(np.sort_complex(got), np.sort_complex(r.pid.poles),
                                    rtol=1e-7, atol=1e-12)
-        got_modes = closed_loop(plant, r.pid.gains, r.condition.mode_set).poles()
+        got_modes = closed_loop(plant, r.pid.gains, r.condition.mode_set, reference_point=r.p_cot_B).poles()
         np.testing.assert_allclose(np.sort_complex(got_modes), np.sort_complex(r.pid.poles_modes),
                                    rtol=1e-7, atol=1e-12)
         assert r.pid.stable == bool(np.all(got.real < 0))

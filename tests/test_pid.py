@@ -153,7 +153,8 @@ def test_design_from_fpso_scenario_at_offset_equilibrium():
     moor = MooringModel.from_scenario(sc)
     x_cot = sc.turret.position[0]
     tau_env = np.array([-3.0e6, 2.0e5, x_cot * 2.0e5])  # free turret: N = x_cot Y balances
-    d = design_from_scenario(sc, periods=(150.0, 150.0, 120.0), damping=0.7, tau_env=tau_env)
+    d = design_from_scenario(sc, periods=(150.0, 150.0, 120.0), damping=0.7, tau_env=tau_env,
+                             reference_point=(0.0, 0.0))
     eta_op = d.eta_op
     np.testing.assert_allclose(moor.force(eta_op), -tau_env, rtol=0, atol=1e-3)
     assert eta_op[0] < -10.0  # pushed south by the load
@@ -166,6 +167,13 @@ def test_design_from_fpso_scenario_at_offset_equilibrium():
     assert np.all(np.abs(d.natural_periods[osc] / 135.0 - 1.0) < 0.2)
     ctrl = TAPMPID.from_design(d, modes="extreme")
     assert ctrl.modes == MODE_SETS["extreme"]
+    # the PID that runs acts on the turret offset (the default reference point): the lever of the
+    # turret couples sway and yaw, so its coupled poles are those of another, still stable, loop
+    dt = design_from_scenario(sc, periods=(150.0, 150.0, 120.0), damping=0.7, tau_env=tau_env)
+    np.testing.assert_allclose(dt.reference_point, sc.turret.position)
+    assert dt.stable and not np.allclose(np.sort_complex(dt.poles), np.sort_complex(d.poles), rtol=1e-3)
+    np.testing.assert_allclose(np.sort_complex(dt.closed_loop().poles()), np.sort_complex(dt.poles),
+                               rtol=1e-7, atol=1e-12)
 
 
 def test_no_equilibrium_for_unbalanced_yaw_load_on_free_turret():
@@ -493,3 +501,27 @@ def test_estimate_and_setpoint_are_read_only_copies():
     s = Setpoint([0, 0, 0])
     np.testing.assert_array_equal(s.nu_d, np.zeros(3))
     assert not s.nu_d.flags.writeable and e.tensions is None
+
+
+def test_linear_closed_loop_with_reference_point_matches_the_nonlinear_law():
+    """The linear loop's controller map (reference_maps) is the first-order expansion of what
+    TAPMPID with a reference point computes: a small pose and velocity perturbation gives the same
+    command from both, to second order."""
+    from tapm_opt.control.pid_design import reference_maps
+    from tapm_opt.control.estimate import Estimate, Setpoint
+    from tapm_opt.geometry import rot_z
+
+    c = np.array([91.44, 5.0])
+    psi0 = 0.4
+    gains = PIDGains(Kp=np.diag([2e5, 3e5, 4e8]), Ki=np.zeros((3, 3)), Kd=np.diag([5e6, 6e6, 7e9]))
+    pid = TAPMPID(gains, modes=("heading", "damping", "restoring"), reference_point=c)
+    T_eta, T_nu = reference_maps(rot_z(psi0), c)
+    d_eta = np.array([0.3, -0.2, 1e-3])
+    nu = np.array([0.01, -0.02, 2e-4])
+    eta0 = np.array([5.0, -3.0, psi0])
+    from tapm_opt.geometry import turret_offset
+
+    sp = Setpoint([*turret_offset(eta0, c), psi0])
+    tau = pid.update(0.0, Estimate(0.0, eta0 + d_eta, nu, np.zeros(3)), sp)
+    lin = -gains.Kp @ rot_z(psi0).T @ T_eta @ d_eta - gains.Kd @ T_nu @ nu
+    np.testing.assert_allclose(tau, lin, rtol=2e-3, atol=1e-6 * np.abs(lin).max())

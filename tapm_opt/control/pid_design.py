@@ -125,18 +125,34 @@ def _plant_matrices(plant: Any) -> tuple[control.StateSpace, np.ndarray, np.ndar
     return full, M, D, K, np.eye(3)
 
 
-def _controller_matrices(gains: PIDGains, modes: tuple[str, ...], R0: np.ndarray):
-    """Linearised controller about the operating point: integrated xi components and the maps
-    (F_eta, F_nu, F_xi) with tau = F_eta d_eta + F_nu nu + F_xi xi (setpoint at the point)."""
+def reference_maps(R0: np.ndarray, reference_point: Any = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
+    """(T_eta, T_nu): the linearised pose and velocity of the controller's reference point c in {B}
+    (the centre of turret) from the body origin's, at heading psi0 (``R0 = R(psi0)``):
+    ``d p_c = d p + R2'(psi0) c d psi`` and ``nu_c = (u - r c_y, v + r c_x, r)``, the maps
+    :class:`~tapm_opt.control.pid.TAPMPID` applies with ``reference_point = c``."""
+    c = np.asarray(reference_point, dtype=float)
+    Rc = R0[:2, :2] @ c
+    T_eta, T_nu = np.eye(3), np.eye(3)
+    T_eta[0, 2], T_eta[1, 2] = -Rc[1], Rc[0]
+    T_nu[0, 2], T_nu[1, 2] = -c[1], c[0]
+    return T_eta, T_nu
+
+
+def _controller_matrices(gains: PIDGains, modes: tuple[str, ...], R0: np.ndarray, reference_point: Any = (0.0, 0.0)):
+    """Linearised controller about the operating point: integrated xi components, the maps
+    (F_eta, F_nu, F_xi) with tau = F_eta d_eta + F_nu nu + F_xi xi of the body-origin state
+    (setpoint at the point), and the map T_eta of the body pose to the reference point's, whose
+    error is integrated (xi_dot = T_eta d_eta - d_eta_d)."""
     H_I, H_P, H_D = _projections(modes)
     Ki, Kp, Kd = H_I @ gains.Ki, H_P @ gains.Kp, H_D @ gains.Kd
     mask = _integrated(Ki)
+    T_eta, T_nu = reference_maps(R0, reference_point)
     F_xi = -(Ki @ R0.T)[:, mask]
-    return mask, -Kp @ R0.T, -Kd, F_xi
+    return mask, -Kp @ R0.T @ T_eta, -Kd @ T_nu, F_xi, T_eta
 
 
-def closed_loop(plant: Any, gains: PIDGains, modes: str | Sequence[str] = MODES
-                ) -> control.StateSpace:
+def closed_loop(plant: Any, gains: PIDGains, modes: str | Sequence[str] = MODES, *,
+                reference_point: Any = (0.0, 0.0)) -> control.StateSpace:
     """Linear closed loop of the moored vessel and the PID with ``modes`` (setpoint at the
     linearisation point, heading error small).
 
@@ -147,27 +163,31 @@ def closed_loop(plant: Any, gains: PIDGains, modes: str | Sequence[str] = MODES
     gains : PIDGains
     modes : str or sequence of str
         As for :class:`TAPMPID`.
+    reference_point : array_like, shape (2,)
+        The PID's reference point in {B} [m] (:class:`TAPMPID`'s ``reference_point``; the centre
+        of turret for a turret-moored vessel): the loop is that of the controller that runs.
 
     Returns
     -------
     control.StateSpace
         States ``x, y, psi, u, v, r`` (deviations) and the integrated ``xi_*``; inputs
         ``X_env, Y_env, N_env`` (load in {B} added to the thrust [N, N, N m]) and
-        ``x_d, y_d, psi_d`` (setpoint deviation in {E}); outputs ``x, y, psi`` (deviation
-        [m, m, rad]) and ``X_thr, Y_thr, N_thr`` (command [N, N, N m]).
+        ``x_d, y_d, psi_d`` (setpoint deviation of the reference point in {E}); outputs ``x, y,
+        psi`` (deviation of the reference point [m, m, rad]) and ``X_thr, Y_thr, N_thr``
+        (command [N, N, N m]).
     """
     full, _, _, _, R0 = _plant_matrices(plant)
     modes = _resolve_modes(modes)
-    mask, F_eta, F_nu, F_xi = _controller_matrices(gains, modes, R0)
+    mask, F_eta, F_nu, F_xi, T_eta = _controller_matrices(gains, modes, R0, reference_point)
     n_xi = int(mask.sum())
     A_p, B_p = np.asarray(full.A), np.asarray(full.B)
     F_x = np.hstack([F_eta, F_nu])          # tau from the plant state
-    F_d = -F_eta                            # tau from the setpoint deviation
+    F_d = -(F_eta @ np.linalg.inv(T_eta))   # tau from the setpoint deviation (-Kp R0^T)
     S = np.eye(3)[mask]                     # selects the integrated components
     A = np.block([[A_p + B_p @ F_x, B_p @ F_xi],
-                  [np.hstack([S, np.zeros((n_xi, 3))]), np.zeros((n_xi, n_xi))]])
+                  [np.hstack([S @ T_eta, np.zeros((n_xi, 3))]), np.zeros((n_xi, n_xi))]])
     B = np.block([[B_p, B_p @ F_d], [np.zeros((n_xi, 3)), -S]])
-    C = np.block([[np.eye(3), np.zeros((3, 3 + n_xi))], [F_x, F_xi]])
+    C = np.block([[T_eta, np.zeros((3, 3 + n_xi))], [F_x, F_xi]])
     D = np.block([[np.zeros((3, 6))], [np.zeros((3, 3)), F_d]])
     xi_names = [f"xi_{n}" for n, k in zip(("x", "y", "psi"), mask) if k]
     return control.ss(A, B, C, D, states=["x", "y", "psi", "u", "v", "r"] + xi_names,
@@ -194,6 +214,8 @@ class PIDDesign:
         errors, at the operating point; the design used their diagonals.
     eta_op : ndarray, shape (3,)
         Operating point (x [m], y [m], psi [rad]) in {E} (zeros unless designed from a scenario).
+    reference_point : ndarray, shape (2,)
+        The PID's reference point in {B} [m] that ``poles`` and :meth:`closed_loop` assume.
     plant : control.StateSpace
         Linearised moored vessel, states (eta, nu), inputs tau in {B}, outputs the state.
     designed_poles : ndarray, shape (3, 3), complex
@@ -202,8 +224,8 @@ class PIDDesign:
         Row i: poles achieved on the decoupled DOF i (diagonal model) with ``gains``
         (python-control); equal to ``designed_poles`` unless a gain was clamped.
     poles : ndarray, complex
-        Poles of the coupled closed loop, plant ``plant`` with all four modes (python-control),
-        sorted by magnitude.
+        Poles of the coupled closed loop, plant ``plant`` with all four modes and the reference
+        point (python-control), sorted by magnitude.
     natural_periods, damping_ratios : ndarray, same shape as ``poles``
         2 pi / |p| [s] and -Re(p)/|p| of each pole (``control.damp``).
     clamped : tuple of str
@@ -225,6 +247,7 @@ class PIDDesign:
     damping_ratios: np.ndarray
     clamped: tuple[str, ...] = ()
     eta_op: np.ndarray = field(default_factory=lambda: readonly(np.zeros(3)))
+    reference_point: np.ndarray = field(default_factory=lambda: readonly(np.zeros(2)))
 
     @property
     def stable(self) -> bool:
@@ -233,11 +256,11 @@ class PIDDesign:
 
     def closed_loop(self, modes: str | Sequence[str] = MODES) -> control.StateSpace:
         """Linear closed loop with ``modes``; see :func:`closed_loop`."""
-        return closed_loop(self.plant, self.gains, modes)
+        return closed_loop(self.plant, self.gains, modes, reference_point=self.reference_point)
 
 
 def design_gains(plant: Any, *, periods: Any, damping: Any, integral_ratio: float = 0.1,
-                 method: Literal["formula", "acker"] = "formula") -> PIDDesign:
+                 method: Literal["formula", "acker"] = "formula", reference_point: Any = (0.0, 0.0)) -> PIDDesign:
     """PID gains by per-DOF pole placement on the linearised moored vessel.
 
     For each DOF i, decoupled (diagonals of M, D, K)::
@@ -264,6 +287,11 @@ def design_gains(plant: Any, *, periods: Any, damping: Any, integral_ratio: floa
         a / w >= 0; 0 gives a PD (K_i = 0).
     method : {"formula", "acker"}
         Closed form above, or python-control ``acker`` on :func:`dof_plant` (same result).
+    reference_point : array_like, shape (2,)
+        The PID's reference point in {B} [m] (the centre of turret for a turret-moored vessel).
+        The per-DOF placement uses the body-origin diagonals as above; the coupled poles
+        (``poles``) are those of the loop with this reference point, i.e. of the controller that
+        runs, so the lever of the reference point shows as the difference between the two.
 
     Returns
     -------
@@ -317,9 +345,12 @@ def design_gains(plant: Any, *, periods: Any, damping: Any, integral_ratio: floa
         achieved.append(np.sort_complex(control.feedback(sys_i, fb, sign=1).poles()))
 
     # coupled loop with python-control: plant (full state out) in feedback with the controller
-    mask, F_eta, F_nu, F_xi = _controller_matrices(gains, MODES, R0)
+    ref = np.asarray(reference_point, dtype=float)
+    if ref.shape != (2,) or not np.all(np.isfinite(ref)):
+        raise ControlError(f"reference_point={reference_point!r} must be 2 finite numbers (x, y) in {{B}} [m]")
+    mask, F_eta, F_nu, F_xi, T_eta = _controller_matrices(gains, MODES, R0, ref)
     n_xi = int(mask.sum())
-    ctrl = control.ss(np.zeros((n_xi, n_xi)), np.hstack([np.eye(3)[mask], np.zeros((n_xi, 3))]),
+    ctrl = control.ss(np.zeros((n_xi, n_xi)), np.hstack([np.eye(3)[mask] @ T_eta, np.zeros((n_xi, 3))]),
                       F_xi, np.hstack([F_eta, F_nu]))
     loop = control.feedback(full, ctrl, sign=1)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -334,7 +365,7 @@ def design_gains(plant: Any, *, periods: Any, damping: Any, integral_ratio: floa
         M=readonly(M), D=readonly(D), K=readonly(K), plant=full,
         designed_poles=readonly(wanted, complex), decoupled_poles=readonly(np.array(achieved), complex),
         poles=readonly(poles, complex), natural_periods=readonly(periods_cl),
-        damping_ratios=readonly(zeta_cl), clamped=tuple(clamped),
+        damping_ratios=readonly(zeta_cl), clamped=tuple(clamped), reference_point=readonly(ref),
     )
 
 
@@ -352,7 +383,8 @@ def design_from_scenario(scenario: Any, *, periods: Any, damping: Any,
                          integral_ratio: float = 0.1, eta0: Any = (0.0, 0.0, 0.0),
                          tau_env: Any = (0.0, 0.0, 0.0), D_moor: Any = None,
                          broken: Sequence[str] = (),
-                         method: Literal["formula", "acker"] = "formula") -> PIDDesign:
+                         method: Literal["formula", "acker"] = "formula",
+                         reference_point: Any = None) -> PIDDesign:
     """Gains for a scenario's vessel and catenary mooring, linearised at the offset equilibrium.
 
     The vessel rests where the catenary mooring balances ``tau_env``
@@ -377,6 +409,9 @@ def design_from_scenario(scenario: Any, *, periods: Any, damping: Any,
         ``tapm_opt.plant.forced_motion.identify_mooring_damping``; default zero.
     broken : sequence of str
         Ids of broken lines, left out of the mooring.
+    reference_point : array_like shape (2,), optional
+        The PID's reference point in {B} [m] for the coupled poles (default: the centre of turret,
+        as :func:`~tapm_opt.studies.controllers.build_controller` makes the PID).
 
     Returns
     -------
@@ -391,6 +426,7 @@ def design_from_scenario(scenario: Any, *, periods: Any, damping: Any,
     eta_eq = _mooring_equilibrium(moor, tau_env, eta0)
     fn = moored_function(params, moor.force_function("catenary", eta0=eta_eq), D_moor=D_moor)
     plant = linearise(fn, np.r_[eta_eq, np.zeros(3)], tau_env0=tau_env, outputs="state")
-    design = design_gains(plant, periods=periods, damping=damping, integral_ratio=integral_ratio,
+    ref = system.p_cot_B if reference_point is None else reference_point
+    design = design_gains(plant, periods=periods, damping=damping, integral_ratio=integral_ratio, reference_point=ref,
                           method=method)
     return replace(design, eta_op=readonly(eta_eq))

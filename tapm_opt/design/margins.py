@@ -57,7 +57,8 @@ def loop_lag(thrust_time_constant: float, estimator_cutoff: float | None) -> Any
     return lag
 
 
-def margins(plant: control.StateSpace, gains: PIDGains, lag: Any) -> tuple[np.ndarray, ...]:
+def margins(plant: control.StateSpace, gains: PIDGains, lag: Any, *,
+            reference_point: Any = (0.0, 0.0)) -> tuple[np.ndarray, ...]:
     """Loop-at-a-time margins (module docstring).
 
     Parameters
@@ -67,6 +68,9 @@ def margins(plant: control.StateSpace, gains: PIDGains, lag: Any) -> tuple[np.nd
     gains : PIDGains
     lag : control.TransferFunction
         :func:`loop_lag`.
+    reference_point : array_like, shape (2,)
+        The PID's reference point in {B} [m] (the centre of turret), as in
+        :func:`~tapm_opt.control.pid_design.closed_loop`.
 
     Returns
     -------
@@ -74,7 +78,7 @@ def margins(plant: control.StateSpace, gains: PIDGains, lag: Any) -> tuple[np.nd
         Per DOF: ratio (inf: the phase never crosses -180 deg), [deg], gain-crossover
         frequency [rad/s], phase_margin / crossover [s].
     """
-    cl = closed_loop(plant, gains, MODES)
+    cl = closed_loop(plant, gains, MODES, reference_point=reference_point)
     out = np.zeros((4, 3))
     for i in range(3):
         T = cl[3 + i, i]  # load added at input i -> command i, all loops closed

@@ -211,6 +211,7 @@ def _design_condition(scenario: Any, params: VesselParams, thrusters: ThrusterSe
                       D_moor: Any) -> GainRow:
     broken = () if cond.broken == "intact" else (cond.broken,)
     moor = MooringModel.from_scenario(scenario, broken=broken)
+    ref = np.asarray(scenario.turret.position, dtype=float)  # the PID acts on the turret offset
     tau_env = load.total
     eta = _offset_equilibrium(moor, tau_env, cond.heading)
     tau_thr = np.array([0.0, 0.0, -(moor.force(eta)[_PSI] + tau_env[_PSI])])
@@ -219,9 +220,10 @@ def _design_condition(scenario: Any, params: VesselParams, thrusters: ThrusterSe
                       outputs="state")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", GainClampWarning)  # reported in PIDRow.clamped
-        d = design_gains(plant, periods=periods, damping=damping, integral_ratio=integral_ratio)
-    gm, pm, wgc, dm = margins(plant, d.gains, lag)
-    cl_modes = closed_loop(plant, d.gains, cond.mode_set)
+        d = design_gains(plant, periods=periods, damping=damping, integral_ratio=integral_ratio,
+                         reference_point=ref)
+    gm, pm, wgc, dm = margins(plant, d.gains, lag, reference_point=ref)
+    cl_modes = closed_loop(plant, d.gains, cond.mode_set, reference_point=ref)
     p_modes = np.asarray(cl_modes.poles(), dtype=complex)
     p_modes = p_modes[np.lexsort((p_modes.imag, np.abs(p_modes)))]
     pid = PIDRow(
