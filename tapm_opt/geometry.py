@@ -10,6 +10,9 @@ turret angle ``alpha_t`` about z^B.
 
 from __future__ import annotations
 
+import math
+from typing import Sequence
+
 import casadi as ca
 import numpy as np
 
@@ -27,6 +30,7 @@ __all__ = [
     "turret_position",
     "turret_offset",
     "body_from_turret",
+    "merge_sectors",
 ]
 
 
@@ -208,3 +212,44 @@ def body_from_turret(p_turret_offset, psi, p_cot_B):
     field-zero-point position) with heading ``psi`` [rad]: the inverse of :func:`turret_offset`."""
     cx, cy = rot2_apply(psi, float(p_cot_B[0]), float(p_cot_B[1]))
     return (p_turret_offset[0] + float(p_cot_B[0]) - cx, p_turret_offset[1] + float(p_cot_B[1]) - cy)
+
+
+_TWO_PI = 2.0 * np.pi
+
+
+def merge_sectors(sectors: Sequence[Sequence[float]], where: str, *,
+                  error: type[Exception] = ValueError) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """Union of forbidden arcs ``(from, to)`` (counter-clockwise, i.e. increasing angle, from
+    ``from`` to ``to``) as sorted disjoint ``(starts, widths)`` [rad].
+
+    ``where`` names the thruster in error messages; ``error`` is the exception type raised for a
+    malformed sector or sectors that forbid every direction."""
+    ivs: list[tuple[float, float]] = []
+    for k, sec in enumerate(sectors):
+        if len(sec) != 2 or not all(math.isfinite(float(v)) for v in sec):
+            raise error(f"{where}.forbidden_sectors[{k}]={tuple(sec)!r} must be two finite angles (from, to) [rad]")
+        a, b = float(sec[0]), float(sec[1])
+        w = (b - a) % _TWO_PI
+        if w <= 0.0:
+            continue
+        a %= _TWO_PI
+        if a + w > _TWO_PI:
+            ivs += [(a, _TWO_PI), (0.0, a + w - _TWO_PI)]
+        else:
+            ivs.append((a, a + w))
+    if not ivs:
+        return (), ()
+    ivs.sort()
+    merged = [list(ivs[0])]
+    for s, e in ivs[1:]:
+        if s <= merged[-1][1]:
+            merged[-1][1] = max(merged[-1][1], e)
+        else:
+            merged.append([s, e])
+    if len(merged) > 1 and merged[0][0] <= 0.0 and merged[-1][1] >= _TWO_PI:  # joins across 0
+        last = merged.pop()
+        merged[0] = [last[0], merged[0][1] + _TWO_PI]
+    widths = tuple(e - s for s, e in merged)
+    if sum(widths) >= _TWO_PI * (1.0 - 1e-12):
+        raise error(f"{where}.forbidden_sectors forbid every direction")
+    return tuple(s % _TWO_PI for s, _ in merged), widths

@@ -644,6 +644,16 @@ def test_empty_forbidden_sector_is_rejected():
     assert scenario_from_dict(data).thrusters[0].forbidden_sectors == ()
 
 
+def test_overlapping_forbidden_sectors_count_once():
+    """Two 200 deg sectors that overlap by 100 deg forbid 300 deg, not 400: valid; sectors whose
+    union is the whole turn are not."""
+    data = base("doc_example")
+    data["thrusters"][0]["forbidden_sectors_deg"] = [[0.0, 200.0], [100.0, 300.0]]
+    assert len(scenario_from_dict(data).thrusters[0].forbidden_sectors) == 2
+    data["thrusters"][0]["forbidden_sectors_deg"] = [[0.0, 200.0], [150.0, 10.0]]
+    assert "forbid every direction" in issue_at(issues_of(data), "thrusters[0].forbidden_sectors_deg").message
+
+
 # ------------------------------------------------------------------------------------------
 # docs/scenarios.md follows the schema
 # ------------------------------------------------------------------------------------------

@@ -19,7 +19,7 @@ from typing import Any, Literal, get_args, get_origin, get_type_hints
 import numpy as np
 
 from ..errors import ScenarioError, ScenarioIssue
-from ..geometry import fairleads_B
+from ..geometry import fairleads_B, merge_sectors
 from . import schema
 from .schema import Scenario
 
@@ -364,8 +364,9 @@ def validate(sc: Scenario) -> list[ScenarioIssue]:
                 issues.append(ScenarioIssue(
                     f"{p}.max_reverse_thrust",
                     f"= {th.max_reverse_thrust:g} N must be 0 for an azimuth thruster (it turns instead)"))
-            covered = sum((math.degrees(b - a)) % 360.0 for a, b in th.forbidden_sectors)
-            if covered >= 360.0 - 1e-9:
+            try:  # the union of the sectors, overlaps counted once (shapes were checked when parsed)
+                merge_sectors(th.forbidden_sectors, p)
+            except ValueError:
                 issues.append(ScenarioIssue(f"{p}.forbidden_sectors_deg", "forbid every direction"))
         else:
             if th.max_azimuth_rate is not None:

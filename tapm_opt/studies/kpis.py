@@ -22,7 +22,7 @@ from typing import Any, Iterable, Mapping, Sequence
 import numpy as np
 
 from ..errors import TapmError
-from ..geometry import turret_offset
+from ..geometry import ssa, turret_offset
 from ..results import Result
 
 __all__ = [
@@ -305,7 +305,7 @@ def _compute(result: Result, scenario: Any, *, t_start: float, lp_window: float,
         psi_d = _channel(result, "psi_d", "heading_error_max", win)
     else:
         psi_d = np.zeros_like(psi)
-    err = (psi - psi_d + np.pi) % (2 * np.pi) - np.pi
+    err = ssa(psi - psi_d)
     out["heading_error_max"] = float(np.degrees(np.abs(err).max()))
 
     # lines
