@@ -40,6 +40,17 @@ def _per_dof(name: str, value: Any, *, positive: bool = True) -> np.ndarray:
     return arr
 
 
+def check_integral_ratio(value: Any, *, error: type[Exception] = ControlError) -> float:
+    """``value`` as the integral ratio a / w, a finite number >= 0, else ``error`` naming it."""
+    try:
+        ratio = float(value)
+    except (TypeError, ValueError):
+        raise error(f"integral_ratio={value!r} must be a number >= 0") from None
+    if not (np.isfinite(ratio) and ratio >= 0.0):
+        raise error(f"integral_ratio={value!r} must be finite and >= 0")
+    return ratio
+
+
 def designed_poles(period: float, damping: float, integral_ratio: float) -> np.ndarray:
     """Closed-loop poles of one DOF: roots of (s^2 + 2 zeta w s + w^2)(s + a).
 
@@ -300,12 +311,7 @@ def design_gains(plant: Any, *, periods: Any, damping: Any, integral_ratio: floa
     full, M, D, K, R0 = _plant_matrices(plant)
     periods = _per_dof("periods", periods)
     zeta = _per_dof("damping", damping)
-    try:
-        ratio = float(integral_ratio)
-    except (TypeError, ValueError):
-        raise ControlError(f"integral_ratio={integral_ratio!r} must be a number >= 0") from None
-    if not (np.isfinite(ratio) and ratio >= 0.0):
-        raise ControlError(f"integral_ratio={integral_ratio!r} must be finite and >= 0")
+    ratio = check_integral_ratio(integral_ratio)
     if method not in ("formula", "acker"):
         raise ControlError(f"method={method!r} is unknown; choose 'formula' or 'acker'")
 

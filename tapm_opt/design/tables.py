@@ -45,7 +45,7 @@ from ..control.gain_table import (
     PIDRow,
 )
 from ..control.pid import MODE_SETS, GainClampWarning
-from ..control.pid_design import closed_loop, design_gains
+from ..control.pid_design import check_integral_ratio, closed_loop, design_gains
 from ..errors import TapmError
 from ..geometry import ssa
 from ..models.mooring import MooringModel
@@ -276,13 +276,7 @@ def _lqr_weights(v: Any) -> LQRWeights:
 
 
 def _ratio(v: Any) -> float:
-    try:
-        r = float(v)
-    except (TypeError, ValueError):
-        raise GainTableError(f"integral_ratio={v!r} must be a number >= 0") from None
-    if not (math.isfinite(r) and r >= 0.0):
-        raise GainTableError(f"integral_ratio={v!r} must be finite and >= 0")
-    return r
+    return check_integral_ratio(v, error=GainTableError)
 
 
 def _headings(headings: Any) -> list[float | str]:
