@@ -2,7 +2,7 @@
 
 Printed figures, not a timed test. Run from the repository root::
 
-    python benchmarks/bench_allocation.py [--calls 5000] [--warmup 500]
+    python benchmarks/bench_allocation.py [--calls 5000] [--warmup 500] [--lp-repeats 200]
 
 For 4, 6 and 8 azimuth thrusters (built from the fpso scenario's thrusters), a control loop at
 dt = 0.1 s with a slowly varying tau_cmd: after ``--warmup`` calls (the start-up from rest, also
@@ -11,6 +11,10 @@ reported), ``--calls`` timed calls. Reports the median, p90 and p99 wall time of
 the statuses. Variants: the default; without polishing; and the Python path before its
 optimisation (every call through the ``osqp.OSQP.update``/``solve`` wrapper). Target: <= 50 us
 median per call including Python.
+
+Thrust capacity: ``ThrusterSet.max_tau()`` on the fpso scenario (6 ``linprog`` solves, on a new
+``ThrusterSet`` each time since the result is cached per set), each call followed by 20 warm
+``allocate`` calls of fpso's six azimuths in the same process, and the ratio of the medians.
 
 A calibration line gives the cost of one numpy ufunc on 6 floats and of an empty Python call on
 this machine, to compare figures between machines, and a noise line the tail a fixed ~100 us
@@ -32,6 +36,7 @@ import osqp
 
 from tapm_opt import load_scenario
 from tapm_opt.control.allocation import ThrustAllocator
+from tapm_opt.models.system import ThrusterSet
 from _machine import machine_info as _machine_info  # noqa: E402  (benchmarks/ is on sys.path when run)
 
 
@@ -108,6 +113,38 @@ def run(thrusters, taus: np.ndarray, warmup: int, dt: float) -> dict[str, tuple]
     return {name: (np.array(w) * 1e6, np.array(o) * 1e6, np.array(i), st) for name, (w, o, i, st) in out.items()}
 
 
+def capacity_lp(repeats: int, taus: np.ndarray, warmup: int, dt: float, burst: int = 20) -> str:
+    """Median time of ``ThrusterSet.max_tau()`` (fpso, a new set each call: the result is cached
+    per set) against one warm ``allocate`` call (fpso's six azimuths): each LP call is followed by
+    ``burst`` allocate calls of the control loop, timed one by one."""
+    sc = load_scenario("fpso")
+    al = ThrustAllocator(list(sc.thrusters), dt=dt)
+    for tau in taus[:warmup]:
+        al.allocate(tau)
+    ThrusterSet.from_scenario(sc).max_tau()  # first call: imports and HiGHS start-up
+    lp, rows, alloc = [], [], []
+    k = warmup
+    for _ in range(repeats):
+        ts = ThrusterSet.from_scenario(sc)
+        t0 = time.perf_counter()
+        ts._hull_rows()  # diagnosis only: the constraint rows max_tau builds before its LPs
+        t1 = time.perf_counter()
+        cap = ThrusterSet.from_scenario(sc).max_tau()
+        lp.append(time.perf_counter() - t1)
+        rows.append(t1 - t0)
+        for _ in range(burst):
+            t2 = time.perf_counter()
+            al.allocate(taus[k])
+            alloc.append(time.perf_counter() - t2)
+            k = k + 1 if k + 1 < len(taus) else warmup
+    lp_m, rows_m, al_m = (float(np.median(v)) * 1e6 for v in (lp, rows, alloc))
+    return (f"thrust capacity: ThrusterSet.max_tau() on fpso (6 linprog solves) median {lp_m / 1e3:.2f} ms "
+            f"(p90 {np.percentile(lp, 90) * 1e3:.2f} ms; of which hull rows {rows_m / 1e3:.2f} ms) "
+            f"= {lp_m / al_m:.0f} x one allocate call of fpso's six azimuths (median {al_m:.1f} us; "
+            f"{repeats} LP calls, each followed by {burst} allocate calls); "
+            f"max_tau = {np.array2string(cap, precision=4)}")
+
+
 def line(label: str, wall, osqp_t, iters) -> str:
     return (f"  {label:24s} call median {np.median(wall):7.1f} us  p90 {np.percentile(wall, 90):7.1f} us  "
             f"p99 {np.percentile(wall, 99):7.1f} us | "
@@ -119,6 +156,7 @@ def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--calls", type=int, default=5000, help="timed calls per case (>= 5000)")
     ap.add_argument("--warmup", type=int, default=500, help="untimed calls first (start-up from rest)")
+    ap.add_argument("--lp-repeats", type=int, default=200, help="timed ThrusterSet.max_tau() calls")
     args = ap.parse_args(argv)
     calls = max(args.calls, 5000)
     dt = 0.1
@@ -137,6 +175,7 @@ def main(argv=None) -> None:
                 start = slice(0, min(200, args.warmup))
                 print(line("  start-up from rest", wall[start], osqp_t[start], iters[start]),
                       f"| max {wall[start].max():.0f} us, {iters[start].max()} iterations")
+    print(capacity_lp(max(args.lp_repeats, 20), taus, args.warmup, dt))
 
 
 if __name__ == "__main__":
