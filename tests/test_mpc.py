@@ -478,6 +478,7 @@ def test_failed_nlp_solve_applies_shifted_previous_plan(fpso, monkeypatch):
         raise RuntimeError("Error in Function::call for 'mpc': simulated failure")
 
     monkeypatch.setattr(ctrl, "_solver", broken)
+    monkeypatch.setattr(ctrl, "_retry", broken)
     for k in (1, 2):  # each failure moves one step further along the last good plan
         tau = ctrl.update(k * s.dt, est(X0), SP0)
         d = ctrl.diagnostics[-1]
@@ -586,3 +587,21 @@ def test_failed_thrusters_shrink_the_thrust_box(fpso, cls):
         assert np.all(np.abs(tau) <= box * (1 + 1e-4)), tau / box
     assert ctrl.diagnostics[-1].success
     assert np.max(np.abs(tau) / box) > 0.99  # saturated at the reduced box
+
+
+def test_failed_sqp_solve_is_retried_with_osqp(fpso, monkeypatch):
+    """When the SQP with qrqp fails, the same SQP with OSQP for its subproblems solves the step:
+    the move is that of an undisturbed solve and the diagnostics say so."""
+    s = MPCSettings(solver="sqp", **QUADRATIC)
+    ref = NonlinearMPC(fpso, s).update(0.0, est(X0), SP0)
+    ctrl = NonlinearMPC(fpso, s)
+
+    def broken(**kwargs):
+        raise RuntimeError("Error in Function::call for 'mpc': simulated failure")
+
+    monkeypatch.setattr(ctrl, "_solver", broken)
+    tau = ctrl.update(0.0, est(X0), SP0)
+    d = ctrl.diagnostics[-1]
+    assert d.success and not d.fallback and "retry after error" in d.status and ctrl.retries == 1
+    cap, _ = capacity(fpso)
+    assert np.max(np.abs(tau - ref) / cap) < 1e-4

@@ -228,21 +228,44 @@ class NonlinearMPC(_MPCBase):
         self._n_u = prob.n_u
         nlp = {"x": prob.z, "p": prob.p, "f": prob.f, "g": prob.g}
         s = settings
+        self._retry = None
         if s.solver == "ipopt":
             opts = {"ipopt.print_level": 0, "print_time": False, "ipopt.max_iter": s.max_iter, "ipopt.tol": 1e-6,
                     "ipopt.warm_start_init_point": "yes", "ipopt.sb": "yes", "ipopt.max_cpu_time": s.max_time}
             self._solver = ca.nlpsol("mpc", "ipopt", nlp, opts)
         elif s.solver == "sqp":
-            opts = {"qpsol": "qrqp", "print_time": False, "print_header": False, "print_iteration": False,
-                    "print_status": False, "max_iter": s.max_iter, "error_on_fail": False,
-                    "qpsol_options": {"print_iter": False, "print_header": False, "error_on_fail": False,
-                                      "max_iter": 500}}
-            self._solver = ca.nlpsol("mpc", "sqpmethod", nlp, opts)
+            # SQP with the active-set qrqp for its QP subproblems (exact active sets, fast), and the
+            # same SQP with OSQP as the retry of a failed solve: qrqp can cycle on degenerate
+            # vertices of the polygons once the turret lever couples heading and position (fpso
+            # storm closed loop: 126 of 240 solves failed with qrqp alone), where OSQP converges;
+            # OSQP alone is inexact on the L1 soft penalties of an infeasible load.
+            base = {"print_time": False, "print_header": False, "print_iteration": False,
+                    "print_status": False, "max_iter": s.max_iter, "error_on_fail": False}
+            self._solver = ca.nlpsol("mpc", "sqpmethod", nlp, {
+                **base, "qpsol": "qrqp",
+                "qpsol_options": {"print_iter": False, "print_header": False, "error_on_fail": False,
+                                  "max_iter": 200}})
+            self._retry = ca.nlpsol("mpc_retry", "sqpmethod", nlp, {
+                **base, "qpsol": "osqp",
+                "qpsol_options": {"error_on_fail": False,
+                                  "osqp": {"verbose": False, "eps_abs": 1e-6, "eps_rel": 1e-6,
+                                           "max_iter": 4000, "polish": True}}})
         else:
             opts = {"print_time": False, "fatrop.print_level": 0, "fatrop.max_iter": s.max_iter}
             self._solver = ca.nlpsol("mpc", "fatrop", nlp, opts)
         self._lam_x = None
         self._lam_g = None
+        #: Solves the retry solver (SQP with OSQP) rescued after the first one failed.
+        self.retries = 0
+
+    def _call(self, solver: Any, args: dict) -> tuple[bool, str, int, np.ndarray, float, Any]:
+        try:
+            sol = solver(**args)
+            stats = solver.stats()
+            return (bool(stats.get("success", False)), str(stats.get("return_status", "unknown")),
+                    int(stats.get("iter_count", -1)), np.array(sol["x"]).ravel(), float(sol["f"]), sol)
+        except RuntimeError as exc:  # an evaluation error inside the solver: treat as a failed solve
+            return False, f"error: {str(exc).splitlines()[0][:120]}", -1, args["x0"], math.nan, None
 
     def _solve(self, t: float, p: np.ndarray) -> np.ndarray:
         prob = self._prob
@@ -251,19 +274,16 @@ class NonlinearMPC(_MPCBase):
         if self._lam_g is not None:
             args["lam_x0"], args["lam_g0"] = self._lam_x, self._lam_g
         t0 = time.perf_counter()
-        try:
-            sol = self._solver(**args)
-            stats = self._solver.stats()
-            ok = bool(stats.get("success", False))
-            status = str(stats.get("return_status", "unknown"))
-            it = int(stats.get("iter_count", -1))
-            z = np.array(sol["x"]).ravel()
-            cost = float(sol["f"])
-            if ok:
-                self._lam_x = np.array(sol["lam_x"]).ravel()
-                self._lam_g = np.array(sol["lam_g"]).ravel()
-        except RuntimeError as exc:  # an evaluation error inside the solver: treat as a failed solve
-            ok, status, it, z, cost = False, f"error: {str(exc).splitlines()[0][:120]}", -1, z0, math.nan
+        ok, status, it, z, cost, sol = self._call(self._solver, args)
+        if not ok and self._retry is not None:
+            ok2, status2, it2, z2, cost2, sol2 = self._call(self._retry, args)
+            it = it + max(it2, 0)
+            if ok2:
+                self.retries += 1
+                ok, status, z, cost, sol = ok2, f"{status2} (retry after {status})", z2, cost2, sol2
+        if ok:
+            self._lam_x = np.array(sol["lam_x"]).ravel()
+            self._lam_g = np.array(sol["lam_g"]).ravel()
         return self._finish(t, z, ok, status, time.perf_counter() - t0, it, cost)
 
 

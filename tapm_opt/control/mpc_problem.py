@@ -51,8 +51,8 @@ class MPCSettings:
     decision : {"tau", "thrusters"}
         Optimise the generalised thrust (allocation after) or the thruster forces directly.
     solver : {"sqp", "ipopt", "fatrop"}
-        NLP solver of :class:`NonlinearMPC` (SQP: CasADi ``sqpmethod`` with its active-set QP
-        solver ``qrqp``, the fastest measured; IPOPT; fatrop).
+        NLP solver of :class:`NonlinearMPC` (SQP: CasADi ``sqpmethod`` with the active-set
+        ``qrqp`` for its QP subproblems, retried with OSQP when it fails; IPOPT; fatrop).
     w_thrust, w_rate : float
         Weights on (tau / tau_ref)^2 (or (f_i / f_max,i)^2) and on its change per step.
     w_position : float
