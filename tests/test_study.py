@@ -180,18 +180,24 @@ def test_failed_case_recorded_others_finish(tiny, tmp_path):
     assert [r.status for r in store.load_study_results(out)] == ["failed", "finished"]
 
 
+def _fail_case(monkeypatch, case_id: str, message: str) -> None:
+    """Make jobs.run_case raise RuntimeError(message) for the case ``case_id`` only."""
+    real = jobs.run_case
+
+    def flaky(inputs):
+        if store.case_id(inputs) == case_id:
+            raise RuntimeError(message)
+        return real(inputs)
+
+    monkeypatch.setattr(jobs, "run_case", flaky)
+
+
 def test_failed_case_in_process_then_retried(tiny, tmp_path, monkeypatch, capsys):
     """workers=0 runs in this process; a raising run_case is recorded; a re-run retries only it."""
     out = tmp_path / "run"
     a, b = tiny.cases
     real = jobs.run_case
-
-    def flaky(inputs):
-        if store.case_id(inputs) == a.id:
-            raise RuntimeError("solver exploded")
-        return real(inputs)
-
-    monkeypatch.setattr(jobs, "run_case", flaky)
+    _fail_case(monkeypatch, a.id, "solver exploded")
     s = run_study(tiny, out, workers=0, progress=True)
     assert s.failed == (a.id,) and s.finished == (b.id,)
     bar = capsys.readouterr().err
@@ -248,14 +254,7 @@ def test_dask_failed_case_is_recorded_by_the_client(tiny, tmp_path, monkeypatch)
     """A case that raises on a Dask worker comes back as its error; the client writes error.json."""
     distributed = pytest.importorskip("dask.distributed", reason="dask[distributed] is not installed (extra 'dask')")
     a, b = tiny.cases
-    real = jobs.run_case
-
-    def flaky(inputs):
-        if store.case_id(inputs) == a.id:
-            raise RuntimeError("solver exploded on the worker")
-        return real(inputs)
-
-    monkeypatch.setattr(jobs, "run_case", flaky)   # in-process workers (threads) see the patch
+    _fail_case(monkeypatch, a.id, "solver exploded on the worker")  # in-process workers (threads) see it
     out = tmp_path / "run"
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cl:
         s = run_study(tiny, out, scheduler=cl, progress=False)

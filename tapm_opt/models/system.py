@@ -234,9 +234,6 @@ class ThrusterSet:
     def rate_box(self, fraction: float = CAPACITY_FRACTION) -> np.ndarray:
         """Rate of change of tau the thrusters can follow in X, Y and N at once [N/s, N/s, N m/s]:
         the capacity box scaled by the slowest thruster's ratio of rate to thrust."""
-        B, lo, hi, kinds, owner = self.extended()
-        if not B.shape[1]:
-            return readonly(np.zeros(3))
         alive = self.alive
         ratio = min((self.rate[i] / self.f_max[i] for i in range(self.n) if alive[i]), default=0.0)
         return readonly(self.capacity_box(fraction) * ratio)
@@ -320,11 +317,6 @@ class System:
     def turret_offset(self, eta: Any) -> Any:
         """Turret-referenced offset (x, y) [m] of pose(s) ``eta`` (``geometry.turret_offset``)."""
         return turret_offset(eta, self.p_cot_B)
-
-    def tension_allow(self, utilisation: float | None = None) -> np.ndarray:
-        """Allowed fairlead tension of each line of ``lines`` [N]: utilisation × MBS."""
-        u = self.limits.tension_utilisation if utilisation is None else utilisation
-        return readonly(u * self.lines.MBS)
 
 
 def as_system(system_or_scenario: Any) -> System:
