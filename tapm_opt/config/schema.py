@@ -360,6 +360,17 @@ class Sensors:
 
 
 @dataclass(frozen=True, kw_only=True)
+class PlantSettings:
+    """Physics options of the FEM plant."""
+
+    break_on_overload: Literal["mbs", "sampled", "never"] = spec(
+        "A line whose fairlead or anchor tension reaches its breaking strength breaks: 'mbs' at the "
+        "line type's MBS, 'sampled' at a strength drawn once per line from N(MBS, MBS_std) with the "
+        "case seed, 'never' to let tensions exceed MBS (analysis only).",
+        default="mbs")
+
+
+@dataclass(frozen=True, kw_only=True)
 class Limits:
     """Operational limits of the position-mooring system."""
 
@@ -391,6 +402,7 @@ class Scenario:
     faults: tuple[Fault, ...] = spec("Faults to inject.", default=())
     sensors: Sensors = spec("Sensor noise and rates.", default=Sensors())
     limits: Limits = spec("Operational limits.", default=Limits())
+    plant: PlantSettings = spec("FEM plant physics options.", default=PlantSettings())
 
     @property
     def name(self) -> str:

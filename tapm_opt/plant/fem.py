@@ -168,24 +168,39 @@ class FEMLines:
         self._kb = self.node_weight / self._kb_pen  # node spring [N/m]: static penetration = seabed_penetration
         self._cb = self._zeta_b * 2.0 * np.sqrt(self._kb * self.node_mass)
 
-    def stable_dt(self, safety: float = 0.8) -> float:
-        """Largest stable step of the symplectic Euler scheme [s].
+    def stable_dt(self, safety: float = 0.8, extra_damping: float = 0.0) -> float:
+        """Largest stable step of the symplectic Euler scheme [s], times ``safety``.
 
-        Bounded by the stiffest axial mode (Gershgorin bound of each free node,
-        ``omega^2 <= 2 (k_below + k_above) / m``, with ``k = EA / l``) and the seabed contact mode,
-        each reduced for its damping ratio.
+        Derivation (see docs/plant.md, "Time step"). For one mode ``x'' + 2 zeta w x' + w^2 x = 0``
+        stepped as ``v+ = v + h (-w^2 x - 2 zeta w v)``, ``x+ = x + h v+`` (damping on the old
+        velocity, as :meth:`step` does), the amplification matrix has trace ``2 - W^2 - 2 zeta W``
+        and determinant ``1 - 2 zeta W`` with ``W = w h``; the Jury conditions give stability iff
+
+            W <= 2 (sqrt(1 + zeta^2) - zeta).
+
+        The internal damping is stiffness-proportional (segment damper ``c = beta k`` with
+        ``beta = c_int / EA``), so a mode of frequency w is damped at ``zeta = beta w / 2``: the
+        stiffest (zig-zag) axial mode carries more damping than the per-segment ratio (sqrt(2)
+        times it on a uniform line). The mass-proportional settling damping ``extra_damping``
+        [1/s] adds ``alpha / (2 w)``. Per free node, w and zeta are bounded by the Gershgorin row
+        sums of the stiffness and damping matrices: ``w^2 <= (2 (k_below + k_above) + k_seabed) / m``
+        and ``2 zeta w <= (2 (c_below + c_above) + c_seabed) / m + alpha``; the bound on W is then
+        evaluated at that w and zeta (W grows and the limit falls with w, so the bound is safe).
+        Drag and added mass only make it safer (they are left out).
         """
-        m_node = np.maximum(self.node_mass, 1e-300)
-        k_ax = np.where(self.bond_ok, self._EA / self.l0, 0.0)
-        k_node = np.append(k_ax, 0.0) + np.insert(k_ax, 0, 0.0)
         free = ~self.fixed
-        omega_ax = np.sqrt(2.0 * k_node[free] / m_node[free])
-        z = float(np.max(self._zeta_int)) if self._zeta_int.size else 0.0
-        dt_ax = float(np.min(2.0 / omega_ax)) * (np.sqrt(1 + z * z) - z)
-        omega_b = np.sqrt(self._kb[free] / m_node[free])
-        zb = self._zeta_b
-        dt_b = float(np.min(2.0 / omega_b)) * (np.sqrt(1 + zb * zb) - zb)
-        return float(safety * min(dt_ax, dt_b))
+        m_node = np.maximum(self.node_mass, 1e-300)[free]
+        ok = self.bond_ok
+        k_ax = np.where(ok, self._EA / self.l0, 0.0)
+        c_ax = np.where(ok, self._c_int / self.l0, 0.0)
+        k_row = (2.0 * (np.append(k_ax, 0.0) + np.insert(k_ax, 0, 0.0)) + self._kb)[free]
+        c_row = (2.0 * (np.append(c_ax, 0.0) + np.insert(c_ax, 0, 0.0)) + self._cb)[free]
+        if not k_row.size:
+            return float(safety * 1.0)
+        omega = np.sqrt(k_row / m_node)
+        zeta = (c_row / m_node + float(extra_damping)) / (2.0 * omega)
+        limit = 2.0 * (np.sqrt(1.0 + zeta * zeta) - zeta) / omega
+        return float(safety * np.min(limit))
 
     # -- forces ----------------------------------------------------------------------------
     def segment_state(self, r: np.ndarray, v: np.ndarray):
@@ -292,13 +307,9 @@ class FEMLines:
         self._attached = np.flatnonzero(self.active)
 
     # -- outputs ---------------------------------------------------------------------------
-    def fairlead_forces(self) -> np.ndarray:
-        """Force of each line on its fairlead point in {E} [N], shape (n_lines, 3).
-
-        The top segment's tension along the segment toward the anchor, plus the weight of the
-        fairlead's lumped node (half a segment), which the vessel carries. Zero for a broken line.
-        """
-        s = self.fairlead_seg
+    def _bonds(self, s: np.ndarray):
+        """Bonds ``s``: vectors toward the upper node (len(s), 3), stretched lengths [m] and
+        tensions [N] (tension only, with internal damping), as :meth:`segment_state`."""
         lv = self.r[s + 1] - self.r[s]
         eps = np.sqrt((lv * lv).sum(axis=1))
         strain = eps / self.l0[s] - 1.0
@@ -306,22 +317,62 @@ class FEMLines:
         if self._has_int_damping:
             dv = self.v[s + 1] - self.v[s]
             T += self._c_int[s] * (dv * lv).sum(axis=1) / (eps * self.l0[s])
-        T = np.where(strain > 0.0, np.maximum(T, 0.0), 0.0)
-        f = -(T / eps)[:, None] * lv
-        f[:, 2] += self.node_weight[self.fairlead_idx]
+        return lv, eps, np.where(strain > 0.0, np.maximum(T, 0.0), 0.0)
+
+    def fairlead_forces(self, v_current: np.ndarray | None = None,
+                        a_fairlead: np.ndarray | None = None) -> np.ndarray:
+        """Force of each line on its fairlead point in {E} [N], shape (n_lines, 3).
+
+        The vessel carries the fairlead's lumped node (half the top segment), so the load is the
+        net force of the line and the water on that node, less its inertia:
+
+        * the top segment's tension along the segment toward the anchor;
+        * the node's submerged weight;
+        * the Morison drag on the node's half segment (normal and tangential to the top segment,
+          on the fairlead velocity relative to ``v_current`` at the fairlead, (n_lines, 3) [m/s];
+          still water when None) — as on every other node;
+        * ``- M a_fairlead``: the node's structural mass and its added mass (normal ``C_MN``,
+          tangential ``C_MT``) times the fairlead acceleration (n_lines, 3) [m/s^2], when given.
+
+        Zero for a broken line. See docs/plant.md, "Load on the vessel".
+        """
+        fl = self.fairlead_idx
+        lv, eps, T = self._bonds(self.fairlead_seg)
+        q = lv / eps[:, None]
+        f = -T[:, None] * q
+        f[:, 2] += self.node_weight[fl]
+        vr = self.v[fl] if v_current is None else self.v[fl] - v_current
+        vt = (vr * q).sum(axis=1)
+        vn = vr - vt[:, None] * q
+        vn_mag = np.sqrt((vn * vn).sum(axis=1))
+        f -= (self._cdn_node[fl] * eps * vn_mag)[:, None] * vn
+        f -= (self._cdt_node[fl] * eps * np.abs(vt) * vt)[:, None] * q
+        if a_fairlead is not None:
+            a = np.asarray(a_fairlead, dtype=float)
+            at = (a * q).sum(axis=1)
+            an = a - at[:, None] * q
+            f -= (self.node_mass[fl] + self._can_half[fl] * eps)[:, None] * an
+            f -= ((self.node_mass[fl] + self._cat_half[fl] * eps) * at)[:, None] * q
         f[~self.active] = 0.0
         return f
 
     def fairlead_tension(self) -> np.ndarray:
-        """Fairlead tension of each line: magnitude of :meth:`fairlead_forces` [N]."""
-        f = self.fairlead_forces()
-        return np.sqrt(np.einsum("ij,ij->i", f, f))
+        """Fairlead tension of each line [N]: magnitude of the top segment's tension vector plus
+        the fairlead node's weight (the static part of :meth:`fairlead_forces`; no drag or
+        inertia). 0 for a broken line."""
+        lv, eps, T = self._bonds(self.fairlead_seg)
+        f = -(T / eps)[:, None] * lv
+        f[:, 2] += self.node_weight[self.fairlead_idx]
+        out = np.sqrt(np.einsum("ij,ij->i", f, f))
+        out[~self.active] = 0.0
+        return out
 
     def anchor_tension(self, T: np.ndarray | None = None) -> np.ndarray:
-        """Anchor tension of each line: tension of the segment at the anchor [N]."""
-        if T is None:
-            _, _, T = self.segment_state(self.r, self.v)
-        return T[self.anchor_seg]
+        """Anchor tension of each line: tension of the segment at the anchor [N] (from the bond
+        tensions ``T`` when given, else evaluated on the bottom segments only)."""
+        if T is not None:
+            return T[self.anchor_seg]
+        return self._bonds(self.anchor_seg)[2]
 
     def energy(self) -> float:
         """Mechanical energy of the lines [J]: kinetic (structural mass) + elastic + gravitational.

@@ -13,12 +13,18 @@ fairlead tensions and the line forces on the vessel we estimate
   FEM fairlead tension over the analysed cycles divided by the range of its quasi-static catenary
   tension at the same vessel positions.
 
-The first cycle is left out of both estimates (start-up transient).
+The first cycle is left out of both estimates and of the tension range (start-up transient); the
+tension range of the first cycle is reported separately (``T_startup``).
+
+The load on the vessel includes the fairlead nodes' drag and inertia (their half segments move with
+the vessel, :meth:`~tapm_opt.plant.fem.FEMLines.fairlead_forces`); the inertia is conservative and
+drops out of the dissipated energy over whole cycles.
 """
 
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -59,6 +65,14 @@ class ForcedMotionResult:
         Dynamic / quasi-static fairlead tension range of each line [-].
     dt : float
         FEM time step used [s].
+    T_range : ndarray (n_lines, 2)
+        (min, max) FEM fairlead tension over the analysed cycles [N] (whole run if fewer than 2 cycles).
+    T_startup : ndarray (n_lines, 2)
+        (min, max) FEM fairlead tension over the first cycle (start-up) [N].
+    sea_state : str or None
+        Sea state whose current acts on the lines (None: still water).
+    wall_time : float
+        Wall time of the whole analysis, settling included [s].
     """
 
     line_ids: tuple[str, ...]
@@ -77,6 +91,10 @@ class ForcedMotionResult:
     segments: int | None
     settle: SettleInfo
     cycles_analysed: int
+    T_range: np.ndarray = None  # type: ignore[assignment]
+    T_startup: np.ndarray = None  # type: ignore[assignment]
+    sea_state: str | None = None
+    wall_time: float = 0.0
     meta: dict = field(default_factory=dict)
 
     def table(self) -> tuple[list[str], np.ndarray]:
@@ -87,7 +105,7 @@ class ForcedMotionResult:
 
 def forced_motion(scenario: Any, *, dof: Literal["surge", "sway", "yaw"] = "surge", amplitude: float,
                   period: float, duration: float, segments: int | None = None, dt_out: float = 1.0,
-                  current: Any = None, safety: float = 0.9) -> ForcedMotionResult:
+                  current: Any = None, sea_state: Any = None, safety: float = 0.9) -> ForcedMotionResult:
     """Drive the fairleads with a sinusoidal vessel motion and record the line response.
 
     Parameters
@@ -107,8 +125,16 @@ def forced_motion(scenario: Any, *, dof: Literal["surge", "sway", "yaw"] = "surg
         Output interval [s]; the FEM step is the largest stable step that divides it.
     current : callable, optional
         ``current(z) -> (n, 3)`` current velocity in {E} on the line nodes (default: still water).
+    sea_state : str or SeaState, optional
+        Take the current profile of this sea state of the scenario (instead of ``current``); its
+        waves and wind do not act (the vessel motion is prescribed).
     safety : float
         Fraction of the FEM stability limit used as step.
+
+    Raises
+    ------
+    SettlingNotConverged
+        The lines did not come to rest before the motion starts.
     """
     if dof not in DOFS:
         raise ModelError(f"dof = {dof!r} is not one of {', '.join(DOFS)}")
@@ -116,6 +142,20 @@ def forced_motion(scenario: Any, *, dof: Literal["surge", "sway", "yaw"] = "surg
         if not (isinstance(val, (int, float)) and math.isfinite(val) and val > 0):
             raise ModelError(f"{name} = {val!r} must be a positive number")
     k = DOFS.index(dof)
+    w0 = time.perf_counter()
+    ss_id = None
+    if sea_state is not None:
+        if current is not None:
+            raise ModelError("give either current or sea_state, not both")
+        from .environment import CurrentProfile, PlantError
+
+        try:
+            ss = sea_state if not isinstance(sea_state, str) else scenario.sea_state(sea_state)
+        except KeyError as exc:
+            raise PlantError(f"sea_state = {sea_state!r}: {str(exc).strip(chr(39) + chr(34))}") from None
+        ss_id = ss.id
+        if ss.current_speed > 0:
+            current = CurrentProfile(ss, scenario.environment.water_depth).velocity
     plant = MooringFEM(scenario, segments=segments, current=current, safety=safety)
     # a whole number of FEM steps per output interval, each no longer than the stable step
     every = int(math.ceil(dt_out / plant.dt - 1e-9))
@@ -141,13 +181,15 @@ def forced_motion(scenario: Any, *, dof: Literal["surge", "sway", "yaw"] = "surg
         ed[k] = amplitude * omega * math.cos(omega * t)
         return e, ed
 
-    def load_E(eta):
-        tau_b = plant.tau(eta)
+    def load_E(eta, eta_dot, t):
+        edd = np.zeros(3)
+        edd[k] = -amplitude * omega * omega * math.sin(omega * t)
+        tau_b = plant.tau(eta, plant.fairlead_acceleration(eta, eta_dot, edd))
         return rot_z(eta[2]) @ tau_b
 
     j = 0
     e, ed = pose(0.0)
-    F = load_E(e)
+    F = load_E(e, ed, 0.0)
     t_out[0], eta_out[0], T_out[0], F_out[0] = 0.0, e, plant.fairlead_tension(), F
     power_t.append(0.0)
     power.append(-F[k] * ed[k])
@@ -158,7 +200,7 @@ def forced_motion(scenario: Any, *, dof: Literal["surge", "sway", "yaw"] = "surg
         if i % 200 == 0:
             plant.fem.check_health()
         if i % every_p == 0 or i % every == 0:
-            F = load_E(e)
+            F = load_E(e, ed, t)
             power_t.append(t)
             power.append(-F[k] * ed[k])
         if i % every == 0:
@@ -185,14 +227,18 @@ def forced_motion(scenario: Any, *, dof: Literal["surge", "sway", "yaw"] = "surg
         rng_dyn = T_out[mo].max(axis=0) - T_out[mo].min(axis=0)
         rng_qs = T_qs[mo].max(axis=0) - T_qs[mo].min(axis=0)
         amp = np.where(rng_qs > 1e-9 * np.maximum(T_qs[mo].max(axis=0), 1.0), rng_dyn / np.where(rng_qs > 0, rng_qs, 1.0), np.nan)
+        T_range = np.column_stack([T_out[mo].min(axis=0), T_out[mo].max(axis=0)])
     else:
         W, b_eq = math.nan, math.nan
         amp = np.full(plant.fem.n_lines, np.nan)
+        T_range = np.column_stack([T_out.min(axis=0), T_out.max(axis=0)])
+    first = t_out <= min(period, duration) + 1e-9
+    T_startup = np.column_stack([T_out[first].min(axis=0), T_out[first].max(axis=0)])
     return ForcedMotionResult(
         line_ids=plant.line_ids, dof=dof, amplitude=float(amplitude), period=float(period), t=t_out, eta=eta_out,
         T=T_out, T_quasi_static=T_qs, force=F_out, damping=b_eq, energy_per_cycle=W, amplification=amp, dt=dt,
-        segments=segments, settle=info, cycles_analysed=max(n_cyc, 0),
-        meta={"scenario": scenario.name},
+        segments=segments, settle=info, cycles_analysed=max(n_cyc, 0), T_range=T_range, T_startup=T_startup,
+        sea_state=ss_id, wall_time=time.perf_counter() - w0, meta={"scenario": scenario.name},
     )
 
 

@@ -13,13 +13,13 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ..errors import ModelError
+from ..errors import ModelError, TapmError
 from ..geometry import rot2_apply
 from ..models import catenary
 from ..models.mooring import MooringModel
 from .fem import FEMLines, LineSet
 
-__all__ = ["MooringFEM", "SettleInfo", "line_set_from_scenario"]
+__all__ = ["MooringFEM", "SettleInfo", "SettlingNotConverged", "line_set_from_scenario"]
 
 
 def line_set_from_scenario(scenario: Any, *, segments: int | None = None) -> LineSet:
@@ -48,13 +48,24 @@ def line_set_from_scenario(scenario: Any, *, segments: int | None = None) -> Lin
 
 @dataclass(frozen=True)
 class SettleInfo:
-    """How the lines were settled: simulated time [s], final largest node speed [m/s] and the
-    relative change of the fairlead tensions over the last check interval."""
+    """How the lines were settled: simulated time [s] until convergence (or until settling
+    stopped), final largest node speed [m/s], the largest relative change of the fairlead
+    tensions over the last check interval, whether both met their tolerances, and the wall
+    time spent [s]."""
 
     time: float
     max_speed: float
     tension_change: float
     converged: bool
+    wall_time: float = 0.0
+
+
+class SettlingNotConverged(TapmError, RuntimeError):
+    """The lines did not come to rest within the settling time; ``info`` is the :class:`SettleInfo`."""
+
+    def __init__(self, message: str, info: SettleInfo):
+        self.info = info
+        super().__init__(message)
 
 
 class MooringFEM:
@@ -144,35 +155,58 @@ class MooringFEM:
         self._r_fl = r_fl
 
     def settle(self, eta: np.ndarray, *, max_time: float = 600.0, check_every: float = 5.0,
-               tol: float = 1e-6, damping: float = 0.5) -> SettleInfo:
+               tol: float = 1e-6, speed_tol: float = 1e-3, damping: float = 0.5,
+               strict: bool = True) -> SettleInfo:
         """Let the lines come to rest with the vessel held at ``eta`` (dynamic relaxation).
 
         Runs with mass-proportional damping ``damping`` [1/s] until, over ``check_every`` seconds,
         every fairlead tension changes by less than ``tol`` (relative) and the fastest node moves
-        slower than 1 mm/s; at most ``max_time`` seconds.
+        slower than ``speed_tol`` [m/s]; at most ``max_time`` seconds. Not converged by then:
+        :class:`SettlingNotConverged` (``strict``) or a :class:`SettleInfo` with
+        ``converged=False``. Lines that never settle usually mean an unstable FEM step (a
+        ``safety`` factor too close to 1 for the damping) or lines still oscillating after
+        ``max_time``.
         """
+        import time as _time
+
+        w0 = _time.perf_counter()
         eta = np.asarray(eta, float)
         r_fl, v_fl = self.fairlead_state(eta, np.zeros(3))
         fem = self.fem
-        n_check = max(1, int(round(check_every / self.dt)))
+        dt = min(self.dt, fem.stable_dt(self.safety, extra_damping=damping))
+        n_check = max(1, int(round(check_every / dt)))
         T_prev = fem.fairlead_tension()
         t = 0.0
         change, speed = np.inf, np.inf
-        while t < max_time:
+        converged = False
+        while t < max_time - 1e-9:
             vc = self._update_current()
             for _ in range(n_check):
-                fem.step(self.dt, r_fl, v_fl, vc, extra_damping=damping)
-            t += n_check * self.dt
+                fem.step(dt, r_fl, v_fl, vc, extra_damping=damping)
+            t += n_check * dt
             fem.check_health()
             T = fem.fairlead_tension()
             change = float(np.max(np.abs(T - T_prev) / np.maximum(np.abs(T), 1.0)))
             speed = float(np.sqrt(np.max(np.einsum("ij,ij->i", fem.v, fem.v))))
             T_prev = T
-            if change < tol and speed < 1e-3:
+            if change < tol and speed < speed_tol:
+                converged = True
                 break
+        info = SettleInfo(time=t, max_speed=speed, tension_change=change, converged=converged,
+                          wall_time=_time.perf_counter() - w0)
+        if not converged and strict:
+            i = int(np.argmax(np.einsum("ij,ij->i", fem.v, fem.v)))
+            j = int(fem.line_of_node[i])
+            raise SettlingNotConverged(
+                f"the mooring lines did not settle within {max_time:g} s: the fastest node (line "
+                f"{fem.lines.ids[j]!r}, node {i - int(fem.node_start[j])}) still moves at {speed:.3g} m/s "
+                f"(tolerance {speed_tol:g}) and the fairlead tensions change by {change:.2g} per "
+                f"{n_check * dt:.3g} s (tolerance {tol:g}); if the speed stays high the FEM step is unstable "
+                f"(lower the step's safety factor, now {self.safety:g}), otherwise settle longer (max_time)",
+                info)
         fem.v[:] = 0.0
         fem.t = 0.0
-        return SettleInfo(time=t, max_speed=speed, tension_change=change, converged=change < tol and speed < 1e-3)
+        return info
 
     # -- time stepping ---------------------------------------------------------------------
     def step(self, eta: np.ndarray, eta_dot: np.ndarray) -> np.ndarray:
@@ -184,12 +218,31 @@ class MooringFEM:
         self._r_fl = r_fl
         return self.fem.step(self.dt, r_fl, v_fl, self._update_current())
 
-    def tau(self, eta: np.ndarray) -> np.ndarray:
+    def fairlead_acceleration(self, eta: np.ndarray, eta_dot: np.ndarray, eta_ddot: np.ndarray) -> np.ndarray:
+        """Fairlead accelerations in {E} (n_lines, 3) [m/s^2] for the vessel pose, rate and
+        acceleration (rigid body, the time derivative of :meth:`fairlead_state`'s velocity)."""
+        g = self.geometry
+        fx, fy = g.fairleads(eta)
+        if g.turret_mode == "locked":
+            rx, ry = fx - eta[0], fy - eta[1]
+        else:
+            rx, ry = rot2_apply(eta[2], g.p_cot_B[0], g.p_cot_B[1])
+        rd, rdd = eta_dot[2], eta_ddot[2]
+        a = np.zeros((fx.shape[0], 3))
+        a[:, 0] = eta_ddot[0] - rdd * ry - rd * rd * rx
+        a[:, 1] = eta_ddot[1] + rdd * rx - rd * rd * ry
+        return a
+
+    def tau(self, eta: np.ndarray, a_fairlead: np.ndarray | None = None) -> np.ndarray:
         """Load of all lines on the vessel in {B} [N, N, N m] (horizontal fairlead forces).
 
+        The fairlead nodes' tension, weight, drag and, with ``a_fairlead`` (n_lines, 3) [m/s^2]
+        (see :meth:`fairlead_acceleration`), inertia (:meth:`FEMLines.fairlead_forces`).
         ``eta`` must be the pose of the last :meth:`step` (the fairlead positions are reused).
         """
-        f = self.fem.fairlead_forces()
+        fem = self.fem
+        vc = self._vc[fem.fairlead_idx] if self.current is not None else None
+        f = fem.fairlead_forces(vc, a_fairlead)
         r = self._r_fl
         return self.geometry.tau_from_forces(eta, f[:, 0], f[:, 1], fairleads=(r[:, 0], r[:, 1]))
 

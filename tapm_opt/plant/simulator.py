@@ -59,11 +59,16 @@ class Plant:
         Longest outer step [s] for vessel, thrusters and environment.
     eta0 : array_like (3,), optional
         Initial LF pose [m, m, rad] (default the field zero point); the lines are settled there.
+    break_on_overload : {"mbs", "sampled", "never"}, optional
+        When a line breaks from overload (default the scenario's ``plant.break_on_overload``):
+        a line whose fairlead or anchor tension reaches its strength breaks at its fairlead and
+        the break is logged as an event. The strength is the MBS ('mbs'), a draw from
+        N(MBS, MBS_std) per line with this plant's seed ('sampled'), or infinite ('never').
     """
 
     def __init__(self, scenario: Any, *, sea_state: Any = None, seed: int = 0, segments: int | None = None,
                  wave_frequency: bool = True, faults: Sequence[Any] | None = None, outer_dt: float = 0.1,
-                 eta0: Any = None, safety: float = 0.9):
+                 eta0: Any = None, safety: float = 0.9, break_on_overload: str | None = None):
         if not (math.isfinite(outer_dt) and outer_dt > 0):
             raise PlantError(f"outer_dt = {outer_dt!r} s must be a positive number")
         system = scenario if isinstance(scenario, System) else System.from_scenario(scenario)
@@ -73,7 +78,8 @@ class Plant:
         self.scenario = scenario
         self.outer_dt = float(outer_dt)
         ss = _sea_state(scenario, sea_state)
-        ss_seed, noise_seed = (int(c.generate_state(1)[0]) for c in np.random.SeedSequence(seed).spawn(2))
+        ss_seed, noise_seed, strength_seed = (int(c.generate_state(1)[0])
+                                              for c in np.random.SeedSequence(seed).spawn(3))
         self.sea_state = ss
         self.env = Environment(scenario, ss, seed=ss_seed) if ss is not None else None
         self.wave_frequency = bool(wave_frequency) and self.env is not None and ss.Hs > 0
@@ -97,6 +103,18 @@ class Plant:
                                  f"does not exist; thrusters are {list(self.thrusters.ids)}")
         self._fault_i = 0
         self.events: list[tuple[float, str]] = []
+        mode = scenario.plant.break_on_overload if break_on_overload is None else break_on_overload
+        if mode not in ("mbs", "sampled", "never"):
+            raise PlantError(f"break_on_overload = {mode!r} must be one of 'mbs', 'sampled', 'never'")
+        self.break_on_overload = mode
+        types = [scenario.line_type(ln) for ln in scenario.lines]
+        mbs = np.array([t.MBS for t in types])
+        if mode == "sampled":
+            std = np.array([t.MBS_std for t in types])
+            draw = np.random.default_rng(strength_seed).standard_normal(len(types))
+            mbs = np.maximum(mbs + std * draw, 0.0)
+        #: Breaking strength of each line [N] (inf: never breaks from overload).
+        self.strength = np.full(len(types), np.inf) if mode == "never" else mbs
         self.t = 0.0
         self.eta = np.zeros(3) if eta0 is None else _vec3("eta0", eta0)
         self.nu = np.zeros(3)
@@ -107,6 +125,8 @@ class Plant:
         self.mooring.initialise(pose)
         self.settle_info: SettleInfo = self.mooring.settle(pose)
         self._tau_moor = self.mooring.tau(pose)
+        self._rate = np.asarray(self.env.eta_wf_dot(0.0, self.eta[2]), dtype=float) if self.wave_frequency \
+            else np.zeros(3)
         self.loads = {"tau_wind": np.zeros(3), "tau_drift": np.zeros(3), "tau_moor": self._tau_moor.copy(),
                       "tau_thr": np.zeros(3)}
         self._steps = 0
@@ -212,6 +232,20 @@ class Plant:
                 self.events.append((self.t, f"thruster {f.thruster} failed"))
             self._fault_i += 1
 
+    def _check_overload(self) -> None:
+        """Break every intact line whose fairlead or anchor tension reached its strength."""
+        if self.break_on_overload == "never":
+            return
+        m = self.mooring
+        T = np.maximum(m.fairlead_tension(), m.anchor_tension())
+        over = np.flatnonzero(m.fem.active & (T >= self.strength))
+        for j in over:
+            lid = self.line_ids[j]
+            m.break_line(lid)
+            mbs = self.scenario.line_type(self.scenario.lines[j]).MBS
+            self.events.append((self.t, f"line {lid} broke: overload, tension {T[j] / 1e6:.3g} MN = "
+                                        f"{100 * T[j] / mbs:.0f} % MBS >= strength {self.strength[j] / 1e6:.3g} MN"))
+
     def _outer_step(self, h: float) -> None:
         self._apply_faults()
         t0 = self.t
@@ -255,7 +289,10 @@ class Plant:
         self._steps += 1
         if self._steps % 20 == 0:
             m.fem.check_health()
-        self._tau_moor = m.tau(pose1)
+        a_fl = m.fairlead_acceleration(pose1, rate, (rate - self._rate) / h)
+        self._rate = rate
+        self._check_overload()
+        self._tau_moor = m.tau(pose1, a_fl)
         self.loads = {"tau_wind": tau_wind, "tau_drift": tau_drift, "tau_moor": self._tau_moor, "tau_thr": tau_thr}
 
     # -- logging ---------------------------------------------------------------------------
@@ -295,6 +332,7 @@ class Plant:
             "outer_dt": self.outer_dt,
             "wave_frequency": self.wave_frequency,
             "settle": {"time": self.settle_info.time, "converged": self.settle_info.converged},
+            "break_on_overload": self.break_on_overload,
             "events": [[t, e] for t, e in self.events],
             "tapm_opt_version": __version__,
         }
