@@ -179,7 +179,7 @@ class MooringFEM:
         t = 0.0
         change, speed = np.inf, np.inf
         converged = False
-        while t < max_time - 1e-9:
+        for _ in range(max(1, int(round(max_time / (n_check * dt))))):
             vc = self._update_current()
             for _ in range(n_check):
                 fem.step(dt, r_fl, v_fl, vc, extra_damping=damping)
