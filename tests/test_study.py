@@ -316,6 +316,8 @@ def _load_text(tmp_path: Path, text: str):
     ('id = "storm"', 'id = "big"\nHs = -1.0\nTp = 12.0', "sea_states[0].Hs = -1 m must be >= 0"),
     ('type = "pid"', 'type = "pid"\n[[controllers]]\nname = "PID"\ntype = "lmpc"',
      "controllers[1].name = 'PID' is also used by controllers[0]"),
+    ("segments = 6", 'segments = 6\nbreak_on_overload = "sometimes"',
+     "study.break_on_overload = 'sometimes' is not one of mbs, sampled, never"),
 ])
 def test_bad_input_names_the_field(tmp_path, old, new, field):
     assert old in GOOD
@@ -452,3 +454,12 @@ def test_resume_reruns_cases_of_another_code_version(tiny, tiny_run, tmp_path):
     from tapm_opt import __version__
 
     assert json.loads(cj.read_text())["tapm_opt_version"] == __version__
+
+
+def test_study_break_on_overload_reaches_every_case(tmp_path):
+    study = _load_text(tmp_path, GOOD.replace("segments = 6", 'segments = 6\nbreak_on_overload = "sampled"', 1))
+    cases = expand_cases(study)
+    assert cases and all(c.inputs["scenario"]["plant"]["break_on_overload"] == "sampled" for c in cases)
+    assert scenario_from_dict(cases[0].inputs["scenario"]).plant.break_on_overload == "sampled"
+    default = expand_cases(_load_text(tmp_path, GOOD))
+    assert default[0].inputs["scenario"]["plant"]["break_on_overload"] == "mbs"

@@ -20,6 +20,7 @@ from typing import Any, Mapping
 
 from ..config import Fault, builtin_scenarios, load_scenario, scenario_from_dict, scenario_to_dict
 from ..config.loader import BUILTIN_DIR, _fmt, _is_number  # the scenario loader's value checks
+from ..config.loader import fem_size_issues, log_size_issues
 from ..errors import ScenarioError
 from . import store
 from ._checks import Checker
@@ -85,7 +86,8 @@ class Study:
 
 # -- parsing and validation --------------------------------------------------------------------
 
-_STUDY_KEYS = {"name", "description", "scenario", "duration", "segments", "dt_control", "dt_log", "heading",
+_STUDY_KEYS = {"name", "description", "scenario", "duration", "segments", "break_on_overload", "dt_control",
+               "dt_log", "heading",
                "setpoint", "true_state", "seeds", "mode"}
 _TOP_KEYS = {"study", "sea_states", "controllers", "conditions", "cases"}
 _CONDITION_KEYS = {"name", "line_break", "thruster_failure"}
@@ -161,6 +163,7 @@ class _Parsed:
     description: str = ""
     duration: float | None = None
     segments: int | None = None
+    break_on_overload: str | None = None
     closed_loop: dict = field(default_factory=dict)
     mode: str | None = "product"
     seeds: list = field(default_factory=list)
@@ -187,7 +190,13 @@ def _parse_study_table(ck: Checker, data: Mapping, base_dir: Path, out: _Parsed)
         out.duration = ck.number(st["duration"], "study.duration", unit="s", positive=True)
     if "segments" in st:
         out.segments = ck.integer(st["segments"], "study.segments", at_least=2)
+    if "break_on_overload" in st:
+        out.break_on_overload = ck.choice(st["break_on_overload"], ("mbs", "sampled", "never"),
+                                          "study.break_on_overload")
     dt_control = ck.number(st.get("dt_control", 1.0), "study.dt_control", unit="s", positive=True)
+    if dt_control is not None and dt_control < 0.01:
+        ck.err("study.dt_control", f"= {dt_control:g} s must be >= 0.01 s (100 Hz, faster than any position-control loop)")
+        dt_control = None
     dt_log = ck.number(st.get("dt_log", 1.0), "study.dt_log", unit="s", positive=True)
     if dt_control is not None and dt_log is not None:
         ratio = dt_log / dt_control
@@ -219,6 +228,9 @@ def _parse_study_table(ck: Checker, data: Mapping, base_dir: Path, out: _Parsed)
                 msg = (f"= {scen!r}: no built-in scenario or file of that name (relative paths are taken from "
                        f"{base_dir}); built-in scenarios: {', '.join(builtin_scenarios())}")
             ck.err("study.scenario", msg)
+    if out.sc is not None and out.segments is not None:  # FEM memory and cost, before any case starts
+        for iss in fem_size_issues(out.sc, out.segments, where="study.segments"):
+            ck.err(iss.path, iss.message)
 
 
 def _parse_sea_states(ck: Checker, data: Mapping, out: _Parsed) -> None:
@@ -382,7 +394,13 @@ def _expand(ck: Checker, P: _Parsed) -> list[Case]:
         wanted = [("", a, b, c, s, duration, None) for a in range(len(P.sea_states))
                   for b in range(len(P.controllers)) for c in range(len(P.conditions)) for s in P.seeds]
     wanted += [(p, a, b, c, s, duration if d is None else d, n) for p, a, b, c, s, d, n in P.listed]
+    for p, dur in sorted({(p, d) for p, _, _, _, _, d, _ in wanted}):  # the size of each run's log
+        for iss in log_size_issues(sc, dur, P.closed_loop["dt_log"], where=f"{p}.duration" if p else "study.duration",
+                                   dt_name="study.dt_log"):
+            ck.err(iss.path, iss.message)
     base = scenario_to_dict(sc)
+    if P.break_on_overload is not None:
+        base["plant"] = {**base.get("plant", {}), "break_on_overload": P.break_on_overload}
     cases: list[Case] = []
     where: dict[str, str] = {}
     for p, i_ss, i_ctrl, i_cond, seed, dur, cname in wanted:
@@ -531,4 +549,6 @@ def load_study(path: str | Path) -> Study:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise StudyError(f"{path.name} is not valid TOML: {exc}", source=str(path)) from None
+    except RecursionError:
+        raise StudyError(f"{path.name} nests arrays or tables too deeply to be read as TOML", source=str(path)) from None
     return study_from_dict(data, base_dir=path.resolve().parent, source=str(path), path=path.resolve(), text=text)

@@ -15,6 +15,8 @@ Study file
     scenario = "fpso"                # required: built-in name, or a path relative to this file
     duration = 3600.0                # required: simulated time of each case [s], > 0
     segments = 10                    # optional: FEM segments per line (default: each line's own)
+    break_on_overload = "sampled"    # optional: "mbs", "sampled" or "never" (default: the scenario's
+                                     # [plant] setting; lines break at their strength, docs/plant.md)
     dt_control = 1.0                 # control / allocation / plant period [s] (default 1)
     dt_log = 1.0                     # logging period [s], a multiple of dt_control (default 1)
     heading = "chasing"              # "chasing" (bow into the weather, default) or "fixed"
