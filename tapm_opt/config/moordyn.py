@@ -1,0 +1,1208 @@
+"""MoorDyn v2 input files: read them into scenarios, write scenarios as MoorDyn models.
+
+Conventions (all of them, with the evidence, in ``docs/moordyn.md``):
+
+* **Frames.** MoorDyn is z up; tapm_opt is NED (x north, y east, z down; body y to starboard).
+  ``(x, y, z)_MoorDyn = (x, -y, -z)_NED``: x (north, surge) is kept, MoorDyn's y points west
+  (to port at heading 0) and z up. A heading psi (NED, clockwise seen from above) is a MoorDyn yaw
+  of ``-psi``.
+* **Diameter.** MoorDyn has one diameter, the volume-equivalent one: buoyancy, drag and added
+  mass all use it. tapm_opt has a hydrodynamic diameter ``d`` (drag, added mass) and a separately
+  given submerged weight ``w``. Writing, MoorDyn's diameter is the one that reproduces ``w``:
+  ``w = (m - rho_w pi d_md^2 / 4) g``; the coefficients are rescaled so the forces per length stay
+  the same: ``Cd = C_DN d / d_md``, ``Ca = C_MN (d / d_md)^2``, ``CaAx = C_MT (d / d_md)^2`` and
+  ``CdAx = C_DT d / (pi d_md)`` (MoorDyn's axial drag acts on ``pi d``, tapm_opt's on ``d``).
+  Reading, the inverse with ``d = d_md``: ``C_DT = pi CdAx``, ``w = (m - rho_w pi d_md^2/4) g``.
+* **Axial damping.** MoorDyn's negative ``BA = -zeta_md`` is the damping ratio of the zig-zag
+  (highest) axial mode, ``BA = zeta_md (L/N) sqrt(EA m)`` [N s]; tapm_opt's
+  ``axial_damping_ratio`` zeta is a fraction of the critical damping of one segment with half the
+  segment mass, ``c_int = zeta 2 sqrt((EA/l) m l / 2) l = zeta sqrt(2) l sqrt(EA m)``. So
+  ``BA = -sqrt(2) zeta``; a positive BA [N s] maps to ``zeta = BA / (sqrt(2) l sqrt(EA m))``.
+* **Seabed.** MoorDyn's ``kBot``, ``cBot`` act on ``d_md`` per length; the FEM's node spring is
+  the node weight over a 0.01 m penetration with 50 % of critical damping, so
+  ``kBot = w / (0.01 d_md)`` and ``cBot = sqrt(w m / 0.01) / d_md``.
+* **Representation.** A written file has one ``Coupled`` body at the centre of turret (COT) with
+  the turret's orientation, each fairlead a ``Body1`` point on it, each anchor a ``Fixed`` point;
+  line k of the file is line k of the scenario (anchor end A, fairlead end B).
+
+Every problem is a :class:`MoorDynError` (a :class:`~tapm_opt.errors.TapmError`) naming the file,
+its line number and the item: the ``tapm`` command prints it on one line.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterable, Mapping
+
+import numpy as np
+
+from ..errors import ScenarioError, TapmError
+from .loader import BUILTIN_DIR, load_scenario, scenario_from_dict
+from .schema import Scenario
+
+__all__ = [
+    "MoorDynError",
+    "MoorDynModel",
+    "MDLineType",
+    "MDPoint",
+    "MDBody",
+    "MDLine",
+    "read_moordyn",
+    "parse_moordyn",
+    "import_moordyn",
+    "scenario_data_from_moordyn",
+    "moordyn_text",
+    "export_moordyn",
+    "moordyn_line_type",
+    "moordyn_time_step",
+    "seabed_constants",
+    "scenario_toml",
+    "ImportResult",
+    "ExportInfo",
+    "SEABED_PENETRATION",
+    "SEABED_DAMPING_RATIO",
+    "MOORDYN_DEFAULT_G",
+    "MOORDYN_DEFAULT_RHO",
+]
+
+#: Static penetration of a line resting on the seabed in the FEM (``FEMLines`` default) [m].
+SEABED_PENETRATION = 0.01
+#: Seabed contact damping ratio of the FEM (``FEMLines`` default).
+SEABED_DAMPING_RATIO = 0.5
+#: MoorDyn-C's gravity when the file sets none (``env->g`` in MoorDyn2.cpp; its docs print 9.81).
+MOORDYN_DEFAULT_G = 9.80665
+#: MoorDyn's water density when the file sets none.
+MOORDYN_DEFAULT_RHO = 1025.0
+#: Fraction of the largest stable step used as MoorDyn's dtM.
+DTM_SAFETY = 0.8
+
+_SQRT2 = math.sqrt(2.0)
+
+
+class MoorDynError(TapmError, ValueError):
+    """A MoorDyn file that cannot be read or converted, or a scenario MoorDyn cannot represent.
+
+    ``source`` is the file (or ``""``), ``lineno`` the 1-based line of the file (or None).
+    """
+
+    def __init__(self, message: str, *, source: str = "", lineno: int | None = None):
+        self.source, self.lineno = source, lineno
+        where = source
+        if lineno is not None:
+            where = f"{source}:{lineno}" if source else f"line {lineno}"
+        super().__init__(f"{where}: {message}" if where else message)
+
+
+# --------------------------------------------------------------------------------------------
+# the parsed file
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class MDLineType:
+    """A row of LINE TYPES (SI units, MoorDyn's meaning of every column)."""
+
+    name: str
+    d: float
+    mass: float
+    EA: float
+    BA: float
+    EI: float
+    Cd: float
+    Ca: float
+    CdAx: float
+    CaAx: float
+    lineno: int
+
+
+@dataclass(frozen=True)
+class MDBody:
+    """A row of BODIES: attachment word, pose (x, y, z [m], roll, pitch, yaw [deg]), MoorDyn frame."""
+
+    id: int
+    attachment: str
+    pose: tuple[float, float, float, float, float, float]
+    lineno: int
+
+
+@dataclass(frozen=True)
+class MDPoint:
+    """A row of POINTS. ``kind`` is 'fixed', 'coupled' (global coordinates) or 'body'
+    (coordinates relative to body ``body``); ``r`` in the MoorDyn frame [m]."""
+
+    id: int
+    attachment: str
+    kind: str
+    body: int | None
+    r: tuple[float, float, float]
+    lineno: int
+
+
+@dataclass(frozen=True)
+class MDLine:
+    """A row of LINES: ``a`` and ``b`` are point ids (end A, end B)."""
+
+    id: int
+    type: str
+    a: int
+    b: int
+    length: float
+    segments: int
+    lineno: int
+
+
+@dataclass(frozen=True)
+class MoorDynModel:
+    """The mooring content of a MoorDyn v2 file (after the checks of :func:`parse_moordyn`).
+
+    ``options`` maps lower-case option names to ``(value text, line number)``; ``notes`` lists
+    what was read but has no counterpart in tapm_opt (ignored on import).
+    """
+
+    source: str
+    line_types: tuple[MDLineType, ...]
+    bodies: tuple[MDBody, ...]
+    points: tuple[MDPoint, ...]
+    lines: tuple[MDLine, ...]
+    options: dict[str, tuple[str, int]]
+    notes: tuple[str, ...] = ()
+
+    # -- derived -------------------------------------------------------------------------
+    def option(self, *names: str) -> tuple[str, int] | None:
+        """The value text and line of the first of ``names`` (lower case) the file sets."""
+        for n in names:
+            if n in self.options:
+                return self.options[n]
+        return None
+
+    def number_option(self, *names: str, default: float | None = None) -> float | None:
+        got = self.option(*names)
+        if got is None:
+            return default
+        text, lineno = got
+        try:
+            val = float(text)
+        except ValueError:
+            raise MoorDynError(f"option {names[0]}: {text!r} is not a number", source=self.source,
+                               lineno=lineno) from None
+        if not math.isfinite(val):
+            raise MoorDynError(f"option {names[0]} = {text} is not finite", source=self.source, lineno=lineno)
+        return val
+
+    @property
+    def gravity(self) -> float:
+        return float(self.number_option("g", "gravity", default=MOORDYN_DEFAULT_G))
+
+    @property
+    def water_density(self) -> float:
+        return float(self.number_option("rho", "wtrdnsty", "rhow", default=MOORDYN_DEFAULT_RHO))
+
+    @property
+    def water_depth(self) -> float:
+        """WtrDpth, raised to the deepest point as MoorDyn-C does when a point lies below it."""
+        depth = self.number_option("wtrdpth", "depth", "waterdepth", default=0.0)
+        deepest = max((-self.global_position(p)[2] for p in self.points), default=0.0)
+        return float(max(depth or 0.0, deepest))
+
+    def point(self, pid: int) -> MDPoint:
+        return self.points[pid - 1]
+
+    def body(self, bid: int) -> MDBody:
+        return self.bodies[bid - 1]
+
+    def global_position(self, p: MDPoint) -> np.ndarray:
+        """Position of point ``p`` at the start (bodies at their BODIES pose), MoorDyn frame [m]."""
+        r = np.array(p.r, dtype=float)
+        if p.kind != "body":
+            return r
+        b = self.body(int(p.body))
+        x, y, z, _, _, yaw = b.pose  # roll and pitch are 0 (checked)
+        c, s = math.cos(math.radians(yaw)), math.sin(math.radians(yaw))
+        return np.array([x + c * r[0] - s * r[1], y + s * r[0] + c * r[1], z + r[2]])
+
+    def line_type(self, name: str) -> MDLineType:
+        for lt in self.line_types:
+            if lt.name == name:
+                return lt
+        raise KeyError(name)
+
+
+# --------------------------------------------------------------------------------------------
+# reading
+# --------------------------------------------------------------------------------------------
+
+# (section key, phrases) in the order they are tested: the longer phrases first
+_SECTIONS = (
+    ("line_types", ("LINE TYPES", "LINE DICTIONARY")),
+    ("rod_types", ("ROD TYPES", "ROD DICTIONARY")),
+    ("bodies", ("BODIES", "BODY LIST", "BODY PROPERTIES")),
+    ("rods", ("RODS", "ROD LIST", "ROD PROPERTIES")),
+    ("points", ("POINTS", "POINT LIST", "POINT PROPERTIES", "CONNECTION PROPERTIES", "NODE PROPERTIES")),
+    ("lines", ("LINES", "LINE LIST", "LINE PROPERTIES")),
+    ("options", ("OPTIONS",)),
+    ("outputs", ("OUTPUT",)),
+    ("failure", ("FAILURE",)),
+    ("control", ("CONTROL",)),
+    ("external_loads", ("EXTERNAL LOADS",)),
+    ("syrope", ("SYROPE",)),
+)
+_TABLES = {"line_types", "rod_types", "bodies", "rods", "points", "lines", "failure", "control",
+           "external_loads"}
+_UNSUPPORTED_SECTIONS = {
+    "rods": "rods are not supported",
+    "failure": "line failures are not supported (give faults in the vessel scenario)",
+    "control": "line control channels are not supported",
+    "external_loads": "external loads are not supported",
+    "syrope": "the Syrope polyester model is not supported",
+}
+
+_FIXED = {"ANCHOR", "FIXED", "FIX"}
+_COUPLED = {"FAIRLEAD", "VESSEL", "VES", "COUPLED", "CPLD"}
+_FREE = {"POINT", "CONNECT", "CON", "FREE"}
+
+
+def _section_of(header: str) -> str | None:
+    up = header.upper()
+    for key, phrases in _SECTIONS:
+        if any(p in up for p in phrases):
+            return key
+    return None
+
+
+def _tokens(raw: str) -> list[str]:
+    """Whitespace-separated values of a row; ``#`` starts a comment (as in MoorDyn)."""
+    return raw.split("#", 1)[0].split()
+
+
+def _word_number(word: str) -> tuple[str, str]:
+    m = re.fullmatch(r"([A-Za-z_]+)(\d*)(.*)", word)
+    if not m:
+        return word.upper(), ""
+    return m.group(1).upper(), m.group(2) + m.group(3)
+
+
+def _looks_like_data(tokens: list[str], n_min: int) -> bool:
+    if len(tokens) < n_min:
+        return False
+    try:
+        float(tokens[-1] if tokens[-1] != "-" else "0")
+        int(tokens[0])
+        return True
+    except ValueError:
+        return False
+
+
+class _Reader:
+    def __init__(self, text: str, source: str):
+        self.source = source
+        self.rows = text.splitlines()
+        self.notes: list[str] = []
+
+    def err(self, msg: str, lineno: int | None = None) -> MoorDynError:
+        return MoorDynError(msg, source=self.source, lineno=lineno)
+
+    def num(self, text: str, what: str, lineno: int) -> float:
+        try:
+            v = float(text)
+        except ValueError:
+            raise self.err(f"{what} = {text!r} is not a number", lineno) from None
+        if not math.isfinite(v):
+            raise self.err(f"{what} = {text} is not finite", lineno)
+        return v
+
+    def sections(self) -> dict[str, list[tuple[int, list[str]]]]:
+        """Data rows (line number, tokens) of each section, header and column lines skipped."""
+        out: dict[str, list[tuple[int, list[str]]]] = {}
+        key: str | None = None
+        skip = 0
+        started = False
+        ended = False
+        for i, raw in enumerate(self.rows, start=1):
+            if "---" in raw:
+                k = _section_of(raw)
+                if k is None:
+                    if started:
+                        ended = True  # e.g. "--- need this line ---": nothing after it is read
+                    key = None
+                    continue
+                if k in out:
+                    raise self.err(f"section {k.replace('_', ' ').upper()} appears twice", i)
+                started, ended = True, False
+                key = k
+                out[key] = []
+                skip = 2 if k in _TABLES else 0
+                continue
+            if key is None or ended:
+                continue
+            if skip:
+                skip -= 1
+                toks = _tokens(raw)
+                need = {"lines": 7, "points": 9, "bodies": 14}.get(key)
+                if need and _looks_like_data(toks, need):
+                    raise self.err(
+                        f"this row of {key.upper()} looks like data but is read as a column-title line: "
+                        "MoorDyn skips the two lines after a section header (column names and units)", i)
+                continue
+            toks = _tokens(raw)
+            if not toks:
+                continue
+            if key == "outputs" and toks[0].upper() == "END":
+                key = None
+                continue
+            out[key].append((i, toks))
+        if not started:
+            raise self.err("no MoorDyn section header found (lines such as '---- LINE TYPES ----')")
+        return out
+
+    # -- sections -------------------------------------------------------------------------
+    def line_types(self, rows) -> list[MDLineType]:
+        out = []
+        for i, t in rows:
+            name = t[0]
+            if len(t) == 9:
+                raise self.err(f"line type {name!r} has 9 columns: the MoorDyn v1 layout (Diam MassDen EA BA Can Cat "
+                               "Cdn Cdt) is not supported; write the v2 layout (Diam Mass/m EA BA/-zeta EI Cd Ca CdAx "
+                               "CaAx)", i)
+            if len(t) not in (10, 11, 13):
+                raise self.err(f"line type {name!r} has {len(t)} columns; MoorDyn v2 takes 10 (TypeName Diam Mass/m "
+                               "EA BA/-zeta EI Cd Ca CdAx CaAx), 11 (+ Cl) or 13 (+ Cl dF cF)", i)
+            ea = t[3]
+            if ea.upper().startswith("SYROPE"):
+                raise self.err(f"line type {name!r}: the Syrope model (EA = {ea}) is not supported", i)
+            if "|" in ea:
+                raise self.err(f"line type {name!r}: viscoelastic stiffness EA = {ea} is not supported "
+                               "(tapm_opt lines are linear elastic)", i)
+            try:
+                EA = float(ea)
+            except ValueError:
+                raise self.err(f"line type {name!r}: EA = {ea!r} names a nonlinear stiffness curve, which is not "
+                               "supported (tapm_opt lines are linear elastic)", i) from None
+            if "|" in t[4]:
+                raise self.err(f"line type {name!r}: static|dynamic damping BA = {t[4]} is not supported", i)
+            try:
+                BA = float(t[4])
+            except ValueError:
+                raise self.err(f"line type {name!r}: BA = {t[4]!r} names a nonlinear damping curve, which is not "
+                               "supported", i) from None
+            try:
+                EI = float(t[5])
+            except ValueError:
+                raise self.err(f"line type {name!r}: EI = {t[5]!r} names a bending stiffness curve; bending "
+                               "stiffness is not supported", i) from None
+            if EI > 0:
+                raise self.err(f"line type {name!r}: EI = {t[5]} N m^2 > 0: bending stiffness is not supported "
+                               "(tapm_opt lines are cables)", i)
+            vals = [self.num(t[k], f"line type {name!r} {col}", i)
+                    for k, col in ((1, "Diam"), (2, "Mass/m"), (6, "Cd"), (7, "Ca"), (8, "CdAx"), (9, "CaAx"))]
+            if len(t) >= 11 and self.num(t[10], f"line type {name!r} Cl", i) > 0:
+                raise self.err(f"line type {name!r}: Cl = {t[10]} > 0: vortex-induced vibration is not supported", i)
+            d, mass, Cd, Ca, CdAx, CaAx = vals
+            for col, v in (("Diam", d), ("Mass/m", mass), ("EA", EA)):
+                if not v > 0:
+                    raise self.err(f"line type {name!r}: {col} = {v:g} must be > 0", i)
+            for col, v in (("Cd", Cd), ("Ca", Ca), ("CdAx", CdAx), ("CaAx", CaAx)):
+                if v < 0:
+                    raise self.err(f"line type {name!r}: {col} = {v:g} must be >= 0", i)
+            if any(lt.name == name for lt in out):
+                raise self.err(f"line type {name!r} is defined twice", i)
+            out.append(MDLineType(name, d, mass, EA, BA, EI, Cd, Ca, CdAx, CaAx, i))
+        if not out:
+            raise self.err("the file defines no line type (section LINE TYPES)")
+        return out
+
+    def bodies(self, rows) -> list[MDBody]:
+        out = []
+        for k, (i, t) in enumerate(rows, start=1):
+            if len(t) < 8:
+                raise self.err(f"body row has {len(t)} columns; MoorDyn v2 takes ID Attachment X0 Y0 Z0 r0 p0 y0 Mass "
+                               "CG I Volume CdA Ca", i)
+            bid = int(self.num(t[0], "body ID", i))
+            if bid != k:
+                raise self.err(f"body ID {t[0]} is out of sequence (IDs run 1, 2, ...; expected {k})", i)
+            word, _ = _word_number(t[1])
+            if word not in _COUPLED:
+                raise self.err(f"body {bid} is attached as {t[1]!r}: only one coupled body (the vessel, 'Coupled' or "
+                               "'Vessel') is supported, not free, fixed or pinned bodies", i)
+            if out:
+                raise self.err(f"body {bid}: only one coupled body (the vessel) is supported; body {out[0].id} "
+                               "already is", i)
+            pose = tuple(self.num(t[j], f"body {bid} {c}", i) for j, c in
+                         zip(range(2, 8), ("X0", "Y0", "Z0", "r0", "p0", "y0")))
+            if abs(pose[3]) > 1e-12 or abs(pose[4]) > 1e-12:
+                raise self.err(f"body {bid}: roll r0 = {t[5]} deg and pitch p0 = {t[6]} deg must be 0 "
+                               "(tapm_opt moves the vessel in surge, sway and yaw)", i)
+            if len(t) > 8 and any(_nonzero(x) for x in t[8:]):
+                self.notes.append(f"body {bid}: its mass, inertia, volume and drag (line {i}) are vessel properties; "
+                                  "the vessel scenario's are used")
+            out.append(MDBody(bid, t[1], pose, i))  # type: ignore[arg-type]
+        return out
+
+    def points(self, rows, n_bodies: int) -> list[MDPoint]:
+        out = []
+        for k, (i, t) in enumerate(rows, start=1):
+            if len(t) < 9:
+                raise self.err(f"point row has {len(t)} columns; MoorDyn v2 takes ID Attachment X Y Z Mass Volume "
+                               "CdA Ca", i)
+            pid = int(self.num(t[0], "point ID", i))
+            if pid != k:
+                raise self.err(f"point ID {t[0]} is out of sequence (IDs run 1, 2, ...; expected {k})", i)
+            r = tuple(self.num(t[j], f"point {pid} {c}", i) for j, c in zip((2, 3, 4), "XYZ"))
+            M = self.num(t[5], f"point {pid} Mass", i)
+            V = self.num(t[6], f"point {pid} Volume", i)
+            if len(t) >= 12:
+                F = [self.num(t[j], f"point {pid} {c}", i) for j, c in zip((7, 8, 9), ("FX", "FY", "FZ"))]
+                CdA, Ca = self.num(t[10], f"point {pid} CdA", i), self.num(t[11], f"point {pid} Ca", i)
+            else:
+                F = [0.0, 0.0, 0.0]
+                CdA, Ca = self.num(t[7], f"point {pid} CdA", i), self.num(t[8], f"point {pid} Ca", i)
+            word, num = _word_number(t[1])
+            body = None
+            if word in _FIXED:
+                kind = "fixed"
+            elif word in _COUPLED:
+                kind = "coupled"
+            elif word == "BODY":
+                kind = "body"
+                if not num.isdigit() or not 1 <= int(num) <= n_bodies:
+                    raise self.err(f"point {pid} is attached to {t[1]!r}, but the file defines "
+                                   f"{n_bodies} coupled bod{'y' if n_bodies == 1 else 'ies'}", i)
+                body = int(num)
+            elif word in _FREE:
+                raise self.err(f"point {pid} is a free point ({t[1]!r}): line-to-line connections, clump weights "
+                               "and buoys are not supported (every line runs from a fixed anchor to the vessel)", i)
+            else:
+                raise self.err(f"point {pid}: attachment {t[1]!r} is not supported (use Fixed for anchors, Coupled or "
+                               "Body1 for fairleads)", i)
+            if kind != "fixed":
+                for what, v in (("Mass", M), ("Volume", V), ("CdA", CdA), ("Ca", Ca)):
+                    if v != 0:
+                        raise self.err(f"point {pid}: {what} = {v:g}: a fairlead point with its own mass, volume, drag "
+                                       "or added mass (clump weight or buoy) is not supported", i)
+                if any(F):
+                    raise self.err(f"point {pid}: a steady external force on a fairlead point is not supported", i)
+            out.append(MDPoint(pid, t[1], kind, body, r, i))  # type: ignore[arg-type]
+        return out
+
+    def lines(self, rows, types: list[MDLineType], points: list[MDPoint]) -> list[MDLine]:
+        out = []
+        names = {lt.name for lt in types}
+        for k, (i, t) in enumerate(rows, start=1):
+            if len(t) < 6:
+                raise self.err(f"line row has {len(t)} columns; MoorDyn v2 takes ID LineType AttachA AttachB UnstrLen "
+                               "NumSegs LineOutputs", i)
+            lid = int(self.num(t[0], "line ID", i))
+            if lid != k:
+                raise self.err(f"line ID {t[0]} is out of sequence (IDs run 1, 2, ...; expected {k})", i)
+            if t[1] not in names:
+                raise self.err(f"line {lid}: line type {t[1]!r} is not defined in LINE TYPES ({', '.join(sorted(names))})",
+                               i)
+            ends = []
+            for col, word in (("AttachA", t[2]), ("AttachB", t[3])):
+                if not word.isdigit():
+                    raise self.err(f"line {lid}: {col} = {word!r}: lines attached to rod ends are not supported", i)
+                pid = int(word)
+                if not 1 <= pid <= len(points):
+                    raise self.err(f"line {lid}: {col} = {pid} is not a point (the file has {len(points)})", i)
+                ends.append(pid)
+            L = self.num(t[4], f"line {lid} UnstrLen", i)
+            if not L > 0:
+                raise self.err(f"line {lid}: UnstrLen = {t[4]} must be > 0", i)
+            try:
+                n = int(t[5])
+            except ValueError:
+                raise self.err(f"line {lid}: NumSegs = {t[5]!r} is not a whole number", i) from None
+            if n < 2:
+                raise self.err(f"line {lid}: NumSegs = {n}: tapm_opt needs at least 2 segments", i)
+            out.append(MDLine(lid, t[1], ends[0], ends[1], L, n, i))
+        if not out:
+            raise self.err("the file defines no line (section LINES)")
+        return out
+
+
+def _nonzero(text: str) -> bool:
+    for part in text.split("|"):
+        try:
+            if float(part) != 0.0:
+                return True
+        except ValueError:
+            return True
+    return False
+
+
+def parse_moordyn(text: str, *, source: str = "") -> MoorDynModel:
+    """Parse MoorDyn v2 input text; unsupported features raise :class:`MoorDynError`.
+
+    Supported: line types (linear EA, constant BA, EI = 0, no VIV), at most one coupled body (the
+    vessel, roll = pitch = 0), Fixed points (anchors), Coupled and Body1 points (fairleads), lines
+    from an anchor to a fairlead, and OPTIONS. Rods, free points (connections, clump weights,
+    buoys), other bodies, failures and nonlinear or viscoelastic line models are refused, naming
+    the item and the line of the file.
+    """
+    rd = _Reader(text, source)
+    sec = rd.sections()
+    for key, why in _UNSUPPORTED_SECTIONS.items():
+        if sec.get(key):
+            i, t = sec[key][0]
+            item = f"rod {t[0]}" if key == "rods" else f"section {key.replace('_', ' ').upper()}"
+            raise rd.err(f"{item}: {why}", i)
+    types = rd.line_types(sec.get("line_types", []))
+    bodies = rd.bodies(sec.get("bodies", []))
+    points = rd.points(sec.get("points", []), len(bodies))
+    lines = rd.lines(sec.get("lines", []), types, points)
+    options: dict[str, tuple[str, int]] = {}
+    for i, t in sec.get("options", []):
+        if len(t) >= 2:
+            options.setdefault(t[1].lower(), (t[0], i))
+    if "seafloorfile" in options:
+        raise rd.err("option SeafloorFile: a 3D seafloor is not supported (tapm_opt has a flat seabed)",
+                     options["seafloorfile"][1])
+    for name in ("wavekin", "currents"):
+        if name in options and _nonzero(options[name][0]):
+            rd.notes.append(f"option {name} = {options[name][0]} (line {options[name][1]}) is ignored: currents come from "
+                            "the vessel scenario's sea states")
+    if "rhow" in options and not any(k in options for k in ("rho", "wtrdnsty")):
+        rd.notes.append(f"option rhoW (line {options['rhow'][1]}) is read as the water density, as MoorDyn-F does; "
+                        "MoorDyn-C 2.7 reads only 'rho' or 'WtrDnsty' and would run with 1025 kg/m^3")
+    model = MoorDynModel(source=source, line_types=tuple(types), bodies=tuple(bodies), points=tuple(points),
+                         lines=tuple(lines), options=options, notes=tuple(rd.notes))
+    # options that must be numbers
+    model.gravity, model.water_density  # noqa: B018 - raise early on a bad value
+    wd = model.option("wtrdpth", "depth", "waterdepth")
+    if wd is not None:
+        try:
+            float(wd[0])
+        except ValueError:
+            raise rd.err(f"option WtrDpth = {wd[0]!r}: a bathymetry file is not supported (tapm_opt has a flat seabed)",
+                         wd[1]) from None
+    return model
+
+
+def read_moordyn(path: str | Path) -> MoorDynModel:
+    """Read and parse a MoorDyn v2 input file (see :func:`parse_moordyn`)."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8", errors="replace")
+    except OSError as exc:
+        raise MoorDynError(f"cannot read the MoorDyn file: {exc.strerror or exc}", source=str(p)) from None
+    return parse_moordyn(text, source=p.name)
+
+
+# --------------------------------------------------------------------------------------------
+# conversions shared by reading and writing
+# --------------------------------------------------------------------------------------------
+
+
+def md_from_ned(p: Iterable[float]) -> np.ndarray:
+    """A position or vector in {E} (NED) expressed in MoorDyn's frame: ``(x, -y, -z)``."""
+    x, y, z = (float(v) for v in p)
+    return np.array([x, -y, -z])
+
+
+ned_from_md = md_from_ned  # the map is its own inverse
+
+
+def moordyn_line_type(lt: Any, env: Any) -> dict[str, float]:
+    """MoorDyn v2 LINE TYPES values of a tapm_opt line type (same forces per length).
+
+    Returns ``d`` (volume-equivalent diameter giving the same submerged weight), ``mass``, ``EA``,
+    ``BA`` (``-sqrt(2) axial_damping_ratio``), ``Cd``, ``Ca``, ``CdAx``, ``CaAx``.
+    """
+    g, rho = float(env.gravity), float(env.water_density)
+    m = float(lt.mass_per_length)
+    w = float(lt.w(env))
+    vol = m / rho - w / (rho * g)  # displaced volume per length [m^2]
+    if not vol > 0:
+        raise MoorDynError(f"line type {lt.id!r}: its submerged weight {w:g} N/m is not less than its weight in air "
+                           f"{m * g:g} N/m, so no MoorDyn diameter reproduces it (MoorDyn's buoyancy is "
+                           "rho_w g pi d^2/4)")
+    d_md = math.sqrt(4.0 * vol / math.pi)
+    d = float(lt.diameter)
+    r = d / d_md
+    zeta = float(getattr(lt, "axial_damping_ratio", 0.0))
+    return {"d": d_md, "mass": m, "EA": float(lt.EA), "BA": -_SQRT2 * zeta if zeta > 0 else 0.0,
+            "Cd": float(lt.Cd_normal) * r, "Ca": float(lt.Ca_normal) * r * r,
+            "CdAx": float(lt.Cd_tangential) * r / math.pi, "CaAx": float(lt.Ca_tangential) * r * r}
+
+
+def seabed_constants(w: float, m: float, d_md: float) -> tuple[float, float]:
+    """MoorDyn (kBot [Pa/m], cBot [Pa s/m]) equal to the FEM seabed of a line type.
+
+    MoorDyn's contact force per node is ``(kBot pen - cBot v_z) d_md l_node``; the FEM's node
+    spring is ``w l_node / 0.01 m`` with ``0.5 * 2 sqrt(k m_node)`` damping.
+    """
+    k = w / (SEABED_PENETRATION * d_md)
+    c = SEABED_DAMPING_RATIO * 2.0 * math.sqrt(w * m / SEABED_PENETRATION) / d_md
+    return k, c
+
+
+_RK_POLY = {"RK2": (1.0, 1.0, 1.0 / 2.0), "RK4": (1.0, 1.0, 1.0 / 2.0, 1.0 / 6.0, 1.0 / 24.0)}
+_RK_STAGES = {"RK2": 2, "RK4": 4}
+
+
+def _rk_limit(scheme: str, zeta: float) -> float:
+    """Largest ``W = omega h`` for which the scheme's amplification ``|R(lambda h)| <= 1`` on a mode
+    ``x'' + 2 zeta omega x' + omega^2 x = 0`` (for every smaller W too); 0 if there is none."""
+    c = _RK_POLY[scheme]
+    if zeta < 1.0:
+        lams = [complex(-zeta, math.sqrt(1.0 - zeta * zeta))]
+    else:
+        s = math.sqrt(zeta * zeta - 1.0)
+        lams = [complex(-zeta - s, 0.0), complex(-zeta + s, 0.0)]
+
+    def ok(W: float) -> bool:
+        for lam in lams:
+            z = lam * W
+            R = sum(ck * z**k for k, ck in enumerate(c))
+            if abs(R) ** 2 > 1.0 + 1e-14:
+                return False
+        return True
+
+    W, step = 0.0, 1e-3
+    while W < 10.0 and ok(W + step):
+        W += step
+    if W < 1e-2:  # no useful stable step (e.g. RK2 without damping is unstable at any step)
+        return 0.0
+    lo, hi = W, W + step
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if ok(mid) else (lo, mid)
+    return lo
+
+
+def moordyn_time_step(scenario: Scenario, *, segments: int | None = None,
+                      safety: float = DTM_SAFETY) -> tuple[float, str]:
+    """MoorDyn ``dtM`` [s] and time scheme ('RK2' or 'RK4') stable for the scenario's lines.
+
+    Per line, a free node's stiffest mode is bounded (Gershgorin, as the FEM's step) by the
+    zig-zag axial mode ``omega^2 = 4 EA / (l m l)``, ``2 zeta omega = 4 BA / (l m l)`` (``BA``
+    MoorDyn's damping coefficient [N s]) for a suspended node, and with the seabed contact spring
+    and damper added for a node on the seabed (``kBot d l``, ``cBot d l``).
+    For each scheme the largest stable ``omega h`` on that damped mode follows from its
+    stability polynomial; the cheaper scheme per simulated second (stages / step) is chosen, and
+    ``dtM = safety * h`` rounded down to 3 significant digits. RK2 (MoorDyn's default) has no
+    stable step on an undamped mode, so lines without axial damping get RK4.
+    """
+    env = scenario.environment
+    cache: dict[str, dict[str, float]] = {}
+    modes = []
+    for ln in scenario.lines:
+        lt = scenario.line_type(ln)
+        if lt.id not in cache:
+            cache[lt.id] = moordyn_line_type(lt, env)
+        md = cache[lt.id]
+        n = int(segments or ln.segments)
+        l = ln.length / n
+        BA = md["BA"] if md["BA"] >= 0 else -md["BA"] * l * math.sqrt(md["EA"] * md["mass"])
+        kb, cb = seabed_constants(lt.w(env), md["mass"], md["d"])
+        m = md["mass"] * l
+        # a suspended node: internal damping only; a node on the seabed: the contact spring too
+        for k, c in ((4.0 * md["EA"] / l, 4.0 * BA / l),
+                     (4.0 * md["EA"] / l + kb * md["d"] * l, 4.0 * BA / l + cb * md["d"] * l)):
+            omega = math.sqrt(k / m)
+            modes.append((omega, c / (2.0 * m * omega)))
+    best = None
+    for scheme in ("RK2", "RK4"):
+        hs = [_rk_limit(scheme, z) / w for w, z in modes]
+        h = min(hs)
+        if h <= 0:
+            continue
+        cost = _RK_STAGES[scheme] / h
+        if best is None or cost < best[0]:
+            best = (cost, scheme, h)
+    assert best is not None  # RK4 is stable on every damped or undamped mode for a small enough step
+    _, scheme, h = best
+    dt = safety * h
+    q = 10.0 ** (math.floor(math.log10(dt)) - 2)
+    return float(f"{math.floor(dt / q) * q:.3g}"), scheme
+
+
+# --------------------------------------------------------------------------------------------
+# writing a MoorDyn file
+# --------------------------------------------------------------------------------------------
+
+
+def _f(v: float) -> str:
+    """Shortest text that reads back as the same float."""
+    v = float(v) + 0.0  # no "-0.0"
+    text = repr(v)
+    return text[:-2] if text.endswith(".0") else text
+
+
+@dataclass(frozen=True)
+class ExportInfo:
+    """What :func:`moordyn_text` chose: time step, scheme, seabed constants, and notes."""
+
+    dtM: float
+    scheme: str
+    kBot: float
+    cBot: float
+    n_lines: int
+    notes: tuple[str, ...] = ()
+
+
+def moordyn_text(scenario: Scenario, *, segments: int | None = None, dtM: float | None = None,
+                 scheme: str | None = None, outputs: bool = True, extra_options: Mapping[str, Any] | None = None,
+                 ic: Mapping[str, Any] | None = None) -> tuple[str, ExportInfo]:
+    """MoorDyn v2 input text of the scenario's mooring at the field zero point.
+
+    One ``Coupled`` body at the centre of turret with the turret's orientation (MoorDyn yaw
+    ``-alpha_t``); every fairlead a ``Body1`` point, every anchor a ``Fixed`` point on the seabed;
+    line k runs from point 2k-1 (anchor, end A) to point 2k (fairlead, end B). Drive the body with
+    the turret's pose: position of the COT, yaw ``-(psi + alpha_t)`` for a locked turret, ``-alpha_t``
+    for a free one. No waves, current or faults are written.
+
+    Parameters
+    ----------
+    segments : int, optional
+        Segments of every line (default: each line's ``segments``).
+    dtM, scheme : optional
+        Time step and scheme (default: :func:`moordyn_time_step`).
+    outputs : bool
+        Write FairTen channels in OUTPUTS (MoorDyn then writes its ``.out`` file).
+    extra_options : mapping, optional
+        Further OPTIONS (name -> value), e.g. ``{"disableOutput": 1}``.
+    ic : mapping, optional
+        Initial-condition options (default ``dtIC`` 2 s, ``TmaxIC`` 600 s, ``threshIC`` 1e-3: the
+        stationary solution then matches the FEM's settled tensions to about 1e-4).
+    """
+    env = scenario.environment
+    g, rho, depth = env.gravity, env.water_density, env.water_depth
+    notes: list[str] = []
+    for lt in scenario.line_types:
+        if re.search(r"[\s#|]", lt.id) or not lt.id:
+            raise MoorDynError(f"line type id {lt.id!r} cannot be a MoorDyn TypeName (no spaces, '#' or '|')")
+    types = {lt.id: moordyn_line_type(lt, env) for lt in scenario.line_types}
+    mus = {lt.id: lt.seabed_friction for lt in scenario.line_types}
+    if len(set(mus.values())) > 1:
+        raise MoorDynError("line types have different seabed friction (" + ", ".join(f"{k}: {v:g}" for k, v in
+                           mus.items()) + "); MoorDyn's FrictionCoefficient is one value for the whole model")
+    # seabed constants: from the line type with the most line length
+    length_of = {lt.id: 0.0 for lt in scenario.line_types}
+    for ln in scenario.lines:
+        length_of[ln.type] += ln.length
+    main = max(scenario.line_types, key=lambda t: length_of[t.id])
+    kb, cb = seabed_constants(main.w(env), main.mass_per_length, types[main.id]["d"])
+    others = [t.id for t in scenario.line_types if length_of[t.id] > 0 and t.id != main.id
+              and not np.allclose(seabed_constants(t.w(env), t.mass_per_length, types[t.id]["d"]), (kb, cb),
+                                  rtol=1e-9)]
+    if others:
+        notes.append(f"kBot and cBot are those of line type {main.id!r} (most line length); line types "
+                     f"{', '.join(map(repr, others))} sink a little more or less than 1 cm")
+    if dtM is None or scheme is None:
+        dt0, sch0 = moordyn_time_step(scenario, segments=segments)
+        dtM = dt0 if dtM is None else dtM
+        scheme = sch0 if scheme is None else scheme
+    tur = scenario.turret
+    p_cot = np.array([tur.position[0], tur.position[1], 0.0])
+    body = md_from_ned(p_cot)
+    yaw = -math.degrees(tur.angle)
+    fT = scenario.fairleads_T
+
+    out: list[str] = []
+    w = out.append
+    w("--------------------- MoorDyn Input File ------------------------------------")
+    w(f"Mooring of tapm_opt scenario {scenario.name!r}: {scenario.meta.description}")
+    w("Written by tapm scenario export-moordyn; conventions in tapm_opt's docs/moordyn.md.")
+    w("Frame: z up, x north (surge), y west (port at heading 0): (x, y, z) = (x, -y, -z) of tapm_opt's NED {E}.")
+    w("Body 1 is the turret: drive it at the centre of turret with the turret's heading (yaw = -(psi + alpha_t)")
+    w("for a locked turret, -alpha_t for a free one). Line k: anchor = point 2k-1 (end A), fairlead = point 2k (end B).")
+    w("Diam reproduces the submerged weight; Cd, Ca, CdAx, CaAx are rescaled to tapm_opt's forces per length.")
+    if [ln.id for ln in scenario.lines] != [str(i + 1) for i in range(len(scenario.lines))]:
+        w("Lines: " + ", ".join(f"{i + 1} = tapm_opt line {ln.id}" for i, ln in enumerate(scenario.lines)) + ".")
+    for lt in scenario.line_types:
+        w(f"Line type {lt.id}: tapm_opt d = {_f(lt.diameter)} m, w = {_f(lt.w(env))} N/m, C_DN {_f(lt.Cd_normal)}, "
+          f"C_DT {_f(lt.Cd_tangential)} (on d), C_MN {_f(lt.Ca_normal)}, C_MT {_f(lt.Ca_tangential)}, "
+          f"axial_damping_ratio {_f(getattr(lt, 'axial_damping_ratio', 0.0))}, MBS {_f(lt.MBS)} N.")
+    w("---------------------- LINE TYPES -----------------------------------------------------")
+    w("TypeName   Diam    Mass/m    EA     BA/-zeta    EI      Cd     Ca     CdAx    CaAx")
+    w("(name)     (m)     (kg/m)    (N)    (N-s/-)   (N-m^2)   (-)    (-)    (-)     (-)")
+    for lt in scenario.line_types:
+        t = types[lt.id]
+        w(f"{lt.id}  {_f(t['d'])}  {_f(t['mass'])}  {_f(t['EA'])}  {_f(t['BA'])}  0  {_f(t['Cd'])}  {_f(t['Ca'])}  "
+          f"{_f(t['CdAx'])}  {_f(t['CaAx'])}")
+    w("---------------------- BODIES -----------------------------------------------------------")
+    w("ID  Attachment  X0   Y0   Z0   r0   p0   y0   Mass  CG*  I*  Volume  CdA*  Ca*")
+    w("(#) (word)      (m)  (m)  (m) (deg) (deg) (deg) (kg)  (m) (kg-m^2) (m^3) (m^2) (-)")
+    w(f"1   Coupled  {_f(body[0])}  {_f(body[1])}  0  0  0  {_f(yaw)}  0  0  0  0  0  0")
+    w("---------------------- POINTS -----------------------------------------------------------")
+    w("ID  Attachment  X    Y    Z    Mass  Volume  CdA   Ca")
+    w("(#) (word/ID)  (m)  (m)  (m)  (kg)  (m^3)  (m^2)  (-)")
+    anchors = scenario.anchors
+    for i, ln in enumerate(scenario.lines):
+        a = [_clean(v) for v in md_from_ned(anchors[i])]
+        f = [_clean(v) for v in md_from_ned((fT[i, 0], fT[i, 1], tur.fairlead_depth))]
+        w(f"{2 * i + 1}  Fixed  {_f(a[0])}  {_f(a[1])}  {_f(a[2])}  0  0  0  0")
+        w(f"{2 * i + 2}  Body1  {_f(f[0])}  {_f(f[1])}  {_f(f[2])}  0  0  0  0")
+    w("---------------------- LINES ------------------------------------------------------------")
+    w("ID  LineType  AttachA  AttachB  UnstrLen  NumSegs  LineOutputs")
+    w("(#)  (name)    (ID)     (ID)      (m)      (-)      (-)")
+    for i, ln in enumerate(scenario.lines):
+        w(f"{i + 1}  {ln.type}  {2 * i + 1}  {2 * i + 2}  {_f(ln.length)}  {int(segments or ln.segments)}  -")
+    w("---------------------- OPTIONS ----------------------------------------------------------")
+    w(f"{_f(dtM)}  dtM  time step [s]: {DTM_SAFETY:g} x the {scheme} stability limit of the stiffest line mode")
+    w(f"{scheme}  tScheme  time integration scheme")
+    w(f"{_f(g)}  g  gravity [m/s^2]")
+    w(f"{_f(rho)}  rho  water density [kg/m^3] (MoorDyn-C reads rho, MoorDyn-F rho or rhoW)")
+    w(f"{_f(depth)}  WtrDpth  water depth [m]")
+    w(f"{_f(kb)}  kBot  seabed stiffness [Pa/m]: a line on the seabed sinks {SEABED_PENETRATION * 100:g} cm")
+    w(f"{_f(cb)}  cBot  seabed damping [Pa-s/m]: {SEABED_DAMPING_RATIO * 100:g} % of critical per node")
+    if mus and next(iter(mus.values())) > 0:
+        w(f"{_f(next(iter(mus.values())))}  FrictionCoefficient  seabed friction coefficient")
+    ic_opts = {"dtIC": 2.0, "TmaxIC": 600.0, "threshIC": 1e-3}
+    ic_opts.update(ic or {})
+    for k, v in ic_opts.items():
+        w(f"{v if isinstance(v, str) else _f(v)}  {k}")
+    for k, v in (extra_options or {}).items():
+        w(f"{v if isinstance(v, str) else _f(v)}  {k}")
+    w("---------------------- OUTPUTS ----------------------------------------------------------")
+    if outputs:
+        for i in range(len(scenario.lines)):
+            w(f"FairTen{i + 1}")
+    w("------------------------- need this line ------------------------------------------------")
+    info = ExportInfo(dtM=float(dtM), scheme=str(scheme), kBot=kb, cBot=cb, n_lines=len(scenario.lines),
+                      notes=tuple(notes))
+    return "\n".join(out) + "\n", info
+
+
+def export_moordyn(scenario: Scenario | str | Path, path: str | Path, **kwargs: Any) -> ExportInfo:
+    """Write :func:`moordyn_text` of a scenario (object, built-in name or TOML path) to ``path``."""
+    from .._io import atomic_write_text
+
+    sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+    text, info = moordyn_text(sc, **kwargs)
+    atomic_write_text(path, text)
+    return info
+
+
+# --------------------------------------------------------------------------------------------
+# reading a MoorDyn file into a scenario
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ImportResult:
+    """A scenario built by :func:`import_moordyn`: the validated scenario, its file data (TOML
+    keys and units), the TOML text, and notes on what was ignored or assumed."""
+
+    scenario: Scenario
+    data: dict
+    toml: str
+    notes: tuple[str, ...] = field(default_factory=tuple)
+
+
+def _vessel_data(vessel: str | Path) -> tuple[dict, str]:
+    """The vessel scenario's file dictionary (as written, exact numbers) and its display name."""
+    load_scenario(vessel)  # validates it, with the usual messages
+    text = str(vessel)
+    path = Path(text)
+    if not path.suffix and (BUILTIN_DIR / f"{text}.toml").is_file():
+        path = BUILTIN_DIR / f"{text}.toml"
+    data = tomllib.loads(path.read_text(encoding="utf-8"))
+    name = path.stem if path.parent == BUILTIN_DIR else str(path)
+    return data, name
+
+
+def _clean(v: float, nd: int = 9) -> float:
+    return float(round(float(v), nd)) + 0.0
+
+
+def scenario_data_from_moordyn(model: MoorDynModel, vessel_data: dict, *, mbs: Mapping[str, float],
+                               mbs_cov: float = 0.05, name: str | None = None,
+                               vessel_name: str = "") -> tuple[dict, list[str], dict]:
+    """Scenario file dictionary: mooring from ``model``, everything else from ``vessel_data``.
+
+    Returns ``(data, notes, comments)`` where ``comments[("line_types", i)]`` are comment lines
+    for the TOML writer. See :func:`import_moordyn`.
+    """
+    src = model.source
+    notes = list(model.notes)
+    g, rho, depth = model.gravity, model.water_density, model.water_depth
+    if not depth > 0:
+        raise MoorDynError("no water depth: set option WtrDpth (or put the anchors on the seabed)", source=src)
+    # -- line types -----------------------------------------------------------------------
+    missing = [lt.name for lt in model.line_types if lt.name not in mbs and any(ln.type == lt.name for ln in model.lines)]
+    if missing:
+        raise MoorDynError(f"line type {missing[0]!r} has no breaking strength: MoorDyn files carry none; give it with "
+                           f"--mbs {missing[0]}=NEWTONS" + (f" (also missing: {', '.join(missing[1:])})"
+                                                            if len(missing) > 1 else ""), source=src)
+    unknown = sorted(set(mbs) - {lt.name for lt in model.line_types})
+    if unknown:
+        raise MoorDynError(f"--mbs names line type {unknown[0]!r}, which the file does not define (it has "
+                           f"{', '.join(lt.name for lt in model.line_types)})", source=src)
+    seabed = [(n, model.number_option(n)) for n in ("kbot", "kb", "cbot", "cb") if n in model.options]
+    if seabed:
+        ref = [seabed_constants(w, lt.mass, lt.d) for lt in model.line_types
+               if any(ln.type == lt.name for ln in model.lines)
+               and (w := (lt.mass - rho * math.pi * lt.d**2 / 4.0) * g) > 0]
+        for n, v in seabed:
+            k = 0 if n.startswith("k") else 1
+            if not any(r[k] > 0 and abs(float(v) / r[k] - 1.0) < 1e-6 for r in ref):
+                notes.append(f"option {n} = {v:g} (line {model.options[n][1]}) is not used: the FEM seabed sinks "
+                             f"{SEABED_PENETRATION * 100:g} cm under a line's weight with {SEABED_DAMPING_RATIO * 100:g} % "
+                             "of critical damping (docs/moordyn.md)")
+    mu = float(model.number_option("frictioncoefficient", default=0.0) or 0.0)
+    if mu:
+        notes.append(f"seabed friction {mu:g} (FrictionCoefficient) for every line type; MoorDyn's saturated-damping "
+                     "friction model and the FEM's tanh-regularised Coulomb friction differ at low speed")
+    used = [lt for lt in model.line_types if any(ln.type == lt.name for ln in model.lines)]
+    line_types, comments = [], {}
+    for k, lt in enumerate(used):
+        w = (lt.mass - rho * math.pi * lt.d**2 / 4.0) * g
+        if not w > 0:
+            raise MoorDynError(f"line type {lt.name!r} is buoyant (Mass/m {lt.mass:g} kg/m, Diam {lt.d:g} m: submerged "
+                               f"weight {w:g} N/m); buoyant lines are not supported", source=src, lineno=lt.lineno)
+        if lt.BA < 0:
+            zeta = -lt.BA / _SQRT2
+        elif lt.BA > 0:
+            seg = {ln.length / ln.segments for ln in model.lines if ln.type == lt.name}
+            if max(seg) - min(seg) > 1e-9 * max(seg):
+                raise MoorDynError(
+                    f"line type {lt.name!r}: BA = {lt.BA:g} N s with lines of different segment lengths "
+                    f"({', '.join(f'{s:g}' for s in sorted(seg))} m); tapm_opt's axial damping is one ratio per line type: "
+                    "give the lines the same UnstrLen/NumSegs, or BA as a negative damping ratio", source=src,
+                    lineno=lt.lineno)
+            l = seg.pop()
+            zeta = lt.BA / (_SQRT2 * l * math.sqrt(lt.EA * lt.mass))
+        else:
+            zeta = 0.0
+        if zeta > 1.0:
+            raise MoorDynError(f"line type {lt.name!r}: BA = {lt.BA:g} is {zeta:.3g} of the critical damping of "
+                               "tapm_opt's segment mode; at most 1 (BA = -1.414) is allowed", source=src, lineno=lt.lineno)
+        MBS = float(mbs[lt.name])
+        item = {
+            "id": lt.name, "diameter": lt.d, "mass_per_length": lt.mass, "submerged_weight": w, "EA": lt.EA,
+            "MBS": MBS, "MBS_std": mbs_cov * MBS, "Cd_normal": lt.Cd, "Cd_tangential": math.pi * lt.CdAx,
+            "Ca_normal": lt.Ca, "Ca_tangential": lt.CaAx, "seabed_friction": mu, "axial_damping_ratio": zeta,
+        }
+        line_types.append(item)
+        comments[("line_types", k)] = [
+            f"MoorDyn {lt.name} ({src}:{lt.lineno}): Diam {lt.d:g} m, Mass/m {lt.mass:g} kg/m, EA {lt.EA:g} N, "
+            f"BA {lt.BA:g}, Cd {lt.Cd:g}, Ca {lt.Ca:g}, CdAx {lt.CdAx:g} (on pi d), CaAx {lt.CaAx:g}",
+            f"MBS from --mbs; MBS_std = {mbs_cov:g} x MBS (--mbs-cov)",
+        ]
+    # -- geometry -------------------------------------------------------------------------
+    tur = dict(vessel_data.get("turret", {}))
+    p_cot = np.array([float(x) for x in tur.get("position", (0.0, 0.0))], dtype=float)
+    alpha = math.radians(float(tur.get("angle_deg", 0.0)))
+    ca, sa = math.cos(-alpha), math.sin(-alpha)
+    tol_z = 1e-6 * max(1.0, depth)
+    lines, fair = [], []
+    for ln in model.lines:
+        pa, pb = model.point(ln.a), model.point(ln.b)
+        if pa.kind == "fixed" and pb.kind != "fixed":
+            anc, fl = pa, pb
+        elif pb.kind == "fixed" and pa.kind != "fixed":
+            anc, fl = pb, pa
+            notes.append(f"line {ln.id} runs from the fairlead (end A, point {pa.id}) to the anchor (end B): "
+                         "read with its anchor first, as tapm_opt numbers nodes from the anchor")
+        elif pa.kind == "fixed":
+            raise MoorDynError(f"line {ln.id} runs between two fixed points ({pa.id} and {pb.id}); every line must run "
+                               "from a fixed anchor to the vessel", source=src, lineno=ln.lineno)
+        else:
+            raise MoorDynError(f"line {ln.id} runs between two vessel points ({pa.id} and {pb.id}); every line must "
+                               "run from a fixed anchor to the vessel", source=src, lineno=ln.lineno)
+        a = ned_from_md(model.global_position(anc))
+        if abs(a[2] - depth) > tol_z:
+            raise MoorDynError(f"point {anc.id} (anchor of line {ln.id}) is at z = {-a[2]:g} m, not on the seabed at "
+                               f"-{depth:g} m: tapm_opt's anchors lie on the flat seabed", source=src,
+                               lineno=anc.lineno)
+        f = ned_from_md(model.global_position(fl))
+        fair.append((fl, ln, f))
+        lines.append({"id": str(ln.id), "type": ln.type, "anchor": [_clean(a[0]), _clean(a[1]), _clean(depth)],
+                      "length": ln.length, "segments": ln.segments})
+    zs = [f[2] for _, _, f in fair]
+    if max(zs) - min(zs) > 1e-6:
+        hi = max(fair, key=lambda x: x[2][2])
+        lo = min(fair, key=lambda x: x[2][2])
+        raise MoorDynError(
+            f"fairlead depths differ: point {lo[0].id} (line {lo[1].id}) is {lo[2][2]:g} m deep, point {hi[0].id} "
+            f"(line {hi[1].id}) {hi[2][2]:g} m; tapm_opt's turret has one fairlead depth", source=src,
+            lineno=hi[0].lineno)
+    fl_depth = _clean(float(np.mean(zs)))
+    if fl_depth >= depth:
+        raise MoorDynError(f"the fairleads ({fl_depth:g} m deep) are not above the seabed ({depth:g} m)", source=src)
+    radii = []
+    for (fl, ln, f), item in zip(fair, lines):
+        dx, dy = f[0] - p_cot[0], f[1] - p_cot[1]
+        xT, yT = ca * dx - sa * dy, sa * dx + ca * dy
+        r = math.hypot(xT, yT)
+        if r < 1e-9:
+            r = 0.0
+            ax, ay = item["anchor"][0] - p_cot[0], item["anchor"][1] - p_cot[1]
+            gam = math.degrees(math.atan2(sa * ax + ca * ay, ca * ax - sa * ay))
+        else:
+            gam = math.degrees(math.atan2(yT, xT))
+        item["fairlead_angle_deg"] = _clean(gam % 360.0) % 360.0
+        radii.append(_clean(r))
+    if max(radii) - min(radii) <= 1e-6:
+        tur["fairlead_radius"] = radii[0]
+    else:
+        tur["fairlead_radius"] = float(np.median(radii))
+        for item, r in zip(lines, radii):
+            item["fairlead_radius"] = r
+    tur["fairlead_depth"] = fl_depth
+    order = ("id", "type", "anchor", "fairlead_angle_deg", "fairlead_radius", "length", "segments")
+    lines = [{k: it[k] for k in order if k in it} for it in lines]
+    # -- the rest from the vessel -----------------------------------------------------------
+    data = {k: v for k, v in vessel_data.items()}
+    old_depth = float(vessel_data.get("environment", {}).get("water_depth", depth))
+    if old_depth != depth and any(ss.get("current_profile_depths") for ss in vessel_data.get("sea_states", [])):
+        scale = depth / old_depth
+        data["sea_states"] = [dict(ss, current_profile_depths=[_clean(z * scale) for z in ss["current_profile_depths"]])
+                              if ss.get("current_profile_depths") else ss for ss in vessel_data["sea_states"]]
+        notes.append(f"the current profile depths of the vessel scenario's sea states are scaled by {depth:g}/"
+                     f"{old_depth:g} (the water depth of the MoorDyn file over the vessel scenario's)")
+    if old_depth != depth and "riser" in vessel_data:
+        notes.append(f"the vessel scenario's riser (length {vessel_data['riser'].get('length')} m) is kept as it is: "
+                     f"check it against the water depth {depth:g} m of the MoorDyn file")
+    env = dict(vessel_data.get("environment", {}))
+    env.update({"water_depth": depth, "water_density": rho, "gravity": g})
+    vname = vessel_name or str(vessel_data.get("meta", {}).get("name", "vessel"))
+    meta = dict(vessel_data.get("meta", {}))
+    meta["name"] = name or Path(src).stem or "moordyn"
+    meta["description"] = f"mooring of MoorDyn file {src} with the vessel of {vname}"
+    meta["sources"] = [f"MoorDyn file {src}: lines, line types, anchors, fairleads, depth, density, gravity",
+                       *[str(s) for s in vessel_data.get("meta", {}).get("sources", [])]]
+    data["meta"] = meta
+    data["environment"] = env
+    data["turret"] = tur
+    data["line_types"] = line_types
+    data["lines"] = lines
+    ids = {it["id"] for it in lines}
+    faults = []
+    for f in vessel_data.get("faults", []):
+        if f.get("kind") == "line_break" and str(f.get("line")) not in ids:
+            notes.append(f"fault line_break of line {f.get('line')!r} at {f.get('time')} s dropped: the MoorDyn file "
+                         "has no such line")
+            continue
+        faults.append(f)
+    data.pop("faults", None)
+    if faults:
+        data["faults"] = faults
+    unused = [lt.name for lt in model.line_types if lt not in used]
+    if unused:
+        notes.append(f"line type{'s' if len(unused) > 1 else ''} {', '.join(map(repr, unused))} used by no line: "
+                     "left out")
+    # keep the table order of the schema
+    keys = ["meta", "environment", "vessel", "turret", "line_types", "lines"]
+    data = {k: data[k] for k in keys if k in data} | {k: v for k, v in data.items() if k not in keys}
+    return data, notes, comments
+
+
+def import_moordyn(path: str | Path, vessel: str | Path, *, mbs: Mapping[str, float], mbs_cov: float = 0.05,
+                   name: str | None = None) -> ImportResult:
+    """A scenario from a MoorDyn v2 file and a vessel scenario.
+
+    From the MoorDyn file: line types, lines (length, segments), anchors, fairleads, water depth,
+    water density and gravity (``g``, default 9.80665 as MoorDyn-C; ``rho`` or ``WtrDnsty``, or
+    MoorDyn-F's ``rhoW``), seabed friction. From ``vessel`` (built-in name or TOML path):
+    everything else (vessel, turret position, mode and angle, thrusters, sea states, riser,
+    faults of lines that exist, sensors, limits, plant settings).
+
+    Fairleads become turret angles and radii about the vessel's centre of turret at the field zero
+    point (turret angle alpha_t removed); all fairleads must be at one depth. MoorDyn files carry
+    no breaking strength: ``mbs`` maps every used line type to its MBS [N]; ``MBS_std`` is
+    ``mbs_cov`` times it.
+    """
+    model = read_moordyn(path)
+    vdata, vname = _vessel_data(vessel)
+    data, notes, comments = scenario_data_from_moordyn(model, vdata, mbs=mbs, mbs_cov=mbs_cov, name=name,
+                                                       vessel_name=vname)
+    try:
+        sc = scenario_from_dict(data, source=f"(imported from {model.source})")
+    except ScenarioError as exc:
+        raise MoorDynError(f"the imported scenario is invalid: {'; '.join(str(i) for i in exc.issues)}",
+                           source=model.source) from None
+    header = [
+        f"{data['meta']['name']} — imported by tapm scenario import-moordyn",
+        f"Mooring (line types, lines, anchors, fairleads, water depth, density, gravity): MoorDyn file {model.source}",
+        f"Everything else (vessel, turret position/mode/angle, thrusters, sea states, ...): scenario {vname}",
+        "Conventions (frames, diameter, drag, damping): tapm_opt docs/moordyn.md",
+        *[f"NOTE: {n}" for n in notes],
+    ]
+    return ImportResult(scenario=sc, data=data, toml=scenario_toml(data, header=header, comments=comments),
+                        notes=tuple(notes))
+
+
+# --------------------------------------------------------------------------------------------
+# TOML text of a scenario dictionary
+# --------------------------------------------------------------------------------------------
+
+
+def _toml_key(k: str) -> str:
+    return k if k and all(c.isascii() and (c.isalnum() or c in "_-") for c in k) else json.dumps(k)
+
+
+def _toml_value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        if not math.isfinite(v):
+            raise MoorDynError(f"cannot write the non-finite number {v!r} to TOML")
+        v = float(v) + 0.0
+        if v != 0.0 and not 1e-4 <= abs(v) < 1e6:
+            return np.format_float_scientific(v, unique=True, trim="-")
+        return repr(v)
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if isinstance(v, Mapping):
+        return "{ " + ", ".join(f"{_toml_key(str(k))} = {_toml_value(x)}" for k, x in v.items()) + " }"
+    raise MoorDynError(f"cannot write {type(v).__name__} to TOML")
+
+
+def _table(name: str, d: Mapping[str, Any], out: list[str], header: str) -> None:
+    out.append(header)
+    subs = []
+    for k, v in d.items():
+        if isinstance(v, Mapping):
+            subs.append((k, v))
+        else:
+            out.append(f"{_toml_key(k)} = {_toml_value(v)}")
+    for k, v in subs:
+        out.append("")
+        _table(f"{name}.{_toml_key(k)}", v, out, f"[{name}.{_toml_key(k)}]")
+
+
+def scenario_toml(data: Mapping[str, Any], *, header: Iterable[str] = (),
+                  comments: Mapping[tuple[str, int], Iterable[str]] | None = None) -> str:
+    """TOML text of a scenario file dictionary (tables and arrays of tables), with ``#`` comments:
+    ``header`` at the top, ``comments[(key, i)]`` above item i of array ``key``."""
+    comments = comments or {}
+    out = [f"# {h}" if h else "#" for h in header]
+    top = [(k, v) for k, v in data.items() if not isinstance(v, Mapping)
+           and not (isinstance(v, list) and v and all(isinstance(x, Mapping) for x in v))]
+    for k, v in top:
+        out.append(f"{_toml_key(k)} = {_toml_value(v)}")
+    for k, v in data.items():
+        key = _toml_key(k)
+        if isinstance(v, Mapping):
+            out.append("")
+            _table(key, v, out, f"[{key}]")
+        elif isinstance(v, list) and v and all(isinstance(x, Mapping) for x in v):
+            for i, item in enumerate(v):
+                out.append("")
+                out += [f"# {c}" for c in comments.get((k, i), ())]
+                _table(key, item, out, f"[[{key}]]")
+    text = "\n".join(out) + "\n"
+    if tomllib.loads(text) != _plain(data):  # pragma: no cover - writer bug
+        raise MoorDynError("internal error: the TOML text does not read back as the scenario")
+    return text
+
+
+def _plain(v: Any) -> Any:
+    if isinstance(v, Mapping):
+        return {str(k): _plain(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_plain(x) for x in v]
+    if isinstance(v, float):
+        return float(v) + 0.0
+    return v

@@ -1,0 +1,535 @@
+"""MoorDyn v2 interoperability: reading and writing MoorDyn files, and MoorDyn-C (the ``moordyn``
+wheel, in the test extra) as a reference for the FEM plant under forced motion.
+
+``moordyn`` is imported directly: a missing wheel fails these tests instead of skipping them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+import sys
+from pathlib import Path
+
+import moordyn  # noqa: F401 - in the test extra; its absence must fail, not skip
+import numpy as np
+import pytest
+
+from tapm_opt.cli import main
+from tapm_opt.config import load_scenario, validate
+from tapm_opt.config.moordyn import (
+    MoorDynError,
+    import_moordyn,
+    moordyn_line_type,
+    moordyn_text,
+    moordyn_time_step,
+    parse_moordyn,
+    seabed_constants,
+)
+from tapm_opt.geometry import fairleads_E
+from tapm_opt.models import MooringModel
+from tapm_opt.plant.fem import FEMLines
+from tapm_opt.plant.forced_motion import forced_motion
+from tapm_opt.plant.mooring_fem import line_set_from_scenario
+from tapm_opt.plant.moordyn_reference import MoorDynMooring, MoorDynUnavailable, moordyn_forced_motion, moordyn_module
+
+BUILTINS = ("aamo4", "fpso", "ren8")
+MBS = {"aamo4": {"cable": 5.0e6}, "fpso": {"cwc137": 1.699e7}, "ren8": {"cable": 5.0e6}}
+
+# A MoorDyn v2 file as a user keeps one: front matter, '---' headers, column and unit lines,
+# trailing comments (MoorDyn-C refuses comment-only rows inside a table), a coupled vessel body at the hull origin with the fairleads given relative to it
+# (a turret 91.44 m forward of the origin, 8 m fairlead radius, 18 m deep), 3 x 3 legs in 800 m.
+HAND_WRITTEN = """\
+--------------------- MoorDyn Input File ------------------------------------
+Turret FPSO, 3 x 3 legs, 800 m water depth
+(sample model for the MoorDyn import)
+---------------------- LINE TYPES ----------------------------------------------------------------------
+TypeName   Diam    Mass/m     EA       BA/-zeta    EI     Cd     Ca     CdAx    CaAx
+(name)     (m)     (kg/m)     (N)      (N-s/-)   (N-m^2)  (-)    (-)    (-)     (-)
+poly160    0.16    120.0      1.2e9     -1.0       0      1.2    1.0    0.05    0.1    # main leg
+---------------------- BODIES ---------------------------------------------------------------------------
+ID   Attachment  X0     Y0    Z0     r0      p0     y0     Mass  CG*   I*      Volume   CdA*   Ca*
+(#)   (word)     (m)    (m)   (m)   (deg)   (deg)  (deg)   (kg)  (m)  (kg-m^2)  (m^3)   (m^2)  (-)
+1     Vessel     0      0     0      0       0      0       0     0     0        0       0      0
+---------------------- POINTS ---------------------------------------------------------------------------
+ID   Attachment     X          Y         Z      Mass  Volume  CdA   Ca
+(#)   (word/ID)    (m)        (m)       (m)     (kg)  (m^3)  (m^2)  (-)
+1     Fixed      1735.161    143.807  -800.0    0     0      0     0   # bundle 1, facing north
+2     Body1        99.4096     0.6972  -18.0    0     0      0     0   # fairlead on the turret
+3     Fixed      1741.440      0.000  -800.0    0     0      0     0
+4     Body1        99.4400     0.0000  -18.0    0     0      0     0
+5     Fixed      1735.161   -143.807  -800.0    0     0      0     0
+6     Body1        99.4096    -0.6972  -18.0    0     0      0     0
+7     Fixed      -605.880  -1495.408  -800.0    0     0      0     0
+8     Body1        88.0591    -7.2505  -18.0    0     0      0     0
+9     Fixed      -733.560  -1428.942  -800.0    0     0      0     0
+10    Body1        87.4400    -6.9282  -18.0    0     0      0     0
+11    Fixed      -854.961  -1351.601  -800.0    0     0      0     0
+12    Body1        86.8514    -6.5532  -18.0    0     0      0     0
+13    Fixed      -854.961   1351.601  -800.0    0     0      0     0
+14    Body1        86.8514     6.5532  -18.0    0     0      0     0
+15    Fixed      -733.560   1428.942  -800.0    0     0      0     0
+16    Body1        87.4400     6.9282  -18.0    0     0      0     0
+17    Fixed      -605.880   1495.408  -800.0    0     0      0     0
+18    Body1        88.0591     7.2505  -18.0    0     0      0     0
+---------------------- LINES ----------------------------------------------------------------------------
+ID   LineType   AttachA  AttachB  UnstrLen  NumSegs  LineOutputs
+(#)   (name)     (ID)     (ID)      (m)       (-)      (-)
+1     poly160     1        2        1900      25       -
+2     poly160     3        4        1900      25       -
+3     poly160     5        6        1900      25       -
+4     poly160     7        8        1900      25       -
+5     poly160     9        10       1900      25       -
+6     poly160     11       12       1900      25       -
+7     poly160     13       14       1900      25       -
+8     poly160     15       16       1900      25       -
+9     poly160     17       18       1900      25       -
+---------------------- OPTIONS -----------------------------------------
+1             writeLog      Write log file
+0.01          dtM           time step to use in mooring integration (s)
+RK4           tScheme       time integrator
+3.0e6         kbot          bottom stiffness (Pa/m)
+3.0e5         cbot          bottom damping (Pa-s/m)
+800           WtrDpth       water depth (m)
+1025          rho           water density (kg/m^3)
+9.81          g             gravity (m/s^2)
+1.0           dtIC          time interval for analyzing convergence during IC gen (s)
+120           TmaxIC        max time for ic gen (s)
+0.001         threshIC      threshold for IC convergence (-)
+---------------------- OUTPUTS -----------------------------------------
+FairTen1
+FairTen2
+AnchTen1
+END
+------------------------- need this line -------------------------------------
+"""
+
+
+def run(capsys, *args: str):
+    code = main(list(args))
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def _write(tmp_path: Path, text: str, name: str = "moor.dat") -> Path:
+    p = tmp_path / name
+    p.write_text(text, encoding="utf-8")
+    return p
+
+
+def _per_length(sc, lt):
+    """Forces per length of a line type: (w, m, EA, drag n, drag t, added mass n, added mass t, zeta, mu)."""
+    d = lt.diameter
+    return np.array([lt.w(sc.environment), lt.mass_per_length, lt.EA, lt.Cd_normal * d, lt.Cd_tangential * d,
+                     lt.Ca_normal * d * d, lt.Ca_tangential * d * d, lt.axial_damping_ratio, lt.seabed_friction])
+
+
+# --------------------------------------------------------------------------------------------
+# conventions
+# --------------------------------------------------------------------------------------------
+
+
+def test_line_type_mapping_keeps_forces_per_length():
+    sc = load_scenario("fpso")
+    lt, env = sc.line_types[0], sc.environment
+    md = moordyn_line_type(lt, env)
+    rho, g = env.water_density, env.gravity
+    A_md = math.pi * md["d"] ** 2 / 4
+    assert (md["mass"] - rho * A_md) * g == pytest.approx(lt.w(env), rel=1e-12)  # same submerged weight
+    assert md["Cd"] * md["d"] == pytest.approx(lt.Cd_normal * lt.diameter, rel=1e-12)
+    assert md["CdAx"] * math.pi * md["d"] == pytest.approx(lt.Cd_tangential * lt.diameter, rel=1e-12)  # on pi d
+    assert md["Ca"] * md["d"] ** 2 == pytest.approx(lt.Ca_normal * lt.diameter**2, rel=1e-12)
+    assert md["CaAx"] * md["d"] ** 2 == pytest.approx(lt.Ca_tangential * lt.diameter**2, rel=1e-12)
+    assert md["BA"] == pytest.approx(-math.sqrt(2.0) * lt.axial_damping_ratio, rel=1e-12)
+
+
+@pytest.mark.parametrize("name", BUILTINS)
+def test_negative_ba_is_moordyns_damping_coefficient_of_the_fem(name):
+    """MoorDyn's own log states the BA [N s] it derived from BA = -sqrt(2) zeta: it equals the
+    FEM's c_int of the same segment."""
+    sc = load_scenario(name)
+    with MoorDynMooring(sc) as mm:
+        mm.init(np.zeros(3))
+        log = mm.log()
+    got = [float(x) for x in re.findall(r"damping set to \S+ Pa-s = (\S+) Ns", log)]
+    assert len(got) == len(sc.lines)
+    fem = FEMLines(line_set_from_scenario(sc), np.array(sc.anchors), water_depth=sc.environment.water_depth,
+                   rho_w=sc.environment.water_density)
+    c_int = fem._c_int[fem.fairlead_seg]
+    assert np.allclose(got, c_int, rtol=1e-5)  # MoorDyn logs 6 digits
+
+
+def test_positive_ba_maps_to_the_same_damping(tmp_path):
+    sc = load_scenario("aamo4")
+    lt, ln = sc.line_types[0], sc.lines[0]
+    l = ln.length / ln.segments
+    BA = lt.axial_damping_ratio * math.sqrt(2) * l * math.sqrt(lt.EA * lt.mass_per_length)
+    text = moordyn_text(sc)[0]
+    text = re.sub(r"(230000000)  -0\.\d+", rf"\g<1>  {BA!r}", text)
+    res = import_moordyn(_write(tmp_path, text), "aamo4", mbs={"cable": 5e6})
+    assert res.scenario.line_types[0].axial_damping_ratio == pytest.approx(lt.axial_damping_ratio, rel=1e-12)
+
+
+def test_seabed_constants_match_the_fem_seabed():
+    """MoorDyn's contact force (kBot pen - cBot v) d l per node equals the FEM node spring w l / 0.01
+    with 50 % of critical damping."""
+    sc = load_scenario("fpso")
+    lt, env = sc.line_types[0], sc.environment
+    d = moordyn_line_type(lt, env)["d"]
+    kb, cb = seabed_constants(lt.w(env), lt.mass_per_length, d)
+    fem = FEMLines(line_set_from_scenario(sc), np.array(sc.anchors), water_depth=env.water_depth,
+                   rho_w=env.water_density)
+    node = 5
+    l = sc.lines[0].length / sc.lines[0].segments
+    assert kb * d * l == pytest.approx(fem._kb[node], rel=1e-12)
+    assert cb * d * l == pytest.approx(fem._cb[node], rel=1e-12)
+
+
+def test_time_step_and_scheme():
+    damped = load_scenario("aamo4")
+    dt, scheme = moordyn_time_step(damped)
+    assert scheme == "RK2" and 0.005 < dt < 0.05
+    lt = dataclasses.replace(damped.line_types[0], axial_damping_ratio=0.0)
+    undamped = dataclasses.replace(damped, line_types=(lt,))
+    dt0, scheme0 = moordyn_time_step(undamped)
+    assert scheme0 == "RK4"  # RK2 has no stable step on an undamped axial mode
+
+
+def test_undamped_lines_run_stably_in_moordyn():
+    sc = load_scenario("aamo4")
+    sc = dataclasses.replace(sc, line_types=(dataclasses.replace(sc.line_types[0], axial_damping_ratio=0.0),))
+    r = moordyn_forced_motion(sc, amplitude=5.0, period=50.0, duration=60.0, segments=10)
+    assert r.scheme == "RK4"
+    assert np.all(np.isfinite(r.T)) and r.T.max() < 1.5 * r.T[0].max()
+
+
+def test_moordyn_c_reads_rho_not_rhow(tmp_path):
+    """Why the export writes 'rho': MoorDyn-C 2.7 ignores MoorDyn-F's 'rhoW' (it keeps 1025)."""
+    sc = load_scenario("aamo4")
+    text = moordyn_text(sc, outputs=False, extra_options={"disableOutput": 1})[0]
+    md = moordyn_module()
+    from tapm_opt.plant.moordyn_reference import _console_to
+
+    weights = {}
+    for key in ("rho", "rhoW"):
+        p = _write(tmp_path, text.replace("1025  rho ", f"1000  {key} "), f"{key}.dat")
+        with _console_to(tmp_path / "log.txt"):
+            s = md.Create(str(p))
+            md.Init(s, [0.0] * 6, [0.0] * 6)
+            ln = md.GetLine(s, 1)
+            weights[key] = -md.GetLineNodeWeight(ln, 5)[2]
+            md.Close(s)
+    lt = moordyn_line_type(sc.line_types[0], sc.environment)
+    l = sc.lines[0].length / sc.lines[0].segments
+    vol = math.pi * lt["d"] ** 2 / 4 * l
+    assert weights["rho"] == pytest.approx(9.81 * (lt["mass"] * l - 1000.0 * vol), rel=1e-9)
+    assert weights["rhoW"] == pytest.approx(9.81 * (lt["mass"] * l - 1025.0 * vol), rel=1e-9)
+
+
+def test_frames_turret_offset_angle_and_yaw():
+    """MoorDyn's fairlead points sit where tapm_opt puts them, (x, -y, -z) of NED, at rest and
+    for a locked turret in a yawed pose."""
+    sc = load_scenario("fpso")
+    tur = dataclasses.replace(sc.turret, position=(60.0, 12.0), angle=math.radians(30.0), mode="locked")
+    sc = dataclasses.replace(sc, turret=tur)
+    assert validate(sc) == []
+    md = moordyn_module()
+    with MoorDynMooring(sc, segments=4) as mm:
+        mm.init(np.zeros(3))
+        for eta in (np.zeros(3), np.array([5.0, -3.0, 0.2])):
+            x = mm.body_pose(eta)
+            mm.step(x, np.zeros(6), 1e-4)
+            fx, fy = fairleads_E(eta, np.array(tur.position), sc.fairleads_T, tur.angle)
+            for i in range(len(sc.lines)):
+                p = np.array(md.GetPointPos(md.GetPoint(mm.sys, 2 * i + 2)))
+                assert p == pytest.approx([fx[i], -fy[i], -tur.fairlead_depth], abs=1e-6)
+
+
+# --------------------------------------------------------------------------------------------
+# export -> import
+# --------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", BUILTINS)
+def test_round_trip_reproduces_the_mooring(tmp_path, name):
+    sc = load_scenario(name)
+    path = _write(tmp_path, moordyn_text(sc)[0])
+    res = import_moordyn(path, name, mbs=MBS[name])
+    new = res.scenario
+    assert validate(new) == []
+    env0, env1 = sc.environment, new.environment
+    assert (env1.water_depth, env1.water_density, env1.gravity) == (env0.water_depth, env0.water_density, env0.gravity)
+    assert len(new.lines) == len(sc.lines)
+    for a, b in zip(sc.lines, new.lines):
+        assert (b.id, b.type, b.length, b.segments) == (a.id, a.type, a.length, a.segments)
+        assert np.allclose(new.anchors, sc.anchors, atol=1e-6)
+        assert b.fairlead_angle == pytest.approx(a.fairlead_angle, abs=1e-9)
+    assert np.allclose(new.fairleads_T, sc.fairleads_T, atol=1e-6)
+    assert new.turret.fairlead_depth == pytest.approx(sc.turret.fairlead_depth, abs=1e-9)
+    assert new.turret.position == sc.turret.position and new.turret.mode == sc.turret.mode
+    for a, b in zip(sc.line_types, new.line_types):
+        assert a.id == b.id and b.MBS == a.MBS
+        assert np.allclose(_per_length(new, b), _per_length(sc, a), rtol=1e-9, atol=1e-12)
+    # the rest comes from the vessel scenario unchanged
+    assert new.vessel == sc.vessel and new.thrusters == sc.thrusters and new.sea_states == sc.sea_states
+    assert new.riser == sc.riser and new.limits == sc.limits
+    # and the imported mooring is the same system for the catenary
+    T0 = MooringModel.from_scenario(sc).tensions(np.zeros(3))
+    T1 = MooringModel.from_scenario(new).tensions(np.zeros(3))
+    assert np.allclose(T1, T0, rtol=1e-9)
+
+
+def test_coupled_points_reversed_line_and_turret_angle(tmp_path):
+    """Fairleads given as global Coupled points, one line written fairlead first, and a vessel
+    (a TOML file) whose turret is off the body origin at a turret angle: the same fairleads."""
+    from tapm_opt.config import scenario_to_dict
+    from tapm_opt.config.moordyn import scenario_toml
+
+    sc = load_scenario("fpso")
+    sc = dataclasses.replace(sc, turret=dataclasses.replace(sc.turret, position=(60.0, 12.0),
+                                                            angle=math.radians(30.0), mode="locked"))
+    vessel = tmp_path / "vessel.toml"
+    vessel.write_text(scenario_toml(scenario_to_dict(sc)), encoding="utf-8")
+    text = moordyn_text(sc)[0]
+    model = parse_moordyn(text)
+    rows = []
+    for row in text.splitlines():
+        t = row.split()
+        if len(t) == 9 and t[1] == "Body1":
+            g = model.global_position(model.point(int(t[0])))
+            row = f"{t[0]}  Coupled  {float(g[0])!r}  {float(g[1])!r}  {float(g[2])!r}  0  0  0  0"
+        elif t[:4] == ["1", "cwc137", "1", "2"]:
+            row = row.replace("1  cwc137  1  2", "1  cwc137  2  1")
+        rows.append(row)
+    text = re.sub(r"-+ BODIES -+\n.*?\n.*?\n.*?\n", "", "\n".join(rows) + "\n")
+    res = import_moordyn(_write(tmp_path, text), vessel, mbs={"cwc137": 1.7e7})
+    new = res.scenario
+    assert any("line 1 runs from the fairlead" in n for n in res.notes)
+    assert new.turret.position == (60.0, 12.0) and new.turret.angle == pytest.approx(math.radians(30.0))
+    assert np.allclose(new.fairleads_T, sc.fairleads_T, atol=1e-6)
+    assert np.allclose(new.anchors, sc.anchors, atol=1e-6)
+    assert [ln.fairlead_angle for ln in new.lines] == pytest.approx([ln.fairlead_angle for ln in sc.lines], abs=1e-9)
+
+
+def test_cli_export_import_validate_and_run(tmp_path, capsys):
+    md_file, toml = tmp_path / "fpso.dat", tmp_path / "fpso_md.toml"
+    code, out, err = run(capsys, "scenario", "export-moordyn", "fpso", "--out", str(md_file))
+    assert code == 0, err
+    assert "dtM" in out and md_file.is_file()
+    code, out, err = run(capsys, "scenario", "import-moordyn", str(md_file), "--vessel", "fpso", "--out", str(toml),
+                         "--mbs", "cwc137=1.699e7")
+    assert code == 0, err
+    assert "12 lines" in out
+    code, out, err = run(capsys, "scenario", "validate", str(toml))
+    assert code == 0 and "OK" in out
+    code, out, err = run(capsys, "plant", "forced-motion", str(toml), "--amplitude", "2", "--period", "20",
+                         "--duration", "10", "--segments", "4")
+    assert code == 0, err
+    assert "fpso_md" in out
+
+
+# --------------------------------------------------------------------------------------------
+# a hand-written MoorDyn file
+# --------------------------------------------------------------------------------------------
+
+
+def test_hand_written_file_imports(tmp_path, capsys):
+    path = _write(tmp_path, HAND_WRITTEN)
+    toml = tmp_path / "semi.toml"
+    code, out, err = run(capsys, "scenario", "import-moordyn", str(path), "--vessel", "fpso", "--out", str(toml),
+                         "--mbs", "poly160=1.5e7", "--name", "fpso_800")
+    assert code == 0, err
+    assert "kbot" in out  # MoorDyn's default-like seabed is not the FEM's: said so
+    sc = load_scenario(toml)
+    env = sc.environment
+    assert (env.water_depth, env.water_density, env.gravity) == (800.0, 1025.0, 9.81)
+    assert sc.turret.fairlead_depth == 18.0 and sc.turret.fairlead_radius == pytest.approx(8.0, abs=1e-4)
+    angles = [math.degrees(ln.fairlead_angle) for ln in sc.lines]
+    assert np.allclose(angles, [355, 0, 5, 115, 120, 125, 235, 240, 245], atol=1e-3)
+    assert sc.lines[0].anchor == pytest.approx((1735.161, -143.807, 800.0))  # NED: y = -Y
+    assert all(ln.segments == 25 and ln.length == 1900 for ln in sc.lines)
+    lt = sc.line_types[0]
+    assert lt.diameter == 0.16 and lt.MBS == 1.5e7 and lt.MBS_std == pytest.approx(0.05 * 1.5e7)
+    assert lt.submerged_weight == pytest.approx((120.0 - 1025.0 * math.pi * 0.16**2 / 4) * 9.81, rel=1e-12)
+    assert lt.Cd_tangential == pytest.approx(math.pi * 0.05, rel=1e-12)  # CdAx acts on pi d
+    assert lt.axial_damping_ratio == pytest.approx(1 / math.sqrt(2), rel=1e-12)
+    assert sc.vessel == load_scenario("fpso").vessel
+    # writing it back gives the user's own MoorDyn numbers (the import is the inverse of the export)
+    back = parse_moordyn(moordyn_text(sc)[0])
+    orig = parse_moordyn(HAND_WRITTEN)
+    a, b = orig.line_types[0], back.line_types[0]
+    for f in ("d", "mass", "EA", "BA", "Cd", "Ca", "CdAx", "CaAx"):
+        assert getattr(b, f) == pytest.approx(getattr(a, f), rel=1e-12), f
+    for la, lb in zip(orig.lines, back.lines):
+        for pa, pb in ((la.a, lb.a), (la.b, lb.b)):
+            assert back.global_position(back.point(pb)) == pytest.approx(orig.global_position(orig.point(pa)), abs=1e-6)
+
+
+def test_hand_written_file_statics_match_moordyn(tmp_path):
+    """MoorDyn-C on the user's own file and tapm_opt's catenary on the imported scenario give the
+    same fairlead tensions (lumped-mass vs continuous line: < 0.3 %)."""
+    path = _write(tmp_path, HAND_WRITTEN)
+    sc = import_moordyn(path, "fpso", mbs={"poly160": 1.5e7}).scenario
+    md = moordyn_module()
+    from tapm_opt.plant.moordyn_reference import _console_to
+
+    with _console_to(tmp_path / "console.txt"):
+        s = md.Create(str(path))
+        md.Init(s, [0.0] * 6, [0.0] * 6)
+        T = []
+        for i in range(len(sc.lines)):
+            ln = md.GetLine(s, i + 1)
+            n = md.GetLineN(ln)
+            T.append(np.linalg.norm(np.subtract(md.GetLineNodeWeight(ln, n), md.GetLineNodeTen(ln, n))))
+        md.Close(s)
+    T_cat = MooringModel.from_scenario(sc).tensions(np.zeros(3))
+    assert np.allclose(T, T_cat, rtol=3e-3)
+
+
+# --------------------------------------------------------------------------------------------
+# unsupported features and mistakes: one line, non-zero exit, the item named
+# --------------------------------------------------------------------------------------------
+
+
+def _edit(text: str, old: str, new: str) -> str:
+    assert old in text
+    return text.replace(old, new, 1)
+
+
+BAD_FILES = {
+    "rod": (lambda t: _edit(t, "---------------------- POINTS", "---------------------- RODS ----\nID RodType Att Xa Ya Za "
+            "Xb Yb Zb N Out\n(#) (-) (-) (m) (m) (m) (m) (m) (m) (-) (-)\n1 can Body1 0 0 0 0 0 -5 4 -\n"
+            "---------------------- POINTS"), "rod 1"),
+    "free point": (lambda t: _edit(t, "7     Fixed      -605.880", "7     Free       -605.880"), "point 7"),
+    "clump weight": (lambda t: _edit(t, "-18.0    0     0      0     0   # fairlead", "-18.0    500   0      0     0   # fairlead"),
+                     "point 2: Mass = 500"),
+    "EI": (lambda t: _edit(t, "-1.0       0      1.2", "-1.0       1e4    1.2"), "'poly160': EI"),
+    "VIV": (lambda t: _edit(t, "0.05    0.1    # main leg", "0.05    0.1   0.8"), "Cl = 0.8"),
+    "viscoelastic": (lambda t: _edit(t, "1.2e9     -1.0", "1.2e9|2e9     -1.0"), "viscoelastic"),
+    "second body": (lambda t: _edit(t, "1     Vessel     0      0     0      0       0      0       0     0     0        0"
+                                       "       0      0\n",
+                                    "1     Vessel     0      0     0      0       0      0       0     0     0        0"
+                                    "       0      0\n2     Free  0 0 -50 0 0 0 1e5 0 0 0 0 0\n"), "body 2"),
+    "fairlead depths": (lambda t: _edit(t, "99.4400     0.0000  -18.0", "99.4400     0.0000  -20.0"),
+                        "fairlead depths differ"),
+    "anchor off seabed": (lambda t: _edit(t, "1741.440      0.000  -800.0", "1741.440      0.000  -790.0"), "point 3"),
+    "two anchors": (lambda t: _edit(t, "1     poly160     1        2 ", "1     poly160     1        3 "), "line 1"),
+    "v1 layout": (lambda t: _edit(t, "-1.0       0      1.2    1.0    0.05    0.1", "-1.0   1.0  0.1  1.2  0.05"),
+                  "v1 layout"),
+    "undefined type": (lambda t: _edit(t, "9     poly160", "9     chain"), "line 9"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_FILES))
+def test_unsupported_feature_is_a_one_line_error(tmp_path, capsys, case):
+    edit, needle = BAD_FILES[case]
+    path = _write(tmp_path, edit(HAND_WRITTEN))
+    code, out, err = run(capsys, "scenario", "import-moordyn", str(path), "--vessel", "fpso", "--out",
+                         str(tmp_path / "x.toml"), "--mbs", "poly160=1.5e7")
+    assert code == 2
+    assert err.startswith("error: ") and err.count("\n") == 1, err
+    assert needle in err, err
+    assert "Traceback" not in err and not (tmp_path / "x.toml").exists()
+
+
+def test_missing_breaking_strength_names_the_line_type(tmp_path, capsys):
+    path = _write(tmp_path, HAND_WRITTEN)
+    code, out, err = run(capsys, "scenario", "import-moordyn", str(path), "--vessel", "fpso", "--out",
+                         str(tmp_path / "x.toml"))
+    assert code == 2 and err.count("\n") == 1
+    assert "'poly160' has no breaking strength" in err and "--mbs poly160=NEWTONS" in err
+
+
+def test_errors_raise_typed_exceptions():
+    with pytest.raises(MoorDynError, match=r"x\.dat:7: line type 'poly160' Mass/m"):
+        parse_moordyn(HAND_WRITTEN.replace("0.16    120.0", "0.16    abc"), source="x.dat")
+    with pytest.raises(MoorDynError, match="no MoorDyn section header"):
+        parse_moordyn("just some text\n")
+
+
+def test_missing_moordyn_package_is_a_clear_error(monkeypatch):
+    monkeypatch.setitem(sys.modules, "moordyn", None)
+    with pytest.raises(MoorDynUnavailable, match="pip install"):
+        moordyn_module()
+
+
+# --------------------------------------------------------------------------------------------
+# MoorDyn's force on the vessel
+# --------------------------------------------------------------------------------------------
+
+
+def test_coupled_body_force_is_end_node_force_minus_end_node_inertia():
+    """Evidence for docs/moordyn.md: MoorDyn-C's coupled-body force is the sum of the end nodes'
+    net force (tension with internal damping, submerged weight, drag) minus their mass and added
+    mass times the body acceleration."""
+    sc = load_scenario("aamo4")
+    md = moordyn_module()
+    A, w = 10.0, 2 * math.pi / 20.0  # fast, so drag and inertia show
+    with MoorDynMooring(sc, segments=10) as mm:
+        mm.init(np.zeros(3))
+        h = mm.dtM
+        x = mm.body_pose(np.zeros(3))
+        xd_prev = np.zeros(6)
+        for i in range(300):
+            x_n = mm.body_pose(np.array([A * math.sin(w * (i + 1) * h), 0.0, 0.0]))
+            xd = (x_n - x) / h
+            f6 = mm.step(x, xd, h)
+            a = (xd - xd_prev) / h
+            x, xd_prev = x_n, xd
+        fnet, mass, drag = np.zeros(3), np.zeros((3, 3)), np.zeros(3)
+        for ln in mm.lines:
+            n = md.GetLineN(ln)
+            fnet += md.GetLineNodeForce(ln, n)
+            mass += np.array(md.GetLineNodeM(ln, n))
+            drag += md.GetLineNodeDrag(ln, n)
+    inertia = mass @ a[:3]
+    assert np.abs(inertia[0]) > 1e3 and np.abs(drag[0]) > 1e3
+    assert f6[:3] == pytest.approx(fnet - inertia, rel=1e-9, abs=1e-6)
+
+
+# --------------------------------------------------------------------------------------------
+# MoorDyn against the FEM plant under forced surge
+# --------------------------------------------------------------------------------------------
+
+
+def _compare(name: str, *, duration: float, segments: int | None = None):
+    kw = dict(dof="surge", amplitude=10.0, period=100.0, duration=duration, segments=segments, dt_out=1.0)
+    m = moordyn_forced_motion(load_scenario(name), **kw)
+    f = forced_motion(load_scenario(name), **kw)
+    assert np.allclose(m.t, f.t) and np.allclose(m.eta, f.eta)
+    d = m.T - f.T
+    rms = np.sqrt((d**2).mean(axis=0)) / f.T.mean(axis=0)
+    peak = np.abs(d).max(axis=0) / f.T.mean(axis=0)
+    return m, f, rms, peak
+
+
+def test_forced_surge_tensions_match_the_fem_aamo4():
+    m, f, rms, peak = _compare("aamo4", duration=300.0)
+    assert m.settle_converged
+    assert rms.max() <= 0.02, rms
+    assert peak.max() <= 0.05, peak
+    assert m.damping == pytest.approx(f.damping, rel=0.05)
+    # the surge force follows the FEM's too
+    assert np.sqrt(((m.force - f.force)[:, 0] ** 2).mean()) <= 0.02 * np.abs(f.force[:, 0]).max()
+
+
+@pytest.mark.slow
+def test_forced_surge_tensions_match_the_fem_fpso():
+    m, f, rms, peak = _compare("fpso", duration=500.0)
+    assert rms.max() <= 0.02, rms
+    assert peak.max() <= 0.05, peak
+    assert m.damping == pytest.approx(f.damping, rel=0.05)
+
+
+def test_locked_turret_yaw_moment_matches_the_fem():
+    """The yaw moment about the body origin (turret lever arm plus MoorDyn's moment about the COT
+    for a locked turret) and the yaw damping follow the FEM's."""
+    sc = load_scenario("fpso")
+    sc = dataclasses.replace(sc, turret=dataclasses.replace(sc.turret, mode="locked", angle=math.radians(20.0)))
+    kw = dict(dof="yaw", amplitude=math.radians(5.0), period=100.0, duration=300.0, segments=10, dt_out=1.0)
+    m, f = moordyn_forced_motion(sc, **kw), forced_motion(sc, **kw)
+    d = m.T - f.T
+    assert (np.sqrt((d**2).mean(axis=0)) / f.T.mean(axis=0)).max() <= 0.02
+    assert np.sqrt(((m.force - f.force)[:, 2] ** 2).mean()) <= 0.02 * np.abs(f.force[:, 2]).max()
+    assert m.damping == pytest.approx(f.damping, rel=0.05)
