@@ -1,6 +1,7 @@
 """Tests of the elastic catenary (tapm_opt.models.catenary): analytic limits, physical invariants,
 closure of every regime, sensitivities against finite differences, the symbolic CasADi path, the
-line profile, random and invalid input, and a cross-check against MoorPy (independent code)."""
+line profile, random and invalid input, and a cross-check against MoorPy (independent code); the
+same for lines whose lower end is above the seabed (argument h_A)."""
 
 from __future__ import annotations
 
@@ -468,7 +469,7 @@ SYM_PARAMS = [
 def test_symbolic_function_reports_a_failed_root():
     """From a guess Newton cannot recover from, the closure error says so (never a silent non-root)."""
     fn = cat.symbolic_function(max_iter=2)
-    HF, VF, err = (float(x) for x in fn(700.0, 700.0, 1000.0, 5e8, 1000.0, 0.0, 1e3, 1e9))
+    HF, VF, err = (float(x) for x in fn(700.0, 700.0, 1000.0, 5e8, 1000.0, 0.0, 0.0, 1e3, 1e9))
     true = cat.solve(700.0, 700.0, 1000.0, 5e8, 1000.0)
     assert not (HF == pytest.approx(float(true.HF), rel=1e-6))  # Newton really failed here ...
     assert err > 1e-3  # ... and says so
@@ -476,7 +477,7 @@ def test_symbolic_function_reports_a_failed_root():
 
 def test_symbolic_function_signature():
     fn = cat.symbolic_function()
-    assert fn.name_in() == ["XF", "ZF", "L", "EA", "w", "CB", "HF0", "VF0"]
+    assert fn.name_in() == ["XF", "ZF", "L", "EA", "w", "CB", "h_A", "HF0", "VF0"]
     assert fn.name_out() == ["HF", "VF", "closure_error"]
     assert cat.symbolic_function() is fn  # built once, cached
 
@@ -485,7 +486,7 @@ def test_symbolic_function_signature():
 def test_symbolic_function_agrees_with_numeric_solve(XF, ZF, CB, EA, guess):
     sol, _ = regular(XF, ZF, CB, EA)
     HF, VF = scalar(sol, "HF"), scalar(sol, "VF")
-    h, v, err = cat.symbolic_function()(XF, ZF, L0, EA, W0, CB, guess[0] * HF, guess[1] * VF)
+    h, v, err = cat.symbolic_function()(XF, ZF, L0, EA, W0, CB, 0.0, guess[0] * HF, guess[1] * VF)
     assert float(err) < 1e-8
     assert float(h) == pytest.approx(HF, rel=1e-9)
     assert float(v) == pytest.approx(VF, rel=1e-9)
@@ -495,12 +496,13 @@ def test_symbolic_derivatives_equal_the_analytic_sensitivities():
     fn = cat.symbolic_function()
     XF, ZF = ca.MX.sym("XF"), ca.MX.sym("ZF")
     HF0, VF0 = ca.MX.sym("HF0"), ca.MX.sym("VF0")
-    L, EA, w, CB = (ca.MX.sym(s) for s in ("L", "EA", "w", "CB"))
-    h, v, _ = fn(XF, ZF, L, EA, w, CB, HF0, VF0)
-    J = ca.Function("J", [XF, ZF, L, EA, w, CB, HF0, VF0], [ca.jacobian(ca.vertcat(h, v), ca.vertcat(XF, ZF))])
+    L, EA, w, CB, h_A = (ca.MX.sym(s) for s in ("L", "EA", "w", "CB", "h_A"))
+    h, v, _ = fn(XF, ZF, L, EA, w, CB, h_A, HF0, VF0)
+    J = ca.Function("J", [XF, ZF, L, EA, w, CB, h_A, HF0, VF0],
+                    [ca.jacobian(ca.vertcat(h, v), ca.vertcat(XF, ZF))])
     for XF_, ZF_, CB_, EA_ in SYM_CASES:
         sol, _ = regular(XF_, ZF_, CB_, EA_)
-        Jn = np.array(J(XF_, ZF_, L0, EA_, W0, CB_, 1.1 * scalar(sol, "HF"), 0.9 * scalar(sol, "VF")))
+        Jn = np.array(J(XF_, ZF_, L0, EA_, W0, CB_, 0.0, 1.1 * scalar(sol, "HF"), 0.9 * scalar(sol, "VF")))
         assert Jn[0, 0] == pytest.approx(scalar(sol, "dHF_dXF"), rel=1e-7)
         exact = np.array([[scalar(sol, "dHF_dXF"), scalar(sol, "dHF_dZF")],
                           [scalar(sol, "dVF_dXF"), scalar(sol, "dVF_dZF")]])
@@ -512,7 +514,7 @@ def test_symbolic_function_maps_over_lines():
     XF = np.array([[950.0, 700.0, 980.0]])
     ZF = np.array([[250.0, 700.0, 150.0]])
     sol = cat.solve(XF, ZF, L0, EA0, W0, CB=0.5)
-    h, v, err = fn(XF, ZF, L0, EA0, W0, 0.5, 0.9 * sol.HF, 1.1 * sol.VF)
+    h, v, err = fn(XF, ZF, L0, EA0, W0, 0.5, 0.0, 0.9 * sol.HF, 1.1 * sol.VF)
     assert float(np.max(np.asarray(err))) < 1e-8
     np.testing.assert_allclose(np.array(h), sol.HF, rtol=1e-9)
     np.testing.assert_allclose(np.array(v), sol.VF, rtol=1e-9)
@@ -648,18 +650,19 @@ def test_random_line_profile_closes(p):
     assert abs(prof["x"][-1] - XF) <= 1e-6 * max(1.0, L / 1000) and abs(prof["z"][-1] - ZF) <= 1e-6 * max(1.0, L / 1000)
 
 
-GOOD = dict(XF=900.0, ZF=300.0, L=1000.0, EA=5e8, w=1000.0, CB=0.0)
+GOOD = dict(XF=900.0, ZF=300.0, L=1000.0, EA=5e8, w=1000.0, CB=0.0, h_A=0.0)
 
 
 @pytest.mark.parametrize("name,value", [
     ("XF", -1.0), ("ZF", -0.5), ("L", -10.0), ("L", 0.0), ("EA", -1.0), ("EA", 0.0), ("w", -2.0),
     ("CB", -0.1), ("XF", np.nan), ("ZF", np.nan), ("L", np.nan), ("EA", np.nan), ("w", np.nan),
     ("XF", np.inf), ("ZF", np.inf), ("L", np.inf), ("w", np.inf), ("XF", -np.inf),
+    ("h_A", -1.0), ("h_A", -1e-9), ("h_A", np.nan), ("h_A", np.inf), ("h_A", -np.inf),
 ])
 def test_invalid_input_raises_catenary_error_naming_the_input(name, value):
     args = dict(GOOD, **{name: value})
     with pytest.raises(CatenaryError, match=rf"^{name} = "):
-        cat.solve(args["XF"], args["ZF"], args["L"], args["EA"], args["w"], CB=args["CB"])
+        cat.solve(args["XF"], args["ZF"], args["L"], args["EA"], args["w"], CB=args["CB"], h_A=args["h_A"])
 
 
 def test_invalid_entry_in_an_array_is_located():
@@ -700,3 +703,365 @@ def test_matches_moorpy_reference():
     for k in ("HF", "VF", "HA", "VA"):
         err = np.abs(getattr(sol, k) - ref[k]) / TF
         assert err.max() <= 1e-8, (k, int(err.argmax()), err.max())
+
+
+# ------------------------------------------------------------------------------------------
+# lower end above the seabed (h_A > 0)
+# ------------------------------------------------------------------------------------------
+
+
+def seabed_reach(HF, h, EA, w):
+    """V1 of an elevated end: the vertical tension at a point h above the seabed of a catenary
+    with horizontal tension HF that meets the seabed horizontally, by bisection on
+    h = HF/w (sqrt(1 + (V/HF)^2) - 1) + V^2/(2 EA w) (independent of the closed form)."""
+    def drop(V):
+        return HF / w * (math.sqrt(1.0 + (V / HF) ** 2) - 1.0) + V * V / (2.0 * EA * w) - h
+
+    return brentq(drop, 0.0, w * h + math.sqrt(2.0 * HF * w * h) + 1.0, xtol=1e-12, rtol=1e-15)
+
+
+ELEVATED_TOUCHDOWN = [  # (XF, ZF, h_A, EA): touching down from a lower end above the seabed
+    (900.0, 200.0, 50.0, EA0), (900.0, 200.0, 50.0, 3e7), (960.0, 50.0, 10.0, EA0), (950.0, 0.0, 30.0, EA0)]
+
+
+@pytest.mark.parametrize("XF,ZF,h,EA", ELEVATED_TOUCHDOWN)
+def test_touchdown_from_an_elevated_end_is_two_lines_anchored_on_the_seabed(XF, ZF, h, EA):
+    """A line from an end h above the seabed that touches down: cut it where A's part meets the
+    seabed. That part, seen from the seabed, is a line anchored there that just lifts off (VA = 0)
+    and rises h to A with the horizontal tension HF; the rest is an ordinary line anchored on the
+    seabed, spanning the remaining distance and ZF + h, with the same fairlead tensions."""
+    L, w = L0, W0
+    sol = cat.solve(XF, ZF, L, EA, w, h_A=h, tol=1e-11)
+    assert cat.REGIMES[int(sol.regime)] == "touchdown" and scalar(sol, "LBot") > 0
+    HF, VF, VA = scalar(sol, "HF"), scalar(sol, "VF"), scalar(sol, "VA")
+    assert VA < 0 and scalar(sol, "HA") == HF  # pulled down at A; frictionless grounded stretch
+    assert -VA == pytest.approx(seabed_reach(HF, h, EA, w), rel=1e-10)
+    L1 = -VA / w
+    X1, Z1 = (float(v) for v in cat.closure(np.array(HF), np.array(-VA), L1, EA, w))
+    assert Z1 == pytest.approx(h, rel=1e-10)
+    rest = cat.solve(XF - X1, ZF + h, L - L1, EA, w, tol=1e-11)
+    assert cat.REGIMES[int(rest.regime)] == "touchdown"
+    assert scalar(rest, "HF") == pytest.approx(HF, rel=1e-9)
+    assert scalar(rest, "VF") == pytest.approx(VF, rel=1e-9)
+    assert scalar(rest, "LBot") == pytest.approx(scalar(sol, "LBot"), rel=1e-9)
+
+
+@pytest.mark.parametrize("X,Z,EA", [(485.0, 20.0, EA0), (470.0, 60.0, 3e7), (440.0, 100.0, EA0)])
+def test_symmetric_U_line_on_the_seabed_is_two_mirrored_anchored_halves(X, Z, EA):
+    """Both ends Z above the seabed, span 2X, length 2L, touching the seabed in the middle: each
+    half is a line of length L anchored at the middle of the grounded stretch (MoorPy's U test)."""
+    L, w = 500.0, W0
+    half = cat.solve(X, Z, L, EA, w, tol=1e-11)
+    assert cat.REGIMES[int(half.regime)] == "touchdown"  # precondition
+    U = cat.solve(2.0 * X, 0.0, 2.0 * L, EA, w, h_A=Z, tol=1e-11)
+    assert cat.REGIMES[int(U.regime)] == "touchdown"
+    assert scalar(U, "HF") == pytest.approx(scalar(half, "HF"), rel=1e-9)
+    assert scalar(U, "VF") == pytest.approx(scalar(half, "VF"), rel=1e-9)
+    assert scalar(U, "VA") == pytest.approx(-scalar(U, "VF"), rel=1e-9)  # mirror image
+    assert scalar(U, "HA") == scalar(U, "HF")
+    assert scalar(U, "LBot") == pytest.approx(2.0 * scalar(half, "LBot"), rel=1e-9)
+
+
+@pytest.mark.parametrize("XF,ZF,EA", [(800.0, 100.0, EA0), (850.0, 300.0, 3e7), (980.0, 150.0, EA0)])
+def test_seabed_plays_no_part_while_the_sag_stays_above_it(XF, ZF, EA):
+    """A line leaving its elevated lower end downward sags to a lowest point below A. Any seabed
+    below that point leaves the solution unchanged; a seabed above it makes the line touch down."""
+    L, w = L0, W0
+    deep = cat.solve(XF, ZF, L, EA, w, h_A=1.0e4, tol=1e-11)
+    HF, VA = scalar(deep, "HF"), scalar(deep, "VA")
+    assert cat.REGIMES[int(deep.regime)] == "suspended" and VA < 0  # precondition: a sag
+    sag = HF / w * (math.sqrt(1.0 + (VA / HF) ** 2) - 1.0) + VA * VA / (2.0 * EA * w)
+    prof = cat.line_profile(XF, ZF, L, EA, w, h_A=1.0e4, n=20001)
+    assert -prof["z"].min() == pytest.approx(sag, rel=1e-5)
+    for h in (1.001 * sag, 2.0 * sag):
+        sol = cat.solve(XF, ZF, L, EA, w, h_A=h, tol=1e-11)
+        assert cat.REGIMES[int(sol.regime)] == "suspended" and scalar(sol, "LBot") == 0.0
+        assert scalar(sol, "HF") == pytest.approx(HF, rel=1e-10)
+        assert scalar(sol, "VF") == pytest.approx(scalar(deep, "VF"), rel=1e-10)
+    low = cat.solve(XF, ZF, L, EA, w, h_A=0.9 * sag)
+    assert cat.REGIMES[int(low.regime)] == "touchdown" and scalar(low, "LBot") > 0
+
+
+@pytest.mark.parametrize("HF_b,h", [(5.0e4, 20.0), (8.0e5, 80.0)])
+def test_tensions_continuous_where_the_sag_reaches_the_seabed(HF_b, h):
+    """At VF + V1 = w L the sag of a line from an elevated end just touches the seabed. Sweep XF
+    through that point at fixed ZF: the line changes regime and the tensions do not jump; the
+    slopes do (a one-sided contact starts to carry the sag), each side's being the exact slope of
+    its side."""
+    L, EA, w = L0, EA0, W0
+    V1 = seabed_reach(HF_b, h, EA, w)
+    VF_b = w * L - V1
+    Xb, Zb = (float(a) for a in cat.closure(np.array(HF_b), np.array(VF_b), L, EA, w, 0.0, h))
+    delta = 1e-3
+    xs = Xb + delta * np.linspace(-5, 5, 11)
+    sol = cat.solve(xs, Zb, L, EA, w, h_A=h, tol=1e-12)
+    names = sol.regime_names()
+    assert list(names[:5]) == ["touchdown"] * 5 and list(names[6:]) == ["suspended"] * 5
+    for k, dk in (("HF", "dHF_dXF"), ("VF", "dVF_dXF")):
+        y, dy = getattr(sol, k), getattr(sol, dk)
+        steps, mid_slope = np.diff(y), 0.5 * (dy[1:] + dy[:-1]) * delta
+        side = np.r_[0:4, 6:10]  # steps within one regime
+        np.testing.assert_allclose(steps[side], mid_slope[side], rtol=1e-4)
+        np.testing.assert_allclose(dy[:5], dy[0], rtol=1e-3)
+        np.testing.assert_allclose(dy[6:], dy[-1], rtol=1e-3)
+        # across the boundary (at xs[5]) one step of each side's slope: no jump in the tension
+        assert y[6] - y[4] == pytest.approx((dy[4] + dy[6]) * delta, rel=1e-3)
+        assert abs(dy[6] - dy[4]) > 1e-2 * abs(dy[4])  # the kink is there
+    mid = cat.solve(Xb, Zb, L, EA, w, h_A=h, tol=1e-12)
+    assert scalar(mid, "HF") == pytest.approx(HF_b, rel=1e-9)
+    assert scalar(mid, "VF") == pytest.approx(VF_b, rel=1e-9)
+
+
+@pytest.mark.parametrize("XF,ZF,h", [(900.0, 200.0, 50.0), (800.0, 100.0, 300.0)])
+def test_friction_is_not_applied_with_an_elevated_lower_end(XF, ZF, h):
+    free = cat.solve(XF, ZF, L0, EA0, W0, h_A=h)
+    rough = cat.solve(XF, ZF, L0, EA0, W0, CB=0.8, h_A=h)
+    for k in ("HF", "VF", "HA", "VA", "LBot", "dHF_dXF", "dVF_dZF"):
+        assert scalar(rough, k) == scalar(free, k), k
+    # from an anchor on the seabed the same friction does matter
+    on_seabed = [scalar(cat.solve(950.0, 250.0, L0, EA0, W0, CB=cb), "HF") for cb in (0.0, 0.8)]
+    assert on_seabed[1] > on_seabed[0]
+
+
+@pytest.mark.parametrize("EA", [EA0, 1.0e6])
+@pytest.mark.parametrize("XF,ZF,h", [(600.0, 0.0, 200.0), (400.0, 200.0, 200.0), (0.0, 100.0, 300.0)])
+def test_slack_line_hangs_from_both_ends(EA, XF, ZF, h):
+    L, w = L0, W0
+    L1, L2 = hanging_length(h, EA, w), hanging_length(ZF + h, EA, w)
+    assert L - L1 - L2 >= XF  # precondition
+    sol = cat.solve(XF, ZF, L, EA, w, h_A=h)
+    assert cat.REGIMES[int(sol.regime)] == "slack"
+    assert scalar(sol, "HF") == 0.0 and scalar(sol, "HA") == 0.0
+    assert scalar(sol, "VF") == pytest.approx(w * L2, rel=1e-12)
+    assert scalar(sol, "VA") == pytest.approx(-w * L1, rel=1e-12)
+    assert scalar(sol, "LBot") == pytest.approx(L - L1 - L2, rel=1e-12)
+    fd = central_difference(lambda z: scalar(cat.solve(XF, z, L, EA, w, h_A=h), "VF"), ZF + 1.0, 1e-3)
+    assert scalar(cat.solve(XF, ZF + 1.0, L, EA, w, h_A=h), "dVF_dZF") == pytest.approx(fd, rel=1e-6)
+
+
+@pytest.mark.parametrize("EA", [EA0, 2.0e7])
+@pytest.mark.parametrize("ZF", [0.0, 300.0, 900.0])
+def test_vertical_line_hangs_doubled_from_an_elevated_end(EA, ZF):
+    """XF = 0 and the line too long to hang straight: it runs down from A over L1 and up to the
+    fairlead over L2 = L - L1, with ZF = stretched(L2) - stretched(L1), its fold above the seabed."""
+    L, w, h = L0, W0, 1000.0
+
+    def stretched(ell):
+        return ell + w * ell * ell / (2.0 * EA)
+
+    L2 = brentq(lambda x: stretched(x) - stretched(L - x) - ZF, 0.5 * L, L, xtol=1e-13, rtol=1e-15)
+    assert stretched(L - L2) < h  # precondition: the fold is above the seabed
+    sol = cat.solve(0.0, ZF, L, EA, w, h_A=h)
+    assert cat.REGIMES[int(sol.regime)] == "vertical"
+    assert scalar(sol, "HF") == 0.0 and scalar(sol, "LBot") == 0.0
+    assert scalar(sol, "VF") == pytest.approx(w * L2, rel=1e-12)
+    assert scalar(sol, "VA") == pytest.approx(-w * (L - L2), rel=1e-9)
+    fd = central_difference(lambda z: scalar(cat.solve(0.0, z, L, EA, w, h_A=h), "VF"), ZF + 1.0, 1e-3)
+    assert scalar(cat.solve(0.0, ZF + 1.0, L, EA, w, h_A=h), "dVF_dZF") == pytest.approx(fd, rel=1e-6)
+    # a taut vertical line is the same with or without the seabed below
+    taut = cat.solve(0.0, 1.05 * L, L, EA, w, h_A=h)
+    assert scalar(taut, "VA") > 0 and scalar(taut, "VF") == scalar(cat.solve(0.0, 1.05 * L, L, EA, w), "VF")
+
+
+ELEV_SENS = {
+    # name: (XF, ZF, h_A, EA, expected regime)
+    "touchdown-elevated": (900.0, 200.0, 50.0, EA0, "touchdown"),
+    "touchdown-elevated-soft": (900.0, 200.0, 50.0, 3e7, "touchdown"),
+    "U-on-the-seabed": (950.0, 5.0, 30.0, EA0, "touchdown"),
+    "touchdown-near-slack": (960.0, 50.0, 10.0, EA0, "touchdown"),
+    "sag": (800.0, 100.0, 300.0, EA0, "suspended"),
+    "sag-soft": (850.0, 300.0, 100.0, 3e7, "suspended"),
+    "uplift": (700.0, 700.0, 100.0, EA0, "suspended"),
+    "taut": (1000.0, 100.0, 50.0, EA0, "suspended"),
+}
+
+
+@pytest.mark.parametrize("case", list(ELEV_SENS))
+def test_sensitivities_with_an_elevated_end_equal_finite_differences(case):
+    XF, ZF, h, EA, regime = ELEV_SENS[case]
+    sol = cat.solve(XF, ZF, L0, EA, W0, h_A=h)
+    assert cat.REGIMES[int(sol.regime)] == regime
+
+    def HV(x, z):
+        s = cat.solve(x, z, L0, EA, W0, h_A=h, tol=1e-12)
+        return np.array([scalar(s, "HF"), scalar(s, "VF")])
+
+    step = 1e-3
+    fd = np.column_stack([central_difference(lambda x: HV(x, ZF), XF, step),
+                          central_difference(lambda z: HV(XF, z), ZF, step)])
+    K = np.array([[scalar(sol, "dHF_dXF"), scalar(sol, "dHF_dZF")],
+                  [scalar(sol, "dVF_dXF"), scalar(sol, "dVF_dZF")]])
+    np.testing.assert_allclose(K, fd, rtol=1e-5, atol=1e-5 * np.abs(fd).max())
+    # no friction: the line is conservative, its stiffness symmetric and positive definite
+    assert K[0, 1] == pytest.approx(K[1, 0], rel=1e-9)
+    assert np.all(np.linalg.eigvalsh(0.5 * (K + K.T)) > 0)
+
+
+@pytest.mark.parametrize("case", list(ELEV_SENS))
+@pytest.mark.parametrize("guess", [(1.2, 1.2), (0.8, 0.8), (1.2, 0.8), (0.8, 1.2)])
+def test_symbolic_function_with_an_elevated_end(case, guess):
+    XF, ZF, h, EA, _ = ELEV_SENS[case]
+    sol = cat.solve(XF, ZF, L0, EA, W0, h_A=h)
+    HF, VF = scalar(sol, "HF"), scalar(sol, "VF")
+    fn = cat.symbolic_function()
+    hs, vs, err = fn(XF, ZF, L0, EA, W0, 0.0, h, guess[0] * HF, guess[1] * VF)
+    assert float(err) < 1e-8
+    assert float(hs) == pytest.approx(HF, rel=1e-9) and float(vs) == pytest.approx(VF, rel=1e-9)
+    x, z = ca.MX.sym("x"), ca.MX.sym("z")
+    out = fn(x, z, L0, EA, W0, 0.0, h, guess[0] * HF, guess[1] * VF)
+    J = np.array(ca.Function("J", [x, z], [ca.jacobian(ca.vertcat(out[0], out[1]), ca.vertcat(x, z))])(XF, ZF))
+    exact = np.array([[scalar(sol, "dHF_dXF"), scalar(sol, "dHF_dZF")],
+                      [scalar(sol, "dVF_dXF"), scalar(sol, "dVF_dZF")]])
+    np.testing.assert_allclose(J, exact, rtol=1e-7, atol=1e-7 * np.abs(exact).max())
+
+
+def test_symbolic_function_on_the_seabed_still_has_finite_derivatives():
+    """h_A = 0 through the elevated-end branch: derivatives with respect to every input finite
+    (the seabed-reach term must not put 0 * inf into the Jacobian)."""
+    fn = cat.symbolic_function()
+    args = [ca.MX.sym(nm) for nm in fn.name_in()]
+    h, v, _ = fn(*args)
+    J = ca.Function("J", args, [ca.jacobian(ca.vertcat(h, v), ca.vertcat(*args[:7]))])
+    sol = cat.solve(950.0, 250.0, L0, EA0, W0, CB=0.5)
+    Jn = np.array(J(950.0, 250.0, L0, EA0, W0, 0.5, 0.0, scalar(sol, "HF"), scalar(sol, "VF")))
+    assert np.all(np.isfinite(Jn[:, :6]))  # h_A's own column may be one-sided at 0
+    assert Jn[0, 0] == pytest.approx(scalar(sol, "dHF_dXF"), rel=1e-7)
+
+
+ELEV_PROFILES = [  # (XF, ZF, h_A, EA)
+    (900.0, 200.0, 50.0, EA0),    # touchdown from an elevated end
+    (950.0, 0.0, 30.0, 2e7),      # U on the seabed, soft
+    (800.0, 100.0, 300.0, EA0),   # sag above the seabed
+    (700.0, 700.0, 100.0, EA0),   # uplift
+    (600.0, 0.0, 200.0, 1e6),     # slack, hanging from both ends
+    (0.0, 300.0, 1000.0, 2e7),    # vertical, doubled
+]
+
+
+@pytest.mark.parametrize("XF,ZF,h,EA", ELEV_PROFILES)
+def test_line_profile_with_an_elevated_end(XF, ZF, h, EA):
+    n = 20001
+    prof = cat.line_profile(XF, ZF, L0, EA, W0, h_A=h, n=n)
+    sol = prof["solution"]
+    s, x, z, T = prof["s"], prof["x"], prof["z"], prof["T"]
+    assert x[0] == pytest.approx(0.0, abs=1e-9) and z[0] == pytest.approx(0.0, abs=1e-9)
+    assert x[-1] == pytest.approx(XF, abs=1e-6) and z[-1] == pytest.approx(ZF, abs=1e-6)
+    assert T[-1] == pytest.approx(scalar(sol, "TF"), rel=1e-9)
+    assert T[0] == pytest.approx(scalar(sol, "TA"), rel=1e-9, abs=1e-6)
+    assert np.all(z >= -h - 1e-9) and np.all(np.diff(x) >= -1e-9) and np.all(T >= 0)
+    LB = scalar(sol, "LBot")
+    on_bed = np.isclose(z, -h, rtol=0, atol=1e-9)
+    assert np.sum(on_bed) == pytest.approx(LB / L0 * (n - 1), abs=2)  # the grounded stretch, and only it
+    # continuous tension; the curve's length is the stretched length (1 + T/EA) ds
+    assert np.max(np.abs(np.diff(T))) <= W0 * (s[1] - s[0]) * 1.0001 + 1e-9 * scalar(sol, "TF")
+    if cat.REGIMES[int(sol.regime)] in ("touchdown", "suspended"):  # (the slack stretch lies bunched)
+        arc = np.sum(np.hypot(np.diff(x), np.diff(z)))
+        stretched = np.sum(0.5 * (2 + (T[1:] + T[:-1]) / EA) * np.diff(s))
+        assert arc == pytest.approx(stretched, rel=1e-6)
+
+
+def elevated_grid():
+    L = L0
+    xf = np.linspace(0.0, 1.03 * L, 24)
+    zf = np.linspace(0.0, 1.03 * L, 24)
+    X, Z, H, EA, W, CB = (a.ravel() for a in np.meshgrid(xf, zf, [5.0, 60.0, 400.0], [3.0e7, 5.0e8],
+                                                          [150.0, 1000.0], [0.0, 0.8], indexing="ij"))
+    keep = np.hypot(X, Z) <= 1.04 * L
+    return X[keep], Z[keep], np.full(keep.sum(), L), EA[keep], W[keep], CB[keep], H[keep]
+
+
+def test_closure_with_an_elevated_end_reproduces_the_spans_in_every_regime():
+    XF, ZF, L, EA, w, CB, h = elevated_grid()
+    sol = cat.solve(XF, ZF, L, EA, w, CB=CB, h_A=h)
+    names = sol.regime_names()
+    assert set(names) == {"slack", "touchdown", "suspended", "vertical"}
+    susp = names == "suspended"
+    assert np.sum(susp & (sol.VA < 0)) >= 20 and np.sum(susp & (sol.VA > 0)) >= 20  # sags and uplift
+    assert np.sum(susp & (np.hypot(XF, ZF) > L)) >= 10  # taut
+    assert np.sum(names == "touchdown") >= 20
+    for k in ("HF", "VF", "HA", "VA", "TF", "TA", "LBot", "dHF_dXF", "dHF_dZF", "dVF_dXF", "dVF_dZF"):
+        assert np.all(np.isfinite(getattr(sol, k))), k
+    assert np.all(sol.HF >= 0) and np.all(sol.VF >= 0) and np.all(sol.LBot >= 0)
+    np.testing.assert_array_equal(sol.HA, sol.HF)  # frictionless with an elevated end
+    reg = (names == "touchdown") | susp
+    X, Z = cat.closure(sol.HF[reg], sol.VF[reg], L[reg], EA[reg], w[reg], CB[reg], h[reg])
+    np.testing.assert_allclose(X, XF[reg], rtol=0, atol=1e-8)
+    np.testing.assert_allclose(Z, ZF[reg], rtol=0, atol=1e-8)
+    # a suspended line's lowest point is above the seabed; a touching-down one lies on it
+    m = susp & (sol.VA < 0)
+    HF, VA = sol.HF[m], sol.VA[m]
+    sag = VA * VA / (w[m] * (np.hypot(HF, VA) + HF)) + VA * VA / (2 * EA[m] * w[m])
+    assert np.all(sag <= h[m] * (1 + 1e-9))
+    td = names == "touchdown"
+    assert np.all(sol.LBot[td] > 0) and np.all(sol.VA[td] < 0)
+    np.testing.assert_allclose(sol.VF[td] - sol.VA[td], w[td] * (L[td] - sol.LBot[td]), rtol=1e-12)
+    # vectorised equals one by one, also with mixed heights
+    for i in np.flatnonzero(reg)[::53]:
+        one = cat.solve(XF[i], ZF[i], L[i], EA[i], w[i], CB=CB[i], h_A=h[i])
+        assert scalar(one, "HF") == pytest.approx(sol.HF[i], rel=1e-9, abs=1e-9)
+        assert scalar(one, "VF") == pytest.approx(sol.VF[i], rel=1e-9, abs=1e-9)
+
+
+@settings(max_examples=200, deadline=None)
+@given(valid, st.floats(0.0, 1.5))
+@example({"L": 10.0, "xf": 0.0, "zf": 0.0, "EA": 1e5, "w": 5e-324, "CB": 0.0}, 1.0)  # doubled, w L underflows
+@example({"L": 1000.0, "xf": 0.95, "zf": 0.0, "EA": 2e7, "w": 1000.0, "CB": 0.5}, 0.03)  # U on the seabed
+def test_random_input_with_an_elevated_end_solves_and_closes(p, h_frac):
+    L, EA, w, CB = p["L"], p["EA"], p["w"], p["CB"]
+    XF, ZF, h = p["xf"] * L, p["zf"] * L, h_frac * L
+    try:
+        sol = cat.solve(XF, ZF, L, EA, w, CB=CB, h_A=h)
+    except CatenaryError as exc:
+        assert str(exc)
+        return
+    for k in ("HF", "VF", "HA", "VA", "TF", "LBot", "dHF_dXF"):
+        assert np.isfinite(scalar(sol, k)), k
+    if cat.REGIMES[int(sol.regime)] in ("touchdown", "suspended"):
+        X, Z = cat.closure(np.array(scalar(sol, "HF")), np.array(scalar(sol, "VF")), L, EA, w, CB, h)
+        assert abs(float(X) - XF) <= 1e-8 and abs(float(Z) - ZF) <= 1e-8
+    try:
+        prof = cat.line_profile(XF, ZF, L, EA, w, CB=CB, h_A=h, n=51)
+    except CatenaryError:
+        return
+    assert np.all(np.isfinite(prof["x"])) and np.all(np.isfinite(prof["z"])) and np.all(prof["T"] >= 0)
+    tol = 1e-6 * max(1.0, L / 1000)
+    assert abs(prof["x"][-1] - XF) <= tol and abs(prof["z"][-1] - ZF) <= tol
+
+
+def load_elevated_reference():
+    with (DATA / "catenary_reference_elevated.csv").open() as fh:
+        rows = list(csv.DictReader(line for line in fh if not line.startswith("#")))
+    cols = ("XF", "ZF", "L", "EA", "w", "h_A", "HF", "VF", "HA", "VA", "LBot")
+    ref = {k: np.array([float(r[k]) for r in rows]) for k in cols}
+    ref["line"] = np.array([r["line"] for r in rows])
+    ref["profile_type"] = np.array([r["profile_type"] for r in rows])
+    return ref
+
+
+# MoorPy ProfileType with the lower end off the seabed -> our regime
+MOORPY_ELEVATED_REGIME = {"1": "suspended", "U": "touchdown", "5": "slack", "6": "vertical"}
+
+
+def test_matches_moorpy_reference_with_the_lower_end_above_the_seabed():
+    """MoorPy (CB = -h_A) against tapm_opt (h_A), to the same tolerance as the anchored reference:
+    fully suspended lines with a sag below A and with uplift, taut lines, lines whose sag rests on
+    the seabed, slack and vertical doubled lines, and the elevated cases of MoorPy's test suite."""
+    ref = load_elevated_reference()
+    assert ref["XF"].size >= 100
+    assert set(ref["profile_type"]) == set(MOORPY_ELEVATED_REGIME)
+    susp = ref["profile_type"] == "1"
+    assert np.sum(susp & (ref["VA"] < 0)) >= 20 and np.sum(susp & (ref["VA"] > 0)) >= 5
+    assert np.sum(ref["profile_type"] == "U") >= 20
+    # MoorPy's own test cases: tests/test_catenary.py, CB = -372.7 (twice) and the U shape, CB = -20
+    own = ref["line"] == "moorpy-test"
+    np.testing.assert_array_equal(ref["h_A"][own], [372.7, 372.7])
+    np.testing.assert_array_equal(ref["XF"][own], [400.0, 89.9])
+    assert np.sum(ref["line"] == "moorpy-test-U") == 1
+    sol = cat.solve(ref["XF"], ref["ZF"], ref["L"], ref["EA"], ref["w"], h_A=ref["h_A"])
+    expected = np.array([MOORPY_ELEVATED_REGIME[p] for p in ref["profile_type"]])
+    assert np.all(sol.regime_names() == expected)
+    TF = np.hypot(ref["HF"], ref["VF"])
+    for k in ("HF", "VF", "HA", "VA"):
+        err = np.abs(getattr(sol, k) - ref[k]) / TF
+        assert err.max() <= 1e-8, (k, int(err.argmax()), err.max())
+    np.testing.assert_allclose(sol.LBot, ref["LBot"], rtol=0, atol=1e-8 * ref["L"].max())

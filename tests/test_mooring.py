@@ -1,10 +1,12 @@
 """Tests of the quasi-static catenary mooring model (tapm_opt.models.mooring, survey eq. 17–29):
 symmetry and analytic stiffness of a spread mooring, turret modes, finite differences, the
-symbolic and linearised force functions, line breaks, force directions and bad input."""
+symbolic and linearised force functions, line breaks, force directions and bad input; anchors above
+the seabed, with the FEM plant's static equilibrium on their catenaries."""
 
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 
 import casadi as ca
@@ -428,3 +430,178 @@ def test_bad_eta_raises_model_error(bad, method):
     m = MooringModel.from_scenario(AAMO4)
     with pytest.raises(ModelError, match="eta"):
         getattr(m, method)(np.asarray(bad, dtype=float))
+
+
+# ------------------------------------------------------------------------------------------
+# anchors above the seabed (lower end h_A above it)
+# ------------------------------------------------------------------------------------------
+
+
+def raised(base, heights):
+    """``base`` with anchor i at ``heights[i]`` [m] above the seabed: anchor (x, y, depth - h_A).
+    Built with ``dataclasses.replace`` (the scenario file check takes anchors on the seabed)."""
+    depth = base.environment.water_depth
+    lines = tuple(dataclasses.replace(ln, anchor=(ln.anchor[0], ln.anchor[1], depth - h))
+                  for ln, h in zip(base.lines, heights))
+    return dataclasses.replace(base, lines=lines)
+
+
+def lengthen_line_1(lines):
+    lines[0]["length"] = 2450.0
+
+
+# locked off-centre turret; line 1 lengthened so that it touches down from its raised anchor, line 2
+# on the seabed, lines 3 and 4 from high anchors, sagging below them (checked in the first test)
+RAISED_HEIGHTS = (60.0, 0.0, 400.0, 700.0)
+
+
+def raised_model() -> MooringModel:
+    kw = copy.deepcopy(FD_MODELS["locked off-centre"])
+    return MooringModel.from_scenario(raised(scenario(edit_lines=lengthen_line_1, **kw), RAISED_HEIGHTS))
+
+
+def test_anchor_heights_come_from_the_scenario():
+    m = raised_model()
+    np.testing.assert_array_equal(m.h_A, RAISED_HEIGHTS)
+    np.testing.assert_array_equal(m.ZF, 1000.0 - np.array(RAISED_HEIGHTS))  # fairleads at the surface
+    eta = np.array([15.0, -10.0, 0.2])
+    _, _, XF = m.spans(eta)
+    sol = m.solve_lines(eta)
+    ref = cat.solve(XF, m.ZF, m.L, m.EA, m.w, CB=m.CB, h_A=np.array(RAISED_HEIGHTS))
+    np.testing.assert_array_equal(sol.HF, ref.HF)
+    names = sol.regime_names()
+    assert names[0] == "touchdown" and sol.LBot[0] > 0 and sol.VA[0] < 0  # from its raised anchor
+    assert np.all(names[2:] == "suspended") and np.all(sol.VA[2:] < 0)  # sagging below A
+    # raising an anchor changes the line's tension (same horizontal distance, different ZF and seabed)
+    kw = copy.deepcopy(FD_MODELS["locked off-centre"])
+    flat = MooringModel.from_scenario(scenario(edit_lines=lengthen_line_1, **kw))
+    assert np.all(np.abs(m.tensions(eta)[[0, 2, 3]] / flat.tensions(eta)[[0, 2, 3]] - 1) > 0.01)
+    assert m.tensions(eta)[1] == flat.tensions(eta)[1]
+
+
+def test_stiffness_equals_finite_differences_with_anchors_above_the_seabed():
+    m = raised_model()
+    h = (1e-2, 1e-2, 1e-5)
+    for eta in FD_POSES:
+        # no line changes regime within the difference stencil (the stiffness has kinks there)
+        regimes = {tuple(m.solve_lines(np.array(eta) + s * np.eye(3)[j] * h[j]).regime) for j in range(3)
+                   for s in (-1, 1)}
+        assert len(regimes) == 1, eta
+        K, K_fd = m.stiffness(np.array(eta)), numeric_stiffness(m, eta, h)
+        scale = np.abs(K_fd).max(axis=0)
+        for j in range(3):
+            np.testing.assert_allclose(K[:, j], K_fd[:, j], rtol=0, atol=1e-6 * scale[j], err_msg=f"eta={eta}")
+
+
+def test_catenary_force_function_with_anchors_above_the_seabed():
+    m = raised_model()
+    f = m.force_function("catenary", with_closure_error=True)
+    eta = ca.MX.sym("eta", 3)
+    J = ca.Function("J", [eta], [ca.jacobian(f(eta)[0], eta)])
+    for pose in SYM_POSES:
+        pose = np.array(pose)
+        tau, err = f(pose)
+        assert float(err) < 1e-8
+        np.testing.assert_allclose(as_array(tau), m.force(pose), rtol=1e-8, atol=1e-8 * np.abs(m.force(pose)).max())
+        K = m.stiffness(pose)
+        np.testing.assert_allclose(-np.array(J(pose)), K, rtol=1e-7, atol=1e-7 * np.abs(K).max())
+    T = m.tension_function("catenary")(SYM_POSES[2])
+    np.testing.assert_allclose(as_array(T), m.tensions(np.array(SYM_POSES[2])), rtol=1e-8)
+
+
+def test_linear_spring_model_with_anchors_above_the_seabed():
+    m = raised_model()
+    eta0 = np.array([12.0, -6.0, 0.15])
+    lin = m.linearised(eta0)
+    np.testing.assert_allclose(lin.g0, m.force(eta0), rtol=1e-12)
+    np.testing.assert_allclose(lin.G_mo, rot_z(eta0[2]) @ m.stiffness(eta0), rtol=1e-12)
+    np.testing.assert_allclose(lin.k, m.solve_lines(eta0).dHF_dXF, rtol=1e-12)
+    d = np.array([1.0, 0.6, 0.004])
+    for kind in ("linear", "characteristic"):
+        f = m.force_function(kind, eta0=eta0)
+        errs = [np.linalg.norm((as_array(f(eta0 + s * d)) - m.force(eta0 + s * d)) / [1, 1, 30.0]) for s in (2.0, 1.0)]
+        assert 3.5 < errs[0] / errs[1] < 4.5, (kind, errs)  # second-order error: first-order accurate
+
+
+def test_line_characteristics_with_anchors_above_the_seabed():
+    from tapm_opt.models.characteristics import line_characteristics
+
+    m = raised_model()
+    ch = line_characteristics(m, half_range=50.0, n_points=5)
+    np.testing.assert_array_equal(ch.XF[:, 2], ch.XF0)
+    np.testing.assert_allclose(ch.H[:, 2], m.solve_lines(np.zeros(3)).HF, rtol=1e-12)
+    np.testing.assert_allclose(ch.T[:, 2], m.tensions(np.zeros(3)), rtol=1e-12)
+
+
+@pytest.mark.parametrize("z,match", [
+    (1000.5, r"lines\[0\] \(id '1'\): anchor z = 1000.5 m puts the anchor below the seabed \(water depth 1000 m"),
+    (0.0, r"lines\[0\] \(id '1'\): anchor z = 0 m is not below the fairleads \(fairlead depth 0 m"),
+    (-20.0, r"lines\[0\] \(id '1'\): anchor z = -20 m is not below the fairleads"),
+    (np.nan, r"lines\[0\] \(id '1'\): anchor z = nan m must be finite"),
+    (np.inf, r"lines\[0\] \(id '1'\): anchor z = inf m must be finite"),
+])
+def test_bad_anchor_depth_raises_model_error(z, match):
+    sc = raised(AAMO4, (0.0, 0.0, 0.0, 0.0))
+    lines = (dataclasses.replace(sc.lines[0], anchor=(2000.0, 0.0, z)),) + sc.lines[1:]
+    with pytest.raises(ModelError, match=match):
+        MooringModel.from_scenario(dataclasses.replace(sc, lines=lines))
+    # a broken line's anchor is checked too: the scenario itself is wrong
+    with pytest.raises(ModelError, match="anchor z"):
+        MooringModel.from_scenario(dataclasses.replace(sc, lines=lines), broken=["1"])
+
+
+@pytest.mark.parametrize("z", [1000.0, 1000.0 * (1 + 5e-7), 1000.0 * (1 - 5e-7)])
+def test_anchor_depth_within_round_off_of_the_water_depth_is_on_the_seabed(z):
+    """An anchor depth the scenario check accepts as on the seabed (1e-6 relative) gives h_A = 0:
+    the line keeps its seabed friction and is not rejected as below the seabed."""
+    lines = tuple(dataclasses.replace(ln, anchor=(ln.anchor[0], ln.anchor[1], z)) for ln in AAMO4.lines)
+    m = MooringModel.from_scenario(dataclasses.replace(AAMO4, lines=lines))
+    np.testing.assert_array_equal(m.h_A, 0.0)
+    np.testing.assert_array_equal(m.ZF, MooringModel.from_scenario(AAMO4).ZF)
+
+
+def chain_scenario():
+    """3 chain lines at 120 deg in 150 m of water, most of each line on the seabed."""
+    chain = dict(id="chain", diameter=0.1, mass_per_length=200.0, density=7850.0, EA=8.0e8,
+                 MBS=8.0e6, MBS_std=4.0e5, Cd_normal=2.4, Cd_tangential=0.4, Ca_normal=1.0)
+    lines = [dict(id=f"L{k}", type="chain", anchor=[800.0 * math.cos(a), 800.0 * math.sin(a)],
+                  fairlead_angle_deg=math.degrees(a), length=850.0)
+             for k, a in enumerate((0.0, 2 * math.pi / 3, -2 * math.pi / 3))]
+    d = base_dict()  # aamo4's vessel, with these lines
+    d.update(line_types=[chain], lines=lines)
+    d["environment"]["water_depth"] = 150.0
+    d["turret"].update(mode="locked", fairlead_radius=5.0, fairlead_depth=6.0)
+    return scenario_from_dict(d)
+
+
+@pytest.mark.parametrize("name,heights,segments", [
+    ("chain touching down from anchors 60 m above the seabed", (60.0, 60.0, 60.0), 24),
+    ("aamo4, anchors 300 m up, the lines sag below them", (300.0,) * 4, 10),
+])
+def test_fem_settles_on_the_catenary_with_anchors_above_the_seabed(name, heights, segments):
+    """MooringFEM.initialise puts the nodes on the catenary from the raised anchors; settled, the
+    FEM's fairlead tensions are the catenary's within 0.5 %, its anchor nodes held where the
+    scenario puts them, the grounded stretch on the seabed."""
+    from tapm_opt.plant.mooring_fem import MooringFEM
+
+    base = chain_scenario() if name.startswith("chain") else AAMO4
+    sc = raised(base, heights)
+    model = MooringModel.from_scenario(sc)
+    sol = model.solve_lines(np.zeros(3))
+    expected = "touchdown" if name.startswith("chain") else "suspended"
+    assert np.all(sol.regime_names() == expected) and np.all(sol.VA < 0)
+    fem_model = MooringFEM(sc, segments=segments)
+    fem_model.initialise(np.zeros(3))
+    fem = fem_model.fem
+    depth = sc.environment.water_depth
+    np.testing.assert_allclose(fem.r[fem.anchor_idx, 2], depth - np.array(heights), rtol=0, atol=1e-9)
+    info = fem_model.settle(np.zeros(3))
+    assert info.converged, info
+    np.testing.assert_allclose(fem_model.fairlead_tension(), sol.TF, rtol=5e-3)
+    np.testing.assert_allclose(fem.r[fem.anchor_idx, 2], depth - np.array(heights), rtol=0, atol=1e-9)
+    grounded = fem.r[:, 2] > depth - 0.1  # within 10 cm of the seabed (the contact spring lets it sink 1 cm)
+    if expected == "touchdown":
+        share = grounded.sum() / fem.n_nodes
+        assert share == pytest.approx(np.mean(sol.LBot) / np.mean(model.L), abs=2.0 / segments)
+    else:
+        assert not np.any(grounded) and np.all(fem.r[:, 2] < depth - 0.5 * min(heights))

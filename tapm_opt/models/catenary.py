@@ -1,39 +1,86 @@
 """Elastic catenary of a mooring line with seabed contact and friction, numeric and symbolic.
 
 A line of unstretched length ``L`` [m], axial stiffness ``EA`` [N] and submerged weight ``w``
-[N/m] runs from its anchor on a flat seabed to its fairlead, which lies ``XF`` [m] away
-horizontally and ``ZF`` [m] above the anchor. The unknowns are the fairlead tension components
-``HF`` (horizontal) and ``VF`` (vertical), both >= 0; the line's force on the vessel points from
-the fairlead toward the anchor along the line.
+[N/m] runs from its lower end A (the anchor) to its fairlead, which lies ``XF`` [m] away
+horizontally and ``ZF`` [m] above A. A lies ``h_A`` [m] above a flat seabed (default 0: an anchor
+on the seabed; ``h_A > 0``: an anchor on a slope or a pile head, a clump weight, a line to a buoy).
+The unknowns are the fairlead tension components ``HF`` (horizontal) and ``VF`` (vertical), both
+>= 0; the line's force on the vessel points from the fairlead toward A along the line.
 
 Closure equations (Irvine 1981; in the form used by FAST/MAP, Jonkman 2007, eq. 2-2 to 2-5),
-with ``VA = VF - w L`` the vertical tension at the anchor:
+with ``VA = VF - w L`` the vertical tension at A if no part of the line rests on the seabed:
 
-fully suspended (VA >= 0, anchor uplift)::
+fully suspended (``VA >= -V1``, see below; ``VA < 0`` is a line that leaves an elevated A
+downward and sags, its lowest point still above the seabed)::
 
     XF = HF/w [asinh(VF/HF) - asinh(VA/HF)] + HF L/EA
     ZF = HF/w [sqrt(1 + (VF/HF)^2) - sqrt(1 + (VA/HF)^2)] + (VF L - w L^2/2)/EA
 
-touching down (VA < 0): ``LB = L - VF/w`` lies on the seabed, and with seabed friction ``CB``::
+touching down (``VA < -V1``): the line rests on the seabed over ``LB = L - (VF + V1)/w``. The
+part from the seabed up to the fairlead has length ``VF/w`` and zero vertical tension where it
+leaves the seabed; the part from A down to the seabed (only for ``h_A > 0``) is a catenary with
+the same ``HF`` that meets the seabed horizontally, over a length ``V1/w``, where ``V1`` >= 0 is the
+downward vertical tension at A that makes such a catenary drop exactly ``h_A``::
 
-    XF = LB + HF/w asinh(VF/HF) + HF L/EA
+    h_A = HF/w [sqrt(1 + (V1/HF)^2) - 1] + V1^2/(2 EA w)
+    =>  V1^2 = 2 h_A w (h_A w + 2 HF) / (1 + 2 B k + sqrt(1 + 4 B k + 4 k^2 HF^2)),
+        B = h_A w + HF, k = 1/(2 EA)                  (the root with h_A w + HF - k V1^2 >= 0)
+
+(``V1 = 0`` for ``h_A = 0``; ``V1^2 = h_A w (h_A w + 2 HF)`` for an inextensible line.) With seabed
+friction ``CB`` (only for ``h_A = 0``, below)::
+
+    XF = LB + HF/w [asinh(VF/HF) + asinh(V1/HF)] + HF L/EA
          + CB w/(2 EA) [-LB^2 + (LB - HF/(CB w)) max(LB - HF/(CB w), 0)]
-    ZF = HF/w [sqrt(1 + (VF/HF)^2) - 1] + VF^2/(2 EA w)
+    ZF = HF/w [sqrt(1 + (VF/HF)^2) - 1] + VF^2/(2 EA w) - h_A
 
-Both are written once in :func:`closure` with numerically stable forms (no cancellation as
-``w -> 0`` or ``HF -> 0``) and serve the vectorised numeric solver (:func:`solve`) and the
-symbolic CasADi path (:func:`symbolic_function`). Degenerate regimes have closed forms:
+Derivation of the touching-down form: on the (frictionless, below) seabed the line carries no
+vertical tension and the same horizontal tension ``HF`` as its suspended parts. The fairlead's part
+is the anchored touchdown catenary that rises ``ZF + h_A`` over ``VF/w``; A's part, read from where
+it leaves the seabed, is the same catenary rising ``h_A`` over ``V1/w``. The spans add:
+``XF = LB (1 + HF/EA) + [HF/w asinh(VF/HF) + HF VF/(w EA)] + [HF/w asinh(V1/HF) + HF V1/(w EA)]``
+(the form above) and ``ZF = (ZF + h_A) - h_A``. ``V1`` follows from
+``sqrt(HF^2 + V1^2) = h_A w + HF - k V1^2``: squared, a quadratic in ``V1^2``, whose smaller root,
+written above without cancellation, keeps the right-hand side positive. ``V1`` grows with ``HF``
+at fixed ``h_A`` (``dV1/dHF = V1 / ((h1 + HF)(1 + h1/EA))``, ``h1 = sqrt(HF^2 + V1^2)``), which
+enters the touchdown Jacobian. For ``h_A = 0`` every equation reduces to the anchored one.
 
-* slack: the line hangs vertically over a length ``Ls`` with ``ZF = Ls + w Ls^2/(2 EA)`` and the rest
-  lies on the seabed without tension (``L - Ls >= XF``): ``HF = 0, VF = w Ls``;
-* vertical and fully suspended (``XF = 0``): ``HF = 0, VF = EA (ZF - L)/L + w L/2``;
-* both ends on the seabed (``ZF = 0``, ``XF > L``): ``VF = 0`` and ``HF`` from the seabed stretch
-  with friction;
+The regime boundary ``VF + V1 = w L`` is where the sagging suspended line's lowest point just
+reaches the seabed (``LB = 0``, ``VA = -V1``): both forms give the same spans there. For
+``h_A = 0`` they are also C¹ there; for ``h_A > 0`` their derivatives differ (the seabed starts to
+carry the sag, a one-sided contact), so the line's stiffness has a kink where the sag touches the
+seabed while the tensions stay continuous.
+
+Seabed friction with an elevated lower end: not applied. The grounded stretch then lies between
+two suspended parts that both pull on it, and how friction shares the load between them depends
+on the history of the motion; tapm_opt takes the grounded stretch frictionless (``HF`` constant
+along the whole line, ``HA = HF``), as MoorPy does (its ``CB`` argument carries either the friction
+coefficient or, negative, the height of end A, never both). Friction only takes load off the
+anchor, so this errs toward a higher anchor load and, at a given offset, a slightly lower fairlead
+tension than a rough seabed would give. ``CB`` is ignored where ``h_A > 0`` (so the answer jumps
+from ``h_A = 0`` to ``h_A > 0`` by the friction effect alone, when ``CB > 0``).
+
+Both regimes are written once in :func:`closure` with numerically stable forms (no cancellation
+as ``w -> 0`` or ``HF -> 0``, nor for a symmetric U-shaped line, ``VA = -VF``) and serve the
+vectorised numeric solver (:func:`solve`) and the symbolic CasADi path (:func:`symbolic_function`).
+Degenerate regimes have closed forms, with ``hang(z)`` the length of a line hanging vertically
+over a height ``z``, root of ``z = Ls + w Ls^2/(2 EA)``:
+
+* slack: the line hangs vertically from the fairlead over ``L2 = hang(ZF + h_A)`` and from A over
+  ``L1 = hang(h_A)``, and the rest lies on the seabed without tension (``L - L1 - L2 >= XF``):
+  ``HF = 0, VF = w L2, VA = -w L1``;
+* vertical and fully suspended (``XF = 0``): taut, ``VA >= 0`` when ``ZF >= L (1 + w L/(2 EA))``:
+  ``HF = 0, VF = EA (ZF - L)/L + w L/2``; otherwise (only for ``h_A > 0``) the line hangs doubled,
+  down from A and up to the fairlead, its fold above the seabed:
+  ``VF = w (L + ZF/(1 + w L/(2 EA)))/2``, ``VA = VF - w L < 0``;
+* both ends on the seabed (``ZF = 0``, ``h_A = 0``, ``XF > L``): ``VF = 0`` and ``HF`` from the
+  seabed stretch with friction;
 * weightless (``w = 0``): a straight elastic bar, ``T = EA max(l/L - 1, 0)``.
 
-Conventions: tensions in N, lengths in m; ``HA`` is the horizontal tension at the anchor (reduced
-by seabed friction), ``VA`` the anchor uplift (0 when the line touches down), ``TF`` the fairlead
-tension magnitude ``sqrt(HF^2 + VF^2)`` — this is the "fairlead tension" everywhere in tapm_opt.
+Conventions: tensions in N, lengths in m; ``HA`` is the horizontal tension at A (reduced by seabed
+friction), ``VA`` the vertical tension at A, positive when the line pulls A up (anchor uplift), 0
+when the line touches down from an anchor on the seabed, negative when the line leaves an
+elevated A downward; ``TF`` the fairlead tension magnitude ``sqrt(HF^2 + VF^2)`` — this is the
+"fairlead tension" everywhere in tapm_opt.
 """
 
 from __future__ import annotations
@@ -66,7 +113,25 @@ SLACK, TOUCHDOWN, SUSPENDED, VERTICAL, SEABED, WEIGHTLESS = range(6)
 # ------------------------------------------------------------------------------------------
 
 
-def closure(HF, VF, L, EA, w, CB=0.0):
+def _elevated(h_A, *xs) -> bool:
+    """False only on the numeric path with every lower end on the seabed (``h_A = 0``): the
+    elevated-end terms then vanish and are skipped (same numbers, less work)."""
+    return bk.is_symbolic(h_A, *xs) or bool(np.any(np.asarray(h_A) > 0))
+
+
+def _seabed_reach(HF, h_A, EA, w):
+    """``V1`` [N]: downward vertical tension at a lower end ``h_A`` above the seabed of a catenary
+    with horizontal tension ``HF`` that meets the seabed horizontally (module docstring); 0 for
+    ``h_A = 0``. Works on numpy arrays and CasADi symbols."""
+    up = h_A > 0
+    hw = bk.where(up, h_A * w, 1.0)  # a dummy height where h_A = 0: sqrt stays differentiable
+    k = 0.5 / EA
+    B = hw + HF
+    q = 2.0 * hw * (hw + 2.0 * HF) / (1.0 + 2.0 * B * k + bk.sqrt(1.0 + 4.0 * B * k + 4.0 * k * k * HF * HF))
+    return bk.where(up, bk.sqrt(q), 0.0)
+
+
+def closure(HF, VF, L, EA, w, CB=0.0, h_A=0.0):
     """Horizontal and vertical span (X, Z) [m] reached by a line with fairlead tension (HF, VF).
 
     Implements the elastic catenary closure equations with seabed contact and friction (module
@@ -84,55 +149,84 @@ def closure(HF, VF, L, EA, w, CB=0.0):
     w : array_like
         Submerged weight per unit length [N/m], > 0.
     CB : array_like
-        Seabed friction coefficient [-], >= 0.
+        Seabed friction coefficient [-], >= 0 (not applied where ``h_A > 0``).
+    h_A : array_like
+        Height of the lower end A above the seabed [m], >= 0.
 
     Returns
     -------
-    X, Z : spans [m] of the same shape.
+    X, Z : spans [m] of the same shape; Z is the fairlead's height above A.
     """
     VA = VF - w * L
     hF = bk.hypot(HF, VF)
     hA = bk.hypot(HF, VA)
-    # fully suspended; asinh(a) - asinh(b) = asinh((a-b)(a+b)/(a sqrt(1+b^2) + b sqrt(1+a^2)))
-    den = VF * hA + VA * hF
-    Xs = HF / w * bk.asinh(w * L * (VF + VA) / den) + HF * L / EA
+    # fully suspended, S = asinh(a) - asinh(b), a = VF/HF, b = VA/HF: for VA >= 0 as
+    # asinh((a-b)(a+b)/(a sqrt(1+b^2) + b sqrt(1+a^2))); for VA < 0 (a sag below an elevated A) as
+    # asinh(a) + asinh(-b), a sum of positive terms. Touching down, St: the fairlead's part rises
+    # from the seabed over VF/w, A's part (elevated A) reaches it over V1/w.
+    if _elevated(h_A, HF, VF):
+        up = VA >= 0
+        den = bk.where(up, VF * hA + VA * hF, 1.0)
+        S = bk.where(up, bk.asinh(w * L * (VF + VA) / den), bk.asinh(VF / HF) + bk.asinh(-VA / HF))
+        V1 = _seabed_reach(HF, h_A, EA, w)
+        St = bk.asinh(VF / HF) + bk.asinh(V1 / HF)
+        cb = bk.where(h_A > 0, 0.0, CB)  # no friction with an elevated lower end (module docstring)
+    else:  # every lower end on the seabed (numeric): V1 = 0, and VA >= 0 wherever suspended
+        S = bk.asinh(w * L * (VF + VA) / (VF * hA + VA * hF))
+        V1, St, cb = 0.0, bk.asinh(VF / HF), CB
+    Xs = HF / w * S + HF * L / EA
     Zs = L * (VF + VA) / (hF + hA) + (VF * L - 0.5 * w * L * L) / EA
-    # touching down
-    LB = L - VF / w
-    Xt = LB + HF / w * bk.asinh(VF / HF) + HF * L / EA
-    Zt = VF * VF / (w * (hF + HF)) + VF * VF / (2.0 * EA * w)
-    has_cb = CB > 0
-    cbw = bk.where(has_cb, CB * w, 1.0)
+    LB = L - (VF + V1) / w
+    Xt = LB + HF / w * St + HF * L / EA
+    Zt = VF * VF / (w * (hF + HF)) + VF * VF / (2.0 * EA * w) - h_A
+    has_cb = cb > 0
+    cbw = bk.where(has_cb, cb * w, 1.0)
     xs = LB - HF / cbw
     Xt = Xt + bk.where(has_cb, cbw / (2.0 * EA) * (-LB * LB + xs * bk.fmax(xs, 0.0)), 0.0)
-    susp = VF >= w * L
+    susp = VF + V1 >= w * L
     return bk.where(susp, Xs, Xt), bk.where(susp, Zs, Zt)
 
 
-def _closure_jacobian(HF, VF, L, EA, w, CB):
+def _closure_jacobian(HF, VF, L, EA, w, CB, h_A=0.0):
     """Analytic d(X, Z)/d(HF, VF) of :func:`closure` (numpy only), for the Newton iteration."""
     VA = VF - w * L
     hF = np.hypot(HF, VF)
     hA = np.hypot(HF, VA)
-    den = VF * hA + VA * hF
-    S = np.arcsinh(w * L * (VF + VA) / den)
-    q = L * (VF + VA) / (den * hA * hF)
+    elevated = _elevated(h_A)
+    if elevated:
+        up = VA >= 0
+        den = np.where(up, VF * hA + VA * hF, 1.0)
+        S = np.where(up, np.arcsinh(w * L * (VF + VA) / den), np.arcsinh(VF / HF) + np.arcsinh(-VA / HF))
+        # G = (VF/hF - VA/hA)/w, written without cancellation for either sign of VA
+        G = np.where(up, HF * HF * (L * (VF + VA) / (den * hA * hF)), (VF * hA - VA * hF) / (w * hF * hA))
+    else:  # VA >= 0 wherever suspended
+        den = VF * hA + VA * hF
+        S = np.arcsinh(w * L * (VF + VA) / den)
+        G = HF * HF * (L * (VF + VA) / (den * hA * hF))
     off_s = -HF * L * (VF + VA) / (hF * hA * (hF + hA))
-    Xh_s = S / w - HF * HF * q + L / EA
-    Zv_s = HF * HF * q + L / EA
+    Xh_s = S / w - G + L / EA
+    Zv_s = G + L / EA
     # touchdown
     a = VF / HF
     off_t = -VF * VF / (w * hF * (hF + HF))
     Xh_t = (np.arcsinh(a) - VF / hF) / w + L / EA
     Zv_t = VF / (w * hF) + VF / (EA * w)
     Xv_t = off_t.copy()
-    has_cb = CB > 0
-    cbw = np.where(has_cb, CB * w, 1.0)
-    LB = L - VF / w
+    if elevated:  # the part from an elevated A down to the seabed: V1(HF)
+        V1 = _seabed_reach(HF, h_A, EA, w)
+        h1 = np.hypot(HF, V1)
+        dV1 = V1 / ((h1 + HF) * (1.0 + h1 / EA))
+        Xh_t = Xh_t + (np.arcsinh(V1 / HF) - V1 / h1 - dV1 * V1 * V1 / (h1 * (h1 + HF))) / w
+        cb = np.where(h_A > 0, 0.0, CB)
+    else:
+        V1, cb = 0.0, CB
+    has_cb = cb > 0
+    cbw = np.where(has_cb, cb * w, 1.0)
+    LB = L - (VF + V1) / w
     xs_pos = np.maximum(LB - HF / cbw, 0.0)
     Xh_t = Xh_t + np.where(has_cb, -xs_pos / EA, 0.0)
-    Xv_t = Xv_t + np.where(has_cb, CB / EA * (LB - xs_pos), 0.0)
-    susp = VF >= w * L
+    Xv_t = Xv_t + np.where(has_cb, cb / EA * (LB - xs_pos), 0.0)
+    susp = VF + V1 >= w * L
     return (
         np.where(susp, Xh_s, Xh_t),
         np.where(susp, off_s, Xv_t),
@@ -155,7 +249,9 @@ class CatenarySolution:
     HF, VF : ndarray
         Horizontal and vertical tension at the fairlead [N], >= 0.
     HA, VA : ndarray
-        Horizontal tension and vertical uplift at the anchor [N] (VA = 0 when touching down).
+        Horizontal and vertical tension at the lower end A [N]. ``VA > 0``: the line lifts A
+        (anchor uplift); ``VA = 0``: touching down from an anchor on the seabed; ``VA < 0``: the
+        line leaves an elevated A downward (a sag, or the part that runs down to the seabed).
     TF, TA : ndarray
         Tension magnitude at the fairlead and at the anchor [N].
     LBot : ndarray
@@ -197,6 +293,8 @@ def _check_inputs(**arrays: np.ndarray) -> None:
         "EA": ("must be > 0 (axial stiffness)", lambda a: a > 0),
         "w": ("must be >= 0 (submerged weight; buoyant lines are not supported)", lambda a: a >= 0),
         "CB": ("must be >= 0 (seabed friction coefficient)", lambda a: a >= 0),
+        "h_A": ("must be >= 0 (height of the lower end above the seabed [m]; the lower end cannot lie "
+                "below the seabed)", lambda a: a >= 0),
     }
     for name, arr in arrays.items():
         finite_ok = np.isfinite(arr) | ((name == "EA") & (arr == np.inf))
@@ -231,12 +329,12 @@ def _initial_guess(XF, ZF, L, EA, w):
     return HF, VF
 
 
-def _newton(XF, ZF, L, EA, w, CB, *, tol, max_iter):
+def _newton(XF, ZF, L, EA, w, CB, h_A, *, tol, max_iter):
     """Damped Newton on (HF, VF) for the general (non-degenerate) configurations."""
     HF, VF = _initial_guess(XF, ZF, L, EA, w)
     it = 0
     with np.errstate(all="ignore"):
-        X, Z = closure(HF, VF, L, EA, w, CB)
+        X, Z = closure(HF, VF, L, EA, w, CB, h_A)
         rX, rZ = X - XF, Z - ZF
         err = np.abs(rX) + np.abs(rZ)
         for it in range(1, max_iter + 1):
@@ -244,7 +342,7 @@ def _newton(XF, ZF, L, EA, w, CB, *, tol, max_iter):
             if not np.any(active):
                 it -= 1
                 break
-            a, b, c, d = _closure_jacobian(HF, VF, L, EA, w, CB)
+            a, b, c, d = _closure_jacobian(HF, VF, L, EA, w, CB, h_A)
             det = a * d - b * c
             dH = -(d * rX - b * rZ) / det
             dV = -(-c * rX + a * rZ) / det
@@ -255,7 +353,7 @@ def _newton(XF, ZF, L, EA, w, CB, *, tol, max_iter):
             for _ in range(8):  # backtracking on the residual norm, keep HF, VF positive
                 Hn = np.maximum(HF + step * dH, 0.1 * HF)
                 Vn = np.maximum(VF + step * dV, 0.1 * VF)
-                Xn, Zn = closure(Hn, Vn, L, EA, w, CB)
+                Xn, Zn = closure(Hn, Vn, L, EA, w, CB, h_A)
                 rXn, rZn = Xn - XF, Zn - ZF
                 errn = np.abs(rXn) + np.abs(rZn)
                 ok = (errn < err) | ~active | ~np.isfinite(err)
@@ -272,13 +370,13 @@ def _newton(XF, ZF, L, EA, w, CB, *, tol, max_iter):
     return HF, VF, err, it
 
 
-def _fallback(XF, ZF, L, EA, w, CB, HF, VF, tol):
+def _fallback(XF, ZF, L, EA, w, CB, h_A, HF, VF, tol):
     """Per-configuration scipy solve, in log-scaled variables, for what Newton did not converge."""
     from scipy.optimize import root
 
     def fun(p):
         h, v = np.exp(p)
-        x, z = closure(np.array(h), np.array(v), L, EA, w, CB)
+        x, z = closure(np.array(h), np.array(v), L, EA, w, CB, h_A)
         return [float(x - XF), float(z - ZF)]
 
     best = (HF, VF, np.inf)
@@ -294,15 +392,15 @@ def _fallback(XF, ZF, L, EA, w, CB, HF, VF, tol):
     return best
 
 
-def solve(XF, ZF, L, EA, w, *, CB=0.0, tol: float = 1e-9, max_iter: int = 60) -> CatenarySolution:
+def solve(XF, ZF, L, EA, w, *, CB=0.0, h_A=0.0, tol: float = 1e-9, max_iter: int = 60) -> CatenarySolution:
     """Solve the elastic catenary for arrays of line configurations at once.
 
     Parameters
     ----------
     XF : array_like
-        Horizontal distance anchor -> fairlead [m], >= 0.
+        Horizontal distance lower end -> fairlead [m], >= 0.
     ZF : array_like
-        Height of the fairlead above the anchor [m], >= 0.
+        Height of the fairlead above the lower end [m], >= 0.
     L : array_like
         Unstretched line length [m], > 0.
     EA : array_like
@@ -310,7 +408,10 @@ def solve(XF, ZF, L, EA, w, *, CB=0.0, tol: float = 1e-9, max_iter: int = 60) ->
     w : array_like
         Submerged weight per unit length [N/m], >= 0 (0: weightless bar).
     CB : array_like, optional
-        Seabed friction coefficient [-], >= 0.
+        Seabed friction coefficient [-], >= 0 (applied only where ``h_A = 0``, module docstring).
+    h_A : array_like, optional
+        Height of the lower end above the seabed [m], >= 0 (default 0: an anchor on the seabed).
+        The seabed lies ``h_A + ZF`` below the fairlead.
     tol : float, optional
         Closure tolerance [m]: the spans reproduce ``XF`` and ``ZF`` to within ``tol``.
     max_iter : int, optional
@@ -328,10 +429,10 @@ def solve(XF, ZF, L, EA, w, *, CB=0.0, tol: float = 1e-9, max_iter: int = 60) ->
         anchor–fairlead distance, or a configuration that does not converge; the message names
         the input and its value. No NaN is ever returned.
     """
-    XF, ZF, L, EA, w, CB = (np.asarray(a, dtype=float) for a in (XF, ZF, L, EA, w, CB))
-    _check_inputs(XF=XF, ZF=ZF, L=L, EA=EA, w=w, CB=CB)
-    shape = np.broadcast_shapes(XF.shape, ZF.shape, L.shape, EA.shape, w.shape, CB.shape)
-    XF, ZF, L, EA, w, CB = (np.broadcast_to(a, shape).ravel() for a in (XF, ZF, L, EA, w, CB))
+    XF, ZF, L, EA, w, CB, hA = (np.asarray(a, dtype=float) for a in (XF, ZF, L, EA, w, CB, h_A))
+    _check_inputs(XF=XF, ZF=ZF, L=L, EA=EA, w=w, CB=CB, h_A=hA)
+    shape = np.broadcast_shapes(XF.shape, ZF.shape, L.shape, EA.shape, w.shape, CB.shape, hA.shape)
+    XF, ZF, L, EA, w, CB, hA = (np.broadcast_to(a, shape).ravel() for a in (XF, ZF, L, EA, w, CB, hA))
     n = XF.size
     out = {k: np.zeros(n) for k in ("HF", "VF", "HA", "VA", "LBot", "dHX", "dHZ", "dVX", "dVZ")}
     regime = np.full(n, -1, dtype=np.int8)
@@ -361,26 +462,34 @@ def solve(XF, ZF, L, EA, w, *, CB=0.0, tol: float = 1e-9, max_iter: int = 60) ->
             out["dHZ"][m] = out["dVX"][m] = k1 * XF[m] * ZF[m]
             regime[m] = WEIGHTLESS
         heavy = ~m
-        Ls = _hanging_length(ZF, w, EA)
-        m = heavy & (Ls <= L) & (L - Ls >= XF)
+        # slack: hanging vertically from the fairlead (L2) and from an elevated lower end (L1)
+        L1 = _hanging_length(hA, w, EA)
+        L2 = _hanging_length(ZF + hA, w, EA)
+        m = heavy & (L1 + L2 <= L) & (L - L1 - L2 >= XF)
         if np.any(m):
-            out["VF"][m] = w[m] * Ls[m]
-            out["LBot"][m] = L[m] - Ls[m]
-            out["dVZ"][m] = w[m] / (1.0 + w[m] * Ls[m] / EA[m])
+            out["VF"][m] = w[m] * L2[m]
+            out["VA"][m] = -w[m] * L1[m]
+            out["LBot"][m] = L[m] - L1[m] - L2[m]
+            out["dVZ"][m] = w[m] / (1.0 + w[m] * L2[m] / EA[m])
             regime[m] = SLACK
-        # vertical, fully suspended
+        # vertical, fully suspended: taut (VA >= 0) or hanging doubled from an elevated lower end
         m = heavy & (regime < 0) & (XF <= 1e-12 * L)
         if np.any(m):
-            VF = EA[m] * (ZF[m] - L[m]) / L[m] + 0.5 * w[m] * L[m]
+            kw = 1.0 + 0.5 * w[m] * L[m] / EA[m]
+            taut = ZF[m] >= L[m] * kw
+            VF = np.where(taut, EA[m] * (ZF[m] - L[m]) / L[m] + 0.5 * w[m] * L[m],
+                          0.5 * w[m] * (L[m] + ZF[m] / kw))
             VF = np.where(np.isfinite(VF), VF, w[m] * L[m])
             out["VF"][m] = VF
             out["VA"][m] = VF - w[m] * L[m]
             ratio = np.log(VF / np.maximum(VF - w[m] * L[m], 1e-300))
-            out["dHX"][m] = 1.0 / (ratio / w[m] + L[m] / EA[m])
-            out["dVZ"][m] = EA[m] / L[m]
+            # the doubled line swings sideways without restoring force at XF = 0 (the horizontal
+            # span grows like HF log(1/HF))
+            out["dHX"][m] = np.where(taut, 1.0 / (ratio / w[m] + L[m] / EA[m]), 0.0)
+            out["dVZ"][m] = np.where(taut, EA[m] / L[m], 0.5 * w[m] / kw)
             regime[m] = VERTICAL
         # both ends on the seabed, line stretched
-        m = heavy & (regime < 0) & (ZF <= 0)
+        m = heavy & (regime < 0) & (ZF <= 0) & (hA <= 0)
         if np.any(m):
             cbw = CB[m] * w[m]
             stretch = XF[m] - L[m]
@@ -399,7 +508,7 @@ def solve(XF, ZF, L, EA, w, *, CB=0.0, tol: float = 1e-9, max_iter: int = 60) ->
     iterations = 0
     g = np.flatnonzero(regime < 0)
     if g.size:
-        args = (XF[g], ZF[g], L[g], EA[g], w[g], CB[g])
+        args = (XF[g], ZF[g], L[g], EA[g], w[g], CB[g], hA[g])
         HF, VF, err, iterations = _newton(*args, tol=tol, max_iter=max_iter)
         bad = np.flatnonzero(~(err <= tol) | ~np.isfinite(HF) | ~np.isfinite(VF))
         for j in bad:
@@ -408,18 +517,20 @@ def solve(XF, ZF, L, EA, w, *, CB=0.0, tol: float = 1e-9, max_iter: int = 60) ->
                 i = int(g[j])
                 raise CatenaryError(
                     "catenary did not converge for XF = {:g} m, ZF = {:g} m, L = {:g} m, EA = {:g} N, "
-                    "w = {:g} N/m, CB = {:g} (index {}); closure error {:.3g} m".format(
-                        XF[i], ZF[i], L[i], EA[i], w[i], CB[i], i, r))
+                    "w = {:g} N/m, CB = {:g}, h_A = {:g} m (index {}); closure error {:.3g} m".format(
+                        XF[i], ZF[i], L[i], EA[i], w[i], CB[i], hA[i], i, r))
             HF[j], VF[j] = h, v
-        Lg, wg, EAg, CBg = L[g], w[g], EA[g], CB[g]
-        susp = VF >= wg * Lg
-        LB = np.where(susp, 0.0, Lg - VF / wg)
+        Lg, wg, EAg, CBg, hg = L[g], w[g], EA[g], CB[g], hA[g]
+        V1 = _seabed_reach(HF, hg, EAg, wg) if _elevated(hg) else np.zeros_like(HF)
+        susp = VF + V1 >= wg * Lg
+        LB = np.where(susp, 0.0, Lg - (VF + V1) / wg)
+        cbw = np.where(hg > 0, 0.0, CBg * wg)
         out["HF"][g] = HF
         out["VF"][g] = VF
-        out["VA"][g] = np.where(susp, VF - wg * Lg, 0.0)
-        out["HA"][g] = np.where(susp, HF, np.maximum(HF - CBg * wg * LB, 0.0))
+        out["VA"][g] = np.where(susp, VF - wg * Lg, 0.0 - V1)  # 0.0 - 0.0: no negative zero
+        out["HA"][g] = np.where(susp, HF, np.maximum(HF - cbw * LB, 0.0))
         out["LBot"][g] = LB
-        a, b, c, dd = _closure_jacobian(HF, VF, Lg, EAg, wg, CBg)
+        a, b, c, dd = _closure_jacobian(HF, VF, Lg, EAg, wg, CBg, hg)
         det = a * dd - b * c
         out["dHX"][g], out["dHZ"][g] = dd / det, -b / det
         out["dVX"][g], out["dVZ"][g] = -c / det, a / det
@@ -439,12 +550,31 @@ def solve(XF, ZF, L, EA, w, *, CB=0.0, tol: float = 1e-9, max_iter: int = 60) ->
     return CatenarySolution(regime=regime.reshape(shape), iterations=int(iterations), **shaped)
 
 
-def line_profile(XF: float, ZF: float, L: float, EA: float, w: float, *, CB: float = 0.0, n: int = 101):
-    """Shape and tension along one line, from the anchor (s = 0) to the fairlead (s = L).
+def _hanging_piece(H, V0, sig, w, EA):
+    """Spans (dx, dz) [m] and tension [N] of a suspended piece of line with horizontal tension H
+    that starts with vertical tension V0 (either sign) and runs over an unstretched length sig
+    (arrays), in forms without cancellation as in :func:`closure`; H = 0 gives a vertical piece."""
+    H, V0, w = np.float64(H), np.float64(V0), np.float64(w)
+    V = V0 + w * sig
+    hV, h0 = np.hypot(H, V), np.hypot(H, V0)
+    same = V * V0 >= 0
+    den = np.where(same, V * h0 + V0 * hV, 1.0)  # 0 only where V = V0 = 0, i.e. sig = 0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        dS = np.where(same, np.where(den != 0, np.arcsinh(w * sig * (V + V0) / np.where(den != 0, den, 1.0)), 0.0),
+                      np.arcsinh(V / H) - np.arcsinh(V0 / H))
+        dx = np.where(H > 0, H / w * dS, 0.0) + H * sig / EA
+        dz = np.where(hV + h0 > 0, sig * (V + V0) / np.where(hV + h0 > 0, hV + h0, 1.0), 0.0)
+    dz = dz + (V0 * sig + 0.5 * w * sig**2) / EA
+    return dx, dz, hV
+
+
+def line_profile(XF: float, ZF: float, L: float, EA: float, w: float, *, CB: float = 0.0, h_A: float = 0.0,
+                 n: int = 101):
+    """Shape and tension along one line, from the lower end A (s = 0) to the fairlead (s = L).
 
     Parameters
     ----------
-    XF, ZF, L, EA, w, CB : float
+    XF, ZF, L, EA, w, CB, h_A : float
         As in :func:`solve` (scalars).
     n : int
         Number of points along the unstretched arc length.
@@ -452,11 +582,12 @@ def line_profile(XF: float, ZF: float, L: float, EA: float, w: float, *, CB: flo
     Returns
     -------
     dict
-        ``s`` unstretched arc length [m], ``x`` horizontal distance from the anchor [m], ``z`` height
-        above the anchor [m], ``T`` tension [N], each of shape (n,), plus the scalar solution.
+        ``s`` unstretched arc length [m], ``x`` horizontal distance from A [m], ``z`` height above A
+        [m] (the seabed is at ``z = -h_A``), ``T`` tension [N], each of shape (n,), plus the scalar
+        solution.
     """
-    sol = solve(XF, ZF, L, EA, w, CB=CB)
-    HF, VF = float(sol.HF), float(sol.VF)
+    sol = solve(XF, ZF, L, EA, w, CB=CB, h_A=h_A)
+    HF = float(sol.HF)
     reg = int(sol.regime)
     s = np.linspace(0.0, L, n)
     if reg == WEIGHTLESS:
@@ -464,34 +595,46 @@ def line_profile(XF: float, ZF: float, L: float, EA: float, w: float, *, CB: flo
         x, z = frac * XF, frac * ZF
         T = np.full(n, float(sol.TF))
     elif reg == SLACK:
+        # hanging from A over L1, untensioned on the seabed over LB, hanging from the fairlead over L2
+        L1 = float(_hanging_length(h_A, w, EA))
+        L2 = float(_hanging_length(ZF + h_A, w, EA))  # not L - LBot: no cancellation
         LB = float(sol.LBot)
-        on_bed = s <= LB
-        x = np.where(on_bed, XF * s / max(LB, 1e-300), XF)
-        Ls = float(_hanging_length(ZF, w, EA))  # not L - LBot: no cancellation
-        sv = np.clip(Ls - (L - s), 0.0, Ls)  # hanging arc length, exact at the fairlead
-        z = sv + w * sv * sv / (2 * EA)
-        T = w * sv
-    else:  # touchdown, suspended, vertical; seabed (LB = L) through the same friction integral
+        s1 = np.minimum(s, L1)
+        z1 = -(s1 + w * (L1 * s1 - 0.5 * s1 * s1) / EA)
+        x = np.clip(XF * (s - L1) / max(LB, 1e-300), 0.0, XF)
+        sv = np.clip(L2 - (L - s), 0.0, L2)  # hanging arc length, exact at the fairlead
+        z = np.where(s <= L1, z1, -h_A + sv + w * sv * sv / (2 * EA))
+        T = np.where(s <= L1, w * (L1 - s1), w * sv)
+    elif reg == VERTICAL and float(sol.VA) < 0:
+        # hanging doubled from an elevated A: down over L1, up over L2 (lengths without w/w)
+        L2 = 0.5 * (L + ZF / (1.0 + 0.5 * w * L / EA))
+        L1 = L - L2
+        x = np.zeros(n)
+        s1, s2 = np.minimum(s, L1), np.maximum(s - L1, 0.0)
+        down = s1 + w * (L1 * s1 - 0.5 * s1 * s1) / EA  # below A, at the fold L1 + w L1^2/(2 EA)
+        z = -down + s2 + w * s2 * s2 / (2.0 * EA)
+        T = w * np.where(s <= L1, L1 - s1, s2)
+    else:  # touchdown, suspended, taut vertical; seabed (LB = L) through the same friction integral
         LB = float(sol.LBot)
-        cbw = CB * w
+        VA = float(sol.VA)
+        # touching down from an elevated A: A's part over L1 = V1/w down to the seabed
+        L1 = -VA / w if (reg == TOUCHDOWN and h_A > 0) else 0.0
+        V2 = 0.0 if reg in (TOUCHDOWN, SEABED) else VA  # vertical tension where the last part starts
+        s1 = np.minimum(s, L1)
+        x1, z1, T1 = _hanging_piece(HF, VA if L1 > 0 else 0.0, s1, w, EA)
+        if L1 > 0:
+            z1 = np.where(s >= L1, -h_A, z1)  # exact where it meets the seabed
+        cbw = CB * w if h_A <= 0 else 0.0
         s0 = max(LB - HF / cbw, 0.0) if cbw > 0 else 0.0
-        sb = np.minimum(s, LB)
+        sb = np.clip(s - L1, 0.0, LB)
         tens_int = np.where(sb > s0, HF * (sb - s0) - cbw * (LB * (sb - s0) - 0.5 * (sb**2 - s0**2)), 0.0)
         x_bed = sb + tens_int / EA
-        VA = float(sol.VA)
-        sig = np.maximum(s - LB, 0.0)
-        V = VA + w * sig
-        hV, hA = np.hypot(HF, V), np.hypot(HF, VA)
-        # difference-free forms as in closure(): no cancellation for small w or HF
-        den = V * hA + VA * hV  # 0 only where V = VA = 0, i.e. sig = 0
-        with np.errstate(invalid="ignore", divide="ignore"):
-            x_sus = np.where(den > 0, HF / w * np.arcsinh(w * sig * (V + VA) / np.where(den > 0, den, 1.0)), 0.0)
-            z_sus = np.where(hV + hA > 0, sig * (V + VA) / np.where(hV + hA > 0, hV + hA, 1.0), 0.0)
-        x_sus = x_sus + HF * sig / EA
-        z = z_sus + (VA * sig + 0.5 * w * sig**2) / EA
-        x = x_bed + x_sus
+        sig = np.maximum(s - L1 - LB, 0.0)
+        x2, z2, T2 = _hanging_piece(HF, V2, sig, w, EA)
+        x = x1 + x_bed + x2
+        z = z1 + z2
         T_bed = np.maximum(HF - cbw * (LB - sb), 0.0)
-        T = np.where(s <= LB, T_bed, np.hypot(HF, V))
+        T = np.where(s < L1, T1, np.where((s <= L1 + LB) & (LB > 0), T_bed, T2))
     return {"s": s, "x": x, "z": z, "T": T, "solution": sol}
 
 
@@ -503,12 +646,13 @@ _SYMBOLIC_CACHE: dict[Any, ca.Function] = {}
 
 
 def symbolic_function(*, abstol: float = 1e-10, max_iter: int = 50) -> ca.Function:
-    """CasADi Function ``catenary(XF, ZF, L, EA, w, CB, HF0, VF0) -> (HF, VF, closure_error)``.
+    """CasADi Function ``catenary(XF, ZF, L, EA, w, CB, h_A, HF0, VF0) -> (HF, VF, closure_error)``.
 
     The fairlead tensions are the root of the same :func:`closure` residual as the numeric
     solver, found by a CasADi ``rootfinder`` (Newton with line search on log HF, log VF, which
     keeps both positive), so the Function can be embedded in an NLP with exact first and second
-    derivatives (implicit function theorem). ``HF0, VF0`` is the initial guess [N] — e.g. the
+    derivatives (implicit function theorem). ``h_A`` is the height of the lower end above the
+    seabed [m] (0: an anchor on the seabed). ``HF0, VF0`` is the initial guess [N] — e.g. the
     numeric solution at a nearby configuration (:func:`solve`).
 
     ``closure_error`` [m] is the largest span error of the returned tensions, recomputed from the
@@ -517,23 +661,26 @@ def symbolic_function(*, abstol: float = 1e-10, max_iter: int = 50) -> ca.Functi
     leave Newton far from the root. Valid in the regular regimes (touching down and fully
     suspended, HF > 0, w > 0); slack, vertical, seabed and weightless lines need :func:`solve`.
 
-    Inputs and outputs are scalars; use ``Function.map`` for several lines.
+    Inputs and outputs are scalars; use ``Function.map`` for several lines. At ``h_A = 0`` the
+    derivative with respect to ``h_A`` is that of the anchored branch (0), not the one-sided limit
+    from above (which is unbounded: the part of the line that runs down to the seabed grows like
+    ``sqrt(h_A)``).
     """
     key = (abstol, max_iter)
     if key in _SYMBOLIC_CACHE:
         return _SYMBOLIC_CACHE[key]
     z = ca.SX.sym("z", 2)
-    p = ca.SX.sym("p", 6)
-    XF, ZF, L, EA, w, CB = (p[i] for i in range(6))
-    X, Z = closure(ca.exp(z[0]), ca.exp(z[1]), L, EA, w, CB)
+    p = ca.SX.sym("p", 7)
+    XF, ZF, L, EA, w, CB, h_A = (p[i] for i in range(7))
+    X, Z = closure(ca.exp(z[0]), ca.exp(z[1]), L, EA, w, CB, h_A)
     g = ca.Function("catenary_residual", [z, p], [ca.vertcat(X - XF, Z - ZF)])
     rf = ca.rootfinder("catenary_rf", "newton", g,
                        {"abstol": abstol, "max_iter": max_iter, "line_search": True, "error_on_fail": False})
-    names = ["XF", "ZF", "L", "EA", "w", "CB", "HF0", "VF0"]
+    names = ["XF", "ZF", "L", "EA", "w", "CB", "h_A", "HF0", "VF0"]
     syms = [ca.MX.sym(nm) for nm in names]
-    sol = rf(ca.log(ca.vertcat(syms[6], syms[7])), ca.vertcat(*syms[:6]))
+    sol = rf(ca.log(ca.vertcat(syms[7], syms[8])), ca.vertcat(*syms[:7]))
     HF, VF = ca.exp(sol[0]), ca.exp(sol[1])
-    Xc, Zc = closure(HF, VF, *syms[2:6])
+    Xc, Zc = closure(HF, VF, *syms[2:7])
     err = ca.fmax(ca.fabs(Xc - syms[0]), ca.fabs(Zc - syms[1]))
     err = ca.if_else(err <= 1e300, err, ca.inf)  # NaN compares false: reported as inf
     fn = ca.Function("catenary", syms, [HF, VF, err], names, ["HF", "VF", "closure_error"])

@@ -68,7 +68,7 @@ def line_characteristics(model: MooringModel, *, half_range: float, n_points: in
     grid = np.linspace(-half_range, half_range, n_points)
     XF = np.maximum(XF0[:, None] + grid[None, :], 0.0)
     sol = catenary.solve(XF, model.ZF[:, None], model.L[:, None], model.EA[:, None], model.w[:, None],
-                         CB=model.CB[:, None])
+                         CB=model.CB[:, None], h_A=model.h_A[:, None])
     return LineCharacteristics(line_ids=model.line_ids, XF0=XF0, XF=XF, H=sol.HF, V=sol.VF, T=sol.TF,
                                regime=sol.regime)
 

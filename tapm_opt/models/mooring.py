@@ -12,7 +12,10 @@ Sign conventions
   its heading psi_t = alpha_t(0) in {E} (alpha_t = psi_t - psi) and passes only the net line force
   through the centre of turret, so the hull feels the moment of that force about CO
   (weathervaning).
-* The 3-DOF model keeps the fairlead depth fixed: ``ZF = water depth - fairlead depth``.
+* The 3-DOF model keeps the fairlead depth fixed: ``ZF = z_A - fairlead depth``, the fairlead's
+  height above the anchor, with the anchor depth ``z_A`` (z down) on the seabed (``z_A`` = water
+  depth) or above it (an anchor on a slope, a clump weight, a buoy), at
+  ``h_A = water depth - z_A`` above the seabed; the catenary of each line takes its ``h_A``.
 """
 
 from __future__ import annotations
@@ -55,6 +58,10 @@ class MooringModel:
     ZF, L, EA, w, CB, MBS : ndarray, shape (n,)
         Fairlead height above anchor [m], unstretched length [m], axial stiffness [N], submerged
         weight [N/m], seabed friction [-], minimum breaking strength [N].
+    h_A : ndarray, shape (n,)
+        Height of each anchor (the line's lower end) above the seabed [m], >= 0 (0: on the seabed).
+        Seabed friction is not applied to a line whose anchor is above the seabed (see
+        :mod:`tapm_opt.models.catenary`).
     """
 
     line_ids: tuple[str, ...]
@@ -69,6 +76,7 @@ class MooringModel:
     w: np.ndarray
     CB: np.ndarray
     MBS: np.ndarray
+    h_A: np.ndarray
     _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     # -- construction ---------------------------------------------------------------------
@@ -81,6 +89,12 @@ class MooringModel:
         scenario : Scenario
         broken : iterable of line ids
             Lines left out (broken). Unknown ids raise :class:`ModelError`.
+
+        Raises
+        ------
+        ModelError
+            Unknown broken ids, every line broken, or an anchor depth ``z`` (third anchor
+            coordinate) that is not finite, lies below the seabed or not below the fairleads.
         """
         ids = [ln.id for ln in scenario.lines]
         broken = {str(b) for b in broken}
@@ -92,7 +106,19 @@ class MooringModel:
             raise ModelError("every line is broken: there is no mooring left to model")
         la = scenario.line_arrays
         env = scenario.environment
-        zf = env.water_depth - scenario.turret.fairlead_depth
+        h_A = np.asarray(la["h_A"], dtype=float)
+        zf = env.water_depth - h_A - scenario.turret.fairlead_depth
+        for i, ln in enumerate(scenario.lines):
+            z = env.water_depth - h_A[i]
+            where = f"lines[{i}] (id {ln.id!r}): anchor z = {z:g} m"
+            if not np.isfinite(h_A[i]):
+                raise ModelError(f"{where} must be finite")
+            if h_A[i] < 0:
+                raise ModelError(f"{where} puts the anchor below the seabed (water depth {env.water_depth:g} m, "
+                                 f"z down); z must be <= the water depth")
+            if not zf[i] > 0:
+                raise ModelError(f"{where} is not below the fairleads (fairlead depth "
+                                 f"{scenario.turret.fairlead_depth:g} m, z down); z must be deeper than the fairleads")
         return cls(
             line_ids=tuple(i for i, k in zip(ids, keep) if k),
             anchors=readonly(scenario.anchors[keep, :2]),
@@ -100,12 +126,13 @@ class MooringModel:
             p_cot_B=readonly(scenario.turret.position),
             turret_angle=float(scenario.turret.angle),
             turret_mode=scenario.turret.mode,
-            ZF=readonly(np.full(int(keep.sum()), zf)),
+            ZF=readonly(zf[keep]),
             L=readonly(la["L"][keep]),
             EA=readonly(la["EA"][keep]),
             w=readonly(la["w"][keep]),
             CB=readonly(la["CB"][keep]),
             MBS=readonly(la["MBS"][keep]),
+            h_A=readonly(h_A[keep]),
         )
 
     @property
@@ -173,7 +200,7 @@ class MooringModel:
         """Catenary solution of every line at pose ``eta`` (x [m], y [m], psi [rad])."""
         eta = self._check_eta(eta)
         _, _, XF = self.spans(eta)
-        return catenary.solve(XF, self.ZF, self.L, self.EA, self.w, CB=self.CB)
+        return catenary.solve(XF, self.ZF, self.L, self.EA, self.w, CB=self.CB, h_A=self.h_A)
 
     def force(self, eta) -> np.ndarray:
         """Restoring load tau_moor in {B}, shape (3,) [N, N, N m] (eq. 23, 28)."""
@@ -251,7 +278,7 @@ class MooringModel:
             VF0 = ca.fmax(DM(sol0.VF) + DM(sol0.dVF_dXF) * dX, DM(0.1 * sol0.VF + 1.0))
             cat = catenary.symbolic_function().map(self.n_lines)
             HF, _, err = cat(XF.T, self.ZF[None, :], self.L[None, :], self.EA[None, :], self.w[None, :],
-                             self.CB[None, :], HF0.T, VF0.T)
+                             self.CB[None, :], self.h_A[None, :], HF0.T, VF0.T)
             worst = ca.mmax(err)
             tau = self.tau_from_H(eta, HF.T)
             tau = ca.if_else(worst <= closure_tol, tau, ca.DM.nan(3, 1))
@@ -293,7 +320,7 @@ class MooringModel:
             VF0 = ca.fmax(DM(sol0.VF) + DM(sol0.dVF_dXF) * dX, DM(0.1 * sol0.VF + 1.0))
             cat = catenary.symbolic_function().map(self.n_lines)
             HF, VF, err = cat(XF.T, self.ZF[None, :], self.L[None, :], self.EA[None, :], self.w[None, :],
-                              self.CB[None, :], HF0.T, VF0.T)
+                              self.CB[None, :], self.h_A[None, :], HF0.T, VF0.T)
             T = ca.sqrt(HF.T ** 2 + VF.T ** 2)
             T = ca.if_else(ca.mmax(err) <= closure_tol, T, ca.DM.nan(self.n_lines, 1))
         else:
