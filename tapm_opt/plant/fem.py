@@ -23,18 +23,53 @@ Forces on node k (NED, z down):
 
 Integration: semi-implicit (symplectic) Euler with a step chosen from the stiffest segment
 (``dt <= safety * 2 / omega_max``, see :meth:`FEMLines.stable_dt`).
+
+Two implementations of the step, chosen with ``FEMLines(..., kernel=...)``: ``"numba"`` (default)
+runs :mod:`tapm_opt.plant.fem_kernel`, one compiled call per step or per batch of steps
+(:meth:`FEMLines.advance`); ``"numpy"`` is the vectorised reference (:meth:`FEMLines.accelerations`),
+a few dozen numpy calls per step. Both give the same results to round-off.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
 
-from ..errors import TapmError
+from ..errors import ModelError, TapmError
 
-__all__ = ["LineSet", "FEMLines", "SimulationDiverged"]
+__all__ = ["LineSet", "FEMLines", "SimulationDiverged", "KERNELS", "set_default_kernel"]
+
+KERNELS = ("numba", "numpy")
+"""Implementations of the FEM step: the compiled kernel and the numpy reference."""
+
+_default_kernel = "numba"
+
+
+def set_default_kernel(kernel: str) -> str:
+    """Set the kernel of the :class:`FEMLines` built without ``kernel=`` (also those built inside
+    :class:`~tapm_opt.plant.mooring_fem.MooringFEM`, the plant and ``forced_motion``); returns the
+    previous default. For comparisons and benchmarks of the two paths."""
+    global _default_kernel
+    if kernel not in KERNELS:
+        raise ModelError(f"kernel = {kernel!r} must be one of {', '.join(map(repr, KERNELS))}")
+    previous, _default_kernel = _default_kernel, kernel
+    return previous
+
+
+def _as_f64(x, shape: tuple[int, ...], name: str) -> np.ndarray:
+    """``x`` as a writable, C-contiguous float64 array of ``shape`` (broadcast as numpy would),
+    the one array layout the compiled kernel is built for; ``x`` itself when it already is one."""
+    if type(x) is np.ndarray and x.shape == shape and x.dtype == np.float64:
+        flags = x.flags
+        if flags.c_contiguous and flags.writeable:
+            return x
+    try:
+        return np.array(np.broadcast_to(np.asarray(x, dtype=float), shape), dtype=float, order="C")
+    except ValueError:
+        raise ModelError(f"{name} has shape {np.shape(x)}, expected {shape}") from None
 
 
 class SimulationDiverged(TapmError, RuntimeError):
@@ -92,10 +127,17 @@ class FEMLines:
         seabed stiffness ``k_b = w / (d * penetration)`` per unit area. Default 1 cm.
     seabed_damping_ratio : float
         Seabed contact damping as a fraction of critical (per node).
+    kernel : {"numba", "numpy"}, optional
+        Implementation of :meth:`step` and :meth:`advance`: the compiled kernel
+        (:mod:`tapm_opt.plant.fem_kernel`) or the numpy reference; default "numba" (see
+        :func:`set_default_kernel`). Without numba the numpy path is used (with a warning);
+        :attr:`kernel` tells which one runs.
     """
 
     def __init__(self, lines: LineSet, anchors: np.ndarray, *, water_depth: float, rho_w: float,
-                 seabed_penetration: float = 0.01, seabed_damping_ratio: float = 0.5):
+                 seabed_penetration: float = 0.01, seabed_damping_ratio: float = 0.5,
+                 kernel: str | None = None):
+        self.kernel = _default_kernel if kernel is None else kernel
         self.lines = lines
         self.depth = float(water_depth)
         self.rho_w = float(rho_w)
@@ -137,19 +179,40 @@ class FEMLines:
         self._can_half = 0.5 * (ls.Can * rho_w * area)[self.line_of_node]
         self._cat_half = 0.5 * (ls.Cat * rho_w * area)[self.line_of_node]
         self._d_node = ls.d[self.line_of_node]
-        self._mu = ls.mu[self.line_of_node]
+        self._mu = np.asarray(ls.mu, dtype=float)[self.line_of_node]
         self._kb_pen = float(seabed_penetration)
         self._zeta_b = float(seabed_damping_ratio)
         self._attached = np.arange(nl)
         self._has_friction = bool(np.any(self._mu))
         # padded bond buffers: row i + 1 holds bond i, rows 0 and n_nodes are zero
         self._qp = np.zeros((self.n_nodes + 1, 3))
+        self._no_force_out = np.zeros((0, nl, 3))  # advance without a fairlead-force output
         self._tvp = np.zeros((self.n_nodes + 1, 3))
         self._epsp = np.zeros(self.n_nodes + 1)
         self.r = np.zeros((self.n_nodes, 3))
         self.v = np.zeros((self.n_nodes, 3))
         self.t = 0.0
         self._update_lengths()
+
+    @property
+    def kernel(self) -> str:
+        """Implementation of :meth:`step` and :meth:`advance` in use: "numba" or "numpy"
+        (assignable; "numba" falls back to "numpy" when numba is not installed)."""
+        return self._kernel
+
+    @kernel.setter
+    def kernel(self, kernel: str) -> None:
+        if kernel not in KERNELS:
+            raise ModelError(f"kernel = {kernel!r} must be one of {', '.join(map(repr, KERNELS))}")
+        self._kernel_fn = None
+        if kernel == "numba":
+            from . import fem_kernel  # imported here: numba loads only when a compiled FEM is built
+
+            if fem_kernel.AVAILABLE:
+                self._kernel_fn = fem_kernel.advance
+            else:
+                kernel = "numpy"
+        self._kernel = kernel
 
     # -- geometry and constants ------------------------------------------------------------
     def _update_lengths(self) -> None:
@@ -182,25 +245,36 @@ class FEMLines:
         ``beta = c_int / EA``), so a mode of frequency w is damped at ``zeta = beta w / 2``: the
         stiffest (zig-zag) axial mode carries more damping than the per-segment ratio (sqrt(2)
         times it on a uniform line). The mass-proportional settling damping ``extra_damping``
-        [1/s] adds ``alpha / (2 w)``. Per free node, w and zeta are bounded by the Gershgorin row
-        sums of the stiffness and damping matrices: ``w^2 <= (2 (k_below + k_above) + k_seabed) / m``
-        and ``2 zeta w <= (2 (c_below + c_above) + c_seabed) / m + alpha``; the bound on W is then
+        [1/s] adds ``alpha / (2 w)``. Per free node, w and zeta of the axial modes are bounded by
+        the Gershgorin row sums of the stiffness and damping matrices, ``w^2 <= 2 (k_below +
+        k_above) / m`` and ``2 zeta w <= 2 (c_below + c_above) / m + alpha``, and the bound on W is
         evaluated at that w and zeta (W grows and the limit falls with w, so the bound is safe).
-        Drag and added mass only make it safer (they are left out).
+        The seabed contact mode (vertical spring-damper ``k_seabed``, ``c_seabed`` per node) is
+        bounded the same way on its own: it acts across the grounded, horizontal segments, so it
+        does not add to their axial modes. Drag and added mass only make the scheme safer (left
+        out).
         """
         free = ~self.fixed
         m_node = np.maximum(self.node_mass, 1e-300)[free]
         ok = self.bond_ok
         k_ax = np.where(ok, self._EA / self.l0, 0.0)
         c_ax = np.where(ok, self._c_int / self.l0, 0.0)
-        k_row = (2.0 * (np.append(k_ax, 0.0) + np.insert(k_ax, 0, 0.0)) + self._kb)[free]
-        c_row = (2.0 * (np.append(c_ax, 0.0) + np.insert(c_ax, 0, 0.0)) + self._cb)[free]
+        k_row = (2.0 * (np.append(k_ax, 0.0) + np.insert(k_ax, 0, 0.0)))[free]
+        c_row = (2.0 * (np.append(c_ax, 0.0) + np.insert(c_ax, 0, 0.0)))[free]
         if not k_row.size:
-            return float(safety * 1.0)
-        omega = np.sqrt(k_row / m_node)
-        zeta = (c_row / m_node + float(extra_damping)) / (2.0 * omega)
-        limit = 2.0 * (np.sqrt(1.0 + zeta * zeta) - zeta) / omega
-        return float(safety * np.min(limit))
+            return float(safety)
+        alpha = float(extra_damping)
+
+        def limit(k, c):
+            on = k > 0.0
+            if not on.any():
+                return math.inf
+            m = m_node[on]
+            omega = np.sqrt(k[on] / m)
+            zeta = (c[on] / m + alpha) / (2.0 * omega)
+            return float(np.min(2.0 * (np.sqrt(1.0 + zeta * zeta) - zeta) / omega))
+
+        return float(safety * min(limit(k_row, c_row), limit(self._kb[free], self._cb[free])))
 
     # -- forces ----------------------------------------------------------------------------
     def segment_state(self, r: np.ndarray, v: np.ndarray):
@@ -282,7 +356,88 @@ class FEMLines:
         -------
         T : ndarray (n_nodes - 1,)
             Bond tensions at the start of the step [N].
+
+        :attr:`r` and :attr:`v` are replaced by new arrays (the old ones are left as they were).
         """
+        if self._kernel_fn is not None:
+            shape = (self.n_lines, 3)
+            return self._advance_compiled(dt, _as_f64(fairlead_r, shape, "fairlead_r")[None],
+                                          _as_f64(fairlead_v, shape, "fairlead_v")[None],
+                                          v_current, extra_damping, 1, None)
+        return self._step_numpy(dt, fairlead_r, fairlead_v, v_current, extra_damping)
+
+    def advance(self, dt: float, fairlead_r_seq: np.ndarray, fairlead_v_seq: np.ndarray,
+                v_current: np.ndarray, extra_damping: float = 0.0,
+                fairlead_force_out: np.ndarray | None = None) -> np.ndarray:
+        """``n`` steps of :meth:`step` with the fairleads on a prescribed path, in one call.
+
+        Parameters
+        ----------
+        dt : float
+            Step [s] (at most :meth:`stable_dt`).
+        fairlead_r_seq, fairlead_v_seq : ndarray, shape (n, n_lines, 3)
+            Fairlead positions [m] and velocities [m/s] in {E} at the end of each step, n >= 1.
+        v_current : ndarray, shape (n_nodes, 3)
+            Current velocity at each node [m/s], held over the n steps.
+        extra_damping : float
+            Mass-proportional damping rate [1/s].
+        fairlead_force_out : ndarray (n, n_lines, 3), optional
+            Filled with :meth:`fairlead_forces` (``v_current`` at the fairleads, no inertia) at the
+            start of every step [N]: the load on the vessel along the path, for energy integrals.
+
+        Returns
+        -------
+        T : ndarray (n_nodes - 1,)
+            Bond tensions at the start of the last step [N].
+
+        The same as n calls of :meth:`step` with the same ``v_current``; the compiled kernel runs
+        all n steps in one call, the numpy path loops over :meth:`step`.
+        """
+        r_seq = np.asarray(fairlead_r_seq, dtype=float)
+        v_seq = np.asarray(fairlead_v_seq, dtype=float)
+        if r_seq.ndim != 3 or r_seq.shape[1:] != (self.n_lines, 3) or v_seq.shape != r_seq.shape:
+            raise ModelError(f"fairlead_r_seq and fairlead_v_seq have shapes {r_seq.shape} and {v_seq.shape}, "
+                             f"expected (n_steps, {self.n_lines}, 3)")
+        n = r_seq.shape[0]
+        if n < 1:
+            raise ModelError("advance needs at least one step (fairlead sequences of length 0)")
+        if fairlead_force_out is not None and (fairlead_force_out.shape != r_seq.shape
+                                               or fairlead_force_out.dtype != np.float64):
+            raise ModelError(f"fairlead_force_out has shape {fairlead_force_out.shape}, expected {r_seq.shape} (float64)")
+        if self._kernel_fn is not None:
+            return self._advance_compiled(dt, _as_f64(r_seq, r_seq.shape, "fairlead_r_seq"),
+                                          _as_f64(v_seq, v_seq.shape, "fairlead_v_seq"), v_current, extra_damping, n,
+                                          fairlead_force_out)
+        vc_fl = np.asarray(v_current)[self.fairlead_idx]
+        for i in range(n):
+            if fairlead_force_out is not None:
+                fairlead_force_out[i] = self.fairlead_forces(vc_fl)
+            T = self._step_numpy(dt, r_seq[i], v_seq[i], v_current, extra_damping)
+        return T
+
+    def _advance_compiled(self, dt, r_seq, v_seq, v_current, extra_damping, n: int,
+                          force_out: np.ndarray | None) -> np.ndarray:
+        """n steps in one call of the compiled kernel (fairlead sequences already checked)."""
+        shape = (self.n_nodes, 3)
+        if force_out is None:
+            force_out = self._no_force_out
+            if force_out.shape[1] != self.n_lines:
+                force_out = self._no_force_out = np.zeros((0, self.n_lines, 3))
+        self.r, self.v, T = self._kernel_fn(
+            _as_f64(self.r, shape, "r"), _as_f64(self.v, shape, "v"), _as_f64(v_current, shape, "v_current"),
+            float(dt), float(extra_damping), r_seq, v_seq,
+            self.l0, self._EA, self._c_int, self.bond_ok, self.node_weight, self.node_mass,
+            self._cdn_node, self._cdt_node, self._can_half, self._cat_half, self._kb, self._cb, self._mu,
+            float(self.depth), bool(self._has_int_damping), bool(self._has_friction),
+            self.anchor_idx, self.anchors, self.fairlead_idx, self._attached, force_out)
+        if force_out.shape[0]:
+            force_out[:, ~self.active] = 0.0
+        for _ in range(n):  # the same sum as n single steps
+            self.t += dt
+        return T
+
+    def _step_numpy(self, dt, fairlead_r, fairlead_v, v_current, extra_damping=0.0):
+        """The numpy reference of :meth:`step`."""
         a, T = self.accelerations(self.r, self.v, v_current)
         if extra_damping:
             a -= extra_damping * self.v

@@ -31,7 +31,7 @@ from typing import Any, Literal
 import numpy as np
 
 from ..errors import ModelError
-from ..geometry import rot_z
+from ..geometry import rot2_apply, rot_z
 from ..models import catenary
 from ..models.mooring import MooringModel
 from .mooring_fem import MooringFEM, SettleInfo
@@ -170,9 +170,11 @@ def forced_motion(scenario: Any, *, dof: Literal["surge", "sway", "yaw"] = "surg
     eta_out = np.zeros((n_out, 3))
     T_out = np.zeros((n_out, plant.fem.n_lines))
     F_out = np.zeros((n_out, 3))
-    # dissipated power -F.eta_dot is sampled at least 400 times per cycle (trapezoidal rule)
-    power_t, power = [], []
-    every_p = max(1, int(period / 400.0 / dt))
+    # dissipated power -F.eta_dot at the start of every FEM step (trapezoidal rule), from the
+    # fairlead forces the kernel returns (tension, weight, drag; the nodes' inertia is conservative
+    # and left out of the power)
+    power = np.zeros(n_steps + 1)
+    g = plant.geometry
 
     def pose(t: float):
         e = np.zeros(3)
@@ -187,37 +189,61 @@ def forced_motion(scenario: Any, *, dof: Literal["surge", "sway", "yaw"] = "surg
         tau_b = plant.tau(eta, plant.fairlead_acceleration(eta, eta_dot, edd))
         return rot_z(eta[2]) @ tau_b
 
+    def load_dof(f_seq, e_seq):
+        """The DOF's load component in {E} for fairlead forces (n, n_lines, 3) at poses (n, 3)."""
+        if k < 2:
+            return f_seq[:, :, k].sum(axis=1)
+        fx, fy = f_seq[:, :, 0], f_seq[:, :, 1]
+        e = e_seq.T[:, :, None]
+        if g.turret_mode == "locked":
+            px, py = g.fairleads(e)
+            return ((px - e[0]) * fy - (py - e[1]) * fx).sum(axis=1)
+        cx, cy = rot2_apply(e[2][:, 0], g.p_cot_B[0], g.p_cot_B[1])
+        return cx * fy.sum(axis=1) - cy * fx.sum(axis=1)
+
     j = 0
     e, ed = pose(0.0)
     F = load_E(e, ed, 0.0)
     t_out[0], eta_out[0], T_out[0], F_out[0] = 0.0, e, plant.fairlead_tension(), F
-    power_t.append(0.0)
-    power.append(-F[k] * ed[k])
-    for i in range(1, n_steps + 1):
+    # the steps run in blocks (MooringFEM.advance) that end where the loop looks at the state (an
+    # output, a health check) and, with a current, at least every 0.1 s: the current is evaluated
+    # at the start of a block and held over it
+    every_c = max(1, int(0.1 / dt + 1e-9)) if plant.current is not None else n_steps + 1
+    f_buf = np.zeros((min(n_steps, every, 200, every_c) if n_steps else 1, plant.fem.n_lines, 3))
+    i = 0
+    while i < n_steps:
+        i0 = i
+        i = min(n_steps, (i0 // every + 1) * every, (i0 // 200 + 1) * 200, (i0 // every_c + 1) * every_c)
+        nb = i - i0
+        ts = np.arange(i0, i + 1) * dt           # start of each step, then the end of the block
+        e_seq = np.zeros((nb + 1, 3))
+        ed_seq = np.zeros((nb + 1, 3))
+        e_seq[:, k] = amplitude * np.sin(omega * ts)
+        ed_seq[:, k] = amplitude * omega * np.cos(omega * ts)
+        f_seq = f_buf[:nb]
+        plant.advance(e_seq[1:], ed_seq[1:], fairlead_force_out=f_seq)
+        power[i0:i] = -load_dof(f_seq, e_seq[:-1]) * ed_seq[:-1, k]
         t = i * dt
         e, ed = pose(t)
-        plant.step(e, ed)
         if i % 200 == 0:
             plant.fem.check_health()
-        if i % every_p == 0 or i % every == 0:
-            F = load_E(e, ed, t)
-            power_t.append(t)
-            power.append(-F[k] * ed[k])
         if i % every == 0:
             j += 1
+            F = load_E(e, ed, t)
             t_out[j], eta_out[j], T_out[j], F_out[j] = t, e, plant.fairlead_tension(), F
     plant.fem.check_health()
+    if n_steps:
+        power[n_steps] = -F[k] * ed[k] if n_steps % every == 0 else power[n_steps - 1]
+    power_t = np.arange(n_steps + 1) * dt
     t_out, eta_out, T_out, F_out = t_out[: j + 1], eta_out[: j + 1], T_out[: j + 1], F_out[: j + 1]
 
     # quasi-static reference at the output poses
     moor = MooringModel.from_scenario(scenario)
     XF = np.array([moor.spans(e)[2] for e in eta_out])
-    T_qs = catenary.solve(XF, moor.ZF, moor.L, moor.EA, moor.w, CB=moor.CB).TF
+    T_qs = catenary.solve(XF, moor.ZF, moor.L, moor.EA, moor.w, CB=moor.CB, h_A=moor.h_A).TF
 
     # whole cycles after the first one
     n_cyc = int(math.floor(duration / period + 1e-9)) - 1
-    power_t = np.asarray(power_t)
-    power = np.asarray(power)
     if n_cyc >= 1:
         t0, t1 = period, period * (1 + n_cyc)
         m = (power_t >= t0 - 1e-9) & (power_t <= t1 + 1e-9)

@@ -134,21 +134,27 @@ class MooringFEM:
 
     # -- set-up ----------------------------------------------------------------------------
     def initialise(self, eta: np.ndarray) -> None:
-        """Place every line's nodes on its elastic catenary for the vessel at ``eta``."""
+        """Place every line's nodes on its elastic catenary for the vessel at ``eta``.
+
+        An anchor above the seabed (height ``h_A`` of the geometry's lines) is held at depth
+        ``water depth - h_A``, and its line's catenary starts there (a sag that reaches the seabed
+        puts the middle nodes on it)."""
         fem = self.fem
         r_fl, _ = self.fairlead_state(np.asarray(eta, float), np.zeros(3))
         depth = fem.depth
+        h_A = np.asarray(self.geometry.h_A, dtype=float)
         for j in range(fem.n_lines):  # set-up only, not in the time step
+            fem.anchors[j, 2] = depth - h_A[j]  # where the FEM holds the anchor node
             a = fem.anchors[j]
             d = r_fl[j, :2] - a[:2]
             XF = float(np.hypot(*d))
             u = d / XF if XF > 0 else np.array([1.0, 0.0])
             ns = int(fem.lines.segments[j])
-            prof = catenary.line_profile(XF, depth - self.fairlead_z, fem.L[j], fem.lines.EA[j], fem.lines.w[j],
-                                         CB=fem.lines.mu[j], n=ns + 1)
+            prof = catenary.line_profile(XF, a[2] - self.fairlead_z, fem.L[j], fem.lines.EA[j], fem.lines.w[j],
+                                         CB=fem.lines.mu[j], h_A=h_A[j], n=ns + 1)
             sl = slice(fem.node_start[j], fem.node_start[j] + ns + 1)
             fem.r[sl, :2] = a[:2] + prof["x"][:, None] * u
-            fem.r[sl, 2] = depth - prof["z"]
+            fem.r[sl, 2] = a[2] - prof["z"]
             # a slack line's seabed part: put the nodes just on the seabed
         fem.r[fem.fairlead_idx] = r_fl
         fem.v[:] = 0.0
@@ -179,10 +185,11 @@ class MooringFEM:
         t = 0.0
         change, speed = np.inf, np.inf
         converged = False
+        r_seq = np.broadcast_to(r_fl, (n_check,) + r_fl.shape)
+        v_seq = np.broadcast_to(v_fl, (n_check,) + v_fl.shape)
         for _ in range(max(1, int(round(max_time / (n_check * dt))))):
-            vc = self._update_current()
-            for _ in range(n_check):
-                fem.step(dt, r_fl, v_fl, vc, extra_damping=damping)
+            # the current is evaluated at the nodes' depths once per check interval
+            fem.advance(dt, r_seq, v_seq, self._update_current(), extra_damping=damping)
             t += n_check * dt
             fem.check_health()
             T = fem.fairlead_tension()
@@ -217,6 +224,50 @@ class MooringFEM:
         r_fl, v_fl = self.fairlead_state(eta, eta_dot)
         self._r_fl = r_fl
         return self.fem.step(self.dt, r_fl, v_fl, self._update_current())
+
+    def fairlead_states(self, eta_seq: np.ndarray, eta_dot_seq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`fairlead_state` for a sequence of poses and rates, each (n, 3), vectorised:
+        fairlead positions and velocities in {E}, each (n, n_lines, 3)."""
+        eta_seq = np.asarray(eta_seq, dtype=float)
+        eta_dot_seq = np.asarray(eta_dot_seq, dtype=float)
+        if eta_seq.ndim != 2 or eta_seq.shape[1] != 3 or eta_dot_seq.shape != eta_seq.shape:
+            raise ModelError(f"eta_seq and eta_dot_seq have shapes {eta_seq.shape} and {eta_dot_seq.shape}, "
+                             "expected (n, 3) each")
+        g = self.geometry
+        e = eta_seq.T[:, :, None]  # (3, n, 1): broadcasts against the fairleads
+        fx, fy = g.fairleads(e)    # (n, n_lines)
+        n, nl = fx.shape
+        r = np.empty((n, nl, 3))
+        r[:, :, 0] = fx
+        r[:, :, 1] = fy
+        r[:, :, 2] = self.fairlead_z
+        if g.turret_mode == "locked":
+            rx, ry = fx - e[0], fy - e[1]
+        else:
+            rx, ry = rot2_apply(e[2], g.p_cot_B[0], g.p_cot_B[1])
+        ed = eta_dot_seq.T[:, :, None]
+        v = np.zeros_like(r)
+        v[:, :, 0] = ed[0] - ed[2] * ry
+        v[:, :, 1] = ed[1] + ed[2] * rx
+        return r, v
+
+    def advance(self, eta_seq: np.ndarray, eta_dot_seq: np.ndarray,
+                fairlead_force_out: np.ndarray | None = None) -> np.ndarray:
+        """``n`` FEM steps of length ``self.dt``, step i ending with the fairleads at pose
+        ``eta_seq[i]`` moving at ``eta_dot_seq[i]`` (each (n, 3)), in one call of
+        :meth:`FEMLines.advance`.
+
+        The same as n calls of :meth:`step`, except that the current is evaluated once, on the
+        node depths at the start, and held over the n steps (:meth:`step` re-evaluates it every
+        step; the current depends on the node depths only, so over a short batch the difference is
+        tiny; identical in still water). Returns the segment tensions at the start of the last step [N].
+        ``fairlead_force_out`` (n, n_lines, 3), when given, receives the fairlead forces at the
+        start of every step (:meth:`FEMLines.advance`).
+        """
+        r_seq, v_seq = self.fairlead_states(eta_seq, eta_dot_seq)
+        T = self.fem.advance(self.dt, r_seq, v_seq, self._update_current(), fairlead_force_out=fairlead_force_out)
+        self._r_fl = r_seq[-1]
+        return T
 
     def fairlead_acceleration(self, eta: np.ndarray, eta_dot: np.ndarray, eta_ddot: np.ndarray) -> np.ndarray:
         """Fairlead accelerations in {E} (n_lines, 3) [m/s^2] for the vessel pose, rate and

@@ -284,8 +284,9 @@ class Plant:
         n_sub = self._n_sub
         m.dt = h / n_sub
         rate = (pose1 - pose0) / h
-        for k in range(1, n_sub + 1):
-            m.step(pose0 + (k / n_sub) * (pose1 - pose0), rate)
+        # all substeps in one call (the current, if any, held over the outer step: MooringFEM.advance)
+        frac = np.arange(1, n_sub + 1) / n_sub
+        m.advance(pose0 + frac[:, None] * (pose1 - pose0), np.broadcast_to(rate, (n_sub, 3)))
         self._steps += 1
         if self._steps % 20 == 0:
             m.fem.check_health()
