@@ -15,7 +15,6 @@ import math
 from typing import Callable
 
 import numpy as np
-import scipy.optimize
 
 from ..errors import ModelError, TapmError
 
@@ -48,6 +47,8 @@ Residual = Callable[[np.ndarray, float], np.ndarray]
 def _attempt(residual: Residual, jacobian: Residual, guess: np.ndarray, s: float, tol: float
              ) -> tuple[np.ndarray | None, float, str]:
     try:
+        import scipy.optimize  # loaded on first use (process start-up)
+
         sol = scipy.optimize.root(lambda x: residual(x, s), guess, jac=lambda x: jacobian(x, s),
                                   method="hybr")
         ok = bool(np.all(np.isfinite(sol.x)))

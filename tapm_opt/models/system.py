@@ -26,7 +26,6 @@ from dataclasses import dataclass, field
 from typing import Any, Iterable
 
 import numpy as np
-import scipy.optimize
 
 from .._io import readonly
 from ..errors import ModelError
@@ -209,6 +208,8 @@ class ThrusterSet:
             B, lo, hi, _, _ = self.extended()
             out = np.zeros(3)
             if B.shape[1]:
+                import scipy.optimize  # loaded on first use (process start-up)
+
                 A, b = self._hull_rows()
                 for d in range(3):
                     others = [k for k in range(3) if k != d]

@@ -21,7 +21,6 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import casadi as ca
-import control
 import numpy as np
 
 from .. import _backend as bk
@@ -364,6 +363,8 @@ def linearise(fn: ca.Function, x0: Any, tau_thr0: Any = 0.0, tau_env0: Any = 0.0
     A, B = (np.asarray(J.full(), dtype=float) for J in jac(*args))
     n_out = 3 if outputs == "eta" else 6
     C = np.eye(6)[:n_out]
+    import control  # python-control loads only when a state-space model is asked for
+
     return control.ss(A, B, C, np.zeros((n_out, 3)), states=list(STATE_NAMES),
                       inputs=list(INPUT_NAMES), outputs=list(STATE_NAMES[:n_out]))
 
