@@ -7,9 +7,11 @@ User mistakes (a bad scenario, a missing file, an impossible option) end with a 
 from __future__ import annotations
 
 import math
+import os
 import sys
 import time
 import traceback
+import warnings
 from pathlib import Path
 
 import click
@@ -18,6 +20,7 @@ import numpy as np
 from . import __version__
 from ._io import atomic_write_text, csv_text
 from .config import builtin_scenarios, load_scenario
+from .config.loader import fem_size_issues, log_size_issues
 from .errors import ScenarioError, TapmError
 
 EXIT_USER_ERROR = 2
@@ -29,6 +32,40 @@ class _State:
 
 def _load(name_or_path: str):
     return load_scenario(name_or_path)
+
+
+def _out_path(kind: str, what: str | None = None):
+    """Callback of an ``--out`` option naming a file (``kind="file"``) or a directory to write
+    (``what`` names it in messages): the path must not be empty, and its nearest existing ancestor
+    must be a writable directory."""
+    what = what or ("directory" if kind == "dir" else "file")
+
+    def check(ctx: click.Context, param: click.Parameter, value: str | None) -> str | None:
+        if value is None:
+            return None
+        if not str(value).strip():
+            raise click.BadParameter(f"{value!r} is empty: give the {what} to write", ctx=ctx, param=param)
+        p = Path(value)
+        for anc in (p, *p.parents) if kind == "dir" else p.parents:
+            if not anc.exists():
+                continue
+            if not anc.is_dir():
+                raise click.BadParameter(f"{value!r}: cannot create the {what}: {str(anc)!r} is a file, not a "
+                                         "directory", ctx=ctx, param=param)
+            if not os.access(anc, os.W_OK | os.X_OK):
+                raise click.BadParameter(f"{value!r}: cannot create the {what}: no write access to {str(anc)!r}",
+                                         ctx=ctx, param=param)
+            break
+        return value
+
+    return check
+
+
+def _check_issues(issues) -> None:
+    """Raise the first plausibility issue of an option as a click error naming the option."""
+    if issues:
+        iss = issues[0]
+        raise click.BadParameter(str(iss.message).removeprefix("= "), param_hint=f"'{iss.path}'")
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -122,6 +159,76 @@ def scenario_show(name: str) -> None:
         click.echo(f"Limits: safe radius {sc.limits.safe_radius:g} m, alert radius {sc.limits.alert_radius} m")
 
 
+def _type_values(items: tuple[str, ...], option: str) -> dict[str, float]:
+    """``TYPE=NUMBER`` option values as a dict (click.BadParameter on a malformed one)."""
+    out: dict[str, float] = {}
+    for item in items:
+        name, sep, val = item.rpartition("=")
+        try:
+            num = float(val)
+        except ValueError:
+            num = math.nan
+        if not sep or not name.strip() or not (math.isfinite(num) and num > 0):
+            raise click.BadParameter(f"{item!r} must look like TYPE=NEWTONS with a positive number, e.g. chain=1.2e7",
+                                     param_hint=f"'{option}'")
+        out[name.strip()] = num
+    return out
+
+
+@scenario.command("import-moordyn")
+@click.argument("file", metavar="FILE", type=click.Path(dir_okay=False))
+@click.option("--vessel", required=True, metavar="SCENARIO",
+              help="Scenario (built-in name or TOML file) giving the vessel, turret position/mode/angle, thrusters, "
+                   "sea states, riser, sensors and limits.")
+@click.option("--out", required=True, type=click.Path(dir_okay=False), help="Scenario TOML file to write.")
+@click.option("--mbs", "mbs", multiple=True, metavar="TYPE=NEWTONS",
+              help="Breaking strength of MoorDyn line type TYPE [N] (repeatable; required for every line type used: "
+                   "MoorDyn files carry none).")
+@click.option("--mbs-cov", type=click.FloatRange(0.0, 1.0), default=0.05, show_default=True,
+              help="MBS_std as a fraction of MBS.")
+@click.option("--name", default=None, help="Scenario name (default: the stem of --out).")
+def scenario_import_moordyn(file: str, vessel: str, out: str, mbs: tuple[str, ...], mbs_cov: float,
+                            name: str | None) -> None:
+    """Build a scenario from MoorDyn v2 input FILE and a vessel scenario.
+
+    From FILE: line types, lines, anchors, fairleads, water depth, water density and gravity.
+    From --vessel: everything else. Fairleads become turret angles and radii about the vessel's
+    centre of turret. Conventions: docs/moordyn.md.
+    """
+    from .config.moordyn import import_moordyn
+
+    res = import_moordyn(file, vessel, mbs=_type_values(mbs, "--mbs"), mbs_cov=mbs_cov,
+                         name=name or Path(out).stem)
+    atomic_write_text(out, res.toml)
+    sc = res.scenario
+    click.echo(f"wrote {out}: scenario {sc.name}, {len(sc.lines)} lines, {len(sc.line_types)} line types, depth "
+               f"{sc.environment.water_depth:g} m, fairleads at radius {sc.turret.fairlead_radius:g} m and depth "
+               f"{sc.turret.fairlead_depth:g} m (mooring from {Path(file).name}, the rest from {vessel})")
+    for note in res.notes:
+        click.echo(f"  note: {note}")
+
+
+@scenario.command("export-moordyn")
+@click.argument("scenario_name", metavar="SCENARIO")
+@click.option("--out", required=True, type=click.Path(dir_okay=False), help="MoorDyn v2 input file to write.")
+@click.option("--segments", type=click.IntRange(2, 1000), default=None,
+              help="Segments of every line (default: the scenario's).")
+def scenario_export_moordyn(scenario_name: str, out: str, segments: int | None) -> None:
+    """Write the mooring of SCENARIO as a MoorDyn v2 input file.
+
+    One coupled body at the centre of turret carries the fairleads; anchors are fixed points.
+    Conventions (frames, diameter, drag, damping, seabed, time step): docs/moordyn.md.
+    """
+    from .config.moordyn import export_moordyn
+
+    sc = _load(scenario_name)
+    info = export_moordyn(sc, out, segments=segments)
+    click.echo(f"wrote {out}: {info.n_lines} lines of {sc.name}; dtM {info.dtM:g} s ({info.scheme}), "
+               f"kBot {info.kBot:.4g} Pa/m, cBot {info.cBot:.4g} Pa s/m")
+    for note in info.notes:
+        click.echo(f"  note: {note}")
+
+
 # ------------------------------------------------------------------------------------------
 # tapm lines
 # ------------------------------------------------------------------------------------------
@@ -139,7 +246,7 @@ def _parse_floats(text: str, what: str) -> np.ndarray:
 
 @cli.command()
 @click.argument("scenario_name", metavar="SCENARIO", default="fpso")
-@click.option("--out", type=click.Path(dir_okay=False), default=None,
+@click.option("--out", type=click.Path(dir_okay=False), default=None, callback=_out_path("file"),
               help="CSV of line characteristics; offsets and stiffness go beside it (*_offsets.csv, *_stiffness.csv).")
 @click.option("--range", "half_range", type=float, default=None,
               help="Half range of anchor distance / offset [m] (default: 10 % of water depth).")
@@ -158,9 +265,15 @@ def lines(scenario_name: str, out: str | None, half_range: float | None, points:
 
     sc = _load(scenario_name)
     dirs_deg = _parse_floats(directions, "--directions")
+    if np.any(np.abs(dirs_deg) > 360.0):
+        raise click.BadParameter(f"--directions = {directions!r}: each direction must be within [-360, 360] deg")
     half = 0.1 * sc.environment.water_depth if half_range is None else half_range
     if not (math.isfinite(half) and half > 0):
         raise click.BadParameter(f"--range = {half_range} must be a positive number of metres")
+    longest = max(ln.length for ln in sc.lines)
+    if half > longest:
+        raise click.BadParameter(f"--range = {half:g} m must be at most the longest line's length, {longest:g} m "
+                                 "(an offset beyond it tears every line)")
     model = MooringModel.from_scenario(sc)
     chars = line_characteristics(model, half_range=half, n_points=points)
     offs = np.linspace(0.0, half, points)
@@ -231,7 +344,7 @@ def plant() -> None:
 @click.option("--dt-out", type=float, default=1.0, show_default=True, help="Output interval [s].")
 @click.option("--sea-state", "sea_state", default=None,
               help="Sea state whose current profile acts on the lines (default: still water).")
-@click.option("--out", type=click.Path(dir_okay=False), default=None,
+@click.option("--out", type=click.Path(dir_okay=False), default=None, callback=_out_path("file"),
               help="CSV file with columns t, x, y, psi, T1..Tn (s, m, m, rad, N).")
 def plant_forced_motion(scenario_name: str, dof: str, amplitude: float, period: float, duration: float,
                         segments: int | None, dt_out: float, sea_state: str | None, out: str | None) -> None:
@@ -247,7 +360,25 @@ def plant_forced_motion(scenario_name: str, dof: str, amplitude: float, period: 
     for name, val in (("--amplitude", amplitude), ("--period", period), ("--duration", duration), ("--dt-out", dt_out)):
         if not (math.isfinite(val) and val > 0):
             raise click.BadParameter(f"{name} = {val} must be a positive number")
+    if period < 1.0:
+        raise click.BadParameter(f"--period = {period:g} s must be >= 1 s (vessel motions are slower; the FEM does "
+                                 "not resolve faster ones)")
+    if dt_out > duration:
+        raise click.BadParameter(f"--dt-out = {dt_out:g} s must not exceed --duration = {duration:g} s")
     sc = _load(scenario_name)
+    if dof == "yaw" and amplitude > 180.0:
+        raise click.BadParameter(f"--amplitude = {amplitude:g} deg must be at most 180 deg for yaw")
+    if dof != "yaw":
+        longest = max(ln.length for ln in sc.lines)
+        if amplitude > longest:
+            raise click.BadParameter(f"--amplitude = {amplitude:g} m must be at most the longest line's length, "
+                                     f"{longest:g} m (a larger motion tears every line)")
+        if 2 * math.pi * amplitude / period > 10.0:
+            raise click.BadParameter(f"--amplitude = {amplitude:g} m at --period = {period:g} s moves the vessel at "
+                                     f"{2 * math.pi * amplitude / period:.3g} m/s, above 10 m/s (20 knots)")
+    _check_issues(fem_size_issues(sc, segments, where="--segments"))
+    _check_issues(log_size_issues(sc, duration, dt_out, where="--duration", dt_name="--dt-out",
+                                  channels=4 + len(sc.lines)))
     amp = math.radians(amplitude) if dof == "yaw" else amplitude
     res = forced_motion(sc, dof=dof, amplitude=amp, period=period, duration=duration, segments=segments,
                         dt_out=dt_out, sea_state=sea_state)
@@ -288,11 +419,14 @@ def plant_forced_motion(scenario_name: str, dof: str, amplitude: float, period: 
 @click.option("--controller", type=click.Choice(["pid", "mpc", "lmpc"]), default="pid", show_default=True,
               help="PID modes, nonlinear MPC, or linear MPC (OSQP).")
 @click.option("--duration", type=float, default=3600.0, show_default=True, help="Simulated time [s].")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), required=True, help="Run directory to write.")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), required=True,
+              callback=_out_path("dir", "run directory"), help="Run directory to write.")
 @click.option("--sea-state", default=None, help="Sea state id (default: the scenario's first), or 'none'.")
-@click.option("--seed", type=int, default=0, show_default=True, help="Seed of waves, wind and sensor noise.")
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
+              help="Seed of waves, wind and sensor noise (a whole number >= 0).")
 @click.option("--segments", type=click.IntRange(2, 1000), default=None, help="FEM segments per line.")
-@click.option("--dt-control", type=float, default=1.0, show_default=True, help="Control/allocation period [s].")
+@click.option("--dt-control", type=float, default=1.0, show_default=True,
+              help="Control/allocation period [s], >= 0.01; the run is logged every control step, at least 1 s apart.")
 @click.option("--setpoint", type=click.Choice(["fixed", "chasing"]), default="fixed", show_default=True,
               help="Fixed setpoint (turret at its field-zero-point position), or setpoint chasing (survey eq. 38).")
 @click.option("--heading", type=click.Choice(["chasing", "fixed"]), default="chasing", show_default=True,
@@ -318,6 +452,10 @@ def simulate(scenario_name: str, controller: str, duration: float, out_dir: str,
 
     if not (math.isfinite(duration) and duration > 0):
         raise click.BadParameter(f"--duration = {duration} must be a positive number of seconds")
+    if not (math.isfinite(dt_control) and 0.01 <= dt_control <= duration):
+        raise click.BadParameter(f"--dt-control = {dt_control:g} s must be between 0.01 s (100 Hz, faster than any "
+                                 f"position-control loop) and --duration = {duration:g} s")
+    dt_log = dt_control * max(1, math.ceil(1.0 / dt_control - 1e-9))  # every control step, >= 1 s apart
     spec: dict = {"type": controller}
     for opt in options:
         if "=" not in opt:
@@ -325,12 +463,18 @@ def simulate(scenario_name: str, controller: str, duration: float, out_dir: str,
         k, v = opt.split("=", 1)
         spec[k.strip()] = _parse_value(v.strip())
     sc = _load(scenario_name)
+    if sea_state is not None and sea_state != "none" and sea_state not in [s.id for s in sc.sea_states]:
+        raise click.BadParameter(f"{sea_state!r} is not a sea state of scenario {sc.name!r}; its sea states: "
+                                 f"{', '.join(s.id for s in sc.sea_states) or 'none'} (or 'none')",
+                                 param_hint="'--sea-state'")
+    _check_issues(fem_size_issues(sc, segments, where="--segments"))
+    _check_issues(log_size_issues(sc, duration, dt_log, where="--duration", dt_name="every control step, >= 1 s apart"))
     system = System.from_scenario(sc)  # built once: controller, runner and estimator share it
     ctrl = build_controller(system, spec, where="--option")
     w0 = time.perf_counter()
     plant = Plant(system, sea_state=sea_state, seed=seed, segments=segments)
-    settings = ClosedLoopSettings(duration=duration, dt_control=dt_control, true_state=true_state, setpoint=setpoint,
-                                  heading=heading)
+    settings = ClosedLoopSettings(duration=duration, dt_control=dt_control, dt_log=dt_log, true_state=true_state,
+                                  setpoint=setpoint, heading=heading)
     res = run_closed_loop(plant, ctrl, settings, system=system, meta={"controller_spec": spec, "seed": seed})
     out = Path(out_dir)
     res.save(out / "result.npz")
@@ -375,7 +519,8 @@ def _parse_value(text: str):
 
 @cli.command()
 @click.argument("scenario_name", metavar="SCENARIO")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), required=True, help="Directory for gains.csv/.md/.json.")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), required=True, callback=_out_path("dir"),
+              help="Directory for gains.csv/.md/.json.")
 @click.option("--sea-states", default=None, help="Sea-state ids, comma-separated (default: all of the scenario's).")
 @click.option("--broken", default="each", show_default=True,
               help="'each' (intact plus every single line broken), 'none' (intact only), or line ids, comma-separated.")
@@ -392,12 +537,23 @@ def gains(scenario_name: str, out_dir: str, sea_states: str | None, broken: str,
 
     sc = _load(scenario_name)
     ss = None if sea_states is None else [x.strip() for x in sea_states.split(",") if x.strip()]
+    if ss is not None:
+        known = [s.id for s in sc.sea_states]
+        unknown = [x for x in ss if x not in known]
+        if not ss or unknown:
+            what = (f"names sea states scenario {sc.name!r} lacks: {', '.join(unknown)}" if unknown
+                    else "names no sea state")
+            raise click.BadParameter(f"{sea_states!r} {what}; its sea states: {', '.join(known) or 'none'}",
+                                     param_hint="'--sea-states'")
     if broken == "each":
         br = "each"
     elif broken == "none":
         br = ()
     else:
         br = [x.strip() for x in broken.split(",") if x.strip()]
+        if not br:
+            raise click.BadParameter(f"{broken!r} names no line: give 'each', 'none' or line ids",
+                                     param_hint="'--broken'")
     hs: list = []
     for h in headings.split(","):
         h = h.strip()
@@ -405,9 +561,14 @@ def gains(scenario_name: str, out_dir: str, sea_states: str | None, broken: str,
             hs.append("weathervane")
         elif h:
             try:
-                hs.append(math.radians(float(h)))
+                deg = float(h)
             except ValueError:
                 raise click.BadParameter(f"--headings entry {h!r} is neither a number of degrees nor 'weathervane'") from None
+            if not (math.isfinite(deg) and abs(deg) <= 360.0):
+                raise click.BadParameter(f"--headings entry {h!r} must be a finite heading in [-360, 360] deg")
+            hs.append(math.radians(deg))
+    if not hs:
+        raise click.BadParameter(f"--headings = {headings!r} names no heading")
     table = gain_table(sc, sea_states=ss, broken=br, headings=tuple(hs))
     paths = write_gain_tables(table, out_dir)
     n = len(table.rows)
@@ -424,12 +585,16 @@ def gains(scenario_name: str, out_dir: str, sea_states: str | None, broken: str,
 
 @cli.command()
 @click.argument("study_dir", metavar="DIR", type=click.Path())
-@click.option("--html", "out_html", type=click.Path(dir_okay=False), default=None, help="HTML file (default DIR/report.html).")
-@click.option("--md", "out_md", type=click.Path(dir_okay=False), default=None, help="Markdown file (default DIR/report.md).")
+@click.option("--html", "out_html", type=click.Path(dir_okay=False), default=None, callback=_out_path("file"),
+              help="HTML file (default DIR/report.html).")
+@click.option("--md", "out_md", type=click.Path(dir_okay=False), default=None, callback=_out_path("file"),
+              help="Markdown file (default DIR/report.md).")
 def report(study_dir: str, out_html: str | None, out_md: str | None) -> None:
     """Write the HTML and Markdown report of the study results in DIR (saved results only)."""
     from .report import write_report
 
+    if not study_dir.strip():
+        raise click.BadParameter(f"{study_dir!r} is empty: give the study directory", param_hint="DIR")
     html, md = write_report(study_dir, out_html=out_html, out_md=out_md)
     click.echo(f"wrote {html}")
     click.echo(f"wrote {md}")
@@ -464,7 +629,8 @@ def _exit_if_failed(summary) -> None:
 
 @study.command("run")
 @click.argument("study_file", metavar="STUDY.toml", type=click.Path(dir_okay=False))
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), required=True, help="Study output directory.")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), required=True,
+              callback=_out_path("dir", "study directory"), help="Study output directory.")
 @_workers_option
 @click.option("--scheduler", default=None, help="Dask distributed scheduler address (tcp://host:port); needs the 'dask' extra.")
 @click.option("--no-progress", is_flag=True, help="No progress bar.")
@@ -477,6 +643,8 @@ def study_run(study_file: str, out_dir: str, workers: int | None, scheduler: str
     """
     from .studies.study import load_study, run_study
 
+    if not study_file.strip():
+        raise click.BadParameter(f"{study_file!r} is empty: give the study file", param_hint="STUDY.toml")
     st = load_study(study_file)
     summary = run_study(st, out_dir, workers=workers, scheduler=scheduler, progress=not no_progress)
     click.echo(str(summary))
@@ -508,6 +676,7 @@ def _compare_sea_state(sc, requested: str | None) -> tuple[str, str | None]:
 @cli.command()
 @click.argument("scenario_name", metavar="[SCENARIO]", default="fpso")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default="tapm_compare", show_default=True,
+              callback=_out_path("dir", "study directory"),
               help="Output directory (results, KPI tables, report).")
 @_workers_option
 @click.option("--duration", type=float, default=None, help="Override the study's duration [s].")
@@ -535,6 +704,9 @@ def compare(scenario_name: str, out_dir: str, workers: int | None, duration: flo
             raise click.BadParameter(f"--duration = {duration} must be a positive number of seconds")
         data["study"]["duration"] = duration
     sc = _load(scenario_name)
+    if duration is not None:
+        _check_issues(log_size_issues(sc, duration, float(data["study"].get("dt_log", 1.0)), where="--duration",
+                                      dt_name="the study's dt_log"))
     sid, note = _compare_sea_state(sc, sea_state)
     if note:
         click.echo(note)
@@ -573,12 +745,33 @@ def _print_headlines(out: Path, ids: list[str]) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``tapm`` console script."""
+    """Entry point of the ``tapm`` console script.
+
+    Warnings raised on the way (e.g. numpy's on non-finite arithmetic) are held back: a failed
+    command ends with its one-line error only (``--verbose`` shows them too); a command that
+    succeeds prints each as one ``warning: ...`` line after its output.
+    """
+    with warnings.catch_warnings(record=True) as caught:
+        code = _main(argv)
+    if code == 0 or _State.verbose:
+        for w in caught:
+            click.echo(f"warning: {w.category.__name__}: {w.message} ({Path(w.filename).name}:{w.lineno})", err=True)
+    return code
+
+
+def _main(argv: list[str] | None) -> int:
     try:
         cli.main(args=argv, prog_name="tapm", standalone_mode=False)
     except click.exceptions.Abort:
         click.echo("aborted", err=True)
         return 130
+    except click.exceptions.NoArgsIsHelpError as exc:
+        exc.show()
+        return exc.exit_code
+    except click.UsageError as exc:  # one line naming the option and the value; --help has the usage
+        where = f" (see '{exc.ctx.command_path} --help')" if exc.ctx is not None else ""
+        click.echo(f"error: {exc.format_message()}{where}", err=True)
+        return exc.exit_code
     except click.ClickException as exc:
         exc.show()
         return exc.exit_code
@@ -592,6 +785,12 @@ def main(argv: list[str] | None = None) -> int:
         if _State.verbose:
             traceback.print_exc()
         click.echo(f"error: {exc}", err=True)
+        return EXIT_USER_ERROR
+    except MemoryError as exc:
+        if _State.verbose:
+            traceback.print_exc()
+        click.echo(f"error: out of memory ({exc or 'MemoryError'}): ask for a shorter run or fewer FEM segments",
+                   err=True)
         return EXIT_USER_ERROR
     except SystemExit as exc:
         return int(exc.code or 0)

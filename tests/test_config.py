@@ -289,11 +289,23 @@ def test_non_positive_vessel_size_and_depth():
     assert "= 0 m must be > 0" in issue_at(issues, "environment.water_depth").message
 
 
-def test_anchor_above_the_seabed():
+def test_anchor_above_the_seabed_is_a_raised_lower_end():
     data = base()
     data["lines"][0]["anchor"] = [2000.0, 0.0, 900.0]
+    sc = scenario_from_dict(data)  # valid: no issue
+    assert sc.line_arrays["h_A"][0] == pytest.approx(sc.environment.water_depth - 900.0)
+    assert sc.anchors[0, 2] == pytest.approx(900.0) and sc.line_arrays["h_A"][1] == 0.0
+
+
+def test_anchor_below_the_seabed_or_above_the_fairleads():
+    data = base()
+    depth = data["environment"]["water_depth"]
+    data["lines"][0]["anchor"] = [2000.0, 0.0, depth + 100.0]
     message = issue_at(issues_of(data), "lines[0].anchor[2]").message
-    assert "= 900 m" in message and "above the seabed" in message and "1000" in message
+    assert f"= {depth + 100:g} m" in message and "below the seabed" in message
+    data["lines"][0]["anchor"] = [2000.0, 0.0, data["turret"]["fairlead_depth"] - 1.0]
+    message = issue_at(issues_of(data), "lines[0].anchor[2]").message
+    assert "not below the fairleads" in message
 
 
 def test_anchor_with_wrong_number_of_components():

@@ -458,8 +458,8 @@ def test_resume_reruns_cases_of_another_code_version(tiny, tiny_run, tmp_path):
 
 def test_study_break_on_overload_reaches_every_case(tmp_path):
     study = _load_text(tmp_path, GOOD.replace("segments = 6", 'segments = 6\nbreak_on_overload = "sampled"', 1))
-    cases = expand_cases(study)
+    cases = study.cases
     assert cases and all(c.inputs["scenario"]["plant"]["break_on_overload"] == "sampled" for c in cases)
     assert scenario_from_dict(cases[0].inputs["scenario"]).plant.break_on_overload == "sampled"
-    default = expand_cases(_load_text(tmp_path, GOOD))
+    default = _load_text(tmp_path, GOOD).cases
     assert default[0].inputs["scenario"]["plant"]["break_on_overload"] == "mbs"

@@ -30,6 +30,8 @@ __all__ = [
     "scenario_from_dict",
     "scenario_to_dict",
     "validate",
+    "fem_size_issues",
+    "log_size_issues",
     "builtin_scenarios",
     "BUILTIN_DIR",
 ]
@@ -269,8 +271,386 @@ def _matrix_checks(M: np.ndarray, path: str, issues: list[ScenarioIssue], *, pd:
         issues.append(ScenarioIssue(path, f"must be positive semidefinite; smallest eigenvalue {eig.min():g}"))
 
 
+# Plausibility bounds (docs/scenarios.md, "Plausibility checks", gives the reason for each).
+
+#: Strain at MBS, MBS/EA, of mooring materials: chain about 1.5 %, steel wire about 1 %, polyester
+#: and HMPE ropes up to about 20 %; the bounds are generous on both sides.
+STRAIN_AT_MBS_RANGE = (1.0e-4, 0.5)
+#: Axial wave speed sqrt(EA / mass_per_length) [m/s]: steel about 5000, carbon fibre about 11 000.
+MAX_AXIAL_WAVE_SPEED = 2.0e4
+#: mass_per_length over the cross-section pi d^2 / 4 of the hydrodynamic diameter [kg/m^3]: fibre
+#: ropes about 600-1000, chain on its hydrodynamic diameter about 8000, on its bar diameter 25 000.
+EFFECTIVE_DENSITY_RANGE = (100.0, 5.0e4)
+#: Surge and sway mass (with added mass) over the mass of water in the box length_pp x breadth x
+#: draught (ships: block coefficient 0.5-0.9, added mass 0.05-1 of the mass), and the yaw radius of
+#: gyration sqrt(M33/M11) over length_pp (ships: about 0.25-0.35).
+VESSEL_MASS_RANGE = (0.05, 5.0)
+GYRATION_RANGE = (0.05, 1.0)
+#: Largest linear damping over mass, D_ii / M_ii [1/s] (hulls: decay times M/D of 10-1000 s), and
+#: quadratic damping over mass, d_i / M_ii [1/m, 1/rad].
+MAX_DAMPING_RATE = 1.0
+MAX_QUADRATIC_DAMPING_RATE = 100.0
+#: Largest mean height of the wind area above water [m]: wind_area_frontal / breadth and
+#: wind_area_lateral / length_pp.
+MAX_WINDAGE_HEIGHT = 200.0
+#: Largest coefficient of variation MBS_std / MBS (measured: 0.05-0.15).
+MAX_MBS_COV = 0.5
+#: A line (or winch max_length) longer than this many times (horizontal + vertical span) is a typo.
+MAX_LENGTH_FACTOR = 10.0
+#: A riser longer than this many times (horizontal offset + water depth) is a typo (lazy-wave
+#: risers are about 2 x the depth).
+MAX_RISER_LENGTH_FACTOR = 3.0
+#: Largest riser top tension over its submerged weight (submerged_weight x length).
+MAX_RISER_TENSION_FACTOR = 10.0
+#: Breaking limit of wave steepness H / L (Michell 1893), applied to Hs / (g Tp^2 / 2 pi).
+MAX_STEEPNESS = 1.0 / 7.0
+#: FEM nodes of all lines together, and node updates per simulated second (nodes / FEM step; the
+#: compiled kernel does about 3e7 a second on one core, so the bound is a few seconds of computing
+#: per simulated second; the built-in scenarios with their 20 segments need about 2e4).
+MAX_FEM_NODES = 100_000
+MAX_FEM_NODE_UPDATES = 1.0e8
+#: Largest in-memory log of a simulation [bytes]: rows (duration / dt_log) x channels x 8 bytes.
+MAX_LOG_BYTES = 2**30
+
+
+def _metres(x: float) -> str:
+    """A distance for messages: whole metres, or 3 digits when huge."""
+    return f"{x:.0f}" if abs(x) < 1e7 else f"{x:.3g}"
+
+
+def _scenario_lines_ok(sc: Scenario) -> bool:
+    ids = {t.id for t in sc.line_types}
+    return bool(sc.lines) and all(ln.type in ids for ln in sc.lines)
+
+
+def fem_size_issues(sc: Scenario, segments: int | None = None, *, where: str | None = None) -> list[ScenarioIssue]:
+    """Memory and cost of the FEM plant of ``sc``, before anything is allocated.
+
+    Parameters
+    ----------
+    sc : Scenario
+    segments : int, optional
+        Segments per line overriding the scenario's (e.g. ``--segments``).
+    where : str, optional
+        Path to name in the issue (default: ``lines[i].segments`` of the scenario, or ``segments``).
+
+    Returns
+    -------
+    list of ScenarioIssue
+        Empty when the segment count, the total node count (at most :data:`MAX_FEM_NODES`) and the
+        estimated node updates per simulated second (at most :data:`MAX_FEM_NODE_UPDATES`) are within
+        bounds. The FEM step is estimated as half the time an axial wave takes to cross the shortest
+        segment, ``0.5 (L/n) / sqrt(EA/m)`` (the plant's own stable step is about 0.7 of that).
+    """
+    from .schema import FEM_BYTES_PER_NODE, MAX_SEGMENTS, gib
+
+    if not _scenario_lines_ok(sc):
+        return []
+    n = [int(segments) if segments is not None else ln.segments for ln in sc.lines]
+
+    def path(i: int) -> str:
+        if where is not None:
+            return where
+        return f"lines[{i}].segments" if segments is None else "segments"
+
+    if segments is not None and not 2 <= segments <= MAX_SEGMENTS:
+        return [ScenarioIssue(path(0), f"= {segments} must be in [2, {MAX_SEGMENTS}] (the FEM arrays would take about "
+                                       f"{gib(len(n) * (segments + 1) * FEM_BYTES_PER_NODE)})")]
+    if any(not 2 <= k <= MAX_SEGMENTS for k in n):
+        return []  # reported by the field check
+    nodes = sum(k + 1 for k in n)
+    if nodes > MAX_FEM_NODES:
+        i = int(np.argmax(n))
+        return [ScenarioIssue(path(i), f"= {n[i]}: {len(n)} lines of up to {max(n)} segments make {nodes} FEM nodes "
+                                       f"(about {gib(nodes * FEM_BYTES_PER_NODE)}), above the limit {MAX_FEM_NODES}")]
+    steps = []
+    for i, ln in enumerate(sc.lines):
+        lt = sc.line_type(ln)
+        c = math.sqrt(lt.EA / lt.mass_per_length)
+        steps.append((0.5 * ln.length / n[i] / c, i, c))
+    dt, i, c = min(steps)
+    rate = nodes / dt if dt > 0 else math.inf
+    if not rate <= MAX_FEM_NODE_UPDATES:
+        seg = sc.lines[i].length / n[i]
+        return [ScenarioIssue(path(i), (
+            f"= {n[i]}: the FEM step would be about {dt:.3g} s (segments of {seg:.3g} m of line {sc.lines[i].id!r}, "
+            f"axial wave speed sqrt(EA/m) = {c:.3g} m/s), {rate:.3g} node updates per simulated second for "
+            f"{nodes} nodes, above the limit {MAX_FEM_NODE_UPDATES:g}: use fewer segments"))]
+    return []
+
+
+def log_channels(sc: Scenario) -> int:
+    """Columns of a closed-loop log of ``sc``: time, vessel state and loads, 3 per line, 3 per thruster."""
+    return 36 + 3 * (len(sc.lines) + len(sc.thrusters))
+
+
+def log_size_issues(sc: Scenario, duration: float, dt_log: float, *, where: str = "duration",
+                    dt_name: str = "dt_log", channels: int | None = None) -> list[ScenarioIssue]:
+    """The in-memory log of a run of ``duration`` logged every ``dt_log`` seconds must hold at least
+    two samples and fit in :data:`MAX_LOG_BYTES` (rows x channels x 8 bytes). ``where`` and
+    ``dt_name`` name the options or fields of the duration and the logging interval; ``channels``
+    defaults to :func:`log_channels`."""
+    from .schema import gib
+
+    if not (math.isfinite(duration) and math.isfinite(dt_log) and duration > 0 and dt_log > 0):
+        return []
+    if duration < dt_log * (1 - 1e-9):
+        return [ScenarioIssue(where, f"= {duration:g} s is shorter than the logging interval, {dt_log:g} s "
+                                     f"({dt_name}): the run would log a single sample")]
+    ch = log_channels(sc) if channels is None else channels
+    rows = duration / dt_log + 2
+    size = rows * ch * 8.0
+    if size <= MAX_LOG_BYTES:
+        return []
+    longest = (MAX_LOG_BYTES / (ch * 8.0) - 2) * dt_log
+    return [ScenarioIssue(where, f"= {duration:g} s logged every {dt_log:g} s ({dt_name}) makes {rows:.3g} rows of "
+                                 f"{ch} channels, about {gib(size)}, above {gib(MAX_LOG_BYTES)}: at most "
+                                 f"{longest:.4g} s at that interval")]
+
+
+def _field_issues(obj: Any, path: str, issues: list[ScenarioIssue]) -> None:
+    """Each field's own type and range check on a scenario built in code (``dataclasses.replace``):
+    finite numbers, the ``check=`` of :func:`schema.spec`, the values of a ``Literal``."""
+    hints = get_type_hints(type(obj))
+    for f in dataclasses.fields(obj):
+        v = getattr(obj, f.name)
+        fpath = f"{path}.{file_key(f)}" if path else file_key(f)
+        if v is None or (f.default is not dataclasses.MISSING and _same(v, f.default)):
+            continue
+        tp, _ = _unwrap_optional(hints[f.name])
+        if dataclasses.is_dataclass(v):
+            _field_issues(v, fpath, issues)
+            continue
+        if isinstance(v, tuple) and v and dataclasses.is_dataclass(v[0]):
+            for i, x in enumerate(v):
+                _field_issues(x, f"{fpath}[{i}]", issues)
+            continue
+        if get_origin(tp) is Literal:
+            if v not in get_args(tp):
+                issues.append(ScenarioIssue(fpath, f"= {_fmt(v)} is not one of {', '.join(map(repr, get_args(tp)))}"))
+            continue
+        unit, check = f.metadata.get("unit", ""), f.metadata.get("check")
+        for sub, x in _numbers(v, fpath):
+            if not math.isfinite(x):
+                issues.append(ScenarioIssue(sub, f"= {_fmt(x)} must be a finite number"))
+                continue
+            xf = math.degrees(x) if unit in ("deg", "deg/s") else x
+            msg = check(xf) if check is not None else None
+            if msg:
+                issues.append(ScenarioIssue(sub, f"= {_fmt(xf)} {msg}"))
+
+
+def _same(a: Any, b: Any) -> bool:
+    if isinstance(a, tuple) and isinstance(b, tuple):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
+    if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
+        return True
+    return type(a) is type(b) and a == b
+
+
+def _numbers(v: Any, path: str):
+    if isinstance(v, tuple):
+        for i, x in enumerate(v):
+            yield from _numbers(x, f"{path}[{i}]")
+    elif _is_number(v) or isinstance(v, (np.floating, np.integer)):
+        yield path, v.item() if isinstance(v, np.generic) else v
+
+
+def _plausibility(sc: Scenario, fl_x: np.ndarray, fl_y: np.ndarray, issues: list[ScenarioIssue]) -> None:
+    """Bounds a valid-looking scenario must also keep to be physical (docs/scenarios.md,
+    "Plausibility checks")."""
+    env, v = sc.environment, sc.vessel
+    g = env.gravity
+    if v.draught >= env.water_depth:
+        issues.append(ScenarioIssue("vessel.draught", f"= {v.draught:g} m is not less than the water depth "
+                                                      f"{env.water_depth:g} m: the vessel would be aground"))
+    box = env.water_density * v.length_pp * v.breadth * v.draught  # mass of the displaced box L B T
+    M = v.M
+    mass_ok = [not any(i.path.startswith("vessel.mass_matrix") for i in issues)] * 3  # PD, symmetric
+    lo, hi = VESSEL_MASS_RANGE
+    for k, dof in ((0, "surge"), (1, "sway")):
+        if mass_ok[k] and not lo * box <= M[k, k] <= hi * box:
+            mass_ok[k] = False
+            issues.append(ScenarioIssue(f"vessel.mass_matrix[{k}][{k}]", (
+                f"= {M[k, k]:g} kg is {M[k, k] / box:.3g} x the mass of water in the box length_pp x breadth x "
+                f"draught ({box:.4g} kg); a hull's {dof} mass with its added mass is {lo:g}-{hi:g} x that")))
+    if mass_ok[0] and mass_ok[2]:
+        rg = math.sqrt(M[2, 2] / M[0, 0]) / v.length_pp
+        lo, hi = GYRATION_RANGE
+        if not lo <= rg <= hi:
+            mass_ok[2] = False
+            issues.append(ScenarioIssue("vessel.mass_matrix[2][2]", (
+                f"= {M[2, 2]:g} kg m^2 gives a yaw radius of gyration sqrt(M33/M11) of {rg:.3g} x length_pp, "
+                f"outside [{lo:g}, {hi:g}] (ships: about 0.25-0.35)")))
+    for k, dof in enumerate(("surge", "sway", "yaw")):
+        if not mass_ok[k]:
+            continue
+        if v.D_lin[k, k] > MAX_DAMPING_RATE * M[k, k]:
+            issues.append(ScenarioIssue(f"vessel.linear_damping[{k}][{k}]", (
+                f"= {v.D_lin[k, k]:g} would stop a {dof} motion within M/D = {M[k, k] / v.D_lin[k, k]:.3g} s, under "
+                f"{1 / MAX_DAMPING_RATE:g} s (hulls: 10-1000 s): check the units")))
+        if v.quadratic_damping[k] > MAX_QUADRATIC_DAMPING_RATE * M[k, k]:
+            issues.append(ScenarioIssue(f"vessel.quadratic_damping[{k}]", (
+                f"= {v.quadratic_damping[k]:g} would stop a {dof} motion within M/d = "
+                f"{M[k, k] / v.quadratic_damping[k]:.3g} {'rad' if k == 2 else 'm'}, under "
+                f"{1 / MAX_QUADRATIC_DAMPING_RATE:g}: check the units")))
+    for key, area, side, name in (("wind_area_frontal", v.wind_area_frontal, v.breadth, "breadth"),
+                                  ("wind_area_lateral", v.wind_area_lateral, v.length_pp, "length_pp")):
+        if area > MAX_WINDAGE_HEIGHT * side:
+            issues.append(ScenarioIssue(f"vessel.{key}", (
+                f"= {area:g} m^2 is over {MAX_WINDAGE_HEIGHT:g} m x {name} ({side:g} m): a mean height above water "
+                "taller than any superstructure")))
+    x, y, z = v.reference_point  # NaN: not given
+    bad_x = abs(x - v.length_pp / 2) > v.length_pp  # False for NaN
+    bad_z = math.isfinite(z) and not -v.draught <= z <= MAX_WINDAGE_HEIGHT
+    if bad_x or abs(y) > v.breadth or bad_z:
+        issues.append(ScenarioIssue("vessel.reference_point", (
+            f"= ({x:g}, {y:g}, {z:g}) m puts CO outside the hull: x from the aft perpendicular within "
+            f"[{-v.length_pp / 2:g}, {1.5 * v.length_pp:g}] m, |y| <= breadth {v.breadth:g} m, z above the keel within "
+            f"[{-v.draught:g}, {MAX_WINDAGE_HEIGHT:g}] m")))
+    longest_line = max((ln.length for ln in sc.lines), default=math.inf)
+    for key in ("safe_radius", "alert_radius"):
+        r = getattr(sc.limits, key)
+        if r is not None and r > longest_line:
+            issues.append(ScenarioIssue(f"limits.{key}", f"= {r:g} m is larger than the longest line "
+                                                         f"({longest_line:g} m): the vessel cannot get there moored"))
+
+    def in_hull(path: str, x: float, y: float, what: str) -> None:
+        if abs(x) > v.length_pp or abs(y) > v.breadth:
+            issues.append(ScenarioIssue(path, f"= ({x:g}, {y:g}) m puts the {what} outside the hull: |x| must be <= "
+                                              f"length_pp = {v.length_pp:g} m and |y| <= breadth = {v.breadth:g} m"))
+
+    tur = sc.turret
+    in_hull("turret.position", *tur.position, "turret")
+    if tur.fairlead_radius > v.breadth:
+        issues.append(ScenarioIssue("turret.fairlead_radius", f"= {tur.fairlead_radius:g} m is wider than the hull "
+                                                              f"(breadth {v.breadth:g} m)"))
+    for i, th in enumerate(sc.thrusters):
+        in_hull(f"thrusters[{i}].position", *th.position, "thruster")
+
+    bad_types: set[str] = set()
+    for i, t in enumerate(sc.line_types):
+        p = f"line_types[{i}]"
+        n0 = len(issues)
+        strain = t.MBS / t.EA
+        lo, hi = STRAIN_AT_MBS_RANGE
+        c = math.sqrt(t.EA / t.mass_per_length)
+        area = math.pi * t.diameter * t.diameter / 4.0
+        rho_eff = t.mass_per_length / area if area > 0 else math.inf
+        if not lo <= strain <= hi:
+            issues.append(ScenarioIssue(f"{p}.EA", (
+                f"= {t.EA:g} N with MBS = {t.MBS:g} N gives a strain at MBS (MBS/EA) of {strain:.3g}, outside "
+                f"[{lo:g}, {hi:g}] (chain breaks at about 1.5 %, wire 1 %, polyester and HMPE up to 20 %): "
+                "check the units of EA and MBS")))
+        elif c > MAX_AXIAL_WAVE_SPEED:
+            issues.append(ScenarioIssue(f"{p}.EA", (
+                f"= {t.EA:g} N with mass_per_length = {t.mass_per_length:g} kg/m gives an axial wave speed "
+                f"sqrt(EA/m) = {c:.3g} m/s, above {MAX_AXIAL_WAVE_SPEED:g} m/s (steel about 5000, carbon fibre "
+                "11000): check the units of EA and mass_per_length")))
+        lo, hi = EFFECTIVE_DENSITY_RANGE
+        if not lo <= rho_eff <= hi:
+            issues.append(ScenarioIssue(f"{p}.mass_per_length", (
+                f"= {t.mass_per_length:g} kg/m on a diameter of {t.diameter:g} m is {rho_eff:.3g} kg/m^3 of its "
+                f"cross-section pi d^2/4, outside [{lo:g}, {hi:g}] kg/m^3 (ropes about 600-1000, chain up to "
+                "25000): check the units of mass_per_length and diameter")))
+        if t.submerged_weight is not None and t.submerged_weight > t.mass_per_length * g:
+            issues.append(ScenarioIssue(f"{p}.submerged_weight", (
+                f"= {t.submerged_weight:g} N/m exceeds the weight in air, mass_per_length x g = "
+                f"{t.mass_per_length * g:.4g} N/m (buoyancy only reduces it)")))
+        if t.MBS_std > MAX_MBS_COV * t.MBS:
+            issues.append(ScenarioIssue(f"{p}.MBS_std", (
+                f"= {t.MBS_std:g} N is more than {MAX_MBS_COV:g} x MBS = {MAX_MBS_COV * t.MBS:g} N (measured "
+                "coefficients of variation are 0.05-0.15)")))
+        if t.max_strain is not None and t.max_strain > 0 and t.max_strain > strain * (1 + 1e-9):
+            issues.append(ScenarioIssue(f"{p}.max_strain", (
+                f"= {t.max_strain:g} exceeds the strain at MBS, MBS/EA = {strain:.4g}: the line breaks first")))
+        if len(issues) > n0:
+            bad_types.add(t.id)
+
+    types_ok = {t.id: t for t in sc.line_types}
+    for i, ln in enumerate(sc.lines):
+        p = f"lines[{i}]"
+        lt = types_ok.get(ln.type)
+        if lt is None or len(ln.anchor) not in (2, 3):
+            continue
+        r = tur.fairlead_radius if ln.fairlead_radius is None else ln.fairlead_radius
+        if ln.fairlead_radius is not None and r > v.breadth:
+            issues.append(ScenarioIssue(f"{p}.fairlead_radius", f"= {r:g} m is wider than the hull "
+                                                                f"(breadth {v.breadth:g} m)"))
+        horiz = math.hypot(ln.anchor[0] - float(fl_x[i]), ln.anchor[1] - float(fl_y[i]))
+        z_anchor = ln.anchor[2] if len(ln.anchor) == 3 else env.water_depth
+        vert = abs(z_anchor - tur.fairlead_depth)
+        longest = MAX_LENGTH_FACTOR * (horiz + vert)
+        for key, val in (("length", ln.length), ("max_length", ln.max_length)):
+            if val is not None and val > longest:
+                issues.append(ScenarioIssue(f"{p}.{key}", (
+                    f"= {val:g} m is over {MAX_LENGTH_FACTOR:g} x (horizontal span {_metres(horiz)} m + vertical span "
+                    f"{_metres(vert)} m) = {_metres(longest)} m: far longer than the line can need")))
+        if ln.min_length is not None and ln.min_length * (1.0 + lt.strain_limit) < math.hypot(horiz, vert):
+            issues.append(ScenarioIssue(f"{p}.min_length", (
+                f"= {ln.min_length:g} m cannot reach the anchor from the fairlead (distance "
+                f"{_metres(math.hypot(horiz, vert))} m) within the line type's strain limit "
+                f"{100 * lt.strain_limit:.3g} %: hauling in that far would break the line")))
+
+    if not bad_types:
+        issues.extend(fem_size_issues(sc))
+
+    for i, th in enumerate(sc.thrusters):
+        p = f"thrusters[{i}]"
+        if th.kind != "azimuth" and th.max_reverse_thrust > th.max_thrust:
+            issues.append(ScenarioIssue(f"{p}.max_reverse_thrust", (
+                f"= {th.max_reverse_thrust:g} N exceeds max_thrust = {th.max_thrust:g} N: a propeller pushes no "
+                "harder astern than ahead (a symmetric tunnel thruster equally); if the other direction is the "
+                "stronger, turn angle_deg by 180 and swap the two")))
+        for k, (a, b) in enumerate(th.forbidden_sectors):
+            width = math.degrees(b - a)
+            if abs(width) >= 360.0 * (1 - 1e-12):
+                issues.append(ScenarioIssue(f"{p}.forbidden_sectors_deg[{k}]", (
+                    f"= ({math.degrees(a):g}, {math.degrees(b):g}) spans a full turn: it forbids every direction")))
+            elif a == b:
+                issues.append(ScenarioIssue(f"{p}.forbidden_sectors_deg[{k}]", (
+                    f"= ({math.degrees(a):g}, {math.degrees(b):g}) is empty (from = to): remove it or give its end")))
+
+    for i, ss in enumerate(sc.sea_states):
+        steep = ss.Hs / (g * ss.Tp ** 2 / (2.0 * math.pi))
+        if steep > MAX_STEEPNESS:
+            issues.append(ScenarioIssue(f"sea_states[{i}].Hs", (
+                f"= {ss.Hs:g} m with Tp = {ss.Tp:g} s is steeper than waves can be: Hs / (g Tp^2 / 2 pi) = "
+                f"{steep:.3g} > 1/7, the breaking limit; at this Tp Hs must be <= "
+                f"{MAX_STEEPNESS * g * ss.Tp ** 2 / (2.0 * math.pi):.3g} m")))
+
+    rs = sc.riser
+    if rs is not None:
+        in_hull("riser.hangoff", *rs.hangoff, "riser hang-off")
+        horiz = math.hypot(rs.wellhead[0] - rs.hangoff[0], rs.wellhead[1] - rs.hangoff[1])
+        top = max(tur.fairlead_depth, v.draught, 0.0)  # the lowest the hang-off can be
+        shortest = math.hypot(horiz, env.water_depth - top)
+        longest = MAX_RISER_LENGTH_FACTOR * (horiz + env.water_depth)
+        if rs.length * 1.01 < shortest:
+            issues.append(ScenarioIssue("riser.length", (
+                f"= {rs.length:g} m cannot reach the wellhead from its hang-off: the straight distance is at least "
+                f"{shortest:.0f} m (horizontal {horiz:.0f} m; water depth {env.water_depth:g} m less the "
+                f"hang-off depth, at most {top:g} m)")))
+        elif rs.length > longest:
+            issues.append(ScenarioIssue("riser.length", (
+                f"= {rs.length:g} m is over {MAX_RISER_LENGTH_FACTOR:g} x (horizontal offset {horiz:.0f} m + water "
+                f"depth {env.water_depth:g} m) = {longest:.0f} m")))
+        weight = rs.submerged_weight * (env.water_depth - top)
+        if rs.top_tension > MAX_RISER_TENSION_FACTOR * rs.submerged_weight * rs.length:
+            issues.append(ScenarioIssue("riser.top_tension", (
+                f"= {rs.top_tension:g} N is over {MAX_RISER_TENSION_FACTOR:g} x the riser's submerged weight "
+                f"({rs.submerged_weight * rs.length:.4g} N; tensioners pull about 1.2-2 x): check the units")))
+        if rs.top_tension < weight:
+            issues.append(ScenarioIssue("riser.top_tension", (
+                f"= {rs.top_tension:g} N cannot hold up the riser: its submerged weight over the water column is at "
+                f"least {weight:.4g} N (submerged_weight {rs.submerged_weight:g} N/m x {env.water_depth - top:g} m)")))
+
+
 def validate(sc: Scenario) -> list[ScenarioIssue]:
     """Physical and cross-field checks of a parsed scenario.
+
+    A scenario built or changed in code (``dataclasses.replace``) is first checked field by field
+    (finite numbers, each field's range) as the loader checks a file.
 
     Returns
     -------
@@ -278,11 +658,14 @@ def validate(sc: Scenario) -> list[ScenarioIssue]:
         Empty when the scenario is valid.
     """
     issues: list[ScenarioIssue] = []
+    _field_issues(sc, "", issues)
+    if issues:
+        return issues
     env = sc.environment
     v = sc.vessel
     _matrix_checks(v.M, "vessel.mass_matrix", issues, pd=True)
     if v.added_mass is not None:
-        _matrix_checks(v.M_A, "vessel.added_mass", issues, pd=False)
+        _matrix_checks(v.M_A, "vessel.added_mass", issues, pd=False, psd=True)  # added mass stores energy: >= 0
         if not issues:
             eig = np.linalg.eigvalsh(v.M - v.M_A)
             if eig.min() <= 0:
@@ -331,11 +714,17 @@ def validate(sc: Scenario) -> list[ScenarioIssue]:
         if len(ln.anchor) not in (2, 3):
             issues.append(ScenarioIssue(f"{p}.anchor", f"must be (x, y) or (x, y, z), got {len(ln.anchor)} numbers"))
             continue
-        if len(ln.anchor) == 3 and abs(ln.anchor[2] - env.water_depth) > 1e-6 * env.water_depth:
-            where = "above" if ln.anchor[2] < env.water_depth else "below"
+        z_anchor = ln.anchor[2] if len(ln.anchor) == 3 else env.water_depth
+        if z_anchor > env.water_depth * (1 + 1e-6):
             issues.append(ScenarioIssue(
                 f"{p}.anchor[2]",
-                f"= {ln.anchor[2]:g} m puts the anchor {where} the seabed (water depth {env.water_depth:g} m, z down)"))
+                f"= {z_anchor:g} m puts the anchor below the seabed (water depth {env.water_depth:g} m, z down)"))
+            continue
+        if z_anchor <= sc.turret.fairlead_depth:
+            issues.append(ScenarioIssue(
+                f"{p}.anchor[2]",
+                f"= {z_anchor:g} m is not below the fairleads (fairlead_depth {sc.turret.fairlead_depth:g} m, z down): "
+                "a lower end above the seabed must still hang below its fairlead"))
             continue
         lo, hi = ln.length_limits
         if not lo <= ln.length <= hi:
@@ -346,13 +735,13 @@ def validate(sc: Scenario) -> list[ScenarioIssue]:
                 f"{p}.winch_max_rate", "= 0 m/s: length limits are given but the line has no winch (set a rate)"))
         lt = sc.line_type(ln)
         dist = math.hypot(math.hypot(ln.anchor[0] - float(fl_x[i]), ln.anchor[1] - float(fl_y[i])),
-                          env.water_depth - sc.turret.fairlead_depth)
+                          min(z_anchor, env.water_depth) - sc.turret.fairlead_depth)
         reach = ln.length * (1.0 + lt.strain_limit)
         if reach < dist:
             lim = "max strain" if lt.max_strain is not None else "strain at MBS"
             issues.append(ScenarioIssue(
                 f"{p}.length",
-                f"= {ln.length:g} m cannot reach the anchor from the fairlead (distance {dist:.0f} m) within the "
+                f"= {ln.length:g} m cannot reach the anchor from the fairlead (distance {_metres(dist)} m) within the "
                 f"line type's {lim} {100 * lt.strain_limit:.3g} %"))
 
     for i, th in enumerate(sc.thrusters):
@@ -416,6 +805,7 @@ def validate(sc: Scenario) -> list[ScenarioIssue]:
     if lim.safe_radius is not None and lim.alert_radius is not None and lim.alert_radius <= lim.safe_radius:
         issues.append(ScenarioIssue("limits.alert_radius",
                                     f"= {lim.alert_radius:g} m must exceed safe_radius = {lim.safe_radius:g} m"))
+    _plausibility(sc, fl_x, fl_y, issues)
     return issues
 
 
@@ -454,16 +844,34 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     path = Path(text)
     if not path.suffix and (BUILTIN_DIR / f"{text}.toml").is_file():
         path = BUILTIN_DIR / f"{text}.toml"
+    if not text.strip():
+        raise ScenarioError(f"the scenario name is empty; give a built-in name ({', '.join(builtin_scenarios())}) "
+                            "or a .toml file")
+    if path.is_dir():
+        raise ScenarioError(f"{text!r} is a directory, not a scenario file")
     if not path.is_file():
         raise ScenarioError(
             f"no built-in scenario or file named {text!r}; built-in scenarios: {', '.join(builtin_scenarios())}")
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{path.name} is not valid TOML: {exc}", source=str(path)) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ScenarioError(f"cannot read {path}: {exc}", source=str(path)) from None
+    data = read_toml(path, ScenarioError)
+    if not data:
+        raise ScenarioError(f"{path.name} is empty: a scenario needs [meta], [environment], [vessel], [turret], "
+                            "[[line_types]] and [[lines]]", source=str(path))
     return scenario_from_dict(data, source=str(path) if path.parent != BUILTIN_DIR else path.stem)
+
+
+def read_toml(path: Path, error: type[ScenarioError] | Any) -> dict[str, Any]:
+    """Parse a TOML file; every failure (unreadable, not UTF-8, malformed, nested too deeply for the
+    parser) raises ``error`` with a one-line message naming the file."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise error(f"cannot read {path}: {exc}", source=str(path)) from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise error(f"{path.name} is not valid TOML: {exc}", source=str(path)) from None
+    except RecursionError:
+        raise error(f"{path.name} nests arrays or tables too deeply to be read as TOML", source=str(path)) from None
 
 
 def scenario_to_dict(obj: Any) -> Any:

@@ -51,8 +51,54 @@ def at_least(lo: float) -> Check:
     return check
 
 
+def positive_at_most(hi: float, why: str = "") -> Check:
+    """``0 < v <= hi``; ``why`` (the reason for the bound) is added to the message."""
+    def check(v: float) -> str | None:
+        if v <= 0:
+            return "must be > 0"
+        return None if v <= hi else f"must be <= {hi:g}" + (f" ({why})" if why else "")
+
+    check.__doc__ = f"(0, {hi:g}]"
+    return check
+
+
+def bounded(lo: float, hi: float, why: str) -> Check:
+    """``lo <= v <= hi`` with the reason for the bound in the message."""
+    def check(v: float) -> str | None:
+        if v < lo:
+            return f"must be >= {lo:g}"
+        return None if v <= hi else f"must be <= {hi:g} ({why})"
+
+    check.__doc__ = f"[{lo:g}, {hi:g}]"
+    return check
+
+
+#: Most FEM segments one line may have, and the bytes of FEM state and work arrays per node used
+#: to estimate memory (measured about 0.4 KiB a node; 1 KiB leaves room for the plant around it).
+MAX_SEGMENTS = 1000
+FEM_BYTES_PER_NODE = 1024
+
+
+def gib(n_bytes: float) -> str:
+    """A size in GiB for messages (``2.5 GiB``, ``9.3e+02 GiB``)."""
+    g = n_bytes / 2**30
+    return f"{g:.3g} GiB"
+
+
+def fem_segments(v: int) -> str | None:
+    if 2 <= v <= MAX_SEGMENTS:
+        return None
+    if v < 2:
+        return "must be >= 2"
+    return (f"must be in [2, {MAX_SEGMENTS}]: the FEM arrays of this line alone would take about "
+            f"{gib((v + 1) * FEM_BYTES_PER_NODE)}, and its stable step shrinks with the segment length")
+
+
 positive.__doc__ = "> 0"
 nonneg.__doc__ = ">= 0"
+fem_segments.__doc__ = f"[2, {MAX_SEGMENTS}]"
+_COEF = "measured coefficients of chain, wire and rope are 0-3"
+_ANGLE = bounded(-360.0, 360.0, "an angle beyond a full turn is a typo")
 
 
 def spec(
@@ -104,7 +150,8 @@ class Meta:
 class Environment:
     """Site constants."""
 
-    water_depth: float = spec("Water depth at the site (flat seabed).", "m", check=positive)
+    water_depth: float = spec("Water depth at the site (flat seabed).", "m",
+                               check=positive_at_most(12000.0, "the deepest ocean is 10 935 m"))
     water_density: float = spec("Sea water density.", "kg/m^3", default=1025.0, check=in_range(900.0, 1100.0))
     gravity: float = spec("Acceleration of gravity.", "m/s^2", default=9.81, check=in_range(9.7, 9.9))
     air_density: float = spec("Air density.", "kg/m^3", default=1.226, check=in_range(0.9, 1.5))
@@ -134,9 +181,10 @@ class Vessel:
         shape=(3,),
         check=nonneg,
     )
-    length_pp: float = spec("Length between perpendiculars.", "m", check=positive)
-    breadth: float = spec("Moulded breadth.", "m", check=positive)
-    draught: float = spec("Draught.", "m", check=positive)
+    length_pp: float = spec("Length between perpendiculars.", "m",
+                             check=positive_at_most(1000.0, "twice the longest ship ever built"))
+    breadth: float = spec("Moulded breadth.", "m", check=positive_at_most(200.0, "the widest hulls are about 75 m"))
+    draught: float = spec("Draught.", "m", check=positive_at_most(100.0, "the deepest draughts are about 30 m"))
     wind_area_frontal: float = spec("Projected frontal wind area (above water).", "m^2", check=positive)
     wind_area_lateral: float = spec("Projected lateral wind area (above water).", "m^2", check=positive)
     reference_point: Vec = spec(
@@ -173,7 +221,8 @@ class Turret:
         default="free",
     )
     angle: float = spec(
-        "Turret angle alpha_t relative to the hull x-axis at the field zero point (eq. 3).", "deg", default=0.0
+        "Turret angle alpha_t relative to the hull x-axis at the field zero point (eq. 3).", "deg", default=0.0,
+        check=_ANGLE,
     )
     fairlead_radius: float = spec("Radius r of the fairlead circle (eq. 2).", "m", default=0.0, check=nonneg)
     fairlead_depth: float = spec("Depth of the fairleads below the mean water line.", "m", default=0.0)
@@ -185,7 +234,8 @@ class LineType:
 
     id: str = spec("Name referenced by lines[].type.", id_like=True)
     diameter: float = spec(
-        "Hydrodynamic diameter d used in Morison drag and added mass (seed FEM eq. 3–5).", "m", check=positive
+        "Hydrodynamic diameter d used in Morison drag and added mass (seed FEM eq. 3–5).", "m",
+        check=positive_at_most(2.0, "the largest chains and ropes are under 0.5 m"),
     )
     mass_per_length: float = spec("Mass per unit length in air rho_0.", "kg/m", check=positive)
     density: float | None = spec(
@@ -193,7 +243,7 @@ class LineType:
         "Give exactly one of density and submerged_weight.",
         "kg/m^3",
         default=None,
-        check=positive,
+        check=positive_at_most(25000.0, "osmium, the densest material, is 22 600 kg/m^3"),
     )
     submerged_weight: float | None = spec(
         "Submerged weight per unit length w (instead of density).", "N/m", default=None, check=positive
@@ -201,15 +251,15 @@ class LineType:
     EA: float = spec("Axial stiffness.", "N", check=positive)
     MBS: float = spec("Minimum breaking strength (mean breaking strength in the reliability index).", "N", check=positive)
     MBS_std: float = spec("Standard deviation of the breaking strength sigma_b (survey eq. 32).", "N", check=nonneg)
-    Cd_normal: float = spec("Normal drag coefficient C_DN (on diameter).", check=nonneg)
-    Cd_tangential: float = spec("Tangential drag coefficient C_DT (on diameter).", check=nonneg)
-    Ca_normal: float = spec("Normal added-mass coefficient C_MN.", check=nonneg)
-    Ca_tangential: float = spec("Tangential added-mass coefficient.", default=0.0, check=nonneg)
+    Cd_normal: float = spec("Normal drag coefficient C_DN (on diameter).", check=bounded(0.0, 10.0, _COEF))
+    Cd_tangential: float = spec("Tangential drag coefficient C_DT (on diameter).", check=bounded(0.0, 10.0, _COEF))
+    Ca_normal: float = spec("Normal added-mass coefficient C_MN.", check=bounded(0.0, 10.0, _COEF))
+    Ca_tangential: float = spec("Tangential added-mass coefficient.", default=0.0, check=bounded(0.0, 10.0, _COEF))
     max_strain: float | None = spec(
         "Largest allowed axial strain; absent: the strain at MBS, MBS/EA.", default=None, check=in_range(0.0, 1.0)
     )
     seabed_friction: float = spec("Seabed friction coefficient C_B (catenary and FEM seabed contact).", default=0.0,
-                                  check=nonneg)
+                                  check=bounded(0.0, 5.0, "chain on clay or sand is about 0.7-1"))
     axial_damping_ratio: float = spec(
         "FEM axial internal damping as a fraction of the critical damping of one segment's axial mode.",
         default=0.0, check=in_range(0.0, 1.0))
@@ -234,18 +284,19 @@ class Line:
     id: str = spec("Line name (unique).", id_like=True)
     type: str = spec("Line type id (line_types[].id).", id_like=True)
     anchor: Vec = spec(
-        "Anchor position in {E}: (x, y) or (x, y, z) with z = water depth (anchors lie on the seabed).",
+        "Lower end in {E}: (x, y) on the seabed, or (x, y, z) with z (down) between the fairlead depth and "
+        "the water depth: an anchor on the seabed (z = water depth) or above it (a clump, a buoy, a slope).",
         "m",
         shape=(-1,),
     )
-    fairlead_angle: float = spec("Fairlead angle gamma_i on the turret circle in {T} (eq. 2).", "deg")
+    fairlead_angle: float = spec("Fairlead angle gamma_i on the turret circle in {T} (eq. 2).", "deg", check=_ANGLE)
     fairlead_radius: float | None = spec(
         "Fairlead radius r_i; absent: turret.fairlead_radius.", "m", default=None, check=nonneg
     )
     length: float = spec("Unstretched length L.", "m", check=positive)
-    segments: int = spec("Number of FEM segments n (nodes 0..n, 0 at the anchor).", default=20, check=at_least(2))
+    segments: int = spec("Number of FEM segments n (nodes 0..n, 0 at the anchor).", default=20, check=fem_segments)
     winch_max_rate: float = spec("Largest winch pay-out/haul-in speed (0: no winch).", "m/s", default=0.0,
-                                 check=nonneg)
+                                 check=bounded(0.0, 10.0, "mooring winches run at about 0.1-0.5 m/s"))
     min_length: float | None = spec("Shortest unstretched length the winch may haul in to; absent: length.", "m",
                                     default=None, check=positive)
     max_length: float | None = spec("Longest unstretched length the winch may pay out to; absent: length.", "m",
@@ -272,6 +323,7 @@ class Thruster:
         "Thrust direction alpha for tunnel/fixed (tunnel: 90 = toward starboard); initial azimuth.",
         "deg",
         default=0.0,
+        check=_ANGLE,
     )
     max_thrust: float = spec("Largest thrust along +alpha.", "N", check=positive)
     max_reverse_thrust: float = spec(
@@ -279,14 +331,17 @@ class Thruster:
     )
     max_thrust_rate: float = spec("Largest rate of change of thrust.", "N/s", check=positive)
     max_azimuth_rate: float | None = spec(
-        "Largest azimuth turning rate (azimuth thrusters only).", "deg/s", default=None, check=positive
+        "Largest azimuth turning rate (azimuth thrusters only).", "deg/s", default=None,
+        check=positive_at_most(360.0, "azimuth thrusters turn at about 2-30 deg/s"),
     )
-    time_constant: float = spec("First-order thrust response time constant.", "s", check=positive)
+    time_constant: float = spec("First-order thrust response time constant.", "s",
+                                check=positive_at_most(100.0, "thrusters respond in about 1-10 s"))
     forbidden_sectors: tuple[tuple[float, ...], ...] = spec(
         "Azimuth sectors (from, to) the thrust may not point into (azimuth only), degrees.",
         "deg",
         default=(),
         shape=(-1, 2),
+        check=bounded(-720.0, 720.0, "a sector's ends lie within two turns"),
     )
 
 
@@ -295,14 +350,16 @@ class SeaState:
     """Environmental condition. Directions are where the wave/wind/current is going to, from north."""
 
     id: str = spec("Sea state name (unique).", id_like=True)
-    Hs: float = spec("Significant wave height.", "m", check=nonneg)
-    Tp: float = spec("Spectral peak period.", "s", check=positive)
+    Hs: float = spec("Significant wave height.", "m", check=bounded(0.0, 30.0, "the largest measured Hs is about 19 m"))
+    Tp: float = spec("Spectral peak period.", "s", check=bounded(1.0, 40.0, "ocean wind sea and swell peak at 2-25 s"))
     gamma: float = spec("JONSWAP peak enhancement factor.", default=3.3, check=in_range(1.0, 10.0))
-    wave_direction: float = spec("Mean wave direction (going to).", "deg", default=0.0)
-    wind_speed: float = spec("1-hour mean wind speed at 10 m.", "m/s", default=0.0, check=nonneg)
-    wind_direction: float = spec("Wind direction (going to).", "deg", default=0.0)
-    current_speed: float = spec("Surface current speed V_c.", "m/s", default=0.0, check=nonneg)
-    current_direction: float = spec("Current direction beta_c (going to, eq. 7).", "deg", default=0.0)
+    wave_direction: float = spec("Mean wave direction (going to).", "deg", default=0.0, check=_ANGLE)
+    wind_speed: float = spec("1-hour mean wind speed at 10 m.", "m/s", default=0.0,
+                              check=bounded(0.0, 100.0, "beyond any recorded mean wind"))
+    wind_direction: float = spec("Wind direction (going to).", "deg", default=0.0, check=_ANGLE)
+    current_speed: float = spec("Surface current speed V_c.", "m/s", default=0.0,
+                                 check=bounded(0.0, 10.0, "the strongest tidal races run at about 5 m/s"))
+    current_direction: float = spec("Current direction beta_c (going to, eq. 7).", "deg", default=0.0, check=_ANGLE)
     current_profile: Literal["uniform", "linear", "piecewise"] = spec(
         "Current speed over depth: 'uniform'; 'linear' from 1 at the surface to "
         "current_profile_factors[0] at the seabed; 'piecewise' linear through (depths, factors).",
@@ -315,7 +372,7 @@ class SeaState:
         "Speed factors (times current_speed) at those depths, or the seabed factor for 'linear'.",
         default=(),
         shape=(-1,),
-        check=nonneg,
+        check=bounded(0.0, 3.0, "currents below the surface are rarely faster than at it"),
     )
 
 
@@ -326,14 +383,17 @@ class Riser:
     hangoff: Vec = spec("Hang-off point in {B}.", "m", shape=(2,))
     wellhead: Vec = spec("Lower end (wellhead / touchdown) in {E}.", "m", shape=(2,))
     length: float = spec("Riser length.", "m", check=positive)
-    diameter: float = spec("Outer (hydrodynamic) diameter.", "m", check=positive)
+    diameter: float = spec("Outer (hydrodynamic) diameter.", "m",
+                           check=positive_at_most(5.0, "risers and their buoyancy are under 2 m"))
     submerged_weight: float = spec("Submerged weight per unit length, contents included.", "N/m", check=positive)
     top_tension: float = spec("Mean top tension.", "N", check=positive)
-    Cd: float = spec("Normal drag coefficient (on diameter).", default=1.0, check=nonneg)
-    critical_top_angle: float = spec("Mean critical top angle (threshold r_t).", "deg", check=positive)
-    critical_top_angle_std: float = spec("Standard deviation of the critical top angle.", "deg", check=positive)
-    critical_bottom_angle: float = spec("Mean critical bottom angle.", "deg", check=positive)
-    critical_bottom_angle_std: float = spec("Standard deviation of the critical bottom angle.", "deg", check=positive)
+    Cd: float = spec("Normal drag coefficient (on diameter).", default=1.0, check=bounded(0.0, 10.0, _COEF))
+    critical_top_angle: float = spec("Mean critical top angle (threshold r_t).", "deg", check=positive_at_most(90.0))
+    critical_top_angle_std: float = spec("Standard deviation of the critical top angle.", "deg",
+                                         check=positive_at_most(90.0))
+    critical_bottom_angle: float = spec("Mean critical bottom angle.", "deg", check=positive_at_most(90.0))
+    critical_bottom_angle_std: float = spec("Standard deviation of the critical bottom angle.", "deg",
+                                            check=positive_at_most(90.0))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -350,12 +410,14 @@ class Fault:
 class Sensors:
     """Measurement noise and rates of the plant's sensors (sample and hold at each rate)."""
 
-    gnss_std: float = spec("GNSS position noise, standard deviation per axis.", "m", default=0.5, check=nonneg)
+    gnss_std: float = spec("GNSS position noise, standard deviation per axis.", "m", default=0.5,
+                           check=bounded(0.0, 100.0, "uncorrected GNSS is within about 10 m"))
     gnss_rate: float = spec("GNSS update rate.", "Hz", default=1.0, check=positive)
-    heading_std: float = spec("Gyro-compass heading noise, standard deviation.", "deg", default=0.1, check=nonneg)
+    heading_std: float = spec("Gyro-compass heading noise, standard deviation.", "deg", default=math.radians(0.1),
+                              check=bounded(0.0, 180.0, "half a turn"))
     heading_rate: float = spec("Heading update rate.", "Hz", default=10.0, check=positive)
     tension_std_rel: float = spec("Tension-cell noise, standard deviation as a fraction of the line's MBS.",
-                                  default=0.002, check=nonneg)
+                                  default=0.002, check=bounded(0.0, 1.0, "a noise of the whole MBS"))
     tension_rate: float = spec("Tension-cell update rate.", "Hz", default=1.0, check=positive)
 
 
@@ -437,8 +499,11 @@ class Scenario:
 
     @cached_property
     def anchors(self) -> np.ndarray:
-        """Anchor positions in {E}, shape (n_lines, 3) [m]; z = water depth (down)."""
-        return readonly([(ln.anchor[0], ln.anchor[1], self.environment.water_depth) for ln in self.lines])
+        """Anchor positions in {E}, shape (n_lines, 3) [m]; z down: the water depth less the anchor's
+        height above the seabed (``line_arrays["h_A"]``)."""
+        depth = self.environment.water_depth
+        h = self.line_arrays["h_A"]
+        return readonly([(ln.anchor[0], ln.anchor[1], depth - h[i]) for i, ln in enumerate(self.lines)])
 
     @cached_property
     def fairleads_T(self) -> np.ndarray:
@@ -449,7 +514,10 @@ class Scenario:
 
     @cached_property
     def line_arrays(self) -> dict[str, np.ndarray]:
-        """Per-line properties as arrays of shape (n_lines,): L, EA, w, CB, MBS, MBS_std, d, segments."""
+        """Per-line properties as arrays of shape (n_lines,): L, EA, w, CB, MBS, MBS_std, d, segments,
+        and h_A, the height of the anchor above the seabed [m] (water depth - anchor z; 0 for an
+        anchor given as (x, y) or with |z - water depth| <= 1e-6 water depth, on the seabed as the
+        file check has it)."""
         env = self.environment
         types = [self.line_type(ln) for ln in self.lines]
         out = {
@@ -462,5 +530,7 @@ class Scenario:
             "d": [t.diameter for t in types],
             "strain_limit": [t.strain_limit for t in types],
             "segments": [ln.segments for ln in self.lines],
+            "h_A": [0.0 if len(ln.anchor) < 3 or abs(env.water_depth - ln.anchor[2]) <= 1e-6 * env.water_depth
+                    else env.water_depth - ln.anchor[2] for ln in self.lines],
         }
         return {k: readonly(v) for k, v in out.items()}

@@ -38,6 +38,7 @@ from ..models.system import as_system
 __all__ = ["build_controller", "CONTROLLER_TYPES", "ControllerSpecError"]
 
 CONTROLLER_TYPES = ("pid", "mpc", "lmpc")
+_MAX_HORIZON = 500  # prediction steps (horizon x substeps): the default is 20
 
 PID_DEFAULTS = {"periods": (250.0, 250.0, 150.0), "damping": (0.8, 0.8, 0.8), "integral_ratio": 0.1,
                 "modes": "normal_restoring", "tau_limit": None}
@@ -84,6 +85,15 @@ def build_controller(system: Any, spec: Mapping[str, Any] | str, *, where: str =
             o = {**PID_DEFAULTS, **spec}
             if isinstance(o["modes"], str) and o["modes"] not in MODE_SETS:
                 raise ControllerSpecError(f"{where}.modes = {o['modes']!r} is not one of {', '.join(MODE_SETS)}")
+            for key in ("periods", "damping"):
+                v = o[key]
+                try:
+                    arr = np.asarray(v, dtype=float)
+                except (TypeError, ValueError):
+                    arr = np.zeros(0)
+                if isinstance(v, str) or arr.shape != (3,) or not np.all(np.isfinite(arr) & (arr > 0)):
+                    raise ControllerSpecError(f"{where}.{key} = {v!r} must be 3 positive numbers (surge, sway, yaw), "
+                                              f"e.g. {key}=" + ",".join(f"{x:g}" for x in PID_DEFAULTS[key]))
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")  # clamped gains are reported in the design
                 design = design_from_scenario(system, periods=tuple(o["periods"]), damping=tuple(o["damping"]),
@@ -105,6 +115,15 @@ def build_controller(system: Any, spec: Mapping[str, Any] | str, *, where: str =
         if "dead_band" not in spec and system.limits.safe_radius is not None:
             spec["dead_band"] = 0.7 * system.limits.safe_radius
         settings = MPCSettings(**spec)
+        n_pred = settings.horizon * settings.substeps
+        if n_pred > _MAX_HORIZON:
+            raise ControllerSpecError(
+                f"{where}.horizon = {settings.horizon} (x substeps = {settings.substeps}) makes {n_pred} prediction "
+                f"steps, above {_MAX_HORIZON}: the optimisation problem grows with them (look further ahead with a "
+                "larger dt)")
+        for name, hi in (("polygon_sides", 256), ("max_iter", 10000)):
+            if getattr(settings, name) > hi:
+                raise ControllerSpecError(f"{where}.{name} = {getattr(settings, name)!r} is above {hi}")
         cls = NonlinearMPC if kind == "mpc" else LinearMPC
         return cls(system, settings, period=None if period is None else float(period))
     except ControllerSpecError:
