@@ -232,11 +232,20 @@ class Plant:
                 self.events.append((self.t, f"thruster {f.thruster} failed"))
             self._fault_i += 1
 
-    def _check_overload(self) -> None:
-        """Break every intact line whose fairlead or anchor tension reached its strength."""
+    def _check_overload(self, T_bonds: np.ndarray) -> None:
+        """Break every intact line whose fairlead or anchor tension reached its strength.
+
+        ``T_bonds`` are the segment tensions of the last FEM substep: only when a line's top or
+        bottom segment comes within 2 % of its strength are its exact fairlead and anchor tensions
+        (at the end of the step) evaluated and compared.
+        """
         if self.break_on_overload == "never":
             return
         m = self.mooring
+        fem = m.fem
+        near = np.maximum(T_bonds[fem.fairlead_seg], T_bonds[fem.anchor_seg]) >= 0.98 * self.strength
+        if not np.any(near & fem.active):
+            return
         T = np.maximum(m.fairlead_tension(), m.anchor_tension())
         over = np.flatnonzero(m.fem.active & (T >= self.strength))
         for j in over:
@@ -286,13 +295,13 @@ class Plant:
         rate = (pose1 - pose0) / h
         # all substeps in one call (the current, if any, held over the outer step: MooringFEM.advance)
         frac = np.arange(1, n_sub + 1) / n_sub
-        m.advance(pose0 + frac[:, None] * (pose1 - pose0), np.broadcast_to(rate, (n_sub, 3)))
+        T_bonds = m.advance(pose0 + frac[:, None] * (pose1 - pose0), np.broadcast_to(rate, (n_sub, 3)))
         self._steps += 1
         if self._steps % 20 == 0:
             m.fem.check_health()
         a_fl = m.fairlead_acceleration(pose1, rate, (rate - self._rate) / h)
         self._rate = rate
-        self._check_overload()
+        self._check_overload(T_bonds)
         self._tau_moor = m.tau(pose1, a_fl)
         self.loads = {"tau_wind": tau_wind, "tau_drift": tau_drift, "tau_moor": self._tau_moor, "tau_thr": tau_thr}
 
