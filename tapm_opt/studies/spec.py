@@ -195,7 +195,8 @@ def _parse_study_table(ck: Checker, data: Mapping, base_dir: Path, out: _Parsed)
                                           "study.break_on_overload")
     dt_control = ck.number(st.get("dt_control", 1.0), "study.dt_control", unit="s", positive=True)
     if dt_control is not None and dt_control < 0.01:
-        ck.err("study.dt_control", f"= {dt_control:g} s must be >= 0.01 s (100 Hz, faster than any position-control loop)")
+        ck.err("study.dt_control",
+               f"= {dt_control:g} s must be >= 0.01 s (100 Hz, faster than any position-control loop)")
         dt_control = None
     dt_log = ck.number(st.get("dt_log", 1.0), "study.dt_log", unit="s", positive=True)
     if dt_control is not None and dt_log is not None:
@@ -550,5 +551,6 @@ def load_study(path: str | Path) -> Study:
     except tomllib.TOMLDecodeError as exc:
         raise StudyError(f"{path.name} is not valid TOML: {exc}", source=str(path)) from None
     except RecursionError:
-        raise StudyError(f"{path.name} nests arrays or tables too deeply to be read as TOML", source=str(path)) from None
+        raise StudyError(f"{path.name} nests arrays or tables too deeply to be read as TOML",
+                         source=str(path)) from None
     return study_from_dict(data, base_dir=path.resolve().parent, source=str(path), path=path.resolve(), text=text)
