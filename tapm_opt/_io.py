@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import io
+import json
 import os
 import tempfile
 
@@ -67,3 +68,41 @@ def readonly(value: object, dtype: object = float):
     arr = np.array(value, dtype=dtype)
     arr.flags.writeable = False
     return arr
+
+
+def toml_key(k: str) -> str:
+    """A TOML key: bare when it can be, else quoted."""
+    k = str(k)
+    return k if k and all(c.isascii() and (c.isalnum() or c in "_-") for c in k) else json.dumps(k)
+
+
+def toml_value(v: object) -> str:
+    """A TOML value for a bool, int, float, str, list/tuple or mapping (inline table).
+
+    Floats are written so they read back to the same number: ``repr`` between 1e-4 and 1e6, the
+    shortest round-trip scientific form outside it, ``nan``/``inf``/``-inf`` for the non-finite.
+    Anything else raises ``TypeError``.
+    """
+    import math
+    from collections.abc import Mapping
+
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        if not math.isfinite(v):
+            return "nan" if math.isnan(v) else ("inf" if v > 0 else "-inf")
+        v = float(v) + 0.0
+        if v != 0.0 and not 1e-4 <= abs(v) < 1e6:
+            import numpy as np
+
+            return np.format_float_scientific(v, unique=True, trim="-")
+        return repr(v)
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(toml_value(x) for x in v) + "]"
+    if isinstance(v, Mapping):
+        return "{ " + ", ".join(f"{toml_key(k)} = {toml_value(x)}" for k, x in v.items()) + " }"
+    raise TypeError(f"cannot write {type(v).__name__} to TOML")

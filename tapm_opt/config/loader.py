@@ -20,7 +20,6 @@ import numpy as np
 
 from ..errors import ScenarioError, ScenarioIssue
 from ..geometry import fairleads_B, merge_sectors
-from . import schema
 from .schema import Scenario
 
 BUILTIN_DIR = Path(__file__).parent / "scenarios"

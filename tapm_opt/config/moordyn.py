@@ -31,7 +31,6 @@ its line number and the item: the ``tapm`` command prints it on one line.
 
 from __future__ import annotations
 
-import json
 import math
 import re
 import tomllib
@@ -41,6 +40,7 @@ from typing import Any, Iterable, Mapping
 
 import numpy as np
 
+from .._io import toml_key, toml_value
 from ..errors import ScenarioError, TapmError
 from .loader import BUILTIN_DIR, load_scenario, scenario_from_dict
 from .schema import Scenario
@@ -1134,29 +1134,16 @@ def import_moordyn(path: str | Path, vessel: str | Path, *, mbs: Mapping[str, fl
 # --------------------------------------------------------------------------------------------
 
 
-def _toml_key(k: str) -> str:
-    return k if k and all(c.isascii() and (c.isalnum() or c in "_-") for c in k) else json.dumps(k)
-
-
 def _toml_value(v: Any) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, float):
-        if not math.isfinite(v):
-            raise MoorDynError(f"cannot write the non-finite number {v!r} to TOML")
-        v = float(v) + 0.0
-        if v != 0.0 and not 1e-4 <= abs(v) < 1e6:
-            return np.format_float_scientific(v, unique=True, trim="-")
-        return repr(v)
-    if isinstance(v, str):
-        return json.dumps(v)
+    """:func:`tapm_opt._io.toml_value`, refusing non-finite numbers (a scenario has none)."""
+    if isinstance(v, float) and not math.isfinite(v):
+        raise MoorDynError(f"cannot write the non-finite number {v!r} to TOML")
     if isinstance(v, (list, tuple)):
         return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    if isinstance(v, Mapping):
-        return "{ " + ", ".join(f"{_toml_key(str(k))} = {_toml_value(x)}" for k, x in v.items()) + " }"
-    raise MoorDynError(f"cannot write {type(v).__name__} to TOML")
+    try:
+        return toml_value(v)
+    except TypeError as exc:
+        raise MoorDynError(str(exc)) from None
 
 
 def _table(name: str, d: Mapping[str, Any], out: list[str], header: str) -> None:
@@ -1166,10 +1153,10 @@ def _table(name: str, d: Mapping[str, Any], out: list[str], header: str) -> None
         if isinstance(v, Mapping):
             subs.append((k, v))
         else:
-            out.append(f"{_toml_key(k)} = {_toml_value(v)}")
+            out.append(f"{toml_key(k)} = {_toml_value(v)}")
     for k, v in subs:
         out.append("")
-        _table(f"{name}.{_toml_key(k)}", v, out, f"[{name}.{_toml_key(k)}]")
+        _table(f"{name}.{toml_key(k)}", v, out, f"[{name}.{toml_key(k)}]")
 
 
 def scenario_toml(data: Mapping[str, Any], *, header: Iterable[str] = (),
@@ -1181,9 +1168,9 @@ def scenario_toml(data: Mapping[str, Any], *, header: Iterable[str] = (),
     top = [(k, v) for k, v in data.items() if not isinstance(v, Mapping)
            and not (isinstance(v, list) and v and all(isinstance(x, Mapping) for x in v))]
     for k, v in top:
-        out.append(f"{_toml_key(k)} = {_toml_value(v)}")
+        out.append(f"{toml_key(k)} = {_toml_value(v)}")
     for k, v in data.items():
-        key = _toml_key(k)
+        key = toml_key(k)
         if isinstance(v, Mapping):
             out.append("")
             _table(key, v, out, f"[{key}]")

@@ -18,7 +18,7 @@ and the plant and tests call numerically. A control input is ``tau_thr``/``tau_c
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import casadi as ca
 import numpy as np
@@ -27,6 +27,9 @@ from .. import _backend as bk
 from ..errors import ModelError
 from ..geometry import rot2_apply, rot_z
 from .statics import EquilibriumError, solve_equilibrium
+
+if TYPE_CHECKING:  # python-control loads on first use (linearise)
+    import control
 
 __all__ = ["VesselParams", "coriolis", "vessel_rhs", "vessel_function", "moored_function",
            "linearise", "equilibrium", "FORMS", "STATE_NAMES", "INPUT_NAMES"]

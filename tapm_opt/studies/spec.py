@@ -11,13 +11,12 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
-import json
-import math
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
+from .._io import toml_key, toml_value
 from ..config import Fault, builtin_scenarios, load_scenario, scenario_from_dict, scenario_to_dict
 from ..config.loader import BUILTIN_DIR, _fmt, _is_number  # the scenario loader's value checks
 from ..config.loader import fem_size_issues, log_size_issues
@@ -494,37 +493,17 @@ def study_from_dict(data: Mapping[str, Any], *, base_dir: str | Path = ".", sour
 # -- TOML text of a study built in code -------------------------------------------------------
 
 
-def _toml_key(k: str) -> str:
-    return k if k and all(c.isascii() and (c.isalnum() or c in "_-") for c in k) else json.dumps(k)
-
-
-def _toml_value(v: Any) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, float):
-        return repr(v) if math.isfinite(v) else ("nan" if math.isnan(v) else ("inf" if v > 0 else "-inf"))
-    if isinstance(v, str):
-        return json.dumps(v)
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    if isinstance(v, Mapping):
-        return "{ " + ", ".join(f"{_toml_key(k)} = {_toml_value(x)}" for k, x in v.items()) + " }"
-    raise TypeError(f"cannot write {type(v).__name__} to TOML")
-
-
 def _to_toml(data: Mapping[str, Any]) -> str:
     """TOML text of a study dictionary (for ``DIR/study.toml`` of a study built without a file)."""
     lines = ["# written by tapm_opt from a study built in code"]
     for k, v in data.items():
         if isinstance(v, Mapping):
-            lines += ["", f"[{_toml_key(k)}]", *(f"{_toml_key(a)} = {_toml_value(b)}" for a, b in v.items())]
+            lines += ["", f"[{toml_key(k)}]", *(f"{toml_key(a)} = {toml_value(b)}" for a, b in v.items())]
         elif isinstance(v, list) and v and all(isinstance(x, Mapping) for x in v):
             for item in v:
-                lines += ["", f"[[{_toml_key(k)}]]", *(f"{_toml_key(a)} = {_toml_value(b)}" for a, b in item.items())]
+                lines += ["", f"[[{toml_key(k)}]]", *(f"{toml_key(a)} = {toml_value(b)}" for a, b in item.items())]
         else:
-            lines.insert(1, f"{_toml_key(k)} = {_toml_value(v)}")
+            lines.insert(1, f"{toml_key(k)} = {toml_value(v)}")
     return "\n".join(lines) + "\n"
 
 
