@@ -1065,3 +1065,11 @@ def test_matches_moorpy_reference_with_the_lower_end_above_the_seabed():
         err = np.abs(getattr(sol, k) - ref[k]) / TF
         assert err.max() <= 1e-8, (k, int(err.argmax()), err.max())
     np.testing.assert_allclose(sol.LBot, ref["LBot"], rtol=0, atol=1e-8 * ref["L"].max())
+
+
+def test_a_negative_cb_points_to_h_a():
+    """MoorPy encodes an elevated lower end as a negative CB; tapm_opt names it h_A and says so."""
+    with pytest.raises(CatenaryError, match=r"CB = -372.7 .*h_A = -CB"):
+        cat.solve(800.0, 300.0, 900.0, 1e9, 1000.0, CB=-372.7)
+    sol = cat.solve(800.0, 300.0, 900.0, 1e9, 1000.0, h_A=372.7)
+    assert np.all(np.isfinite([sol.HF, sol.VF]))

@@ -292,7 +292,8 @@ def _check_inputs(**arrays: np.ndarray) -> None:
         "L": ("must be > 0 (unstretched length)", lambda a: a > 0),
         "EA": ("must be > 0 (axial stiffness)", lambda a: a > 0),
         "w": ("must be >= 0 (submerged weight; buoyant lines are not supported)", lambda a: a >= 0),
-        "CB": ("must be >= 0 (seabed friction coefficient)", lambda a: a >= 0),
+        "CB": ("must be >= 0 (seabed friction coefficient; for a lower end above the seabed, MoorPy's "
+               "negative CB, give its height as h_A = -CB instead)", lambda a: a >= 0),
         "h_A": ("must be >= 0 (height of the lower end above the seabed [m]; the lower end cannot lie "
                 "below the seabed)", lambda a: a >= 0),
     }
