@@ -180,7 +180,8 @@ def _type_values(items: tuple[str, ...], option: str) -> dict[str, float]:
 @click.option("--vessel", required=True, metavar="SCENARIO",
               help="Scenario (built-in name or TOML file) giving the vessel, turret position/mode/angle, thrusters, "
                    "sea states, riser, sensors and limits.")
-@click.option("--out", required=True, type=click.Path(dir_okay=False), help="Scenario TOML file to write.")
+@click.option("--out", required=True, type=click.Path(dir_okay=False), callback=_out_path("file"),
+              help="Scenario TOML file to write.")
 @click.option("--mbs", "mbs", multiple=True, metavar="TYPE=NEWTONS",
               help="Breaking strength of MoorDyn line type TYPE [N] (repeatable; required for every line type used: "
                    "MoorDyn files carry none).")
@@ -210,7 +211,8 @@ def scenario_import_moordyn(file: str, vessel: str, out: str, mbs: tuple[str, ..
 
 @scenario.command("export-moordyn")
 @click.argument("scenario_name", metavar="SCENARIO")
-@click.option("--out", required=True, type=click.Path(dir_okay=False), help="MoorDyn v2 input file to write.")
+@click.option("--out", required=True, type=click.Path(dir_okay=False), callback=_out_path("file"),
+              help="MoorDyn v2 input file to write.")
 @click.option("--segments", type=click.IntRange(2, 1000), default=None,
               help="Segments of every line (default: the scenario's).")
 def scenario_export_moordyn(scenario_name: str, out: str, segments: int | None) -> None:

@@ -533,3 +533,14 @@ def test_locked_turret_yaw_moment_matches_the_fem():
     assert (np.sqrt((d**2).mean(axis=0)) / f.T.mean(axis=0)).max() <= 0.02
     assert np.sqrt(((m.force - f.force)[:, 2] ** 2).mean()) <= 0.02 * np.abs(f.force[:, 2]).max()
     assert m.damping == pytest.approx(f.damping, rel=0.05)
+
+
+@pytest.mark.parametrize("command", ["export-moordyn", "import-moordyn"])
+def test_cli_out_must_be_a_writable_file(capsys, tmp_path, command):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    head = ["scenario", command] + (["fpso"] if command == "export-moordyn" else
+                                    [str(_write(tmp_path, HAND_WRITTEN)), "--vessel", "fpso", "--mbs", "chain=1.7e7"])
+    for bad, says in (("", "is empty"), (str(blocker / "x.dat"), "is a file, not a directory")):
+        code, out, err = run(capsys, *head, "--out", bad)
+        assert code == 2 and says in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
