@@ -367,6 +367,9 @@ def plant_forced_motion(scenario_name: str, dof: str, amplitude: float, period: 
                                  "not resolve faster ones)")
     if dt_out > duration:
         raise click.BadParameter(f"--dt-out = {dt_out:g} s must not exceed --duration = {duration:g} s")
+    if dt_out > period / 10.0:
+        raise click.BadParameter(f"--dt-out = {dt_out:g} s must be at most --period / 10 = {period / 10.0:g} s (the "
+                                 "tension range is read from the output samples, ten or more per cycle)")
     sc = _load(scenario_name)
     if dof == "yaw" and amplitude > 180.0:
         raise click.BadParameter(f"--amplitude = {amplitude:g} deg must be at most 180 deg for yaw")

@@ -19,7 +19,8 @@ Forces on node k (NED, z down):
   matrix ``m I + m_a (I - q q^T)`` inverts in closed form (equals the seed's M_k when the two
   segments are collinear);
 * seabed contact for nodes below the seabed: a vertical spring-damper per unit length
-  ``k_b d``, ``c_b d`` and optional Coulomb friction ``mu`` (regularised with tanh).
+  ``k_b d``, ``c_b d`` and optional Coulomb friction ``mu`` on the velocity relative to the
+  seabed, applied implicitly in the step (stick or slide, :meth:`FEMLines._friction`).
 
 Integration: semi-implicit (symplectic) Euler with a step chosen from the stiffest segment
 (``dt <= safety * 2 / omega_max``, see :meth:`FEMLines.stable_dt`).
@@ -251,8 +252,8 @@ class FEMLines:
         evaluated at that w and zeta (W grows and the limit falls with w, so the bound is safe).
         The seabed contact mode (vertical spring-damper ``k_seabed``, ``c_seabed`` per node) is
         bounded the same way on its own: it acts across the grounded, horizontal segments, so it
-        does not add to their axial modes. Drag and added mass only make the scheme safer (left
-        out).
+        does not add to their axial modes. Added mass only lowers the transverse frequencies; drag
+        (quadratic, explicit) is left out; seabed friction is implicit (:meth:`_friction`).
         """
         free = ~self.fixed
         m_node = np.maximum(self.node_mass, 1e-300)[free]
@@ -325,11 +326,6 @@ class FEMLines:
             Fn = np.maximum(self._kb * pen + self._cb * v[:, 2], 0.0)
             Fn[~on] = 0.0
             F[:, 2] -= Fn
-            if self._has_friction:
-                vh = vr[:, :2]
-                sp = np.sqrt((vh * vh).sum(axis=1))
-                fr = self._mu * Fn * np.tanh(sp / 0.01) / np.maximum(sp, 1e-12)
-                F[:, :2] -= fr[:, None] * vh
         # closed-form inverse of m I + m_an (I - q q^T) + m_at q q^T
         Ft = (F * qn).sum(axis=1)
         a = (F - Ft[:, None] * qn) * (1.0 / (self.node_mass + self._can_half * stretched))[:, None]
@@ -408,7 +404,7 @@ class FEMLines:
             return self._advance_compiled(dt, _as_f64(r_seq, r_seq.shape, "fairlead_r_seq"),
                                           _as_f64(v_seq, v_seq.shape, "fairlead_v_seq"), v_current, extra_damping, n,
                                           fairlead_force_out)
-        vc_fl = np.asarray(v_current)[self.fairlead_idx]
+        vc_fl = np.broadcast_to(np.asarray(v_current, dtype=float), (self.n_nodes, 3))[self.fairlead_idx]
         for i in range(n):
             if fairlead_force_out is not None:
                 fairlead_force_out[i] = self.fairlead_forces(vc_fl)
@@ -436,12 +432,34 @@ class FEMLines:
             self.t += dt
         return T
 
+    def _friction(self, v_new: np.ndarray, dt: float) -> None:
+        """Coulomb seabed friction on the new velocities ``v_new`` (in place), applied implicitly.
+
+        A node on the seabed (state at the start of the step) with normal force ``F_n`` can lose
+        at most ``dv = dt mu F_n / m_t`` of horizontal speed in the step (``m_t`` its mass with the
+        tangential added mass): if its horizontal speed is below that it sticks (0), otherwise it
+        slides with its speed reduced by ``dv``. Friction acts on the velocity relative to the
+        seabed and cannot reverse a motion, so it sets no limit on the step.
+        """
+        pen = self.r[:, 2] - self.depth
+        Fn = np.where(pen > 0.0, np.maximum(self._kb * pen + self._cb * self.v[:, 2], 0.0), 0.0)
+        stretched = self._epsp[1:] + self._epsp[:-1]
+        dv = dt * self._mu * Fn / (self.node_mass + self._cat_half * stretched)
+        vh = v_new[:, :2]
+        sp = np.sqrt((vh * vh).sum(axis=1))
+        act = dv > 0.0
+        scale = np.where(act & (sp > dv), 1.0 - dv / np.where(sp > 0.0, sp, 1.0), 1.0)
+        scale = np.where(act & (sp <= dv), 0.0, scale)
+        vh *= scale[:, None]
+
     def _step_numpy(self, dt, fairlead_r, fairlead_v, v_current, extra_damping=0.0):
         """The numpy reference of :meth:`step`."""
         a, T = self.accelerations(self.r, self.v, v_current)
         if extra_damping:
             a -= extra_damping * self.v
         v = self.v + dt * a
+        if self._has_friction:
+            self._friction(v, dt)
         v[self.anchor_idx] = 0.0
         att = self._attached
         v[self.fairlead_idx[att]] = fairlead_v[att]

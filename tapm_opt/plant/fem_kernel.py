@@ -3,8 +3,9 @@
 One function, :func:`advance`, runs ``n_steps`` steps of :meth:`FEMLines.step
 <tapm_opt.plant.fem.FEMLines.step>` in one call: the same forces (axial tension-only elasticity
 with internal damping, submerged weight, Morison drag normal and tangential to the node tangent
-on the velocity relative to the current, seabed spring-damper with tanh-regularised Coulomb
-friction), the same closed-form inverse of the node mass + added-mass matrix, the same update
+on the velocity relative to the current, seabed spring-damper), the same closed-form inverse of
+the node mass + added-mass matrix, the same update (with the implicit Coulomb seabed friction of
+``FEMLines._friction``)
 (``v += dt a``, anchors fixed, attached fairleads prescribed, ``r += dt v``), evaluated in the same
 floating-point order as the numpy reference path, so the two agree to round-off (checked in
 ``tests/test_fem_kernel.py``).
@@ -129,16 +130,12 @@ def _step(r, v, vc, dt, extra_damping, fl_r, fl_v,
         Fy -= ct * qy
         Fz -= ct * qz
         pen = r[k, 2] - depth
+        Fn = 0.0
         if pen > 0.0:
             Fn = kb[k] * pen + cb[k] * v[k, 2]
             if Fn < 0.0:
                 Fn = 0.0
             Fz -= Fn
-            if has_friction:
-                sp = math.sqrt(vrx * vrx + vry * vry)
-                fr = mu[k] * Fn * math.tanh(sp / 0.01) / (sp if sp > 1e-12 else 1e-12)
-                Fx -= fr * vrx
-                Fy -= fr * vry
         F_node[k, 0] = Fx
         F_node[k, 1] = Fy
         F_node[k, 2] = Fz
@@ -155,6 +152,17 @@ def _step(r, v, vc, dt, extra_damping, fl_r, fl_v,
         vx = v[k, 0] + dt * ax
         vy = v[k, 1] + dt * ay
         vz = v[k, 2] + dt * az
+        if has_friction:  # Coulomb friction, implicit: stick or slide (FEMLines._friction)
+            dv = dt * mu[k] * Fn / (node_mass[k] + cat_half[k] * s)
+            if dv > 0.0:
+                sp = math.sqrt(vx * vx + vy * vy)
+                if sp <= dv:
+                    vx = vx * 0.0
+                    vy = vy * 0.0
+                else:
+                    f = 1.0 - dv / sp
+                    vx = vx * f
+                    vy = vy * f
         v_out[k, 0] = vx
         v_out[k, 1] = vy
         v_out[k, 2] = vz

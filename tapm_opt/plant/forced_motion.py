@@ -141,6 +141,9 @@ def forced_motion(scenario: Any, *, dof: Literal["surge", "sway", "yaw"] = "surg
     for name, val in (("amplitude", amplitude), ("period", period), ("duration", duration), ("dt_out", dt_out)):
         if not (isinstance(val, (int, float)) and math.isfinite(val) and val > 0):
             raise ModelError(f"{name} = {val!r} must be a positive number")
+    if dt_out > period / 10.0:
+        raise ModelError(f"dt_out = {dt_out:g} s must be at most period / 10 = {period / 10.0:g} s: the tension "
+                         "range and amplification are read from the output samples, ten or more per cycle")
     k = DOFS.index(dof)
     w0 = time.perf_counter()
     ss_id = None
@@ -232,8 +235,9 @@ def forced_motion(scenario: Any, *, dof: Literal["surge", "sway", "yaw"] = "surg
             F = load_E(e, ed, t)
             t_out[j], eta_out[j], T_out[j], F_out[j] = t, e, plant.fairlead_tension(), F
     plant.fem.check_health()
-    if n_steps:
-        power[n_steps] = -F[k] * ed[k] if n_steps % every == 0 else power[n_steps - 1]
+    if n_steps:  # the last instant, from the same forces as the others (no inertia)
+        vc = plant._vc[plant.fem.fairlead_idx] if plant.current is not None else None
+        power[n_steps] = -load_dof(plant.fem.fairlead_forces(vc)[None], e[None])[0] * ed[k]
     power_t = np.arange(n_steps + 1) * dt
     t_out, eta_out, T_out, F_out = t_out[: j + 1], eta_out[: j + 1], T_out[: j + 1], F_out[: j + 1]
 
@@ -242,8 +246,8 @@ def forced_motion(scenario: Any, *, dof: Literal["surge", "sway", "yaw"] = "surg
     XF = np.array([moor.spans(e)[2] for e in eta_out])
     T_qs = catenary.solve(XF, moor.ZF, moor.L, moor.EA, moor.w, CB=moor.CB, h_A=moor.h_A).TF
 
-    # whole cycles after the first one
-    n_cyc = int(math.floor(duration / period + 1e-9)) - 1
+    # whole cycles after the first one, within the simulated time (a whole number of dt_out)
+    n_cyc = int(math.floor(n_steps * dt / period + 1e-9)) - 1
     if n_cyc >= 1:
         t0, t1 = period, period * (1 + n_cyc)
         m = (power_t >= t0 - 1e-9) & (power_t <= t1 + 1e-9)

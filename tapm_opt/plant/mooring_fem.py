@@ -160,8 +160,8 @@ class MooringFEM:
         fem.v[:] = 0.0
         self._r_fl = r_fl
 
-    def settle(self, eta: np.ndarray, *, max_time: float = 600.0, check_every: float = 5.0,
-               tol: float = 1e-6, speed_tol: float = 1e-3, damping: float = 0.5,
+    def settle(self, eta: np.ndarray, *, max_time: float = 1200.0, check_every: float = 5.0,
+               tol: float = 1e-6, speed_tol: float = 0.01, damping: float = 0.5,
                strict: bool = True) -> SettleInfo:
         """Let the lines come to rest with the vessel held at ``eta`` (dynamic relaxation).
 

@@ -235,15 +235,17 @@ class Plant:
     def _check_overload(self, T_bonds: np.ndarray) -> None:
         """Break every intact line whose fairlead or anchor tension reached its strength.
 
-        ``T_bonds`` are the segment tensions of the last FEM substep: only when a line's top or
-        bottom segment comes within 2 % of its strength are its exact fairlead and anchor tensions
-        (at the end of the step) evaluated and compared.
+        ``T_bonds`` are the segment tensions of the last FEM substep. The fairlead tension is at
+        most the top segment's tension plus the fairlead node's weight, the anchor tension is the
+        bottom segment's: only when one of these bounds comes within 2 % of a line's strength are
+        its exact fairlead and anchor tensions (at the end of the step) evaluated and compared.
         """
         if self.break_on_overload == "never":
             return
         m = self.mooring
         fem = m.fem
-        near = np.maximum(T_bonds[fem.fairlead_seg], T_bonds[fem.anchor_seg]) >= 0.98 * self.strength
+        bound = np.maximum(T_bonds[fem.fairlead_seg] + fem.node_weight[fem.fairlead_idx], T_bonds[fem.anchor_seg])
+        near = bound >= 0.98 * self.strength
         if not np.any(near & fem.active):
             return
         T = np.maximum(m.fairlead_tension(), m.anchor_tension())
