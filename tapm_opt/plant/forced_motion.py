@@ -33,7 +33,6 @@ import numpy as np
 from ..errors import ModelError
 from ..geometry import rot2_apply, rot_z
 from ..models import catenary
-from ..models.mooring import MooringModel
 from .mooring_fem import MooringFEM, SettleInfo
 
 __all__ = ["ForcedMotionResult", "forced_motion", "identify_mooring_damping", "DOFS"]
@@ -147,6 +146,8 @@ def forced_motion(scenario: Any, *, dof: Literal["surge", "sway", "yaw"] = "surg
     k = DOFS.index(dof)
     w0 = time.perf_counter()
     ss_id = None
+    if isinstance(sea_state, str) and sea_state == "none":
+        sea_state = None  # still water, as for the plant
     if sea_state is not None:
         if current is not None:
             raise ModelError("give either current or sea_state, not both")
@@ -242,7 +243,7 @@ def forced_motion(scenario: Any, *, dof: Literal["surge", "sway", "yaw"] = "surg
     t_out, eta_out, T_out, F_out = t_out[: j + 1], eta_out[: j + 1], T_out[: j + 1], F_out[: j + 1]
 
     # quasi-static reference at the output poses
-    moor = MooringModel.from_scenario(scenario)
+    moor = plant.geometry
     XF = np.array([moor.spans(e)[2] for e in eta_out])
     T_qs = catenary.solve(XF, moor.ZF, moor.L, moor.EA, moor.w, CB=moor.CB, h_A=moor.h_A).TF
 

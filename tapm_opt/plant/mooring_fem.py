@@ -109,6 +109,15 @@ class MooringFEM:
         return self.fem.lines.ids
 
     # -- kinematics ------------------------------------------------------------------------
+    def _levers(self, eta, fx, fy):
+        """Lever arm (x, y) in {E} about which the fairleads turn with the heading rate [m]: from
+        the body origin to each fairlead (locked turret) or to the centre of turret, R2(psi)
+        p_cot^B (free turret, eq. 5). ``eta`` may carry trailing axes (a pose sequence)."""
+        g = self.geometry
+        if g.turret_mode == "locked":
+            return fx - eta[0], fy - eta[1]
+        return rot2_apply(eta[2], g.p_cot_B[0], g.p_cot_B[1])
+
     def fairlead_state(self, eta: np.ndarray, eta_dot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Fairlead positions and velocities in {E}, each (n_lines, 3), for the vessel pose and rate.
 
@@ -118,10 +127,7 @@ class MooringFEM:
         g = self.geometry
         fx, fy = g.fairleads(eta)
         r = np.column_stack((fx, fy, np.full(fx.shape[0], self.fairlead_z)))
-        if g.turret_mode == "locked":
-            rx, ry = fx - eta[0], fy - eta[1]
-        else:
-            rx, ry = rot2_apply(eta[2], g.p_cot_B[0], g.p_cot_B[1])   # R2(psi) p_cot^B (eq. 5)
+        rx, ry = self._levers(eta, fx, fy)
         v = np.zeros_like(r)
         v[:, 0] = eta_dot[0] - eta_dot[2] * ry
         v[:, 1] = eta_dot[1] + eta_dot[2] * rx
@@ -241,10 +247,7 @@ class MooringFEM:
         r[:, :, 0] = fx
         r[:, :, 1] = fy
         r[:, :, 2] = self.fairlead_z
-        if g.turret_mode == "locked":
-            rx, ry = fx - e[0], fy - e[1]
-        else:
-            rx, ry = rot2_apply(e[2], g.p_cot_B[0], g.p_cot_B[1])
+        rx, ry = self._levers(e, fx, fy)
         ed = eta_dot_seq.T[:, :, None]
         v = np.zeros_like(r)
         v[:, :, 0] = ed[0] - ed[2] * ry
@@ -274,10 +277,7 @@ class MooringFEM:
         acceleration (rigid body, the time derivative of :meth:`fairlead_state`'s velocity)."""
         g = self.geometry
         fx, fy = g.fairleads(eta)
-        if g.turret_mode == "locked":
-            rx, ry = fx - eta[0], fy - eta[1]
-        else:
-            rx, ry = rot2_apply(eta[2], g.p_cot_B[0], g.p_cot_B[1])
+        rx, ry = self._levers(eta, fx, fy)
         rd, rdd = eta_dot[2], eta_ddot[2]
         a = np.zeros((fx.shape[0], 3))
         a[:, 0] = eta_ddot[0] - rdd * ry - rd * rd * rx
