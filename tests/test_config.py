@@ -706,3 +706,17 @@ def test_doc_example_loads():
     sol = MooringModel.from_scenario(sc).solve_lines(np.zeros(3))
     assert np.all(sol.TF < 0.2 * sc.line_arrays["MBS"])  # the pretension the doc claims (about 14 %)
     assert set(sol.regime_names()) == {"touchdown"}
+
+
+def test_docs_state_the_anchor_rule_as_the_loader_checks_it():
+    """An anchor lies on the seabed or above it (z between the fairlead depth and the water depth):
+    the Line docstring, the rule tables and the field reference say so, none says 'on the seabed'
+    alone."""
+    text = DOC.read_text(encoding="utf-8")
+    for stale in ("from its anchor (on the seabed)", "anchors on the seabed,", "anchors on the\nseabed;",
+                  "anchors lie on the seabed"):
+        assert stale not in text, stale
+    assert "(on the seabed)" not in schema.Line.__doc__
+    assert "on the seabed or above it" in " ".join(schema.Line.__doc__.split())
+    rule = next(r for r in text.splitlines() if r.startswith("| `lines[].anchor[2]`"))
+    assert "between the fairlead depth and the water depth" in rule and "above it" in rule

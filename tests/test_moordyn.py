@@ -280,6 +280,46 @@ def test_round_trip_reproduces_the_mooring(tmp_path, name):
     assert np.allclose(T1, T0, rtol=1e-9)
 
 
+def test_round_trip_keeps_a_raised_anchor(tmp_path, capsys):
+    """An anchor 30 m above the seabed (h_A = 30 m) is written as a Fixed point at its z and read
+    back at the same place, by the functions and by the command line."""
+    from tapm_opt.config import scenario_from_dict, scenario_to_dict
+    from tapm_opt.config.moordyn import scenario_toml
+
+    data = scenario_to_dict(load_scenario("aamo4"))
+    depth = data["environment"]["water_depth"]
+    x, y = data["lines"][0]["anchor"][:2]
+    data["lines"][0]["anchor"] = [x, y, depth - 30.0]
+    sc = scenario_from_dict(data)
+    assert sc.line_arrays["h_A"].tolist() == [30.0, 0.0, 0.0, 0.0]
+    vessel = _write(tmp_path, scenario_toml(data), "raised.toml")
+    text = moordyn_text(sc)[0]
+    anchor = parse_moordyn(text).point(1)
+    assert anchor.kind == "fixed" and np.allclose(anchor.r, (x, -y, 30.0 - depth)), anchor
+    path = _write(tmp_path, text)
+    new = import_moordyn(path, vessel, mbs=MBS["aamo4"]).scenario
+    assert validate(new) == []
+    assert np.allclose(new.anchors, sc.anchors, atol=1e-6)
+    assert np.array_equal(new.line_arrays["h_A"], sc.line_arrays["h_A"])
+    T0 = MooringModel.from_scenario(sc).tensions(np.zeros(3))
+    assert np.allclose(MooringModel.from_scenario(new).tensions(np.zeros(3)), T0, rtol=1e-9)
+    out = tmp_path / "back.toml"
+    code, _, err = run(capsys, "scenario", "import-moordyn", str(path), "--vessel", str(vessel), "--out", str(out),
+                       "--mbs", "cable=5e6")
+    assert code == 0, err
+    assert np.allclose(load_scenario(out).anchors, sc.anchors, atol=1e-6)
+
+
+def test_point_below_wtrdpth_raises_the_depth_with_a_note(tmp_path):
+    """A point below WtrDpth deepens the water, as MoorDyn-C does, and the import says so: the other
+    anchors are then raised anchors, not silently moved."""
+    text = _edit(HAND_WRITTEN, "1741.440      0.000  -800.0", "1741.440      0.000  -810.0")
+    res = import_moordyn(_write(tmp_path, text), "fpso", mbs={"poly160": 1.5e7})
+    assert res.scenario.environment.water_depth == 810.0
+    assert any("WtrDpth = 800 m is above point 3" in n for n in res.notes), res.notes
+    assert res.scenario.line_arrays["h_A"].tolist() == [10.0, 0.0] + [10.0] * 7
+
+
 def test_coupled_points_reversed_line_and_turret_angle(tmp_path):
     """Fairleads given as global Coupled points, one line written fairlead first, and a vessel
     (a TOML file) whose turret is off the body origin at a turret angle: the same fairleads."""
@@ -413,7 +453,8 @@ BAD_FILES = {
                                     "       0      0\n2     Free  0 0 -50 0 0 0 1e5 0 0 0 0 0\n"), "body 2"),
     "fairlead depths": (lambda t: _edit(t, "99.4400     0.0000  -18.0", "99.4400     0.0000  -20.0"),
                         "fairlead depths differ"),
-    "anchor off seabed": (lambda t: _edit(t, "1741.440      0.000  -800.0", "1741.440      0.000  -790.0"), "point 3"),
+    "anchor above the fairleads": (lambda t: _edit(t, "1741.440      0.000  -800.0", "1741.440      0.000  -10.0"),
+                                   "point 3 (anchor of line 2) is at z = -10 m, not below the fairleads"),
     "two anchors": (lambda t: _edit(t, "1     poly160     1        2 ", "1     poly160     1        3 "), "line 1"),
     "v1 layout": (lambda t: _edit(t, "-1.0       0      1.2    1.0    0.05    0.1", "-1.0   1.0  0.1  1.2  0.05"),
                   "v1 layout"),

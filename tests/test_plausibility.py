@@ -107,8 +107,8 @@ FIELD_RANGES = [
     # (base, path, bad value, text of the value in the message, a value just inside that passes)
     ("fpso", "environment.water_depth", 2.0e4, "= 20000 m", None),
     ("fpso", "vessel.length_pp", 2000.0, "= 2000 m", None),
-    ("fpso", "vessel.breadth", 500.0, "= 500 m", None),
-    ("fpso", "vessel.draught", 150.0, "= 150 m", None),
+    ("fpso", "vessel.breadth", 500.0, "= 500 m", 190.0),
+    ("fpso", "vessel.draught", 300.0, "= 300 m", 240.0),                 # spars draw 80-200 m
     ("fpso", "turret.angle_deg", 400.0, "= 400 deg", -360.0),
     ("fpso", "lines[0].fairlead_angle_deg", -400.0, "= -400 deg", None),
     ("fpso", "thrusters[0].angle_deg", 1e300, "= 1e+300 deg", 350.0),
@@ -258,8 +258,14 @@ CROSS_FIELD = [
      ["= (1000, 0) m", "outside the hull"]),
     ("thruster off the hull", "fpso", lambda d: set_path(d, "thrusters[0].position", [-1000.0, 0.0]),
      "thrusters[0].position", ["= (-1000, 0) m", "outside the hull"]),
-    ("fairlead circle wider than the hull", "ren8", lambda d: set_path(d, "turret.fairlead_radius", 100.0),
-     "turret.fairlead_radius", ["= 100 m", "breadth 41 m"]),
+    ("fairlead circle beyond the hull", "ren8", lambda d: set_path(d, "turret.fairlead_radius", 300.0),
+     "turret.fairlead_radius", ["= 300 m", "beyond the hull", "length_pp 230 m"]),
+    ("line's fairlead beyond the hull", "ren8", lambda d: set_path(d, "lines[2].fairlead_radius", 231.0),
+     "lines[2].fairlead_radius", ["= 231 m", "beyond the hull", "length_pp 230 m"]),
+    ("CO far above the waterline", "fpso", lambda d: set_path(d, "vessel.reference_point", [152.4, 0.0, 300.0]),
+     "vessel.reference_point", ["= (152.4, 0, 300) m", "outside the hull", "218.46"]),
+    ("draught that typo'd a spar's 200 m", "fpso", lambda d: set_path(d, "vessel.draught", 2000.0), "vessel.draught",
+     ["= 2000 m", "spars 80-200 m"]),
     ("alert radius beyond every line", "fpso", lambda d: set_path(d, "limits.alert_radius", 1e6),
      "limits.alert_radius", ["= 1e+06 m", "longest line (2300 m)"]),
     ("anchor below the seabed", "aamo4", lambda d: set_path(d, "lines[0].anchor", [2000.0, 0.0, 2000.0]),
@@ -299,6 +305,96 @@ def test_values_inside_the_bounds_are_accepted(name, path, value):
     data = base(name)
     set_path(data, path, value)
     scenario_from_dict(data)
+
+
+# ------------------------------------------------------------------------------------------
+# real designs of every kind pass: the bounds catch typos, not unusual vessels or sites
+# ------------------------------------------------------------------------------------------
+
+CHAIN = dict(id="chain", diameter=0.15, mass_per_length=250.0, density=7850.0, EA=1.5e9, MBS=2.0e7, MBS_std=1.0e6,
+             Cd_normal=2.4, Cd_tangential=1.15, Ca_normal=1.0)
+#: Polyester rope of 160 mm: 17 kg/m, MBS 12 MN, strain at MBS 15 %.
+POLYESTER = dict(id="polyester", diameter=0.16, mass_per_length=17.0, density=1380.0, EA=8.0e7, MBS=1.2e7,
+                 MBS_std=6.0e5, Cd_normal=1.2, Cd_tangential=0.05, Ca_normal=1.0)
+
+
+def design(L: float, B: float, T: float, depth: float, *, mass: float = 0.8, radius: float = 0.0,
+           fairlead_depth: float = 0.0, line_type: dict = CHAIN, spread: float | None = None,
+           taut: bool = False, Hs: float = 3.0, Tp: float = 10.0, co_z: float | None = None,
+           per_line_radius: bool = False) -> dict:
+    """A four-line locked-turret scenario of a hull L x B x T in ``depth`` of water: surge mass
+    ``mass`` x the box rho L B T (sway 1.5 x), yaw radius of gyration 0.3 L, decay times of 100 s,
+    fairleads on a circle of ``radius`` (per line with ``per_line_radius``), anchors ``spread`` from
+    the centre (default 5 x depth), catenary lines 10 % longer than the spans or taut-leg lines 2 %
+    shorter than the straight distance."""
+    d = base("aamo4")
+    box = 1025.0 * L * B * T
+    m = [mass * box, 1.5 * mass * box, mass * box * (0.3 * L) ** 2]
+    v = d["vessel"]
+    for key in ("added_mass", "quadratic_damping", "reference_point"):
+        v.pop(key, None)
+    v.update(mass_matrix=[[m[0], 0, 0], [0, m[1], 0], [0, 0, m[2]]],
+             linear_damping=[[m[0] / 100, 0, 0], [0, m[1] / 100, 0], [0, 0, m[2] / 100]],
+             length_pp=L, breadth=B, draught=T, wind_area_frontal=10.0 * B, wind_area_lateral=10.0 * L)
+    if co_z is not None:
+        v["reference_point"] = [L / 2, 0.0, co_z]
+    d["environment"]["water_depth"] = depth
+    d["turret"].update(position=[0.0, 0.0], mode="locked", fairlead_radius=0.0 if per_line_radius else radius,
+                       fairlead_depth=fairlead_depth)
+    d["line_types"] = [dict(line_type)]
+    spread = 5.0 * depth if spread is None else spread
+    straight = math.hypot(spread - radius, depth - fairlead_depth)
+    length = 0.98 * straight if taut else 1.1 * (spread - radius + depth - fairlead_depth)
+    d["lines"] = []
+    for k in range(4):
+        a = math.radians(45.0 + 90.0 * k)
+        d["lines"].append(dict(id=str(k + 1), type=line_type["id"], anchor=[spread * math.cos(a), spread * math.sin(a)],
+                               fairlead_angle_deg=math.degrees(a), length=length))
+        if per_line_radius:
+            d["lines"][-1]["fairlead_radius"] = radius
+    d["thrusters"] = [dict(id="T1", kind="azimuth", position=[-0.4 * L, 0.0], max_thrust=1e5, max_thrust_rate=1e4,
+                           max_azimuth_rate_deg_s=10.0, time_constant=5.0)]
+    d["sea_states"] = [dict(id="s", Hs=Hs, Tp=Tp)]
+    for key in ("riser", "faults", "limits"):
+        d.pop(key, None)
+    return d
+
+
+REAL_DESIGNS = {
+    "supply vessel 80 x 18 x 6 m spread-moored in 50 m": lambda: design(80, 18, 6, 50.0, radius=40.0,
+                                                                         fairlead_depth=2.0),
+    "spread-moored FPSO, fairleads at the hull ends (r = 150 m)": lambda: design(300, 58, 20, 1000.0, radius=150.0,
+                                                                                 fairlead_depth=15.0),
+    "spread mooring given per line (r = 150 m)": lambda: design(300, 58, 20, 1000.0, radius=150.0,
+                                                                 per_line_radius=True),
+    "semi-submersible 110 x 90 x 25 m, polyester taut-leg in 3000 m": lambda: design(
+        110, 90, 25, 3000.0, mass=0.3, radius=60.0, fairlead_depth=20.0, line_type=POLYESTER, spread=3000.0, taut=True),
+    "spar 40 x 40 x 200 m in 1500 m": lambda: design(40, 40, 200, 1500.0, mass=1.6, radius=20.0, fairlead_depth=100.0,
+                                                     co_z=200.0),
+    "deep spar, 240 m draught, CO at the waterline": lambda: design(40, 40, 240, 1500.0, mass=1.6, radius=20.0,
+                                                                    fairlead_depth=100.0, co_z=240.0),
+    "swell Hs 3 m, Tp 20 s": lambda: design(300, 58, 20, 1000.0, Hs=3.0, Tp=20.0),
+}
+
+
+@pytest.mark.parametrize("make", REAL_DESIGNS.values(), ids=list(REAL_DESIGNS))
+def test_real_designs_are_accepted(make):
+    sc = scenario_from_dict(make())
+    assert validate(sc) == [] and fem_size_issues(sc) == []
+
+
+def test_spread_mooring_of_a_moordyn_import_with_fairleads_at_the_hull_ends(tmp_path):
+    """A MoorDyn file whose fairleads sit at the bow and stern of a 300 m hull imports."""
+    from tapm_opt.config.moordyn import import_moordyn, moordyn_text, scenario_toml
+
+    data = design(300, 58, 20, 1000.0, radius=150.0, fairlead_depth=15.0)
+    sc = scenario_from_dict(data)
+    vessel = tmp_path / "vessel.toml"
+    vessel.write_text(scenario_toml(data), encoding="utf-8")
+    path = tmp_path / "spread.dat"
+    path.write_text(moordyn_text(sc)[0], encoding="utf-8")
+    new = import_moordyn(path, vessel, mbs={"chain": 2.0e7}).scenario
+    assert new.turret.fairlead_radius == pytest.approx(150.0)
 
 
 # ------------------------------------------------------------------------------------------

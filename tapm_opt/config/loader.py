@@ -290,7 +290,8 @@ GYRATION_RANGE = (0.05, 1.0)
 MAX_DAMPING_RATE = 1.0
 MAX_QUADRATIC_DAMPING_RATE = 100.0
 #: Largest mean height of the wind area above water [m]: wind_area_frontal / breadth and
-#: wind_area_lateral / length_pp.
+#: wind_area_lateral / length_pp; also the highest CO may lie above the waterline (reference_point
+#: z up to draught + this above the keel).
 MAX_WINDAGE_HEIGHT = 200.0
 #: Largest coefficient of variation MBS_std / MBS (measured: 0.05-0.15).
 MAX_MBS_COV = 0.5
@@ -501,12 +502,12 @@ def _plausibility(sc: Scenario, fl_x: np.ndarray, fl_y: np.ndarray, issues: list
                 "taller than any superstructure")))
     x, y, z = v.reference_point  # NaN: not given
     bad_x = abs(x - v.length_pp / 2) > v.length_pp  # False for NaN
-    bad_z = math.isfinite(z) and not -v.draught <= z <= MAX_WINDAGE_HEIGHT
+    bad_z = math.isfinite(z) and not -v.draught <= z <= v.draught + MAX_WINDAGE_HEIGHT
     if bad_x or abs(y) > v.breadth or bad_z:
         issues.append(ScenarioIssue("vessel.reference_point", (
             f"= ({x:g}, {y:g}, {z:g}) m puts CO outside the hull: x from the aft perpendicular within "
             f"[{-v.length_pp / 2:g}, {1.5 * v.length_pp:g}] m, |y| <= breadth {v.breadth:g} m, z above the keel within "
-            f"[{-v.draught:g}, {MAX_WINDAGE_HEIGHT:g}] m")))
+            f"[{-v.draught:g}, {v.draught + MAX_WINDAGE_HEIGHT:g}] m (draught + {MAX_WINDAGE_HEIGHT:g} m)")))
     longest_line = max((ln.length for ln in sc.lines), default=math.inf)
     for key in ("safe_radius", "alert_radius"):
         r = getattr(sc.limits, key)
@@ -521,9 +522,16 @@ def _plausibility(sc: Scenario, fl_x: np.ndarray, fl_y: np.ndarray, issues: list
 
     tur = sc.turret
     in_hull("turret.position", *tur.position, "turret")
-    if tur.fairlead_radius > v.breadth:
-        issues.append(ScenarioIssue("turret.fairlead_radius", f"= {tur.fairlead_radius:g} m is wider than the hull "
-                                                              f"(breadth {v.breadth:g} m)"))
+    hull = max(v.length_pp, v.breadth)  # a spread mooring's fairleads at the hull ends: radius about length_pp / 2
+
+    def radius_issue(path: str, r: float) -> None:
+        if r > hull:
+            issues.append(ScenarioIssue(path, (
+                f"= {r:g} m puts the fairleads beyond the hull: the fairlead circle of a turret, or of a spread "
+                f"mooring with its fairleads at the hull ends, has a radius of at most the hull's length "
+                f"or breadth, whichever is larger (length_pp {v.length_pp:g} m, breadth {v.breadth:g} m)")))
+
+    radius_issue("turret.fairlead_radius", tur.fairlead_radius)
     for i, th in enumerate(sc.thrusters):
         in_hull(f"thrusters[{i}].position", *th.position, "thruster")
 
@@ -573,9 +581,8 @@ def _plausibility(sc: Scenario, fl_x: np.ndarray, fl_y: np.ndarray, issues: list
         if lt is None or len(ln.anchor) not in (2, 3):
             continue
         r = tur.fairlead_radius if ln.fairlead_radius is None else ln.fairlead_radius
-        if ln.fairlead_radius is not None and r > v.breadth:
-            issues.append(ScenarioIssue(f"{p}.fairlead_radius", f"= {r:g} m is wider than the hull "
-                                                                f"(breadth {v.breadth:g} m)"))
+        if ln.fairlead_radius is not None:
+            radius_issue(f"{p}.fairlead_radius", r)
         horiz = math.hypot(ln.anchor[0] - float(fl_x[i]), ln.anchor[1] - float(fl_y[i]))
         z_anchor = ln.anchor[2] if len(ln.anchor) == 3 else env.water_depth
         vert = abs(z_anchor - tur.fairlead_depth)

@@ -751,7 +751,8 @@ def moordyn_text(scenario: Scenario, *, segments: int | None = None, dtM: float 
     """MoorDyn v2 input text of the scenario's mooring at the field zero point.
 
     One ``Coupled`` body at the centre of turret with the turret's orientation (MoorDyn yaw
-    ``-alpha_t``); every fairlead a ``Body1`` point, every anchor a ``Fixed`` point on the seabed;
+    ``-alpha_t``); every fairlead a ``Body1`` point, every anchor a ``Fixed`` point at its
+    position (on the seabed, or above it for a raised anchor: ``Scenario.anchors``);
     line k runs from point 2k-1 (anchor, end A) to point 2k (fairlead, end B). Drive the body with
     the turret's pose: position of the COT, yaw ``-(psi + alpha_t)`` for a locked turret, ``-alpha_t``
     for a free one. No waves, current or faults are written.
@@ -924,6 +925,11 @@ def scenario_data_from_moordyn(model: MoorDynModel, vessel_data: dict, *, mbs: M
     g, rho, depth = model.gravity, model.water_density, model.water_depth
     if not depth > 0:
         raise MoorDynError("no water depth: set option WtrDpth (or put the anchors on the seabed)", source=src)
+    wd = model.number_option("wtrdpth", "depth", "waterdepth", default=0.0) or 0.0
+    if 0.0 < wd < depth:
+        deepest = max(model.points, key=lambda p: -model.global_position(p)[2])
+        notes.append(f"option WtrDpth = {wd:g} m is above point {deepest.id} (z = {-depth:g} m): the water depth is "
+                     f"{depth:g} m, as MoorDyn-C raises it; anchors above -{depth:g} m are read as raised anchors")
     # -- line types -----------------------------------------------------------------------
     missing = [lt.name for lt in model.line_types if lt.name not in mbs and any(ln.type == lt.name for ln in model.lines)]
     if missing:
@@ -991,7 +997,7 @@ def scenario_data_from_moordyn(model: MoorDynModel, vessel_data: dict, *, mbs: M
     alpha = math.radians(float(tur.get("angle_deg", 0.0)))
     ca, sa = math.cos(-alpha), math.sin(-alpha)
     tol_z = 1e-6 * max(1.0, depth)
-    lines, fair = [], []
+    lines, fair, anchors = [], [], []
     for ln in model.lines:
         pa, pb = model.point(ln.a), model.point(ln.b)
         if pa.kind == "fixed" and pb.kind != "fixed":
@@ -1007,13 +1013,14 @@ def scenario_data_from_moordyn(model: MoorDynModel, vessel_data: dict, *, mbs: M
             raise MoorDynError(f"line {ln.id} runs between two vessel points ({pa.id} and {pb.id}); every line must "
                                "run from a fixed anchor to the vessel", source=src, lineno=ln.lineno)
         a = ned_from_md(model.global_position(anc))
-        if abs(a[2] - depth) > tol_z:
-            raise MoorDynError(f"point {anc.id} (anchor of line {ln.id}) is at z = {-a[2]:g} m, not on the seabed at "
-                               f"-{depth:g} m: tapm_opt's anchors lie on the flat seabed", source=src,
-                               lineno=anc.lineno)
+        if a[2] > depth + tol_z:
+            raise MoorDynError(f"point {anc.id} (anchor of line {ln.id}) is at z = {-a[2]:g} m, below the seabed at "
+                               f"-{depth:g} m", source=src, lineno=anc.lineno)
         f = ned_from_md(model.global_position(fl))
         fair.append((fl, ln, f))
-        lines.append({"id": str(ln.id), "type": ln.type, "anchor": [_clean(a[0]), _clean(a[1]), _clean(depth)],
+        z_anc = depth if abs(a[2] - depth) <= tol_z else _clean(a[2])  # on the seabed, or above it
+        anchors.append((anc, ln, z_anc))
+        lines.append({"id": str(ln.id), "type": ln.type, "anchor": [_clean(a[0]), _clean(a[1]), _clean(z_anc)],
                       "length": ln.length, "segments": ln.segments})
     zs = [f[2] for _, _, f in fair]
     if max(zs) - min(zs) > 1e-6:
@@ -1026,6 +1033,11 @@ def scenario_data_from_moordyn(model: MoorDynModel, vessel_data: dict, *, mbs: M
     fl_depth = _clean(float(np.mean(zs)))
     if fl_depth >= depth:
         raise MoorDynError(f"the fairleads ({fl_depth:g} m deep) are not above the seabed ({depth:g} m)", source=src)
+    for anc, ln, z_anc in anchors:
+        if z_anc <= fl_depth:
+            raise MoorDynError(f"point {anc.id} (anchor of line {ln.id}) is at z = {-z_anc:g} m, not below the fairleads "
+                               f"at -{fl_depth:g} m: an anchor lies on the seabed (-{depth:g} m) or above it, below the "
+                               "fairleads", source=src, lineno=anc.lineno)
     radii = []
     for (fl, ln, f), item in zip(fair, lines):
         dx, dy = f[0] - p_cot[0], f[1] - p_cot[1]
@@ -1105,7 +1117,9 @@ def import_moordyn(path: str | Path, vessel: str | Path, *, mbs: Mapping[str, fl
     faults of lines that exist, sensors, limits, plant settings).
 
     Fairleads become turret angles and radii about the vessel's centre of turret at the field zero
-    point (turret angle alpha_t removed); all fairleads must be at one depth. MoorDyn files carry
+    point (turret angle alpha_t removed); all fairleads must be at one depth. An anchor (a fixed
+    point) lies on the seabed or above it, below the fairleads (a raised anchor keeps its z; one
+    below the seabed or not below the fairleads is refused). MoorDyn files carry
     no breaking strength: ``mbs`` maps every used line type to its MBS [N]; ``MBS_std`` is
     ``mbs_cov`` times it.
     """

@@ -183,8 +183,10 @@ class Vessel:
     )
     length_pp: float = spec("Length between perpendiculars.", "m",
                              check=positive_at_most(1000.0, "twice the longest ship ever built"))
-    breadth: float = spec("Moulded breadth.", "m", check=positive_at_most(200.0, "the widest hulls are about 75 m"))
-    draught: float = spec("Draught.", "m", check=positive_at_most(100.0, "the deepest draughts are about 30 m"))
+    breadth: float = spec("Moulded breadth.", "m", check=positive_at_most(
+        200.0, "ships are up to about 75 m wide, the largest semi-submersibles about 130 m"))
+    draught: float = spec("Draught.", "m", check=positive_at_most(
+        250.0, "ships draw up to about 30 m, semi-submersibles 20-40 m, spars 80-200 m"))
     wind_area_frontal: float = spec("Projected frontal wind area (above water).", "m^2", check=positive)
     wind_area_lateral: float = spec("Projected lateral wind area (above water).", "m^2", check=positive)
     reference_point: Vec = spec(
@@ -279,7 +281,8 @@ class LineType:
 
 @dataclass(frozen=True, kw_only=True)
 class Line:
-    """One mooring line from its anchor (on the seabed) to its fairlead on the turret."""
+    """One mooring line from its lower end, the anchor (on the seabed or above it: z between the
+    fairlead depth and the water depth), to its fairlead on the turret."""
 
     id: str = spec("Line name (unique).", id_like=True)
     type: str = spec("Line type id (line_types[].id).", id_like=True)
