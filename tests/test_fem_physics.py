@@ -139,9 +139,9 @@ def test_fairlead_load_adds_the_half_segment_drag_and_inertia():
     fem.v[fl] = vr + vc
     got = fem.fairlead_forces(vc, a)
     # the top segment's internal damping sees the fairlead velocity too: remove it via the tensions
-    _, _, T_moving = fem._bonds(fem.fairlead_seg)
+    _, _, T_moving = fem.segment_state(fem.r, fem.v, fem.fairlead_seg)
     fem.v[fl] = 0.0
-    _, _, T_rest = fem._bonds(fem.fairlead_seg)
+    _, _, T_rest = fem.segment_state(fem.r, fem.v, fem.fairlead_seg)
     damping = -(T_moving - T_rest)[:, None] * q
     np.testing.assert_allclose(got, static + damping + drag + inertia, rtol=1e-10, atol=1e-6)
     assert np.max(np.linalg.norm(drag, axis=1)) > 100.0  # the terms are not negligible here
@@ -267,7 +267,7 @@ def test_overload_counts_the_fairlead_node_weight_on_a_coarse_mesh():
     probe = Plant(sc, sea_state="none", segments=10)
     fem = probe.mooring.fem
     T_fl = probe.mooring.fairlead_tension()[0]
-    T_top = fem._bonds(fem.fairlead_seg)[2][0]
+    T_top = fem.segment_state(fem.r, fem.v, fem.fairlead_seg)[2][0]
     assert T_top < 0.97 * T_fl
     weak = dataclasses.replace(sc.line_types[0], id="weak", MBS=0.995 * T_fl)
     sc2 = dataclasses.replace(sc, line_types=sc.line_types + (weak,),

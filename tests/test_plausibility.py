@@ -45,15 +45,27 @@ def base(name: str) -> dict:
     return copy.deepcopy(_builtin_dict(name))
 
 
-def set_path(d: dict, path: str, value) -> None:
-    """Set ``d`` at a file path such as ``lines[0].length`` or ``vessel.mass_matrix[0][0]``."""
+def _parts(path: str) -> list:
     parts: list = []
     for name, idx in re.findall(r"([A-Za-z_][A-Za-z0-9_]*)((?:\[\d+\])*)", path):
         parts.append(name)
         parts += [int(i) for i in re.findall(r"\d+", idx)]
+    return parts
+
+
+def set_path(d: dict, path: str, value) -> None:
+    """Set ``d`` at a file path such as ``lines[0].length`` or ``vessel.mass_matrix[0][0]``."""
+    parts = _parts(path)
     for p in parts[:-1]:
         d = d[p]
     d[parts[-1]] = value
+
+
+def get_path(d: dict, path: str):
+    """The value of ``d`` at a file path (as :func:`set_path` names it)."""
+    for p in _parts(path):
+        d = d[p]
+    return d
 
 
 def issue_at(data: dict, path: str):
@@ -304,7 +316,8 @@ def test_one_bad_number_gives_one_problem():
 def test_values_inside_the_bounds_are_accepted(name, path, value):
     data = base(name)
     set_path(data, path, value)
-    scenario_from_dict(data)
+    sc = scenario_from_dict(data)  # raises ScenarioError if a bound rejects the value
+    assert get_path(scenario_to_dict(sc), path) == pytest.approx(value)
 
 
 # ------------------------------------------------------------------------------------------

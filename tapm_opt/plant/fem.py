@@ -278,18 +278,25 @@ class FEMLines:
         return float(safety * min(limit(k_row, c_row), limit(self._kb[free], self._cb[free])))
 
     # -- forces ----------------------------------------------------------------------------
-    def segment_state(self, r: np.ndarray, v: np.ndarray):
-        """Bond vectors (n_nodes-1, 3), stretched lengths and tensions [N] (0 on non-segments).
+    def segment_state(self, r: np.ndarray, v: np.ndarray, bonds: np.ndarray | None = None):
+        """Bond vectors toward the upper node, stretched lengths [m] and tensions [N] (tension only,
+        with internal damping; 0 on non-segments) of every bond, shape (n_nodes-1, 3) and
+        (n_nodes-1,), or of the bonds ``bonds`` only.
 
         Segment k of line j is bond ``node_start[j] + k``.
         """
-        lv = r[1:] - r[:-1]
+        if bonds is None:
+            lv = r[1:] - r[:-1]
+            l0, EA, c = self.l0, self._EA, self._c_int
+        else:
+            lv = r[bonds + 1] - r[bonds]
+            l0, EA, c = self.l0[bonds], self._EA[bonds], self._c_int[bonds]
         eps = np.sqrt((lv * lv).sum(axis=1))
-        strain = eps / self.l0 - 1.0
-        T = self._EA * strain
+        strain = eps / l0 - 1.0
+        T = EA * strain
         if self._has_int_damping:
-            dv = v[1:] - v[:-1]
-            T += self._c_int * (dv * lv).sum(axis=1) / (eps * self.l0)
+            dv = v[1:] - v[:-1] if bonds is None else v[bonds + 1] - v[bonds]
+            T += c * (dv * lv).sum(axis=1) / (eps * l0)
         np.maximum(T, 0.0, out=T)
         T[strain <= 0.0] = 0.0
         return lv, eps, T
@@ -480,18 +487,6 @@ class FEMLines:
         self._attached = np.flatnonzero(self.active)
 
     # -- outputs ---------------------------------------------------------------------------
-    def _bonds(self, s: np.ndarray):
-        """Bonds ``s``: vectors toward the upper node (len(s), 3), stretched lengths [m] and
-        tensions [N] (tension only, with internal damping), as :meth:`segment_state`."""
-        lv = self.r[s + 1] - self.r[s]
-        eps = np.sqrt((lv * lv).sum(axis=1))
-        strain = eps / self.l0[s] - 1.0
-        T = self._EA[s] * strain
-        if self._has_int_damping:
-            dv = self.v[s + 1] - self.v[s]
-            T += self._c_int[s] * (dv * lv).sum(axis=1) / (eps * self.l0[s])
-        return lv, eps, np.where(strain > 0.0, np.maximum(T, 0.0), 0.0)
-
     def fairlead_forces(self, v_current: np.ndarray | None = None,
                         a_fairlead: np.ndarray | None = None) -> np.ndarray:
         """Force of each line on its fairlead point in {E} [N], shape (n_lines, 3).
@@ -510,7 +505,7 @@ class FEMLines:
         Zero for a broken line. See docs/plant.md, "Load on the vessel".
         """
         fl = self.fairlead_idx
-        lv, eps, T = self._bonds(self.fairlead_seg)
+        lv, eps, T = self.segment_state(self.r, self.v, self.fairlead_seg)
         q = lv / eps[:, None]
         f = -T[:, None] * q
         f[:, 2] += self.node_weight[fl]
@@ -533,7 +528,7 @@ class FEMLines:
         """Fairlead tension of each line [N]: magnitude of the top segment's tension vector plus
         the fairlead node's weight (the static part of :meth:`fairlead_forces`; no drag or
         inertia). 0 for a broken line."""
-        lv, eps, T = self._bonds(self.fairlead_seg)
+        lv, eps, T = self.segment_state(self.r, self.v, self.fairlead_seg)
         f = -(T / eps)[:, None] * lv
         f[:, 2] += self.node_weight[self.fairlead_idx]
         out = np.sqrt(np.einsum("ij,ij->i", f, f))
@@ -545,7 +540,7 @@ class FEMLines:
         tensions ``T`` when given, else evaluated on the bottom segments only)."""
         if T is not None:
             return T[self.anchor_seg]
-        return self._bonds(self.anchor_seg)[2]
+        return self.segment_state(self.r, self.v, self.anchor_seg)[2]
 
     def energy(self) -> float:
         """Mechanical energy of the lines [J]: kinetic (structural mass) + elastic + gravitational.

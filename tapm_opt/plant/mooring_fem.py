@@ -8,6 +8,7 @@ fairlead geometry and the assembly of the load in {B} are those of
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -179,9 +180,7 @@ class MooringFEM:
         ``safety`` factor too close to 1 for the damping) or lines still oscillating after
         ``max_time``.
         """
-        import time as _time
-
-        w0 = _time.perf_counter()
+        w0 = time.perf_counter()
         eta = np.asarray(eta, float)
         r_fl, v_fl = self.fairlead_state(eta, np.zeros(3))
         fem = self.fem
@@ -206,7 +205,7 @@ class MooringFEM:
                 converged = True
                 break
         info = SettleInfo(time=t, max_speed=speed, tension_change=change, converged=converged,
-                          wall_time=_time.perf_counter() - w0)
+                          wall_time=time.perf_counter() - w0)
         if not converged and strict:
             i = int(np.argmax(np.einsum("ij,ij->i", fem.v, fem.v)))
             j = int(fem.line_of_node[i])

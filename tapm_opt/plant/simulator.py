@@ -288,8 +288,10 @@ class Plant:
         self._eta_wf = self._wf(self.t)
         pose1 = self.eta + self._eta_wf
         m = self.mooring
-        if h != self._h_last or np.any(self._winch):
-            self._dt_stable = m.fem.stable_dt(m.safety) if np.any(self._winch) or self._dt_stable is None else self._dt_stable
+        winching = bool(np.any(self._winch))  # new lengths change the stable step
+        if winching or self._dt_stable is None:
+            self._dt_stable = m.fem.stable_dt(m.safety)
+        if winching or h != self._h_last:
             self._n_sub = max(1, int(math.ceil(h / self._dt_stable - 1e-9)))
             self._h_last = h
         n_sub = self._n_sub
