@@ -207,6 +207,45 @@ class MooringModel:
         eta = self._check_eta(eta)
         return self.tau_from_H(eta, self.solve_lines(eta).HF)
 
+    def load_evaluator(self, *, max_offset: float | None = None, rtol: float = 1e-9,
+                       kernel: Literal["auto", "numba", "numpy"] = "auto"):
+        """Fast evaluator of :meth:`force`: ``load_evaluator()(eta) -> tau_moor`` (3,) in {B}
+        [N, N, N m], a few microseconds per call instead of a catenary solve per line.
+
+        The same catenary physics, tabulated: each distinct line configuration's horizontal
+        tension against its anchor–fairlead distance as a cubic Hermite table checked against
+        :func:`~tapm_opt.models.catenary.solve` to ``rtol`` (each line's ``HF`` within
+        ``rtol * max(HF, H_0)``), the geometry exact; poses beyond the tables (body origin more
+        than ``max_offset`` [m] from the field zero point, default 30 % of the water depth below
+        the fairleads) go to :meth:`force`. See
+        :class:`~tapm_opt.models.characteristics.TabulatedMooringLoad`.
+
+        Built on first request and kept with the model for the same arguments: ~50 ms of catenary
+        solves for the tables; the first evaluator of a process also imports numba and loads its
+        compiled kernel from the disk cache (~1.3 s; ~1 s more to compile when the cache is empty).
+        """
+        from .characteristics import TabulatedMooringLoad
+
+        key = ("load_evaluator", max_offset, rtol, kernel)
+        try:
+            ev = self._cache.get(key)
+        except TypeError:  # an unhashable argument: the evaluator rejects it by name
+            return TabulatedMooringLoad(self, max_offset=max_offset, rtol=rtol, kernel=kernel)
+        if ev is None or ev.model is not self:  # (a dataclasses.replace copy shares the dict)
+            ev = TabulatedMooringLoad(self, max_offset=max_offset, rtol=rtol, kernel=kernel)
+            self._cache[key] = ev
+        return ev
+
+    def force_fast(self, eta) -> np.ndarray:
+        """:meth:`force` from the tabulated characteristics of :meth:`load_evaluator` (default
+        settings): tau_moor in {B}, shape (3,) [N, N, N m], each line's horizontal tension within
+        1e-9 of the catenary's (relative to its tension or pretension); exact :meth:`force` beyond
+        the tables. Bad ``eta`` raises :class:`ModelError` as :meth:`force` does."""
+        ev = self._cache.get("force_fast")
+        if ev is None or ev.model is not self:
+            ev = self._cache["force_fast"] = self.load_evaluator()
+        return ev(eta)
+
     def tensions(self, eta) -> np.ndarray:
         """Fairlead tension magnitude TF of every line [N], shape (n,)."""
         return self.solve_lines(eta).TF
