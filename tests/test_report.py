@@ -67,39 +67,53 @@ def _result(controller: str, seed: int) -> Result:
                   units=tuple(c[1] for c in ch), meta=meta)
 
 
-def make_study(root, *, with_failed: bool = True, with_csv: bool = True):
-    """A study directory following the shared contract: PID and MPC (same labels otherwise), and
-    optionally a failed third case."""
+def _kpis_of(controller: str, condition_index: int) -> dict:
+    """KPIS for the first condition; scaled copies (all but duration and lines_broken) for the others."""
+    f = 1.0 + 0.25 * condition_index
+    return {k: (v if k in ("duration", "lines_broken") else v * f) for k, v in KPIS[controller].items()}
+
+
+def make_study(root, *, with_failed: bool = True, with_csv: bool = True, controllers=("PID", "MPC"),
+               conditions=("line 7 broken at 600 s",)):
+    """A study directory following the shared contract: the controllers (PID and MPC by default)
+    in every condition, same labels otherwise, and optionally a failed third case (LMPC) in the
+    first condition. A condition "line <id> broken at <t> s" has that line break at that time."""
     root.mkdir(parents=True, exist_ok=True)
-    sc_dict = scenario_to_dict(SC)
-    sc_dict["faults"] = [{"kind": "line_break", "line": "7", "time": 600.0}]
     cases = []
-    specs = [("PID", {"type": "pid"}), ("MPC", {"type": "mpc", "horizon": 20})]
-    if with_failed:
-        specs.append(("LMPC", {"type": "lmpc"}))
-    for name, ctrl in specs:
-        inputs = {"scenario": sc_dict, "scenario_name": "fpso", "sea_state": "operational", "controller": ctrl,
-                  "seed": 1, "duration": 1200.0, "segments": None,
-                  "closed_loop": {"dt_control": 1.0, "dt_log": 0.5, "setpoint": "fixed", "heading": "chasing",
-                                  "true_state": False}}
-        cid = _case_id(inputs)
-        labels = {"scenario": "fpso", "sea_state": "operational", "controller": name,
-                  "condition": "line 7 broken at 600 s", "seed": 1}
-        entry = {"id": cid, "name": f"fpso-operational-{name.lower()}", "labels": labels, "inputs": inputs}
-        cases.append(entry)
-        d = root / "cases" / cid
-        d.mkdir(parents=True)
-        cj = {**entry, "tapm_opt_version": tapm_opt.__version__, "started": "2024-01-01T00:00:00"}
-        if name in KPIS:
-            _result(name, seed=len(cases)).save(d / "result.npz")
-            (d / "kpis.json").write_text(json.dumps(KPIS[name]))
-            cj.update(finished="2024-01-01T00:10:00", wall_time=600.0)
-        else:
-            (d / "error.json").write_text(json.dumps({"type": "SolverError", "message": FAIL_MSG,
-                                                      "traceback": "Traceback (most recent call last):\n  ..."}))
-        (d / "case.json").write_text(json.dumps(cj))
+    all_specs = {"PID": {"type": "pid"}, "MPC": {"type": "mpc", "horizon": 20}}
+    for ci, condition in enumerate(conditions):
+        sc_dict = scenario_to_dict(SC)
+        brk = re.fullmatch(r"line (\S+) broken at ([\d.]+) s", condition)
+        sc_dict["faults"] = [{"kind": "line_break", "line": brk[1], "time": float(brk[2])}] if brk else []
+        specs = [(name, all_specs[name]) for name in controllers]
+        if with_failed and ci == 0:
+            specs.append(("LMPC", {"type": "lmpc"}))
+        for name, ctrl in specs:
+            inputs = {"scenario": sc_dict, "scenario_name": "fpso", "sea_state": "operational", "controller": ctrl,
+                      "seed": 1, "duration": 1200.0, "segments": None,
+                      "closed_loop": {"dt_control": 1.0, "dt_log": 0.5, "setpoint": "fixed", "heading": "chasing",
+                                      "true_state": False}}
+            cid = _case_id(inputs)
+            labels = {"scenario": "fpso", "sea_state": "operational", "controller": name,
+                      "condition": condition, "seed": 1}
+            entry = {"id": cid, "name": f"fpso-operational-{name.lower()}" + (f"-c{ci}" if ci else ""),
+                     "labels": labels, "inputs": inputs}
+            cases.append(entry)
+            d = root / "cases" / cid
+            d.mkdir(parents=True)
+            cj = {**entry, "tapm_opt_version": tapm_opt.__version__, "started": "2024-01-01T00:00:00"}
+            if name in KPIS:
+                _result(name, seed=len(cases)).save(d / "result.npz")
+                entry["_kpis"] = _kpis_of(name, ci)
+                (d / "kpis.json").write_text(json.dumps(entry["_kpis"]))
+                cj.update(finished="2024-01-01T00:10:00", wall_time=600.0)
+            else:
+                (d / "error.json").write_text(json.dumps({"type": "SolverError", "message": FAIL_MSG,
+                                                          "traceback": "Traceback (most recent call last):\n  ..."}))
+            (d / "case.json").write_text(json.dumps({k: v for k, v in cj.items() if k != "_kpis"}))
+    listed = [{k: v for k, v in c.items() if k != "_kpis"} for c in cases]
     (root / "study.json").write_text(json.dumps({"name": "controller-comparison", "description": "PID vs MPC after a "
-                                                 "line break", "study_file": "cmp.toml", "cases": cases,
+                                                 "line break", "study_file": "cmp.toml", "cases": listed,
                                                  "tapm_opt_version": tapm_opt.__version__}))
     (root / "study.toml").write_text('name = "controller-comparison"\n# compare <PID> & MPC\n'
                                      'controllers = ["pid", "mpc"]\n')
@@ -109,7 +123,7 @@ def make_study(root, *, with_failed: bool = True, with_csv: bool = True):
         keys = sorted({k for v in KPIS.values() for k in v})
         lines = ["id,name,scenario,sea_state,controller,condition,seed," + ",".join(keys)]
         for c in cases:
-            k = KPIS.get(c["labels"]["controller"])
+            k = c.get("_kpis")
             if k is None:
                 continue
             lines.append(",".join([c["id"], c["name"], "fpso", "operational", c["labels"]["controller"],
@@ -218,7 +232,7 @@ def test_full_kpi_table_and_per_line_delta(report):
 def test_failed_case_is_listed_with_its_message(report):
     _, cases, html_path, md_path = report
     md = md_path.read_text()
-    failed = md.split("## 6 Failed cases", 1)[1]
+    failed = md.split("## 7 Failed cases", 1)[1]
     assert cases[2]["id"] in failed and FAIL_MSG in failed and "SolverError" in failed
     page = html_path.read_text()
     assert "primal infeasible" in page.split('id="failed"', 1)[1]
@@ -290,7 +304,7 @@ def test_reliability_trace_matches_the_kpi_definition():
 
 def test_gain_tables_are_included(report):
     _, _, html_path, md_path = report
-    md = md_path.read_text().split("## 5 Gains", 1)[1].split("## 6", 1)[0]
+    md = md_path.read_text().split("## 6 Gains", 1)[1].split("## 7", 1)[0]
     assert "| storm (extreme) | intact | 210, 547 |" in md and "### Gain table — fpso" in md
     page = html_path.read_text().split('id="gains"', 1)[1].split('id="failed"', 1)[0]
     assert "<th>Kp x, y [kN/m]</th>" in page and "<td>210, 547</td>" in page
@@ -368,3 +382,253 @@ def test_turret_position_comes_from_the_result_then_the_scenario():
         turret_position_of(plain, None)
     with pytest.raises(ReportError, match="turret_position_B"):
         turret_position_of(_pose_result(z, z, z, meta={"turret_position_B": [1.0]}), SC)
+
+
+# -- controllers compared: overlay figures and KPI charts -------------------------------------
+
+from matplotlib.colors import to_rgba  # noqa: E402
+
+from tapm_opt.report import figures as report_figures  # noqa: E402
+from tapm_opt.report.figures import PANELS, comparison_figure, controller_styles  # noqa: E402
+from tapm_opt.report.series import comparison_series  # noqa: E402
+
+CONDITIONS = ("intact", "line 7 broken at 600 s")
+
+
+def _capture(monkeypatch):
+    """Record what the report's overlay and bar-chart functions return while it is written."""
+    seen = {"overlay": [], "bars": []}
+    real_overlay, real_bars = report_figures.comparison_figure, report_figures.kpi_bar_figure
+
+    def overlay(*a, **k):
+        out = real_overlay(*a, **k)
+        seen["overlay"].append((k.get("title", ""), out))
+        return out
+
+    def bars(*a, **k):
+        out = real_bars(*a, **k)
+        seen["bars"].append(out)
+        return out
+
+    monkeypatch.setattr(report_figures, "comparison_figure", overlay)
+    monkeypatch.setattr(report_figures, "kpi_bar_figure", bars)
+    return seen
+
+
+def _controller_lines(ax) -> dict:
+    return {ln.get_gid().split(":", 1)[1]: ln for ln in ax.lines if (ln.get_gid() or "").startswith("controller:")}
+
+
+def _data_axes(fig):
+    """The four panels of an overlay figure (the controller legend row has no visible axis)."""
+    return [ax for ax in fig.axes if ax.axison]
+
+
+def _side_by_side_all(md: str) -> dict[str, dict[str, dict[str, str]]]:
+    """Every side-by-side table of report.md: {condition description: {kpi: {controller: cell}}}."""
+    out = {}
+    lines = md.splitlines()
+    for i, ln in enumerate(lines):
+        if not ln.startswith("### Side by side: "):
+            continue
+        desc = ln[len("### Side by side: "):]
+        j = i + 1
+        while not lines[j].startswith("|"):
+            j += 1
+        rows = []
+        while j < len(lines) and lines[j].startswith("|"):
+            rows.append([c.strip() for c in lines[j].strip().strip("|").split("|")])
+            j += 1
+        out[desc] = {r[0].strip("`"): dict(zip(rows[0][3:], r[3:])) for r in rows[2:]}
+    return out
+
+
+@pytest.fixture(scope="module")
+def two_conditions(tmp_path_factory):
+    """PID and MPC in two conditions (plus the failed LMPC in the first), the report written with
+    the overlay and bar-chart results recorded."""
+    mp = pytest.MonkeyPatch()
+    try:
+        seen = _capture(mp)
+        root, cases = make_study(tmp_path_factory.mktemp("cmp") / "out", conditions=CONDITIONS)
+        html_path, md_path = write_report(root)
+    finally:
+        mp.undo()
+    return root, cases, html_path, md_path, seen
+
+
+def test_one_overlay_figure_per_condition_in_html_and_markdown(two_conditions):
+    root, cases, html_path, md_path, seen = two_conditions
+    md = md_path.read_text()
+    page = html_path.read_text()
+    assert "## 3 Controllers compared" in md and 'id="compare"' in page
+    part = md.split("## 3 Controllers compared", 1)[1].split("## 4 Cases", 1)[0]
+    for n, cond in enumerate(CONDITIONS, start=1):
+        assert f"### Condition {n}: " in part and f"condition {cond}" in part
+        assert f"report_files/compare_{n}.png" in part
+        assert (root / "report_files" / f"compare_{n}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        assert f'id="fig-compare_{n}"' in page
+    assert not (root / "report_files" / "compare_3.png").exists()
+    links = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", md)  # plain image links (no brackets in the captions)
+    assert {"report_files/compare_1.png", "report_files/compare_2.png", "report_files/kpi_bars.png"} <= set(links)
+    # the KPI chart sits with the KPI tables, in both outputs
+    kpis = md.split("## 5 KPIs", 1)[1].split("## 6 Gains", 1)[0]
+    assert "### KPI charts" in kpis and "report_files/kpi_bars.png" in kpis
+    assert kpis.index("kpi_bars.png") < kpis.index("### Side by side")
+    assert 'id="fig-kpi_bars"' in page.split('id="kpis"', 1)[1]
+    # the existing sections are still there
+    for h in ("## 1 Study", "## 2 Scenario", "## 4 Cases", "### All KPIs", "## 6 Gains", "## 7 Failed cases"):
+        assert h in md
+    assert len(seen["overlay"]) == len(CONDITIONS) and len(seen["bars"]) == 1
+
+
+def test_overlay_has_one_line_per_controller_in_each_panel(two_conditions):
+    *_, seen = two_conditions
+    for title, ov in seen["overlay"]:
+        axes = _data_axes(ov.figure)
+        assert len(axes) == 4
+        assert [ax.get_ylabel() for ax in axes] == ["turret offset [m]", "heading [deg]", "max T/MBS [-]",
+                                                   "thrust power [MW]"]
+        assert ov.tension_quantity == "utilisation" and not ov.notes
+        for ax, panel in zip(axes, PANELS):
+            lines = _controller_lines(ax)
+            assert sorted(lines) == ["MPC", "PID"], (title, panel)   # the failed LMPC has no curve
+            assert sorted(ov.curves[panel]) == ["MPC", "PID"]
+            for lab, ln in lines.items():
+                np.testing.assert_array_equal(ln.get_xdata(), ov.curves[panel][lab][0])
+                np.testing.assert_array_equal(ln.get_ydata(), ov.curves[panel][lab][1])
+                assert len(ln.get_xdata()) <= report_figures.MAX_POINTS
+        # safe and alert radii as horizontal lines on the offset panel, allowed utilisation on the tension one
+        ys = {float(ln.get_ydata()[0]) for ln in axes[0].lines if (ln.get_gid() or "") == "" and
+              len(set(ln.get_ydata())) == 1 and "radius" in ln.get_label()}
+        assert ys == {SC.limits.safe_radius, SC.limits.alert_radius}
+        assert any(ln.get_label().startswith("allowed T/MBS") and
+                   float(ln.get_ydata()[0]) == pytest.approx(SC.limits.tension_utilisation) for ln in axes[2].lines)
+        # the legend row names the controllers
+        legend_axes = [ax for ax in ov.figure.axes if not ax.axison]
+        texts = [t.get_text() for t in legend_axes[0].get_legend().get_texts()]
+        assert texts == ["PID", "MPC"]
+
+
+def test_overlay_curves_are_the_logged_quantities():
+    """Peaks survive the reduction: the plotted maxima are those of the full-rate series (turret
+    offset, max over lines of T/MBS = KPI util_max, total power in MW)."""
+    kpis = pytest.importorskip("tapm_opt.studies.kpis")
+    res = _result("PID", seed=3)
+    ref = kpis.case_kpis(res, SC)
+    cs = comparison_series(res, SC, label="PID")
+    ov = comparison_figure([cs, comparison_series(_result("MPC", seed=4), SC, label="MPC")], SC.limits, title="t")
+    off = turret_track(res, turret_position_of(res, SC)).offset
+    assert ov.curves["offset"]["PID"][1].max() == pytest.approx(off.max(), rel=1e-12)
+    assert ov.curves["offset"]["PID"][1].max() == pytest.approx(ref["offset_max"], rel=1e-12)
+    assert ov.curves["tension"]["PID"][1].max() == pytest.approx(ref["util_max"], rel=1e-12)
+    P = res.group("P").sum(axis=1)
+    assert ov.curves["power"]["PID"][1].max() == pytest.approx(P.max() / 1e6, rel=1e-12)
+    assert np.trapezoid(P, res.time) == pytest.approx(ref["thrust_energy"], rel=1e-12)
+    assert len(ov.curves["offset"]["PID"][0]) <= report_figures.MAX_POINTS < len(res.time)
+    # the line-7 break is drawn once, not once per controller
+    assert sum(t.get_text().startswith(" line 7 broke") for t in _data_axes(ov.figure)[0].texts) == 1
+
+
+def test_bar_heights_equal_the_kpi_table_and_colours_match_the_overlay(two_conditions):
+    _, cases, _, md_path, seen = two_conditions
+    bars = seen["bars"][0]
+    assert bars.kpis == ["offset_max", "time_outside_safe", "util_max", "delta_min", "thrust_energy"]
+    assert bars.groups == list(CONDITIONS) and bars.labels == ["PID", "MPC"]
+    tables = _side_by_side_all(md_path.read_text())
+    descs = [next(d for d in tables if f"condition {c} " in d + " ") for c in CONDITIONS]
+    by_label = {(c["labels"]["condition"], c["labels"]["controller"]): c.get("_kpis") for c in cases}
+    for k in bars.kpis:
+        for lab in bars.labels:
+            drawn = bars.bars[k][lab]
+            assert [j for j, _ in drawn] == [0, 1]  # one bar per condition
+            for j, rect in drawn:
+                value = rect.get_height() * bars.scale[k]
+                exact = by_label[(CONDITIONS[j], lab)][k]
+                assert value == pytest.approx(exact, rel=1e-12), (k, lab, j)   # kpis.json
+                assert value == pytest.approx(_value(tables[descs[j]][k][lab]), rel=1e-3)  # the table cell
+                assert bars.values[k][lab][j] == exact
+    assert bars.units["thrust_energy"] == "GJ" and bars.scale["thrust_energy"] == 1e9
+    # one colour per controller, the same in the bar chart and in every overlay figure
+    styles = controller_styles(["PID", "MPC"])
+    for lab in bars.labels:
+        want = to_rgba(styles[lab]["color"])
+        for k in bars.kpis:
+            for _, rect in bars.bars[k][lab]:
+                assert rect.get_facecolor() == want
+        for _, ov in seen["overlay"]:
+            for ax in _data_axes(ov.figure):
+                assert to_rgba(_controller_lines(ax)[lab].get_color()) == want
+    assert to_rgba(styles["PID"]["color"]) != to_rgba(styles["MPC"]["color"])
+
+
+def test_controller_colours_follow_first_appearance_and_avoid_limit_colours():
+    st = controller_styles(["MPC", "PID", "MPC", "NMPC"])
+    assert list(st) == ["MPC", "PID", "NMPC"]
+    colours = [to_rgba(s["color"]) for s in st.values()]
+    assert len(set(colours)) == 3
+    for reserved in (report_figures.SAFE_COLOR, report_figures.ALERT_COLOR, report_figures.EVENT_COLOR):
+        assert to_rgba(reserved) not in colours
+    many = controller_styles([f"c{i}" for i in range(12)])
+    assert len({(s["color"], s["ls"]) for s in many.values()}) == 12
+
+
+def test_one_controller_still_gets_its_comparison_and_chart(tmp_path, monkeypatch):
+    seen = _capture(monkeypatch)
+    root, cases = make_study(tmp_path / "s", controllers=("PID",), with_failed=False, conditions=CONDITIONS)
+    _, m = write_report(root)
+    md = m.read_text()
+    assert md.count("Only one controller ran in this condition") == 2
+    assert (root / "report_files" / "compare_1.png").is_file() and (root / "report_files" / "kpi_bars.png").is_file()
+    for _, ov in seen["overlay"]:
+        for ax in _data_axes(ov.figure):
+            assert list(_controller_lines(ax)) == ["PID"]
+    bars = seen["bars"][0]
+    assert bars.labels == ["PID"]
+    for k in bars.kpis:
+        assert [j for j, _ in bars.bars[k]["PID"]] == [0, 1]
+    assert "Problems met while writing this report" not in md
+
+
+def _drop_channels(path, prefixes) -> None:
+    res = Result.load(path)
+    keep = [i for i, c in enumerate(res.channels) if not c.startswith(tuple(prefixes))]
+    Result(time=res.time, data=res.data[:, keep], channels=tuple(res.channels[i] for i in keep),
+           units=tuple(res.units[i] for i in keep), meta=res.meta).save(path)
+
+
+def test_missing_channels_leave_a_note_not_a_crash(tmp_path, monkeypatch):
+    seen = _capture(monkeypatch)
+    root, cases = make_study(tmp_path / "s", with_failed=False)
+    mpc = next(c for c in cases if c["labels"]["controller"] == "MPC")
+    _drop_channels(root / "cases" / mpc["id"] / "result.npz", ("P[", "T_fairlead["))
+    _, m = write_report(root)
+    md = m.read_text()
+    part = md.split("## 3 Controllers compared", 1)[1].split("## 4 Cases", 1)[0]
+    note = next(ln for ln in part.splitlines() if ln.startswith("Not in the figure:"))
+    assert "MPC: no line tension (no T_fairlead[...] channels)" in note
+    assert "MPC: no thrust power (no P[...] channels)" in note
+    assert "report_files/compare_1.png" in part
+    (_, ov), = seen["overlay"]
+    assert sorted(ov.curves["offset"]) == sorted(ov.curves["heading"]) == ["MPC", "PID"]
+    assert list(ov.curves["tension"]) == ["PID"] and list(ov.curves["power"]) == ["PID"]
+    # the KPI chart still uses both cases' kpis.json
+    assert seen["bars"][0].labels == ["PID", "MPC"]
+
+
+def test_a_panel_no_case_can_fill_says_so():
+    res = _result("PID", seed=2)
+    keep = [i for i, c in enumerate(res.channels) if not c.startswith(("P[", "psi"))]
+    bare = Result(time=res.time, data=res.data[:, keep], channels=tuple(res.channels[i] for i in keep),
+                  units=tuple(res.units[i] for i in keep), meta={})
+    cs = comparison_series(bare, None, label="PID")
+    assert cs.offset is None and cs.heading is None and cs.power is None and cs.util is None
+    assert cs.tension is not None  # without the scenario's MBS: the tension in MN
+    ov = comparison_figure([cs], None, title="bare")
+    axes = _data_axes(ov.figure)
+    assert ov.tension_quantity == "tension" and axes[2].get_ylabel() == "max tension [MN]"
+    assert ov.curves["tension"]["PID"][1].max() == pytest.approx(res.group("T_fairlead").max() / 1e6)
+    assert any("thrust power not logged" in t.get_text() for t in axes[3].texts)
+    assert any("heading not logged" in t.get_text() for t in axes[1].texts)
+    assert len(ov.notes) == 3 and all(n.startswith("PID: ") for n in ov.notes)
+    report_figures.png_bytes(ov.figure)  # renders

@@ -4,55 +4,61 @@ Plan views follow NED: y (east) on the horizontal axis, x (north) on the vertica
 scale. Case figures are turret-referenced (:mod:`tapm_opt.report.series`): trajectory, safe and
 alert circles and offsets are those of the centre of turret relative to its field-zero-point
 position. Long time series are reduced to at most ``MAX_POINTS`` points per curve with a min/max
-envelope per bucket so peaks survive. Every function returns a :class:`matplotlib.figure.Figure`;
-:func:`png_bytes` renders it with the Agg backend.
+envelope per bucket so peaks survive. The scenario and case figures return a
+:class:`matplotlib.figure.Figure`; the comparison figures return it with what they plot:
+:func:`comparison_figure` (every controller of one condition overlaid, :class:`OverlayFigure`) and
+:func:`kpi_bar_figure` (grouped bars of the headline KPIs, :class:`KpiBars`), coloured per controller
+by :func:`controller_styles`. :func:`png_bytes` renders a figure with the Agg backend.
 """
 
 from __future__ import annotations
 
 import io
 import math
+from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
-from matplotlib.patches import Circle, Polygon
+from matplotlib.patches import Circle, Polygon, Rectangle
 
 from ..geometry import rot2_apply, turret_position
-from .series import TurretTrack, events_of, turret_position_of, turret_track
+from .series import (MAX_POINTS, ComparisonSeries, TurretTrack, decimate, events_of, turret_position_of,
+                     turret_track)
 
-__all__ = ["MAX_POINTS", "DPI", "decimate", "png_bytes", "layout_figure", "motion_figure", "tension_figure",
-           "thruster_figure"]
+__all__ = ["MAX_POINTS", "DPI", "CONTROLLER_COLORS", "decimate", "png_bytes", "controller_styles", "layout_figure",
+           "motion_figure", "tension_figure", "thruster_figure", "OverlayFigure", "comparison_figure",
+           "KpiBars", "kpi_bar_figure"]
 
-MAX_POINTS = 2000
 DPI = 100
 SAFE_COLOR = "tab:green"
 ALERT_COLOR = "tab:red"
 EVENT_COLOR = "tab:purple"
+#: Controller colours, in order of first appearance in the study; green, red and purple are left
+#: out (safe circle, alert circle / allowed tension, events).
+CONTROLLER_COLORS = ("tab:blue", "tab:orange", "tab:brown", "tab:cyan", "tab:pink", "tab:olive", "tab:gray",
+                     "black", "gold", "navy")
+_CONTROLLER_LS = ("-", "--", "-.", ":")
+_HATCHES = ("", "//", "..", "xx")
 
 
 # -- helpers -----------------------------------------------------------------------------------
 
-def decimate(t: np.ndarray, y: np.ndarray, n: int = MAX_POINTS) -> tuple[np.ndarray, np.ndarray]:
-    """At most ``n`` points of (t, y): the minimum and maximum of each of n/2 consecutive buckets,
-    in time order (peaks and troughs are kept, unlike plain striding)."""
-    t = np.asarray(t, float)
-    y = np.asarray(y, float)
-    N = len(t)
-    if N <= n:
-        return t, y
-    m = max((n - 2) // 2, 1)  # two points per bucket plus both ends
-    k = math.ceil(N / m)
-    pad = m * k - N
-    yp = np.concatenate([y, np.full(pad, y[-1])]) if pad else y
-    Y = yp.reshape(m, k)
-    base = np.arange(m) * k
-    with np.errstate(invalid="ignore"):
-        imin = base + np.nanargmin(np.where(np.isnan(Y), np.inf, Y), axis=1)
-        imax = base + np.nanargmax(np.where(np.isnan(Y), -np.inf, Y), axis=1)
-    idx = np.unique(np.clip(np.concatenate([imin, imax, [0, N - 1]]), 0, N - 1))
-    return t[idx], y[idx]
+def controller_styles(controllers: Sequence[str]) -> dict[str, dict]:
+    """One style per distinct controller, in order of first appearance: ``{"color", "ls", "hatch"}``.
+
+    The colours are :data:`CONTROLLER_COLORS`; past ten controllers they repeat with another line
+    style (and bar hatch). The report computes this once for the whole study, so a controller has
+    the same colour in every figure."""
+    out: dict[str, dict] = {}
+    for name in controllers:
+        if name not in out:
+            k = len(out)
+            n = len(CONTROLLER_COLORS)
+            out[name] = {"color": CONTROLLER_COLORS[k % n], "ls": _CONTROLLER_LS[(k // n) % len(_CONTROLLER_LS)],
+                         "hatch": _HATCHES[(k // n) % len(_HATCHES)]}
+    return out
 
 
 def _stride(n: int, limit: int = MAX_POINTS) -> slice:
@@ -388,3 +394,299 @@ def _line_styles(n: int) -> list[dict]:
     cmap = colormaps["tab10"]
     ls = ("-", "--", ":", "-.")
     return [{"color": cmap(i % 10), "ls": ls[(i // 10) % len(ls)]} for i in range(n)]
+
+
+# -- controllers compared ----------------------------------------------------------------------
+
+#: Panels of the overlay figure, top to bottom.
+PANELS = ("offset", "heading", "tension", "power")
+
+
+@dataclass
+class OverlayFigure:
+    """The controller overlay figure of one condition and what it shows.
+
+    Attributes
+    ----------
+    figure : Figure
+    curves : dict
+        ``curves[panel][label] = (t [s], y)`` exactly as plotted, for the panels :data:`PANELS`:
+        turret offset [m], heading [deg], maximum line tension (T/MBS [-] or MN, see
+        ``tension_quantity``) and total thrust power [MW]. A case without that curve is absent.
+    tension_quantity : str
+        ``"utilisation"`` (max over the lines of T/MBS, when every case's MBS is known) or
+        ``"tension"`` (max over the lines of T in MN), or ``""`` when no case has tensions.
+    notes : list of str
+        One line per missing curve, ``"<label>: <what is missing>"``.
+    """
+
+    figure: Figure
+    curves: dict[str, dict[str, tuple[np.ndarray, np.ndarray]]]
+    tension_quantity: str
+    notes: list[str] = field(default_factory=list)
+
+
+def _series_styles(series: Sequence[ComparisonSeries], styles: Mapping[str, dict] | None) -> list[dict]:
+    """Colour from the controller; a second case of the same controller gets another line style."""
+    base = dict(styles or {})
+    for name, st in controller_styles([s.controller for s in series]).items():
+        base.setdefault(name, st)
+    seen: dict[str, int] = {}
+    out = []
+    for s in series:
+        st = dict(base[s.controller])
+        k = seen.get(s.controller, 0)
+        seen[s.controller] = k + 1
+        if k:
+            st["ls"] = _CONTROLLER_LS[(_CONTROLLER_LS.index(st.get("ls", "-")) + k) % len(_CONTROLLER_LS)]
+        out.append(st)
+    return out
+
+
+def _merged_events(series: Sequence[ComparisonSeries]) -> list[list]:
+    """The events of all cases once each; an event not in every case names the cases that have it."""
+    seen: dict[tuple[float, str], list[str]] = {}
+    for s in series:
+        for ev in s.events:
+            try:
+                key = (round(float(ev[0]), 6), str(ev[1]))
+            except (TypeError, ValueError, IndexError):
+                continue
+            who = seen.setdefault(key, [])
+            if s.label not in who:
+                who.append(s.label)
+    out = []
+    for (te, text), who in sorted(seen.items()):
+        out.append([te, text if len(who) == len(series) else f"{text} ({', '.join(who)})"])
+    return out
+
+
+def _legend_row(ax, handles: Sequence[Any], labels: Sequence[str]) -> None:
+    """The controller legend in a thin axes of its own above the panels (a figure legend placed
+    "outside" would collide with the suptitle)."""
+    ax.set_axis_off()
+    if handles:
+        ax.legend(handles=list(handles), labels=list(labels), loc="center", ncols=min(len(handles), 6), fontsize=9,
+                  title="controller", title_fontsize=9, frameon=True)
+
+
+def _no_data(ax, text: str) -> None:
+    ax.text(0.5, 0.5, text, transform=ax.transAxes, ha="center", va="center", fontsize=10, color="0.4")
+
+
+def comparison_figure(series: Sequence[ComparisonSeries], limits: Any | None = None, *, title: str,
+                      styles: Mapping[str, dict] | None = None) -> OverlayFigure:
+    """Every controller of one condition on shared time axes: turret offset with the safe and alert
+    radii, heading, maximum line tension (T/MBS with the allowed utilisation, or MN) and total
+    thrust power [MW]; one colour per controller (``styles`` from :func:`controller_styles`),
+    the events as dotted vertical lines.
+
+    A curve a case does not have is left out of its panel and named in ``notes``; a panel no case
+    can fill says so. Raises ``ValueError`` only when ``series`` is empty.
+    """
+    if not series:
+        raise ValueError("comparison_figure needs at least one case")
+    sty = _series_styles(series, styles)
+    notes = [f"{s.label}: {m}" for s in series for m in s.missing]
+    with_t = [s for s in series if s.tension is not None]
+    quantity = "" if not with_t else ("utilisation" if all(s.util is not None for s in with_t) else "tension")
+
+    fig = Figure(figsize=(13, 11.2), layout="constrained")
+    gs = fig.add_gridspec(5, 1, height_ratios=[0.16, 1, 1, 1, 1])
+    ax_leg = fig.add_subplot(gs[0, 0])
+    axes = [fig.add_subplot(gs[1, 0])]
+    axes += [fig.add_subplot(gs[k, 0], sharex=axes[0]) for k in (2, 3, 4)]
+    for ax in axes[:-1]:
+        ax.tick_params(labelbottom=False)
+    curves: dict[str, dict[str, tuple[np.ndarray, np.ndarray]]] = {p: {} for p in PANELS}
+    handles = []
+    for s, st in zip(series, sty):
+        parts = {"offset": s.offset, "heading": s.heading, "power": None, "tension": None}
+        if s.power is not None:
+            parts["power"] = (s.power[0], s.power[1] / 1e6)
+        if quantity == "utilisation" and s.util is not None:
+            parts["tension"] = s.util
+        elif quantity == "tension" and s.tension is not None:
+            parts["tension"] = (s.tension[0], s.tension[1] / 1e6)
+        line = None
+        for ax, panel in zip(axes, PANELS):
+            c = parts[panel]
+            if c is None:
+                continue
+            (ln,) = ax.plot(c[0], c[1], color=st["color"], ls=st.get("ls", "-"), lw=1.0, label=s.label,
+                            gid=f"controller:{s.label}")
+            curves[panel][s.label] = (np.asarray(c[0]), np.asarray(c[1]))
+            line = line or ln
+        if line is None:
+            from matplotlib.lines import Line2D
+
+            line = Line2D([], [], color=st["color"], ls=st.get("ls", "-"), lw=1.5, label=s.label)
+        handles.append(line)
+
+    ax_o, ax_h, ax_t, ax_p = axes
+    refs: dict[int, list] = {k: [] for k in range(4)}
+    top = max([float(np.nanmax(c[1])) for c in curves["offset"].values() if len(c[1])] + [0.0])
+    if limits is not None:
+        for r, col, name in ((getattr(limits, "safe_radius", None), SAFE_COLOR, "safe"),
+                             (getattr(limits, "alert_radius", None), ALERT_COLOR, "alert")):
+            if r:
+                refs[0].append(ax_o.axhline(r, color=col, ls="--", lw=1.2, label=f"{name} radius {r:g} m"))
+                top = max(top, float(r))
+    ax_o.set_ylim(0, 1.15 * top if top > 0 else 1.0)
+    ax_o.set_ylabel("turret offset [m]")
+    ax_o.set_title("Horizontal turret offset from its field-zero-point position")
+    ax_h.set_ylabel("heading [deg]")
+    ax_h.set_title("Heading ψ (from north, clockwise)")
+    if quantity == "utilisation":
+        u = getattr(limits, "tension_utilisation", None) if limits is not None else None
+        if u:
+            refs[2].append(ax_t.axhline(u, color=ALERT_COLOR, ls="--", lw=1.2, label=f"allowed T/MBS = {u:.3g}"))
+        ax_t.set_ylabel("max T/MBS [-]")
+        ax_t.set_title("Largest fairlead tension over the lines, as utilisation T/MBS")
+    else:
+        ax_t.set_ylabel("max tension [MN]")
+        ax_t.set_title("Largest fairlead tension over the lines [MN]")
+    ax_t.set_ylim(bottom=0)
+    ax_p.set_ylabel("thrust power [MW]")
+    ax_p.set_title("Total thrust power Σ P")
+    ax_p.set_ylim(bottom=0)
+    ax_p.set_xlabel("time [s]")
+    empty = {"offset": "turret offset not available for any case", "heading": "heading not logged for any case",
+             "tension": "line tensions not logged for any case", "power": "thrust power not logged for any case"}
+    for ax, panel in zip(axes, PANELS):
+        ax.grid(True, alpha=0.3)
+        if not curves[panel]:
+            _no_data(ax, empty[panel])
+    t0 = min(s.t_span[0] for s in series)
+    t1 = max(s.t_span[1] for s in series)
+    if t1 > t0:
+        ax_o.set_xlim(t0, t1)
+    events = _merged_events(series)
+    _events(axes, events)
+    if events:
+        refs[0].append(next(ln for ln in ax_o.lines if ln.get_label() == "event"))
+    for k, ax in enumerate(axes):
+        if refs[k]:
+            ax.legend(handles=refs[k], loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7.5)
+    _legend_row(ax_leg, handles, [h.get_label() for h in handles])
+    fig.suptitle(title, fontsize=12)
+    return OverlayFigure(figure=fig, curves=curves, tension_quantity=quantity, notes=notes)
+
+
+@dataclass
+class KpiBars:
+    """A grouped bar chart of headline KPIs and what it shows.
+
+    ``values[kpi][label]`` holds one value per group (None where the case has no such KPI: no bar),
+    as given (the ``kpis.json`` numbers); a bar's height is ``value / scale[kpi]`` in ``units[kpi]``.
+    ``bars[kpi][label]`` is the list of (group index, Rectangle) actually drawn.
+    """
+
+    figure: Figure
+    kpis: list[str]
+    groups: list[str]
+    labels: list[str]
+    values: dict[str, dict[str, list]]
+    scale: dict[str, float]
+    units: dict[str, str]
+    bars: dict[str, dict[str, list]]
+
+
+_PREFIXED_UNITS = ("J", "W", "N")
+
+
+def kpi_bar_figure(values: Mapping[str, Mapping[str, Sequence[Any]]], *, groups: Sequence[str],
+                   controller_of: Mapping[str, str], units: Mapping[str, str] | None = None,
+                   titles: Mapping[str, str] | None = None, directions: Mapping[str, int] | None = None,
+                   refs: Mapping[str, Sequence[tuple[float, str, str]]] | None = None,
+                   styles: Mapping[str, dict] | None = None, title: str = "") -> KpiBars:
+    """One panel per KPI (``values`` order), the groups (conditions) along x, one bar per label
+    (controller) in each group, coloured by ``controller_of[label]`` with ``styles``; the value is
+    written on each bar, missing values are marked "n/a". ``refs[kpi]`` adds horizontal lines
+    ``(value in the KPI's unit, label, colour)`` such as the safe radius."""
+    import textwrap
+
+    kpis = list(values)
+    labels = list(dict.fromkeys(lab for k in kpis for lab in values[k]))
+    all_st = controller_styles([controller_of.get(lab, lab) for lab in labels])
+    all_st.update(styles or {})
+    seen: dict[str, int] = {}
+    lab_st = {}
+    for lab in labels:
+        ctrl = controller_of.get(lab, lab)
+        st = dict(all_st.get(ctrl) or controller_styles([ctrl])[ctrl])
+        k = seen.get(ctrl, 0)
+        seen[ctrl] = k + 1
+        if k:
+            st["hatch"] = _HATCHES[(_HATCHES.index(st.get("hatch", "")) + k) % len(_HATCHES)]
+        lab_st[lab] = st
+    n = max(len(kpis), 1)
+    ncols = 2 if n == 4 else min(n, 3)
+    nrows = math.ceil(n / ncols)
+    ng = len(groups)
+    width_in = max(13.0, min(16.0, 3.0 + ncols * (1.0 + 0.55 * ng * max(len(labels), 1))))
+    fig = Figure(figsize=(width_in, 3.8 * nrows + 1.5), layout="constrained")
+    gs = fig.add_gridspec(nrows + 1, ncols, height_ratios=[0.16 * 3.6 / 2.6] + [1.0] * nrows)
+    ax_leg = fig.add_subplot(gs[0, :])
+    axs = [fig.add_subplot(gs[1 + i // ncols, i % ncols]) for i in range(n)]
+    x = np.arange(ng, dtype=float)
+    w = 0.8 / max(len(labels), 1)
+    scale: dict[str, float] = {}
+    unit_out: dict[str, str] = {}
+    bars: dict[str, dict[str, list]] = {}
+    tick = [textwrap.fill(str(g), 28) for g in groups]
+    handles = {}
+    for ax, k in zip(axs, kpis):
+        vals = [float(v) for lab in labels for v in values[k].get(lab, ()) if _finite(v)]
+        u = (units or {}).get(k, "")
+        f, lab_u = _scale(vals, u) if u in _PREFIXED_UNITS else (1.0, u)
+        scale[k], unit_out[k] = f, lab_u
+        bars[k] = {}
+        for i, lab in enumerate(labels):
+            row = list(values[k].get(lab, ()))
+            xs = x + (i - (len(labels) - 1) / 2) * w
+            idx = [j for j in range(ng) if j < len(row) and _finite(row[j])]
+            st = lab_st[lab]
+            cont = ax.bar(xs[idx], [float(row[j]) / f for j in idx], width=w * 0.92, color=st["color"],
+                          hatch=st.get("hatch") or None, edgecolor="white" if not st.get("hatch") else "k",
+                          label=lab, gid=f"controller:{lab}")
+            bars[k][lab] = list(zip(idx, cont.patches))
+            handles.setdefault(lab, Rectangle((0, 0), 1, 1, facecolor=st["color"], hatch=st.get("hatch") or None,
+                                              edgecolor="white" if not st.get("hatch") else "k", label=lab))
+            if idx:
+                ax.bar_label(cont, labels=[f"{float(row[j]) / f:.3g}" for j in idx], padding=2,
+                             fontsize=7 if ng * len(labels) <= 12 else 6)
+            for j in range(ng):
+                if j not in idx:
+                    ax.text(xs[j], 0, "n/a", ha="center", va="bottom", fontsize=7, color="0.4", rotation=90)
+        ref_h = []
+        for val, rl, col in (refs or {}).get(k, ()):
+            if _finite(val):
+                ref_h.append(ax.axhline(float(val) / f, color=col, ls="--", lw=1.2, label=rl))
+        lo = ax.get_ylim()[0]
+        top = max([float(v) / f for v in vals] + [float(r[0]) / f for r in (refs or {}).get(k, ()) if _finite(r[0])]
+                  + [0.0])
+        if top > 0:
+            ax.set_ylim(min(lo, 0.0), 1.22 * top)
+        elif not any(float(v) < 0 for v in vals):
+            ax.set_ylim(0.0, 1.0)  # all zero (e.g. never outside the safe circle): bars on the floor
+        ax.set_xticks(x, tick, fontsize=8, rotation=0 if ng <= 4 else 25, ha="center" if ng <= 4 else "right")
+        ax.set_xlim(-0.6, ng - 0.4)
+        d = (directions or {}).get(k, 0)
+        better = {-1: "lower is better", 1: "higher is better"}.get(d, "")
+        name = (titles or {}).get(k, k)
+        ax.set_title(f"{name}" + (f" [{lab_u}]" if lab_u else "") + (f"\n{better}" if better else ""), fontsize=10)
+        ax.set_ylabel(f"{k} [{lab_u}]" if lab_u else k, fontsize=8)
+        ax.grid(True, axis="y", alpha=0.3)
+        if ref_h:
+            ax.legend(handles=ref_h, loc="upper right", fontsize=7)
+    _legend_row(ax_leg, list(handles.values()), list(handles))
+    if title:
+        fig.suptitle(title, fontsize=12)
+    return KpiBars(figure=fig, kpis=kpis, groups=list(groups), labels=labels,
+                   values={k: {lab: list(values[k].get(lab, ())) for lab in labels} for k in kpis},
+                   scale=scale, units=unit_out, bars=bars)
+
+
+def _finite(v: Any) -> bool:
+    return isinstance(v, (int, float, np.floating, np.integer)) and not isinstance(v, bool) and math.isfinite(float(v))

@@ -12,12 +12,14 @@ from __future__ import annotations
 import json
 import math
 import re
+from dataclasses import dataclass
 from typing import Any, Iterable, Sequence
 
 from .data import CaseInfo, StudyData
 from .document import Cell, Table, _fmt, _fmt_text
 
-__all__ = ["kpi_direction", "side_by_side_tables"]
+__all__ = ["kpi_direction", "side_by_side_tables", "condition_groups", "ConditionGroup", "HEADLINE_KPIS",
+           "headline_kpis"]
 
 # -- the "better" convention -------------------------------------------------------------------
 
@@ -30,6 +32,29 @@ _LOWER = {
 }
 _HIGHER = {"delta_min", "dnv_uls_pass", "dnv_als_pass"}
 _PER_LINE = re.compile(r"^(.*)\[(.*)\]$")
+
+#: The headline KPIs charted per condition (name, what it is), in chart order; ``util_max`` is
+#: also found under its older name ``utilisation_max``.
+HEADLINE_KPIS: tuple[tuple[str, str], ...] = (
+    ("offset_max", "max turret offset"),
+    ("time_outside_safe", "time outside the safe circle"),
+    ("util_max", "max tension utilisation T/MBS"),
+    ("delta_min", "min reliability index δ"),
+    ("thrust_energy", "thrust energy"),
+)
+_ALIASES = {"util_max": ("utilisation_max",)}
+
+
+def headline_kpis(cases: Sequence[CaseInfo]) -> list[tuple[str, str]]:
+    """The (KPI name as in kpis.json, title) of :data:`HEADLINE_KPIS` that at least one case has."""
+    have = {k for c in cases if c.kpis for k in c.kpis}
+    out = []
+    for name, title in HEADLINE_KPIS:
+        for n in (name, *_ALIASES.get(name, ())):
+            if n in have:
+                out.append((n, title))
+                break
+    return out
 
 
 def kpi_direction(name: str) -> int:
@@ -105,18 +130,51 @@ def _describe_group(c: CaseInfo, keys: Sequence[str]) -> str:
     return " · ".join(parts) or "all cases"
 
 
-def side_by_side_tables(cases: Sequence[CaseInfo]) -> list[tuple[str, Table]]:
-    """One table per group of finished cases that share every label except the controller:
-    aggregate KPIs (no per-line ones) as rows, one column per controller, the better value marked."""
-    done = [c for c in cases if c.status == "finished" and c.kpis]
+@dataclass
+class ConditionGroup:
+    """Cases that share every label except the controller (same scenario, sea state, condition, seed).
+
+    ``columns[i]`` names ``members[i]`` in tables, legends and bar charts: the controller, with the
+    case name added when the group has that controller more than once. ``short`` names the group
+    by the labels that differ between the groups of the study (one group: its ``condition`` label,
+    or all labels without one).
+    """
+
+    key: tuple
+    description: str
+    short: str
+    members: list[CaseInfo]
+    columns: list[str]
+
+
+def condition_groups(cases: Sequence[CaseInfo], *, require_kpis: bool = False) -> list[ConditionGroup]:
+    """The finished cases (with KPIs when ``require_kpis``) grouped by all labels except
+    ``controller``, in study order."""
+    done = [c for c in cases if c.status == "finished" and (c.kpis or not require_kpis)]
     keys = _label_keys(done)
     groups: dict[tuple, list[CaseInfo]] = {}
     for c in done:
         groups.setdefault(_group_key(c, keys), []).append(c)
+    varying = [k for k in keys if k != "controller"
+               and len({json.dumps(m[0].labels.get(k), sort_keys=True, default=str) for m in groups.values()}) > 1]
     out = []
-    for members in groups.values():
+    for key, members in groups.items():
         names = [m.controller for m in members]
         cols = [n if names.count(n) == 1 else f"{n} ({m.name})" for n, m in zip(names, members)]
+        desc = _describe_group(members[0], keys)
+        short = " · ".join(str(members[0].labels[k]) for k in varying if k in members[0].labels)
+        if not short:  # one group: its condition label, else every label
+            short = str(members[0].labels["condition"]) if "condition" in members[0].labels else desc
+        out.append(ConditionGroup(key=key, description=desc, short=short, members=members, columns=cols))
+    return out
+
+
+def side_by_side_tables(cases: Sequence[CaseInfo]) -> list[tuple[str, Table]]:
+    """One table per group of finished cases that share every label except the controller:
+    aggregate KPIs (no per-line ones) as rows, one column per controller, the better value marked."""
+    out = []
+    for g in condition_groups(cases, require_kpis=True):
+        members, cols = g.members, g.columns
         kpis = _kpi_order(k for m in members for k in m.kpis if not _PER_LINE.match(k))
         rows = []
         for k in kpis:
@@ -126,7 +184,7 @@ def side_by_side_tables(cases: Sequence[CaseInfo]) -> list[tuple[str, Table]]:
             d = kpi_direction(k)
             rows.append([Cell(k, code=True), Cell(unit), Cell({-1: "lower", 1: "higher", 0: "–"}[d])]
                         + [Cell(_fmt(v), best=b) for v, b in zip(vals, best)])
-        out.append((_describe_group(members[0], keys),
+        out.append((g.description,
                     Table(header=["KPI", "unit", "better", *cols], rows=rows,
                           align=["l", "l", "l", *["r"] * len(cols)], css="sbs")))
     return out

@@ -6,6 +6,11 @@ inline as base64 PNG, CSS inline, no external resource) and ``report.md`` (figur
 ``report_files/`` next to it, linked relatively). Nothing is simulated: the report uses the saved
 ``result.npz``, ``kpis.json``, ``kpis.csv`` and gain tables.
 
+Sections: 1 Study, 2 Scenario, 3 Controllers compared (per condition, every controller overlaid:
+turret offset, heading, max line tension, thrust power), 4 Cases, 5 KPIs (bar charts of the
+headline KPIs, then the tables), 6 Gains, 7 Failed cases. Each result is read once: the case
+sections are built first and keep the reduced curves the comparison figures need.
+
 The document model and its renderers are in :mod:`tapm_opt.report.document`, the KPI tables in
 :mod:`tapm_opt.report.kpi_tables`, the plotted series derived from the saved results in
 :mod:`tapm_opt.report.series` and the figures in :mod:`tapm_opt.report.figures`.
@@ -24,9 +29,10 @@ from . import figures as figs
 from .data import CaseInfo, ReportError, StudyData, read_study
 from .document import (BEST_MARK, Cell, Details, Fig, Heading, Para, Pre, RawMarkdown, Table, _fmt, render_html,
                        render_markdown)
-from .kpi_tables import (_PER_LINE, _csv_table, _full_kpi_table, _label_keys, _line_table, kpi_direction,
+from .kpi_tables import (_PER_LINE, HEADLINE_KPIS, ConditionGroup, _csv_table, _full_kpi_table, _kpi_unit,
+                         _label_keys, _line_table, condition_groups, headline_kpis, kpi_direction,
                          side_by_side_tables)
-from .series import events_of, reliability_traces
+from .series import comparison_series, events_of, reliability_traces
 
 __all__ = ["write_report", "ReportError", "kpi_direction", "side_by_side_tables", "BEST_MARK"]
 
@@ -39,7 +45,10 @@ def _slug(s: str) -> str:
     return re.sub(r"[^A-Za-z0-9_-]+", "-", s).strip("-") or "x"
 
 
-def _case_section(c: CaseInfo, blocks: list, figures_out: list[Fig], problems: list[str]) -> None:
+def _case_section(c: CaseInfo, blocks: list, figures_out: list[Fig], problems: list[str],
+                  overlay_out: dict | None = None) -> None:
+    """The figures and tables of one finished case; with ``overlay_out``, also store
+    ``overlay_out[c.id] = (ComparisonSeries, scenario limits or None)`` for the controller overlays."""
     lab = ", ".join(f"{k} {v}" for k, v in c.labels.items())
     blocks.append(Heading(3, f"{c.name}", anchor=f"case-{c.id}"))
     blocks.append(Para(f"Case `{c.id}` · {lab}"))
@@ -55,6 +64,12 @@ def _case_section(c: CaseInfo, blocks: list, figures_out: list[Fig], problems: l
         scenario = c.scenario()
     except Exception as exc:  # noqa: BLE001
         problems.append(f"case {c.id}: cannot rebuild the scenario from inputs['scenario']: {exc}")
+    if overlay_out is not None:
+        try:
+            overlay_out[c.id] = (comparison_series(result, scenario, label=c.controller, controller=c.controller),
+                                 scenario.limits if scenario is not None else None)
+        except Exception as exc:  # noqa: BLE001 - the overlay then leaves this case out
+            problems.append(f"case {c.id}: curves for the controller comparison not computed: {exc}")
     events = events_of(result)
     if events:
         blocks.append(Para("Events: " + "; ".join(f"t = {float(e[0]):g} s: {e[1]}" for e in events
@@ -101,6 +116,120 @@ def _case_section(c: CaseInfo, blocks: list, figures_out: list[Fig], problems: l
             blocks.append(tab)
 
 
+#: Most conditions in one KPI bar chart (more go to further charts).
+BARS_PER_CHART = 8
+
+
+def _limits_key(lim) -> tuple:
+    return tuple(getattr(lim, a, None) for a in ("safe_radius", "alert_radius", "tension_utilisation"))
+
+
+def _comparison_section(g: ConditionGroup, n: int, blocks: list, figures_out: list[Fig], problems: list[str],
+                        overlay: dict, styles: dict) -> None:
+    """Section 3, one condition: every controller overlaid (turret offset, heading, max tension, power)."""
+    blocks.append(Heading(3, f"Condition {n + 1}: {g.description}", anchor=f"compare-{n + 1}"))
+    blocks.append(Para("Cases: " + ", ".join(f"{col} (`{m.id}`)" for col, m in zip(g.columns, g.members)) + "."))
+    if len({m.controller for m in g.members}) < 2:
+        blocks.append(Para("Only one controller ran in this condition: the figure shows it alone.", css="note"))
+    series, limits, left_out = [], None, []
+    for col, m in zip(g.columns, g.members):
+        got = overlay.get(m.id)
+        if got is None:
+            left_out.append(col)
+            continue
+        cs, lim = got
+        cs.label = col
+        series.append(cs)
+        if limits is None and lim is not None:
+            limits = lim
+    if left_out:
+        blocks.append(Para(f"Left out (result not readable, see the problems at the end): {', '.join(left_out)}.",
+                           css="note"))
+    if not series:
+        blocks.append(Para("No readable result in this condition: no comparison figure.", css="note"))
+        return
+    try:
+        ov = figs.comparison_figure(series, limits, styles=styles,
+                                    title=f"Controllers compared: {g.description}")
+        png = figs.png_bytes(ov.figure)
+    except Exception as exc:  # noqa: BLE001 - one figure must not stop the report
+        problems.append(f"comparison figure of {g.description} not drawn: {exc}")
+        blocks.append(Para(f"**Comparison figure not drawn:** {exc}", css="error"))
+        return
+    tq = {"utilisation": "the largest fairlead tension over the lines as utilisation T/MBS (with the allowed "
+                         "utilisation, dashed red)",
+          "tension": "the largest fairlead tension over the lines in MN (the MBS is unknown, so no utilisation)",
+          "": "line tensions (not logged)"}[ov.tension_quantity]
+    radii = ("with the safe (green) and alert (red) radii" if limits is not None
+             else "(safe and alert radii unknown: no scenario)")
+    f = Fig(name=f"compare_{n + 1}", png=png,
+            caption=f"{g.short}: every controller on shared time axes, one colour per controller as in every "
+                    f"comparison figure and KPI chart. Top to bottom: horizontal turret offset in m {radii}; "
+                    f"heading in degrees; {tq}; total thrust power in MW. Dotted purple lines: events.")
+    figures_out.append(f)
+    blocks.append(f)
+    if ov.notes:
+        blocks.append(Para("Not in the figure: " + "; ".join(ov.notes) + ".", css="note"))
+
+
+def _kpi_charts(study: StudyData, blocks: list, figures_out: list[Fig], problems: list[str], overlay: dict,
+                styles: dict) -> None:
+    """Section 5: grouped bar charts of the headline KPIs, one group per condition, one bar per controller."""
+    heads = headline_kpis(study.cases)
+    groups = condition_groups(study.cases, require_kpis=True)
+    if not heads or not groups:
+        names = ", ".join(f"`{k}`" for k, _ in HEADLINE_KPIS)
+        blocks.append(Para(f"No headline KPI ({names}) in any finished case: no KPI chart.", css="note"))
+        return
+    lims = {_limits_key(lim): lim for _, lim in overlay.values() if lim is not None}
+    lim = next(iter(lims.values())) if len(lims) == 1 else None
+    refs: dict[str, list] = {}
+    if lim is not None:
+        radii = ((lim.safe_radius, "safe", figs.SAFE_COLOR), (lim.alert_radius, "alert", figs.ALERT_COLOR))
+        refs["offset_max"] = [(v, f"{nm} radius {v:g} m", c) for v, nm, c in radii if v]
+        if lim.tension_utilisation:
+            refs["util_max"] = refs["utilisation_max"] = [(lim.tension_utilisation,
+                                                          f"allowed {lim.tension_utilisation:.3g}", figs.ALERT_COLOR)]
+    try:
+        from ..studies.kpis import DELTA_S_DEFAULT
+
+        refs["delta_min"] = [(DELTA_S_DEFAULT, f"δ_s = {DELTA_S_DEFAULT:g}", figs.ALERT_COLOR)]
+    except ImportError:
+        pass
+    chunks = [groups[i:i + BARS_PER_CHART] for i in range(0, len(groups), BARS_PER_CHART)]
+    for n, chunk in enumerate(chunks):
+        values: dict[str, dict[str, list]] = {k: {} for k, _ in heads}
+        controller_of: dict[str, str] = {}
+        for j, g in enumerate(chunk):
+            for col, m in zip(g.columns, g.members):
+                controller_of[col] = m.controller
+                for k, _ in heads:
+                    values[k].setdefault(col, [None] * len(chunk))[j] = m.kpis.get(k)
+        which = f" ({n + 1} of {len(chunks)})" if len(chunks) > 1 else ""
+        try:
+            bars = figs.kpi_bar_figure(values, groups=[g.short for g in chunk], controller_of=controller_of,
+                                       units={k: _kpi_unit(k) for k, _ in heads}, titles=dict(heads),
+                                       directions={k: kpi_direction(k) for k, _ in heads}, refs=refs, styles=styles,
+                                       title="Headline KPIs per condition" + which)
+            png = figs.png_bytes(bars.figure)
+        except Exception as exc:  # noqa: BLE001
+            problems.append(f"KPI chart{which} not drawn: {exc}")
+            blocks.append(Para(f"**KPI chart not drawn:** {exc}", css="error"))
+            continue
+        f = Fig(name="kpi_bars" if n == 0 else f"kpi_bars_{n + 1}", png=png,
+                caption="Headline KPIs from each case's kpis.json (the numbers of the side-by-side tables below), "
+                        "one group of bars per condition, one bar per controller in the colours of the comparison "
+                        "figures; the value is written on each bar, n/a where a case has no such KPI. Panels: "
+                        + "; ".join(f"{t} ({k}" + (f", {bars.units[k]})" if bars.units[k] not in ("", "-") else ")")
+                                    for k, t in heads)
+                        + (". Dashed lines: safe/alert radius, allowed utilisation, δ threshold." if refs else "."))
+        figures_out.append(f)
+        blocks.append(f)
+    legend = "; ".join(f"{g.short} = {g.description}" for g in groups if g.short != g.description)
+    if legend:
+        blocks.append(Para("Conditions: " + legend + ".", css="note"))
+
+
 def _natural(s: str) -> tuple:
     return tuple((0, int(p), "") if p.isdigit() else (1, 0, p) for p in re.split(r"(\d+)", s) if p)
 
@@ -126,7 +255,8 @@ def _build(study: StudyData, fig_dir_rel: str, kpi_csv_rel: str) -> tuple[list, 
                        f"{len(study.cases)} case{'' if len(study.cases) == 1 else 's'}: {n_ok} finished, {n_fail} failed"
                        + (f", {n_inc} not finished" if n_inc else "") + ". "
                        "Everything below comes from the saved results; nothing was re-simulated."))
-    blocks.append(Para("Contents: 1 Study · 2 Scenario · 3 Cases · 4 KPIs · 5 Gains · 6 Failed cases"))
+    blocks.append(Para("Contents: 1 Study · 2 Scenario · 3 Controllers compared · 4 Cases · 5 KPIs · 6 Gains · "
+                       "7 Failed cases"))
 
     # 1. study
     blocks.append(Heading(2, "1 Study", anchor="study"))
@@ -185,16 +315,40 @@ def _build(study: StudyData, fig_dir_rel: str, kpi_csv_rel: str) -> tuple[list, 
         except Exception as exc:  # noqa: BLE001
             problems.append(f"layout figure of {sc.name} not drawn: {exc}")
 
-    # 3. cases
-    blocks.append(Heading(2, "3 Cases", anchor="cases"))
+    # the case sections first (each result is read once), placed after the comparison
+    styles = figs.controller_styles([c.controller for c in study.cases])
     done = [c for c in study.cases if c.status == "finished"]
+    case_blocks: list = []
+    overlay: dict = {}
+    for c in done:
+        _case_section(c, case_blocks, fig_list, problems, overlay)
+
+    # 3. controllers compared
+    blocks.append(Heading(2, "3 Controllers compared", anchor="compare"))
+    groups = condition_groups(study.cases)
+    if not groups:
+        blocks.append(Para("No finished case: nothing to compare.", css="note"))
+    else:
+        blocks.append(Para(
+            "One figure per condition (cases that share every label except the controller): every controller "
+            "on shared time axes — turret offset, heading, the largest line tension and the thrust power. "
+            "Colours: " + ", ".join(f"{nm} {st['color'].replace('tab:', '')}" for nm, st in styles.items())
+            + ", the same in every comparison figure and KPI chart. Curves reduced to at most "
+            f"{figs.MAX_POINTS} points (min/max per bucket, peaks kept)."))
+    for n, g in enumerate(groups):
+        _comparison_section(g, n, blocks, fig_list, problems, overlay, styles)
+
+    # 4. cases
+    blocks.append(Heading(2, "4 Cases", anchor="cases"))
     if not done:
         blocks.append(Para("No finished case.", css="note"))
-    for c in done:
-        _case_section(c, blocks, fig_list, problems)
+    blocks.extend(case_blocks)
 
-    # 4. KPIs
-    blocks.append(Heading(2, "4 KPIs", anchor="kpis"))
+    # 5. KPIs
+    blocks.append(Heading(2, "5 KPIs", anchor="kpis"))
+    blocks.append(Heading(3, "KPI charts"))
+    _kpi_charts(study, blocks, fig_list, problems, overlay, styles)
+    blocks.append(Heading(3, "KPI tables"))
     blocks.append(Para("Controllers side by side: one table per set of cases that share every label except the "
                        f"controller. The better value of each KPI is **bold** and marked {BEST_MARK} (lower is "
                        "better for offsets, time outside the circles, heading error, tensions, utilisation, DNV "
@@ -215,8 +369,8 @@ def _build(study: StudyData, fig_dir_rel: str, kpi_csv_rel: str) -> tuple[list, 
     if tab is not None:
         blocks.append(tab)
 
-    # 5. gains
-    blocks.append(Heading(2, "5 Gains", anchor="gains"))
+    # 6. gains
+    blocks.append(Heading(2, "6 Gains", anchor="gains"))
     if study.gains_md is not None:
         blocks.append(Para("From `gains/gains.md`:", css="note"))
         blocks.append(RawMarkdown(study.gains_md))
@@ -226,8 +380,8 @@ def _build(study: StudyData, fig_dir_rel: str, kpi_csv_rel: str) -> tuple[list, 
     else:
         blocks.append(Para("The study has no gain tables (`gains/`).", css="note"))
 
-    # 6. failed
-    blocks.append(Heading(2, "6 Failed cases", anchor="failed"))
+    # 7. failed
+    blocks.append(Heading(2, "7 Failed cases", anchor="failed"))
     failed = [c for c in study.cases if c.status == "failed"]
     if not failed:
         blocks.append(Para("No case failed."))
@@ -285,7 +439,7 @@ def write_report(study_dir: str | Path, *, out_html: str | Path | None = None,
         atomic_write_bytes(fig_dir / f"{f.name}.png", f.png)
         names.add(f"{f.name}.png")
     for old in fig_dir.glob("*.png"):
-        if old.name not in names and (old.name.startswith("case_") or old.name.startswith("layout")):
+        if old.name not in names and old.name.startswith(("case_", "layout", "compare_", "kpi_bars")):
             old.unlink(missing_ok=True)
     atomic_write_text(out_md, md)
     atomic_write_text(out_html, page)
