@@ -33,13 +33,13 @@ from tapm_opt.models.vessel import VesselParams, linearise, moored_function
 # soft constraints far away.
 QUADRATIC = dict(w_position=0.0, dead_band=0.0, w_position_in=1.0, w_heading=1.0, w_velocity=1.0,
                  w_rate=0.0, w_thrust=1.0, w_terminal=3.0, safe_radius=1e4, tension_utilisation=0.99, dt=5.0,
-                 max_iter=100)
+                 max_iter=100, thrust_set="box", linearise_about="setpoint")
 # A small offset about the field zero point (the equilibrium of the fpso mooring without load). Heading 0:
 # the linear MPC linearises about the estimated heading, and the LQR here about the equilibrium.
 X0 = np.array([2.0, -1.5, 0.0, 0.01, -0.005, 2e-4])
 # Aggressive settings that saturate the thrust at a large offset (explicit: the defaults are tuned elsewhere).
 AGGRESSIVE = dict(w_position=50.0, w_position_in=0.0, w_heading=20.0, psi_ref=math.radians(5.0), w_velocity=0.0,
-                  w_rate=1.0, dead_band=0.0, max_iter=100)
+                  w_rate=1.0, dead_band=0.0, max_iter=100, thrust_set="box")
 SP0 = Setpoint(np.zeros(3))
 
 
@@ -288,7 +288,7 @@ def test_thruster_decision_respects_magnitude_rate(fpso):
 
 # lazy settings: nothing pulls the vessel to the setpoint but the safe circle (tensions far away)
 LAZY = dict(w_position=0.0, w_position_in=0.0, w_heading=1.0, w_velocity=0.0, w_rate=0.0, w_terminal=1.0,
-            tension_utilisation=0.99, max_iter=100)
+            tension_utilisation=0.99, max_iter=100, thrust_set="box")
 
 
 def rollout(ctrl, fn, x0, b_E, dt):
@@ -298,11 +298,7 @@ def rollout(ctrl, fn, x0, b_E, dt):
     return np.array(xs)
 
 
-SQP_30DEG = ("SQP (qrqp on the exact, indefinite Hessian, no convexification) may stop with "
-             "Search_Direction_Becomes_Too_Small at a 30 deg heading; the outcome differs between machines")
-
-
-@pytest.mark.parametrize("solver", ["ipopt", pytest.param("sqp", marks=pytest.mark.known_defect(reason=SQP_30DEG))])
+@pytest.mark.parametrize("solver", ["ipopt", "sqp"])
 def test_safe_circle_is_kept_when_it_can_be(fpso, plant_fn, solver):
     """6 MN (fixed in {E}; the vessel heads 30 deg off it) push the turret from 45 m to ~70 m; the
     thrusters (4.3 MN) can hold it at 50 m: the MPC does so with no soft violation, and its plan,
@@ -351,20 +347,18 @@ def test_safe_circle_violated_only_when_infeasible(fpso, cls):
 @pytest.mark.parametrize("cls,solver", [
     pytest.param(LinearMPC, "sqp", id="linear"),
     pytest.param(NonlinearMPC, "ipopt", id="nonlinear-ipopt"),
-    pytest.param(NonlinearMPC, "sqp", id="nonlinear-sqp", marks=pytest.mark.known_defect(
-        reason="SQP started at the exact optimum without multipliers: the QP step is 0 while the dual "
-               "infeasibility (the L1 soft-penalty gradient) is not, so sqpmethod stops with "
-               "Search_Direction_Becomes_Too_Small and the MPC reports a failure and falls back")),
+    pytest.param(NonlinearMPC, "sqp", id="nonlinear-sqp"),
 ])
 def test_no_thrust_at_a_loaded_equilibrium(fpso, cls, solver):
     """The vessel rests at its setpoint (25 m off, heading 30 deg) where a load fixed in {E} balances
     the mooring: nothing is to be corrected, so the MPC plans no thrust. Checks the frames of the
     load (tau_env = R(psi)^T b) and of the mooring in the prediction model. The balancing load is that
-    of the prediction's mooring: the "characteristic" model about the field zero point (nonlinear
-    MPC); linearised about the operating pose, i.e. the catenary tangent there (linear MPC)."""
+    of the prediction's mooring: the line characteristics centred at the operating pose (the
+    setpoint here), i.e. the elastic catenary there, for both MPCs. (With SQP this once stopped with
+    Search_Direction_Becomes_Too_Small: started at the optimum without multipliers.)"""
     eta = np.array([20.0, 15.0, math.radians(30.0)])
     model = MooringModel.from_scenario(fpso)
-    tau_moor = model.force(eta) if cls is LinearMPC else model.linearised().force(eta, kind="characteristic")
+    tau_moor = model.force(eta)
     cap, _ = capacity(fpso)
     ctrl = cls(fpso, MPCSettings(solver=solver, **QUADRATIC))
     sp = Setpoint([*turret_offset(eta, fpso.turret.position), eta[2]])  # the turret's own position
@@ -381,7 +375,7 @@ def test_nonlinear_and_linear_mpc_agree_near_equilibrium(fpso, mooring):
     """Same settings (dead band polygon included), a few metres off, a small load: first moves agree
     to 2 % of the capacity (they differ by the linearisation only)."""
     s = MPCSettings(mooring=mooring, w_position=2.0, w_position_in=1.0, w_heading=2.0, w_velocity=1.0, w_rate=1.0,
-                    dead_band=0.0, max_iter=100)
+                    dead_band=0.0, max_iter=100, thrust_set="box")
     e = est([3.0, -2.0, math.radians(1.0), 0.01, 0.0, 0.0], (3e5, 1e5, 0.0))
     cap, rate = capacity(fpso)
     a = NonlinearMPC(fpso, s).update(0.0, e, SP0)
@@ -410,9 +404,7 @@ def sqp_first_moves(fpso):
 
 @pytest.mark.parametrize("solver,case", [
     ("ipopt", "quadratic"), ("fatrop", "quadratic"), ("ipopt", "dead_band"),
-    pytest.param("fatrop", "dead_band", marks=pytest.mark.known_defect(
-        reason="fatrop, given the NLP without its stage structure, stops with status '1' once the "
-               "dead-band polygon is in the problem")),
+    ("fatrop", "dead_band"),
 ])
 def test_nlp_solvers_agree(fpso, sqp_first_moves, solver, case):
     """IPOPT and fatrop give SQP's first move to 1e-3 of the capacity (the problem is the same NLP)."""
@@ -605,3 +597,77 @@ def test_failed_sqp_solve_is_retried_with_osqp(fpso, monkeypatch):
     assert d.success and not d.fallback and "retry after error" in d.status and ctrl.retries == 1
     cap, _ = capacity(fpso)
     assert np.max(np.abs(tau - ref) / cap) < 1e-4
+
+
+# --- attainable thrust polytope and the linearisation about the state --------------------------------
+
+@pytest.mark.parametrize("cls", [LinearMPC, NonlinearMPC], ids=["linear", "nonlinear-sqp"])
+def test_planned_thrust_is_attainable_and_rate_limited_as_a_vector(fpso, plant_fn, cls):
+    """thrust_set="polytope" (the default): a 43 m offset saturates the thrust; every planned tau is
+    one the six azimuths can deliver together (checked by the independent SOCP of
+    attainable_multiple), reaches beyond the 0.6 capacity box in some component, and changes
+    between updates by a vector inside the polytope scaled by rate/max_thrust x dt."""
+    s = MPCSettings(**dict(AGGRESSIVE, thrust_set="polytope"))
+    ctrl = cls(fpso, s)
+    taus, _ = closed_loop(ctrl, plant_fn, [35.0, -25.0, 0.1, 0.0, 0.0, 0.0], np.zeros(3), 8, s.dt)
+    ths = ThrusterSet.from_scenario(fpso)
+    A, b = ths.attainable_polytope(s.polytope_directions)
+    ratio = min(t.max_thrust_rate / t.max_thrust for t in fpso.thrusters)
+    prev = np.zeros(3)
+    for tau in taus:
+        assert np.all(A @ tau <= b * (1 + 1e-4) + 1e-6)
+        assert attainable_multiple(fpso, tau) >= 1.0 - 1e-4
+        assert np.all(A @ (tau - prev) <= ratio * s.dt * b * (1 + 1e-4) + 1e-6)
+        prev = tau
+    cap, _ = capacity(fpso)
+    assert np.max(np.abs(taus) / cap) > 1.02  # the polytope is larger than the box
+    assert any("thrust_capacity" in d.active for d in ctrl.diagnostics)
+    assert all(d.success for d in ctrl.diagnostics)
+
+
+def test_attainable_polytope_is_inside_the_thrusters_reach_and_nearly_fills_it(fpso):
+    """Every vertex of the polytope is attainable (SOCP); the polytope's support in the single-DOF
+    directions is at most the LP maxima of max_tau and within 10 % of them (the set is convex and the
+    support points lie on its boundary)."""
+    from scipy.spatial import HalfspaceIntersection
+
+    ths = ThrusterSet.from_scenario(fpso)
+    A, b = ths.attainable_polytope()
+    hs = HalfspaceIntersection(np.hstack([A, -b[:, None]]), np.zeros(3))
+    for v in hs.intersections[::7]:
+        assert attainable_multiple(fpso, v) >= 1.0 - 1e-6
+    import scipy.optimize
+
+    for d in range(3):  # the polytope's reach along each DOF alone, against the capacity LP's
+        for sgn in (1.0, -1.0):
+            c = np.zeros(3)
+            c[d] = -sgn
+            eq = np.delete(np.eye(3), d, axis=0)
+            res = scipy.optimize.linprog(c, A_ub=A * ths.max_tau(), b_ub=b, A_eq=eq, b_eq=np.zeros(2),
+                                         bounds=[(None, None)] * 3)  # in tau / max_tau
+            assert res.status == 0, res.message
+            assert 0.9 <= -res.fun <= 1 + 1e-6, (d, sgn, -res.fun)
+    with pytest.raises(Exception, match="n_directions"):
+        ths.attainable_polytope(3)
+
+
+def test_linear_mpc_about_the_state_predicts_better_far_out(fpso):
+    """40 m off, where the catenary has hardened: the linear MPC's predicted first state, linearised
+    about the state estimate, matches the nonlinear model (the independent RK4 of the design model
+    with the exact catenary mooring) far better than linearised about the setpoint, and its
+    parameters need no new problem: one OSQP set-up for both and for every update."""
+    vp = VesselParams.from_scenario(fpso)
+    exact = moored_function(vp, MooringModel.from_scenario(fpso).force_function("catenary"), form="design")
+    x0 = np.array([40.0, -12.0, math.radians(5.0), 0.2, 0.0, 0.0])
+    b = np.array([3.0e6, -1.0e6, 0.0])
+    errs = {}
+    for about in ("state", "setpoint"):
+        ctrl = LinearMPC(fpso, MPCSettings(linearise_about=about, horizon=10, dead_band=0.0, w_position=1.0))
+        for k in range(3):
+            ctrl.update(k * 5.0, est(x0, rot_z(x0[2]).T @ b), SP0)
+        assert ctrl.setups == 1
+        X = ctrl._z[ctrl._prob.idx["X"]].reshape(-1, 6) * ctrl._prob.scale["x"]
+        x1 = rk4(exact, x0, ctrl.tau_from_u(ctrl.plan_u[0]), b, 5.0, substeps=5)
+        errs[about] = np.linalg.norm((X[1] - x1)[:2])
+    assert errs["state"] < 0.2 * errs["setpoint"], errs
+    assert errs["state"] < 0.05, errs

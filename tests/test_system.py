@@ -133,7 +133,9 @@ def test_one_capacity_serves_pid_saturation_mpc_box_and_lqr_weights():
     box = np.asarray(system.thrusters.capacity_box())
     pid = build_controller(system, {"type": "pid"})
     np.testing.assert_allclose(pid.tau_limit, box, rtol=1e-12)
-    np.testing.assert_allclose(build_problem(system, MPCSettings()).scale["u"], box, rtol=1e-12)
+    np.testing.assert_allclose(build_problem(system, MPCSettings(thrust_set="box")).scale["u"], box, rtol=1e-12)
+    # the default polytope is drawn from the same ThrusterSet: its box is the single-DOF maxima
+    np.testing.assert_allclose(build_problem(system, MPCSettings()).scale["u"], system.thrusters.max_tau(), rtol=1e-12)
     from tapm_opt.design.gains import DEFAULT_LQR, gain_table
 
     weights = replace(DEFAULT_LQR["extreme"], tau_share=CAPACITY_FRACTION)

@@ -36,7 +36,8 @@ import scipy.sparse as sp
 from ..geometry import body_from_turret, rot_z, ssa
 from ..interfaces import Estimate, Setpoint, ThrusterCommand
 from ..models.system import as_system
-from .mpc_problem import MPCError, MPCSettings, MPCStep, _Problem, build_problem
+from .mpc_problem import (MPCError, MPCSettings, MPCStep, _Problem, build_problem, mooring_parameters,
+                          polytope_parameters)
 
 __all__ = ["MPCSettings", "MPCError", "NonlinearMPC", "LinearMPC", "build_problem", "MPCStep"]
 
@@ -65,6 +66,7 @@ class _MPCBase:
         self._u_prev: np.ndarray | None = None
         self.diagnostics: list[MPCStep] = []
         self.plan_u: np.ndarray | None = None
+        self._poly: np.ndarray | None = None  # thrust-polytope parameters of the thrusters alive
 
     @property
     def owns_allocation(self) -> bool:
@@ -72,6 +74,8 @@ class _MPCBase:
         return self.settings.decision == "thrusters"
 
     def _params(self, est: Estimate, sp: Setpoint) -> np.ndarray:
+        """The problem's parameter vector: state, previous thrust, setpoint, load in {E}, the line
+        characteristics at the centre pose and the thrust polytope (``_Problem.p_idx``)."""
         eta, nu = np.asarray(est.eta, float), np.asarray(est.nu, float)
         if eta.shape != (3,) or nu.shape != (3,) or not (np.all(np.isfinite(eta)) and np.all(np.isfinite(nu))):
             raise MPCError(f"estimate eta = {eta.tolist()}, nu = {nu.tolist()} must be finite 3-vectors")
@@ -83,7 +87,25 @@ class _MPCBase:
         eta_d[2] = eta[2] + ssa(eta_d[2] - eta[2])  # heading setpoint unwrapped next to the heading
         b_E = rot_z(eta[2]) @ tau_env
         u_prev = np.zeros(self._n_u) if self._u_prev is None else self._u_prev
-        return np.concatenate([eta, nu, u_prev, eta_d, b_E])
+        pi = self._prob.p_idx
+        p = np.zeros(self._prob.p.numel())
+        p[pi["x0"]], p[pi["u_prev"]], p[pi["eta_d"]], p[pi["b"]] = np.concatenate([eta, nu]), u_prev, eta_d, b_E
+        if pi["moor"].stop > pi["moor"].start:
+            p[pi["moor"]] = mooring_parameters(self.model, self._centre(eta, eta_d))
+        if self._prob.n_poly:
+            if self._poly is None:
+                ths = self.system.thrusters.without(self._failed) if self._failed else self.system.thrusters
+                self._poly = polytope_parameters(ths, self.settings, self._prob.scale["u"], self._prob.n_poly)
+            n = self._prob.n_poly
+            p[pi["poly_A"]], p[pi["poly_b"]], p[pi["rate_dt"]] = self._poly[:3 * n], self._poly[3 * n:4 * n], self._poly[-1]
+        return p
+
+    def _centre(self, eta: np.ndarray, eta_d: np.ndarray) -> np.ndarray:
+        """Pose about which the model is centred (``MPCSettings.linearise_about``): the estimate,
+        or the body pose that puts the turret at the setpoint with the present heading."""
+        if self.settings.linearise_about == "state":
+            return eta
+        return np.array([*body_from_turret(eta_d[:2], eta[2], self.system.p_cot_B), eta[2]])
 
     def _shift(self, z: np.ndarray) -> np.ndarray:
         idx, N = self._prob.idx, self.settings.horizon
@@ -133,7 +155,12 @@ class _MPCBase:
         us = z[idx["U"]].reshape(N, self._n_u)[0]
         lo, hi = self._prob.lbz[idx["U"]][:self._n_u], self._prob.ubz[idx["U"]][:self._n_u]
         free = hi > lo  # a failed thruster's column (bounds 0, 0) is not a capacity limit
-        if np.any(free & (np.abs(us) >= np.minimum(-lo, hi) - 1e-4)):
+        at_box = np.any(free & (np.abs(us) >= np.minimum(-lo, hi) - 1e-4))
+        if self._prob.n_poly and self._poly is not None:  # a facet of the attainable polytope
+            n = self._prob.n_poly
+            A = self._poly[:3 * n].reshape(3, n).T
+            at_box = at_box or bool(np.any(A @ us - self._poly[3 * n:4 * n] >= -1e-4))
+        if at_box:
             active.append("thrust_capacity")
         self.diagnostics.append(MPCStep(t=t, success=ok, status=status, solve_time=solve_time, iterations=it,
                                         fallback=fallback, cost=cost, active=tuple(active), max_soft_violation=soft))
@@ -153,6 +180,7 @@ class _MPCBase:
         self.system.thrusters.without(failed)  # unknown ids raise here
         self._failed = failed
         self._bounds_changed = True
+        self._poly = None  # the attainable polytope of the remaining thrusters, at the next update
         if self._prob is not None:
             self._apply_u_bounds()
 
@@ -165,7 +193,8 @@ class _MPCBase:
         self._bounds_changed = False
         N = self.settings.horizon
         if self.settings.decision == "tau":
-            lim = np.asarray(ths.capacity_box(self.settings.capacity_fraction)) / self._prob.scale["u"]
+            box = ths.capacity_box(self.settings.capacity_fraction) if self.settings.thrust_set == "box" else ths.max_tau()
+            lim = np.asarray(box) / self._prob.scale["u"]
             lo, hi = -lim, lim
         else:
             _, lo_si, hi_si, _, _ = ths.extended()
@@ -229,34 +258,53 @@ class NonlinearMPC(_MPCBase):
         nlp = {"x": prob.z, "p": prob.p, "f": prob.f, "g": prob.g}
         s = settings
         self._retry = None
+        gn = {}
+        if s.solver == "sqp" and s.hessian == "gauss-newton":
+            gn = {"hess_lag": self._gauss_newton(prob)}
         if s.solver == "ipopt":
             opts = {"ipopt.print_level": 0, "print_time": False, "ipopt.max_iter": s.max_iter, "ipopt.tol": 1e-6,
                     "ipopt.warm_start_init_point": "yes", "ipopt.sb": "yes", "ipopt.max_cpu_time": s.max_time}
             self._solver = ca.nlpsol("mpc", "ipopt", nlp, opts)
         elif s.solver == "sqp":
-            # SQP with the active-set qrqp for its QP subproblems (exact active sets, fast), and the
-            # same SQP with OSQP as the retry of a failed solve: qrqp can cycle on degenerate
-            # vertices of the polygons once the turret lever couples heading and position (fpso
-            # storm closed loop: 126 of 240 solves failed with qrqp alone), where OSQP converges;
-            # OSQP alone is inexact on the L1 soft penalties of an infeasible load.
+            # SQP on the Gauss-Newton Hessian (convex QP subproblems) with the sparse proximal
+            # interior-point piqp for them: the active-set qrqp cycled on the degenerate vertices
+            # of the polygons and the thrust polytope (fpso, N = 10, 43 m off: 77 s and no
+            # convergence, against 0.1 s with piqp); the same SQP with OSQP is the retry.
             base = {"print_time": False, "print_header": False, "print_iteration": False,
-                    "print_status": False, "max_iter": s.max_iter, "error_on_fail": False}
+                    "print_status": False, "max_iter": s.max_iter, "error_on_fail": False, **gn}
             self._solver = ca.nlpsol("mpc", "sqpmethod", nlp, {
-                **base, "qpsol": "qrqp",
-                "qpsol_options": {"print_iter": False, "print_header": False, "error_on_fail": False,
-                                  "max_iter": 200}})
+                **base, "qpsol": "piqp", "qpsol_options": {"error_on_fail": False}})
             self._retry = ca.nlpsol("mpc_retry", "sqpmethod", nlp, {
                 **base, "qpsol": "osqp",
                 "qpsol_options": {"error_on_fail": False,
                                   "osqp": {"verbose": False, "eps_abs": 1e-6, "eps_rel": 1e-6,
                                            "max_iter": 4000, "polish": True}}})
         else:
-            opts = {"print_time": False, "fatrop.print_level": 0, "fatrop.max_iter": s.max_iter}
+            # a barrier parameter of 0.1 from the start (fatrop's default starts at 10): with the
+            # dead-band polygon the default stopped with status 1 after 43 iterations at N = 10,
+            # where this converges in 18 to the SQP's answer
+            opts = {"print_time": False, "fatrop.print_level": 0, "fatrop.max_iter": s.max_iter,
+                    "fatrop.mu_init": 0.1, "fatrop.tol": 1e-6}
             self._solver = ca.nlpsol("mpc", "fatrop", nlp, opts)
         self._lam_x = None
         self._lam_g = None
         #: Solves the retry solver (SQP with OSQP) rescued after the first one failed.
         self.retries = 0
+
+    @staticmethod
+    def _gauss_newton(prob: _Problem) -> ca.Function:
+        """Hessian of the Lagrangian for sqpmethod: ``lam_f 2 J_r^T J_r + 1e-8 I`` with ``J_r`` the
+        Jacobian of the cost's least-squares residuals (the L1 slack terms are linear). Positive
+        definite whatever the multipliers, so every QP subproblem is convex; the curvature of the
+        dynamics and constraints is left out (Gauss–Newton SQP), which costs iterations far from
+        the solution and not the solution itself."""
+        z, p = prob.z, prob.p
+        Sym = type(z)
+        lam_f, lam_g = Sym.sym("lam_f"), Sym.sym("lam_g", prob.g.numel())
+        J = ca.jacobian(prob.r, z)
+        H = 2 * lam_f * ca.mtimes(J.T, J) + 1e-8 * Sym.eye(z.numel())
+        return ca.Function("nlp_hess_l", [z, p, lam_f, lam_g], [H], ["x", "p", "lam_f", "lam_g"],
+                           ["hess_gamma_x_x"])
 
     def _call(self, solver: Any, args: dict) -> tuple[bool, str, int, np.ndarray, float, Any]:
         try:
@@ -289,94 +337,69 @@ class NonlinearMPC(_MPCBase):
 
 class LinearMPC(_MPCBase):
     """Linear MPC: the same problem with dynamics and tensions linearised about an operating point,
-    solved as a sparse QP by OSQP (set up once; each step updates q, l, u and warm-starts).
+    solved as a sparse QP by OSQP, set up once.
 
-    The operating point is the setpoint position with the vessel's estimated heading, at rest, with
-    zero thrust and the current environmental load estimate; it is re-linearised (same sparsity, new
-    matrix values) when the turret setpoint moves more than ``relinearise_distance`` [m] or the
-    heading more than ``relinearise_heading`` [rad] from the operating point. :attr:`relinearisations`
-    counts the set-ups.
+    The QP is written once with the operating point ``(x_op, u_op, b_op)`` among its parameters
+    (``build_problem(..., linear=True)``): its Hessian, constraint matrix, gradient and bounds are
+    CasADi functions of the parameters with a fixed sparsity. Each update evaluates them at the
+    present operating point — with ``linearise_about="state"`` the state estimate, the previous
+    thrust and the load estimate, so the prediction is exact to first order where the vessel is —
+    writes the new values into OSQP (``update``; no problem construction in the loop) and
+    warm-starts from the shifted previous plan. ``linearise_about="setpoint"`` linearises about
+    the setpoint at rest with the present heading instead.
     """
 
-    def __init__(self, system: Any, settings: MPCSettings = MPCSettings(), *, relinearise_distance: float = 5.0,
-                 relinearise_heading: float = math.radians(5.0), eps_abs: float = 1e-5, eps_rel: float = 1e-5,
-                 period: float | None = None):
+    def __init__(self, system: Any, settings: MPCSettings = MPCSettings(), *, eps_abs: float = 1e-5,
+                 eps_rel: float = 1e-5, period: float | None = None):
         super().__init__(system, settings, period=period)
         import osqp
 
         self._osqp_mod = osqp
-        self._reld, self._relh = relinearise_distance, relinearise_heading
         self._eps = (eps_abs, eps_rel)
-        self._op = None
-        self._op_sp = np.zeros(2)
-        self.relinearisations = 0
-        self._qp = None
-        self._n_u = 3 if settings.decision == "tau" else self.system.thrusters.extended()[0].shape[1]
-
-    def _setup(self, x_op: np.ndarray, b_op: np.ndarray) -> None:
-        prob = build_problem(self.system, self.settings, linear_about=(x_op, np.zeros(self._n_u), b_op),
-                             model=self.model)
+        prob = build_problem(self.system, settings, linear=True, model=self.model)
         self._prob, self._n_u = prob, prob.n_u
-        self._apply_u_bounds()
         z, p = prob.z, prob.p
-        H = ca.hessian(prob.f, z)[0]
-        fH = ca.Function("H", [p], [H])
-        q = ca.gradient(prob.f, z)
-        zero = ca.DM.zeros(z.numel())
-        fq = ca.Function("q", [z, p], [q])
-        Jg = ca.jacobian(prob.g, z)
-        fJ = ca.Function("Jg", [p], [Jg])
-        fg = ca.Function("g", [z, p], [prob.g])
-        self._fq = lambda pv: np.array(fq(zero, pv)).ravel()
-        self._fg0 = lambda pv: np.array(fg(zero, pv)).ravel()
-        p0 = np.zeros(p.numel())
-        Hm = sp.csc_matrix(np.array(fH(p0)))
-        Hm = sp.triu(Hm, format="csc")
-        Jm = sp.csc_matrix(np.array(fJ(p0)))
         nz = z.numel()
-        Aq = sp.vstack([Jm, sp.eye(nz, format="csc")], format="csc")
         self._nz = nz
-        big = 1e20
-        self._lbz = np.where(np.isfinite(prob.lbz), prob.lbz, -big)
-        self._ubz = np.where(np.isfinite(prob.ubz), prob.ubz, big)
-        self._lbg = np.where(np.isfinite(prob.lbg), prob.lbg, -big)
-        self._ubg = np.where(np.isfinite(prob.ubg), prob.ubg, big)
-        if self._qp is None or self._A_shape != Aq.shape or self._A_nnz != Aq.nnz or self._H_nnz != Hm.nnz:
-            self._qp = self._osqp_mod.OSQP()
-            self._qp.setup(P=Hm, q=np.zeros(nz), A=Aq, l=np.concatenate([self._lbg, self._lbz]),
-                           u=np.concatenate([self._ubg, self._ubz]), verbose=False, warm_starting=True,
-                           eps_abs=self._eps[0], eps_rel=self._eps[1], max_iter=20000, polishing=True)
-            self._A_shape, self._A_nnz, self._H_nnz = Aq.shape, Aq.nnz, Hm.nnz
-        else:
-            self._qp.update(Px=Hm.data, Ax=Aq.data)
-        self._op = (x_op.copy(), b_op.copy())
-        self.relinearisations += 1
+        H = ca.triu(ca.hessian(prob.f, z)[0])
+        Aq = ca.jacobian(ca.vertcat(prob.g, z), z)  # the constraints, then the bounds as rows
+        self._H_sp, self._A_sp = H.sparsity(), Aq.sparsity()
+        zero = ca.DM.zeros(nz)
+        # the QP in the step from z = 0: H, A (nonzeros in CSC order), the gradient q and g(0) at p
+        f_all = ca.Function("qp_data", [z, p], [_nonzeros(H), _nonzeros(Aq), ca.gradient(prob.f, z), prob.g])
+        self._qp_data = lambda pv: f_all(zero, pv)
+        self._qp = None
+        self.setups = 0
 
-    def _apply_u_bounds(self) -> None:
-        super()._apply_u_bounds()
-        if hasattr(self, "_lbz"):  # the QP's copies of the bounds
-            big = 1e20
-            self._lbz = np.where(np.isfinite(self._prob.lbz), self._prob.lbz, -big)
-            self._ubz = np.where(np.isfinite(self._prob.ubz), self._prob.ubz, big)
+    def _csc(self, spy: ca.Sparsity, data: np.ndarray) -> sp.csc_matrix:
+        return sp.csc_matrix((data, np.array(spy.row()), np.array(spy.colind())), shape=spy.shape)
 
     def _solve(self, t: float, p: np.ndarray) -> np.ndarray:
-        n_u = self._n_u
-        # operating point: the body pose that puts the turret at the setpoint with the present heading
-        psi = float(p[2])
-        x_op = np.concatenate([body_from_turret(p[6 + n_u:8 + n_u], psi, self.system.p_cot_B), [psi], np.zeros(3)])
-        b_op = p[-3:]
-        # re-linearise when the turret setpoint or the heading moves (the body pose of the operating
-        # point also moves |p_cot| dpsi with the heading alone: that is what the heading test is for)
-        p_sp = p[6 + n_u:8 + n_u]
-        if (self._op is None or np.hypot(*(p_sp - self._op_sp)) > self._reld
-                or abs(ssa(x_op[2] - self._op[0][2])) > self._relh):
-            self._setup(x_op, b_op)
-            self._op_sp = np.array(p_sp, float)
-        q = self._fq(p)
-        g0 = self._fg0(p)
-        l = np.concatenate([self._lbg - g0, self._lbz])
-        u = np.concatenate([self._ubg - g0, self._ubz])
-        self._qp.update(q=q, l=l, u=u)
+        prob = self._prob
+        pi = prob.p_idx
+        # operating point: where the vessel is (or the setpoint), with the previous thrust and the load
+        eta, eta_d = p[pi["x0"]][:3], p[pi["eta_d"]]
+        if self.settings.linearise_about == "state":
+            x_op = p[pi["x0"]]
+            u_op = p[pi["u_prev"]]
+        else:
+            x_op = np.concatenate([self._centre(eta, eta_d), np.zeros(3)])
+            u_op = np.zeros(self._n_u)
+        p[pi["x_op"]], p[pi["u_op"]], p[pi["b_op"]] = x_op, u_op, p[pi["b"]]
+        Hx, Ax, q, g0 = (np.asarray(v, float).ravel() for v in self._qp_data(p))
+        big = 1e20
+        lbz = np.where(np.isfinite(prob.lbz), prob.lbz, -big)
+        ubz = np.where(np.isfinite(prob.ubz), prob.ubz, big)
+        l = np.concatenate([np.where(np.isfinite(prob.lbg), prob.lbg, -big) - g0, lbz])
+        u = np.concatenate([np.where(np.isfinite(prob.ubg), prob.ubg, big) - g0, ubz])
+        if self._qp is None:
+            self._qp = self._osqp_mod.OSQP()
+            self._qp.setup(P=self._csc(self._H_sp, Hx), q=q, A=self._csc(self._A_sp, Ax), l=l, u=u, verbose=False,
+                           warm_starting=True, eps_abs=self._eps[0], eps_rel=self._eps[1], max_iter=20000,
+                           polishing=True)
+            self.setups += 1
+        else:
+            self._qp.update(Px=Hx, Ax=Ax, q=q, l=l, u=u)
         if self._z is not None:
             self._qp.warm_start(x=self._shift(self._z))
         t0 = time.perf_counter()
@@ -388,3 +411,7 @@ class LinearMPC(_MPCBase):
         cost = float(res.info.obj_val) if ok else math.nan
         return self._finish(t, z, ok, str(res.info.status), dt, int(res.info.iter), cost)
 
+
+def _nonzeros(M: Any) -> Any:
+    """The structural nonzeros of a sparse CasADi matrix as a column (column-major: CSC order)."""
+    return M.nz[:] if M.nnz() else type(M)(0, 1)

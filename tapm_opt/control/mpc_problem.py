@@ -23,7 +23,7 @@ from ..errors import TapmError
 from ..geometry import R2, rot_z
 from ..interfaces import ControllerStep
 from ..models.mooring import MooringModel
-from ..models.system import CAPACITY_FRACTION, as_system
+from ..models.system import ATTAINABLE_DIRECTIONS, CAPACITY_FRACTION, as_system
 from ..models.vessel import moored_function
 
 __all__ = ["MPCSettings", "MPCError", "MPCStep", "build_problem"]
@@ -74,10 +74,24 @@ class MPCSettings:
         Exact (L1) and quadratic penalties on the normalised soft-constraint violations.
     r_ref, psi_ref, nu_ref, r_rate_ref : float
         Normalisation: position [m], heading [rad], speed [m/s], yaw rate [rad/s].
+    thrust_set : {"polytope", "box"}
+        ``decision="tau"``: the thrust the MPC may plan. ``"polytope"``: inside
+        ``ThrusterSet.attainable_polytope(polytope_directions)``, what the thrusters can deliver
+        together, and its change per step inside the same polytope scaled by the slowest
+        thruster's rate-to-thrust ratio times dt (a rate limit on the thrust vector, so on its
+        magnitude too); ``"box"``: ``ThrusterSet.capacity_box(capacity_fraction)`` and
+        ``rate_box`` on each component (the one capacity model, ``models.system``).
     capacity_fraction : float
-        ``decision="tau"``: the thrust box on X, Y, N is
-        ``ThrusterSet.capacity_box(capacity_fraction)`` (the one capacity model,
-        ``models.system``).
+        ``thrust_set="box"``: the fraction of each single-DOF maximum of the box.
+    polytope_directions : int
+        ``thrust_set="polytope"``: support directions of the attainable polytope.
+    linearise_about : {"state", "setpoint"}
+        Where the mooring characteristics (``mooring="characteristic"``) are centred, and where
+        :class:`LinearMPC` linearises the dynamics: the present state estimate (default: the
+        model is exact where the vessel is), or the setpoint at rest with the present heading.
+    hessian : {"gauss-newton", "exact"}
+        SQP only: the Gauss–Newton Hessian of the least-squares cost (positive semi-definite by
+        construction, regularised by ``1e-8``) or the exact Hessian of the Lagrangian.
     polygon_sides : int
         Sides of the polygons approximating circles (dead band, safe circle, thrust circles).
     max_iter : int
@@ -109,7 +123,11 @@ class MPCSettings:
     psi_ref: float = math.radians(10.0)
     nu_ref: float = 0.5
     r_rate_ref: float = math.radians(0.5)
+    thrust_set: Literal["polytope", "box"] = "polytope"
     capacity_fraction: float = CAPACITY_FRACTION
+    polytope_directions: int = ATTAINABLE_DIRECTIONS
+    linearise_about: Literal["state", "setpoint"] = "state"
+    hessian: Literal["gauss-newton", "exact"] = "gauss-newton"
     polygon_sides: int = 16
     max_iter: int = 30
     max_time: float = 10.0
@@ -126,12 +144,14 @@ class MPCSettings:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
                 raise MPCError(f"MPCSettings.{name} = {v!r} must be a number >= 0")
-        for name, lo in (("horizon", 1), ("substeps", 1), ("polygon_sides", 3), ("max_iter", 1)):
+        for name, lo in (("horizon", 1), ("substeps", 1), ("polygon_sides", 3), ("max_iter", 1),
+                         ("polytope_directions", 8)):
             v = getattr(self, name)
             if not (isinstance(v, int) and v >= lo):
                 raise MPCError(f"MPCSettings.{name} = {v!r} must be a whole number >= {lo}")
         for name, allowed in (("mooring", ("characteristic", "catenary", "linear")), ("decision", ("tau", "thrusters")),
-                              ("solver", ("sqp", "ipopt", "fatrop"))):
+                              ("solver", ("sqp", "ipopt", "fatrop")), ("thrust_set", ("polytope", "box")),
+                              ("linearise_about", ("state", "setpoint")), ("hessian", ("gauss-newton", "exact"))):
             if getattr(self, name) not in allowed:
                 raise MPCError(f"MPCSettings.{name} = {getattr(self, name)!r} is not one of {', '.join(allowed)}")
         for name, what, hi in (("safe_radius", "a positive number", math.inf),
@@ -155,6 +175,7 @@ class MPCStep(ControllerStep):
 # ------------------------------------------------------------------------------------------
 
 
+
 @dataclass
 class _Problem:
     z: ca.SX | ca.MX
@@ -169,6 +190,15 @@ class _Problem:
     scale: dict
     n_u: int
     B_thr: np.ndarray | None
+    #: Least-squares residuals: ``f = sumsqr(r) + soft_l1 * (sum of the L1 slacks)``.
+    r: Any = None
+    #: Slices of the parameter vector (``x0``, ``u_prev``, ``eta_d``, ``b``, and when present
+    #: ``moor`` — the line characteristics —, ``poly_A``, ``poly_b``, ``rate_dt``, and for the
+    #: linear problem ``x_op``, ``u_op``, ``b_op``).
+    p_idx: dict | None = None
+    #: Rows of the thrust polytope (padded: a row of zeros with bound 1 is always met).
+    n_poly: int = 0
+    linear: bool = False
 
 
 def _polygon(n: int) -> np.ndarray:
@@ -189,20 +219,52 @@ def _turret(eta: Any, p_cot_B: np.ndarray, psi_op: Any) -> Any:
     return eta[0:2] + Rp - c + dRp * (eta[2] - psi_op)
 
 
-def build_problem(system: Any, settings: MPCSettings, *, linear_about: tuple | None = None,
+def mooring_parameters(model: MooringModel, eta_c: np.ndarray) -> np.ndarray:
+    """Line characteristics of ``mooring="characteristic"`` centred at the pose ``eta_c``
+    (survey eq. 26–28): per line the horizontal tension H0 [N], its slope k = dH/dXF [N/m], the
+    horizontal distance XF0 [m], the fairlead tension T0 [N] and its slope dT/dXF [N/m], from the
+    elastic catenary at ``eta_c``; concatenated, shape (5 n,)."""
+    sol = model.solve_lines(eta_c)
+    _, _, XF0 = model.spans(np.asarray(eta_c, float))
+    dT = (sol.HF * sol.dHF_dXF + sol.VF * sol.dVF_dXF) / np.maximum(sol.TF, 1e-300)
+    return np.concatenate([sol.HF, sol.dHF_dXF, XF0, sol.TF, dT])
+
+
+def polytope_parameters(thrusters: Any, settings: MPCSettings, u_ref: np.ndarray, n_rows: int) -> np.ndarray:
+    """Parameters of the thrust polytope in the scaled thrust ``u = tau / u_ref``: the rows
+    ``A_s = A diag(u_ref)`` (column-major, ``n_rows`` x 3, padded with zero rows), their bounds ``b``
+    (padding: 1) and the rate factor ``r dt`` (the slowest thruster's max_thrust_rate / max_thrust
+    times dt), from ``thrusters.attainable_polytope`` (failed thrusters excluded)."""
+    A, b = thrusters.attainable_polytope(settings.polytope_directions)
+    if len(b) > n_rows:
+        raise MPCError(f"the attainable polytope has {len(b)} facets, more than the {n_rows} rows reserved")
+    As = np.zeros((n_rows, 3))
+    bs = np.ones(n_rows)
+    As[:len(b)] = A * u_ref[None, :]
+    bs[:len(b)] = b
+    alive = thrusters.alive
+    ratio = min((thrusters.rate[i] / thrusters.f_max[i] for i in range(thrusters.n) if alive[i]), default=0.0)
+    return np.concatenate([As.ravel(order="F"), bs, [ratio * settings.dt]])
+
+
+def build_problem(system: Any, settings: MPCSettings, *, linear: bool = False,
                   model: MooringModel | None = None) -> _Problem:
-    """Write the MPC problem (module docstring) as CasADi expressions.
+    """Write the MPC problem (module docstring of ``control.mpc``) as CasADi expressions.
 
     Parameters
     ----------
     system : System or Scenario
         The vessel, line system and thrusters (a scenario is built into its :class:`System`).
-    linear_about : (x_op (6,), u_op (3,), b_op (3,)) or None
-        None: nonlinear prediction. Otherwise the dynamics are linearised about this point, the
-        tensions about ``x_op``'s pose, and the heading error is used unwrapped: the problem is a QP.
+    linear : bool
+        False: nonlinear prediction. True: the dynamics are linearised about the operating point
+        ``(x_op, u_op, b_op)`` and the tensions about ``x_op``'s pose — both parameters, so one
+        problem serves every operating point — and the heading error is used unwrapped: the
+        problem is a QP whose matrices are functions of the parameters.
+    model : MooringModel, optional
+        The line model of the prediction (default: the system's).
 
-    Returns the decision vector ``z`` (scaled), parameters ``p = (x0, u_prev, eta_d, b)`` in SI, cost
-    ``f``, constraints ``g`` with bounds, and index maps.
+    Returns the decision vector ``z`` (scaled), parameters ``p`` in SI (slices in ``p_idx``), cost
+    ``f`` with its least-squares residuals ``r``, constraints ``g`` with bounds, and index maps.
     """
     s = settings
     N = s.horizon
@@ -211,26 +273,28 @@ def build_problem(system: Any, settings: MPCSettings, *, linear_about: tuple | N
         raise MPCError(f"scenario {system.name!r} has no thrusters: there is nothing to control")
     vp = system.vessel
     moor = model or system.lines
+    n_lines = moor.n_lines
     p_cot = np.asarray(system.p_cot_B, float)
-    eta_op = np.zeros(3) if linear_about is None else np.asarray(linear_about[0][:3], float)
     kind = s.mooring
-    tau_moor = moor.force_function(kind, eta0=eta_op)
-    if kind != "catenary":
-        tau_moor = tau_moor.expand()  # pure SX: evaluated without the MX virtual machine
-    rhs = moored_function(vp, tau_moor, form="design")
+    rhs = moored_function(vp, None, form="design")
     # thrust variables
     B_thr, u_lo, u_hi, kinds, owner = system.thrusters.extended()
     fmax = np.maximum(np.abs(u_lo), np.abs(u_hi))
     fmax = np.where(fmax > 0, fmax, system.thrusters.f_max[owner])  # a failed thruster keeps its scale
     rate = system.thrusters.rate[owner]
+    n_poly = 0
     if s.decision == "tau":
-        # the one capacity model: a box the thrusters can deliver in X, Y and N at once
-        cap = np.asarray(system.thrusters.capacity_box(s.capacity_fraction), float)
         n_u = 3
-        u_ref = cap
-        u_lo_s, u_hi_s = -np.ones(3), np.ones(3)
-        rate_s = np.asarray(system.thrusters.rate_box(s.capacity_fraction), float) / cap
         Bu = np.eye(3)
+        if s.thrust_set == "box":
+            cap = np.asarray(system.thrusters.capacity_box(s.capacity_fraction), float)
+            u_ref = cap
+            rate_s = np.asarray(system.thrusters.rate_box(s.capacity_fraction), float) / cap
+        else:
+            u_ref = np.asarray(system.thrusters.max_tau(), float)  # each DOF alone: the polytope's box
+            rate_s = None
+            n_poly = 2 * s.polytope_directions  # at most 2 n - 4 facets of a hull of n points
+        u_lo_s, u_hi_s = -np.ones(3), np.ones(3)
     else:
         n_u = B_thr.shape[1]
         u_ref = fmax
@@ -241,48 +305,76 @@ def build_problem(system: Any, settings: MPCSettings, *, linear_about: tuple | N
     util = system.limits.tension_utilisation if s.tension_utilisation is None else s.tension_utilisation
     T_allow = util * np.asarray(moor.MBS, float)
     R_safe = system.limits.safe_radius if s.safe_radius is None else s.safe_radius
-    psi_lin = float(eta_op[2]) if linear_about is not None else None
     polyg = _polygon(s.polygon_sides)
 
-    Sym = ca.MX if kind == "catenary" and linear_about is None else ca.SX
-    p = Sym.sym("p", 6 + n_u + 3 + 3)
-    x0, u_prev, eta_d, b_E = p[0:6], p[6:6 + n_u], p[6 + n_u:9 + n_u], p[9 + n_u:12 + n_u]
-    if psi_lin is None:
-        psi_lin = x0[2]  # the turret offset is expanded about the present heading
+    Sym = ca.MX if kind == "catenary" else ca.SX
+    sizes = [("x0", 6), ("u_prev", n_u), ("eta_d", 3), ("b", 3),
+             ("moor", 5 * n_lines if kind == "characteristic" else 0),
+             ("poly_A", 3 * n_poly), ("poly_b", n_poly), ("rate_dt", 1 if n_poly else 0)]
+    if linear:
+        sizes += [("x_op", 6), ("u_op", n_u), ("b_op", 3)]
+    p_idx, at = {}, 0
+    for name, n in sizes:
+        p_idx[name] = slice(at, at + n)
+        at += n
+    p = Sym.sym("p", at)
+    x0, u_prev, eta_d, b_E = (p[p_idx[k]] for k in ("x0", "u_prev", "eta_d", "b"))
+
+    # mooring restoring load and fairlead tensions of a pose, as expressions of the symbols
+    def mooring_terms(eta_e: Any, mp: Any) -> tuple[Any, Any]:
+        if kind == "characteristic":
+            H0, k, XF0, T0, dT = (mp[i * n_lines:(i + 1) * n_lines] for i in range(5))
+            _, _, XF = moor.spans(eta_e)
+            return moor.tau_from_H(eta_e, H0 + k * (XF - XF0)), T0 + dT * (XF - XF0)
+        if kind == "linear":
+            tau = moor.force_function("linear").expand()(eta_e)
+            return tau, moor.tension_function("characteristic").expand()(eta_e)
+        return moor.force_function("catenary")(eta_e), moor.tension_function("catenary")(eta_e)
 
     # discrete dynamics (RK4) in SI, with thrust tau = Bu u
-    xs, us, bs = ca.SX.sym("x", 6), ca.SX.sym("u", n_u), ca.SX.sym("b", 3)
-    if kind == "catenary":
-        xs, us, bs = ca.MX.sym("x", 6), ca.MX.sym("u", n_u), ca.MX.sym("b", 3)
+    SymF = ca.MX if kind == "catenary" else ca.SX
+    xs, us, bs = SymF.sym("x", 6), SymF.sym("u", n_u), SymF.sym("b", 3)
+    ms = SymF.sym("m", 5 * n_lines if kind == "characteristic" else 0)
     h = s.dt / s.substeps
     xk = xs
     tau_u = ca.mtimes(ca.DM(Bu), us)
     for _ in range(s.substeps):
         def fx(xx):
-            tau_env = ca.mtimes(rot_z(xx[2]).T, bs)
+            tau_env = ca.mtimes(rot_z(xx[2]).T, bs) + mooring_terms(xx[0:3], ms)[0]
             return rhs(xx, tau_u, tau_env, ca.DM.zeros(2))
         k1 = fx(xk)
         k2 = fx(xk + h / 2 * k1)
         k3 = fx(xk + h / 2 * k2)
         k4 = fx(xk + h * k3)
         xk = xk + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-    F = ca.Function("F", [xs, us, bs], [xk])
-    tension = moor.tension_function("catenary" if kind == "catenary" else "characteristic", eta0=eta_op)
-    if kind != "catenary":
-        tension = tension.expand()
-    if linear_about is not None:
-        x_op, u_op, b_op = (np.asarray(a, float) for a in linear_about)
-        A = np.array(ca.Function("A", [xs, us, bs], [ca.jacobian(xk, xs)])(x_op, u_op, b_op))
-        Bm = np.array(ca.Function("B", [xs, us, bs], [ca.jacobian(xk, us)])(x_op, u_op, b_op))
-        G = np.array(ca.Function("G", [xs, us, bs], [ca.jacobian(xk, bs)])(x_op, u_op, b_op))
-        F0 = np.array(F(x_op, u_op, b_op)).ravel()
-        xs2, us2, bs2 = ca.SX.sym("x", 6), ca.SX.sym("u", n_u), ca.SX.sym("b", 3)
-        F = ca.Function("F_lin", [xs2, us2, bs2], [ca.DM(F0) + ca.mtimes(ca.DM(A), xs2 - x_op)
-                                                   + ca.mtimes(ca.DM(Bm), us2 - u_op) + ca.mtimes(ca.DM(G), bs2 - b_op)])
-        e_s = ca.SX.sym("e", 3)
-        T0 = np.array(tension(x_op[:3])).ravel()
-        JT = _jac(tension, x_op[:3])
-        tension = ca.Function("T_lin", [e_s], [ca.DM(T0) + ca.mtimes(ca.DM(JT), e_s - x_op[:3])])
+    es = SymF.sym("e", 3)
+    F = ca.Function("F", [xs, us, bs, ms], [xk])
+    Tfun = ca.Function("T", [es, ms], [mooring_terms(es, ms)[1]])
+    mp = p[p_idx["moor"]]
+    if linear:
+        x_op, u_op, b_op = (p[p_idx[k]] for k in ("x_op", "u_op", "b_op"))
+        parts = ca.Function("F_parts", [xs, us, bs, ms], [xk, ca.jacobian(xk, xs), ca.jacobian(xk, us),
+                                                          ca.jacobian(xk, bs)])
+        F0, A, Bm, G = parts(x_op, u_op, b_op, mp)
+        T0, JT = ca.Function("T_parts", [es, ms], [Tfun(es, ms), ca.jacobian(Tfun(es, ms), es)])(x_op[0:3], mp)
+
+        def step(xx, uu, bb):
+            return F0 + ca.mtimes(A, xx - x_op) + ca.mtimes(Bm, uu - u_op) + ca.mtimes(G, bb - b_op)
+
+        def tension(ee):
+            return T0 + ca.mtimes(JT, ee - x_op[0:3])
+        psi_lin = x_op[2]
+    else:
+        def step(xx, uu, bb):
+            return F(xx, uu, bb, mp)
+
+        def tension(ee):
+            return Tfun(ee, mp)
+        psi_lin = x0[2]  # the turret offset is expanded about the present heading
+    if n_poly:
+        PA = ca.reshape(p[p_idx["poly_A"]], n_poly, 3)
+        Pb = p[p_idx["poly_b"]]
+        rdt = p[p_idx["rate_dt"]]
 
     # decision variables (scaled): X (6 x N+1), U (n_u x N), slacks: dead band, safe, tension (N each)
     nX, nU = 6 * (N + 1), n_u * N
@@ -295,7 +387,13 @@ def build_problem(system: Any, settings: MPCSettings, *, linear_about: tuple | N
     Dx, Du = ca.DM(x_ref), ca.DM(u_ref)
 
     g, lbg, ubg = [], [], []
-    cost = 0
+    res = []  # least-squares residuals
+    f_lin = 0
+
+    def sq(weight: float, v: Any) -> None:
+        if weight > 0:
+            res.append(math.sqrt(weight) * v)
+
     g.append(X[:, 0] - x0 / Dx)
     lbg += [0.0] * 6
     ubg += [0.0] * 6
@@ -303,14 +401,23 @@ def build_problem(system: Any, settings: MPCSettings, *, linear_about: tuple | N
     for k in range(N):
         xk_si = X[:, k] * Dx
         uk_si = U[:, k] * Du
-        xn = F(xk_si, uk_si, b_E)
+        xn = step(xk_si, uk_si, b_E)
         g.append(X[:, k + 1] - xn / Dx)
         lbg += [0.0] * 6
         ubg += [0.0] * 6
-        # thrust rate (hard)
-        g.append(U[:, k] - u_last)
-        lbg += list(-rate_s * s.dt)
-        ubg += list(rate_s * s.dt)
+        if n_poly:
+            # the attainable thrust, and its change within the same polytope scaled by r dt
+            g.append(ca.mtimes(PA, U[:, k]) - Pb)
+            lbg += [-ca.inf] * n_poly
+            ubg += [0.0] * n_poly
+            g.append(ca.mtimes(PA, U[:, k] - u_last) - rdt * Pb)
+            lbg += [-ca.inf] * n_poly
+            ubg += [0.0] * n_poly
+        else:
+            # thrust rate (hard)
+            g.append(U[:, k] - u_last)
+            lbg += list(-rate_s * s.dt)
+            ubg += list(rate_s * s.dt)
         # thrust circles of azimuths and the rate of their force vectors (thruster decision):
         # |f| <= f_max and |f_k - f_k-1| <= rate dt, as inscribed polygons (so the magnitude too
         # changes by at most rate dt)
@@ -330,7 +437,8 @@ def build_problem(system: Any, settings: MPCSettings, *, linear_about: tuple | N
                     col += 2
                 else:
                     col += 1
-        cost += s.w_thrust * ca.sumsqr(U[:, k]) + s.w_rate * ca.sumsqr(U[:, k] - u_last)
+        sq(s.w_thrust, U[:, k])
+        sq(s.w_rate, U[:, k] - u_last)
         u_last = U[:, k]
         # state terms at k+1
         xe = X[:, k + 1] * Dx
@@ -342,18 +450,16 @@ def build_problem(system: Any, settings: MPCSettings, *, linear_about: tuple | N
                 g.append((nrm[0] * dp[0] + nrm[1] * dp[1]) / s.r_ref - S_db[k])
                 lbg.append(-ca.inf)
                 ubg.append(s.dead_band / s.r_ref)
-            cost += w_state * s.w_position * S_db[k] ** 2
-        elif s.w_position > 0:
+            sq(w_state * s.w_position, S_db[k])
+        else:
             # no dead band: the distance itself, squared (the polygon's slack would put 16
             # degenerate faces through the setpoint, on which the active-set QP solver cycles)
-            cost += w_state * s.w_position * ca.sumsqr(dp / s.r_ref)
-        cost += w_state * s.w_position_in * ca.sumsqr(dp / s.r_ref)
+            sq(w_state * s.w_position, dp / s.r_ref)
+        sq(w_state * s.w_position_in, dp / s.r_ref)
         dpsi = xe[2] - eta_d[2]
-        if linear_about is None:
-            cost += w_state * s.w_heading * 2.0 * (1.0 - ca.cos(dpsi)) / s.psi_ref ** 2
-        else:
-            cost += w_state * s.w_heading * (dpsi / s.psi_ref) ** 2
-        cost += w_state * s.w_velocity * (ca.sumsqr(xe[3:5] / s.nu_ref) + (xe[5] / s.r_rate_ref) ** 2)
+        # 2 (1 - cos dpsi) = (2 sin(dpsi / 2))^2: the periodic heading error as a square
+        sq(w_state * s.w_heading, (dpsi if linear else 2.0 * ca.sin(dpsi / 2.0)) / s.psi_ref)
+        sq(w_state * s.w_velocity, ca.vertcat(xe[3:5] / s.nu_ref, xe[5] / s.r_rate_ref))
         # soft: safe circle of the turret offset about the field zero point, line tensions
         if R_safe is not None:
             for nrm in polyg:
@@ -364,17 +470,21 @@ def build_problem(system: Any, settings: MPCSettings, *, linear_about: tuple | N
         g.append(T / ca.DM(T_allow) - S_T[k])
         lbg += [-ca.inf] * len(T_allow)
         ubg += [1.0] * len(T_allow)
-        cost += s.soft_l1 * (S_safe[k] + S_T[k]) + s.soft_l2 * (S_safe[k] ** 2 + S_T[k] ** 2)
+        f_lin += s.soft_l1 * (S_safe[k] + S_T[k])
+        sq(s.soft_l2, ca.vertcat(S_safe[k], S_T[k]))
     g = ca.vertcat(*g)
+    r = ca.vertcat(*res)
+    cost = ca.sumsqr(r) + f_lin
     lbz = np.concatenate([np.full(nX, -np.inf), np.tile(u_lo_s, N), np.zeros(3 * N)])
     ubz = np.concatenate([np.full(nX, np.inf), np.tile(u_hi_s, N), np.full(3 * N, np.inf)])
+    # slacks of constraints that are not there are held at zero
+    if s.dead_band <= 0:
+        ubz[nX + nU:nX + nU + N] = 0.0
+    if R_safe is None:
+        ubz[nX + nU + N:nX + nU + 2 * N] = 0.0
     idx = {"X": slice(0, nX), "U": slice(nX, nX + nU), "S_db": slice(nX + nU, nX + nU + N),
            "S_safe": slice(nX + nU + N, nX + nU + 2 * N), "S_T": slice(nX + nU + 2 * N, nX + nU + 3 * N)}
     scale = {"x": x_ref, "u": u_ref, "T_allow": T_allow, "R_safe": R_safe, "p_cot_B": p_cot}
     return _Problem(z=z, p=p, f=cost, g=g, lbz=lbz, ubz=ubz, lbg=np.array(lbg, float), ubg=np.array(ubg, float),
-                    idx=idx, scale=scale, n_u=n_u, B_thr=Bu if s.decision == "thrusters" else None)
-
-
-def _jac(fn: ca.Function, x: np.ndarray) -> np.ndarray:
-    q = ca.MX.sym("q", fn.size1_in(0))
-    return np.array(ca.Function("J", [q], [ca.jacobian(fn(q), q)])(x))
+                    idx=idx, scale=scale, n_u=n_u, B_thr=Bu if s.decision == "thrusters" else None, r=r,
+                    p_idx=p_idx, n_poly=n_poly, linear=linear)

@@ -34,12 +34,15 @@ from .mooring import MooringModel
 from .thrust import configuration_matrix, extended_columns, merge_sectors
 from .vessel import VesselParams
 
-__all__ = ["System", "ThrusterSet", "CAPACITY_FRACTION", "Limits", "as_system"]
+__all__ = ["System", "ThrusterSet", "CAPACITY_FRACTION", "ATTAINABLE_DIRECTIONS", "Limits", "as_system"]
 
 #: Fraction of each single-DOF thrust maximum that the capacity box allows in X, Y and N at once.
 CAPACITY_FRACTION = 0.6
 
-_DISK_SIDES = 128  # polygon inscribed in an azimuth's thrust disk in the capacity LP
+_DISK_SIDES = 128
+
+#: Directions of the support points of :meth:`ThrusterSet.attainable_polytope` (the MPC's thrust set).
+ATTAINABLE_DIRECTIONS = 32  # polygon inscribed in an azimuth's thrust disk in the capacity LP
 
 
 @dataclass(frozen=True, eq=False)
@@ -223,6 +226,54 @@ class ThrusterSet:
                         best = min(best, max(0.0, -res.fun))
                     out[d] = best
             self._cache[key] = readonly(out)
+        return self._cache[key]
+
+    def attainable_polytope(self, n_directions: int = ATTAINABLE_DIRECTIONS) -> tuple[np.ndarray, np.ndarray]:
+        """Half-spaces ``A tau <= b`` of a polytope inside the set of generalised thrusts the
+        thrusters can deliver together (failed ones excluded), ``tau`` = (X [N], Y [N], N [N m]).
+
+        The attainable set is the image ``B u`` of the convex hull of every thruster's forces
+        (the rows of the capacity LP, :meth:`max_tau`): convex. Its support points in
+        ``n_directions`` directions spread evenly over the sphere (in tau scaled by
+        :meth:`max_tau`, so that the set is about round) are found by LP; their convex hull is
+        attainable (convex combinations of attainable thrusts are attainable) and is returned,
+        with each row scaled so that ``b`` holds the distance of the facet from the origin in the
+        scaled thrust (``A`` has the dimensions 1/N, 1/N, 1/(N m)). Cached; shapes (m, 3), (m,).
+        """
+        if not (isinstance(n_directions, int) and n_directions >= 8):
+            raise ModelError(f"n_directions = {n_directions!r} must be a whole number >= 8")
+        key = ("polytope", n_directions)
+        if key not in self._cache:
+            import scipy.optimize  # loaded on first use (process start-up)
+            from scipy.spatial import ConvexHull
+
+            B, lo, hi, _, _ = self.extended()
+            scale = self.max_tau()
+            if not np.all(scale > 0):
+                raise ModelError(f"the thrusters (failed: {sorted(self.failed)}) cannot deliver thrust in every "
+                                 f"DOF (largest X, Y, N alone: {scale.tolist()}): no attainable polytope")
+            Bs = B / scale[:, None]
+            A_u, b_u = self._hull_rows()
+            k = np.arange(n_directions) + 0.5  # Fibonacci lattice on the unit sphere
+            z = 1.0 - 2.0 * k / n_directions
+            phi = math.pi * (1.0 + math.sqrt(5.0)) * k
+            d = np.stack([np.sqrt(1 - z * z) * np.cos(phi), np.sqrt(1 - z * z) * np.sin(phi), z], axis=1)
+            pts = []
+            for dk in d:
+                res = scipy.optimize.linprog(-(dk @ Bs), A_ub=A_u if len(A_u) else None, b_ub=b_u if len(A_u) else None,
+                                             bounds=list(zip(lo, hi)), method="highs")
+                if res.status != 0:
+                    raise ModelError(f"attainable-thrust LP in direction {dk.tolist()} failed: {res.message}")
+                pts.append(Bs @ res.x)
+            hull = ConvexHull(np.array(pts))
+            nrm, off = hull.equations[:, :3], -hull.equations[:, 3]  # nrm . tau_s <= off, |nrm| = 1
+            # merge coplanar triangles (one row per facet plane)
+            keyed = {}
+            for n_, o_ in zip(nrm, off):
+                keyed.setdefault(tuple(np.round(np.append(n_, o_), 9)), (n_, o_))
+            nrm = np.array([v[0] for v in keyed.values()])
+            off = np.array([v[1] for v in keyed.values()])
+            self._cache[key] = (readonly(nrm / scale[None, :]), readonly(off))
         return self._cache[key]
 
     def capacity_box(self, fraction: float = CAPACITY_FRACTION) -> np.ndarray:
