@@ -489,26 +489,53 @@ def test_ipopt_iteration_limit_falls_back_without_a_plan(fpso):
     assert np.array_equal(tau, np.zeros(3))
 
 
-def test_failed_qp_applies_shifted_previous_plan(fpso, monkeypatch):
+@pytest.mark.parametrize("qp_solver", ["piqp", "osqp"])
+def test_failed_qp_applies_shifted_previous_plan(fpso, monkeypatch, qp_solver):
     s = MPCSettings(**QUADRATIC)
     cap, _ = capacity(fpso)
-    ctrl = LinearMPC(fpso, s)
+    ctrl = LinearMPC(fpso, s, qp_solver=qp_solver)
     ctrl.update(0.0, est(X0), SP0)
     plan = ctrl.plan_u.copy()
-    failed = SimpleNamespace(x=None, info=SimpleNamespace(status_val=-2, status="maximum iterations reached",
-                                                          obj_val=math.nan, iter=20000))
-    monkeypatch.setattr(ctrl._qp, "solve", lambda *args, **kwargs: failed)
+    if qp_solver == "osqp":
+        failed = SimpleNamespace(x=None, info=SimpleNamespace(status_val=-2, status="maximum iterations reached",
+                                                              obj_val=math.nan, iter=20000))
+        monkeypatch.setattr(ctrl._qp, "solve", lambda *args, **kwargs: failed)
+        expect = "maximum iterations reached"
+    else:
+        def broken(**kwargs):
+            raise RuntimeError("Error in Function::call for 'lmpc': maximum iterations reached")
+
+        monkeypatch.setattr(ctrl, "_qp", broken)
+        expect = "error: Error in Function::call for 'lmpc': maximum iterations reached"
     tau = ctrl.update(s.dt, est(X0), SP0)
     d = ctrl.diagnostics[-1]
-    assert d.fallback and not d.success and d.status == "maximum iterations reached"
+    assert d.fallback and not d.success and d.status == expect
     assert np.all(np.isfinite(tau)) and np.all(np.abs(tau) <= cap)
     assert np.allclose(tau, plan[1], rtol=1e-12, atol=1e-9 * cap.max())
+
+
+def test_linear_mpc_qp_solvers_agree_in_a_storm(fpso):
+    """piqp and OSQP solve the same QP (45 m off, a 3 MN load, the thrust polytope and the safe
+    circle in play): first moves agree to 1e-3 of the single-DOF maxima."""
+    x = np.array([44.0, -10.0, math.radians(5.0), 0.1, 0.02, 0.0])
+    b = np.array([-3.0e6, -1.0e6, -2.0e7])
+    moves = {}
+    for qp in ("piqp", "osqp"):
+        ctrl = LinearMPC(fpso, MPCSettings(dead_band=40.0, w_thrust=10.0, w_rate=5.0), qp_solver=qp)
+        for k in range(3):
+            moves[qp] = ctrl.update(5.0 * k, est(x, rot_z(x[2]).T @ b), Setpoint([0.0, 0.0, 0.1]))
+            assert ctrl.diagnostics[-1].success, ctrl.diagnostics[-1].status
+    scale = ThrusterSet.from_scenario(fpso).max_tau()
+    assert np.max(np.abs(moves["piqp"] - moves["osqp"]) / scale) < 1e-3
+    assert np.max(np.abs(moves["piqp"]) / scale) > 0.05
+    with pytest.raises(MPCError, match="qp_solver"):
+        LinearMPC(fpso, MPCSettings(horizon=3), qp_solver="qrqp")
 
 
 # --- warm start ------------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("make", [
-    pytest.param(lambda sc, s: LinearMPC(sc, s), id="linear-osqp"),
+    pytest.param(lambda sc, s: LinearMPC(sc, s, qp_solver="osqp"), id="linear-osqp"),
     pytest.param(lambda sc, s: NonlinearMPC(sc, replace_solver(s, "ipopt")), id="nonlinear-ipopt"),
 ])
 def test_warm_start_reduces_iterations(fpso, plant_fn, make):
