@@ -720,7 +720,7 @@ def compare(scenario_name: str, out_dir: str, workers: int | None, duration: flo
     data["study"]["scenario"] = scenario_name
     data["sea_states"] = [{"id": sid}]
     data["study"]["description"] = (
-        f"PID control modes vs linear MPC on {sc.name} in sea state {sid} (Hs {ss.Hs:g} m, Tp {ss.Tp:g} s, wind "
+        f"PID control modes vs linear and nonlinear MPC on {sc.name} in sea state {sid} (Hs {ss.Hs:g} m, Tp {ss.Tp:g} s, wind "
         f"{ss.wind_speed:g} m/s, current {ss.current_speed:g} m/s); line {brk['line']} breaks at "
         f"{brk['time_fraction'] * data['study']['duration']:g} s")
     st = study_from_dict(data, base_dir=Path.cwd(), source=str(path))

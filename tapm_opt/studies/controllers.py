@@ -12,12 +12,14 @@ list of modes), ``tau_limit`` (default: the capacity box of the thrusters,
 ``models.system.ThrusterSet.capacity_box``, the same box the MPC uses). Its position loop acts on
 the turret offset (the reference point is the centre of turret).
 
-MPC (``tapm_opt.control.mpc.MPCSettings``): every settings field; ``dead_band`` defaults to 0.7 of the
-scenario's safe radius; ``period`` [s] is the re-solve period (default the prediction step).
+MPC (``tapm_opt.control.mpc.MPCSettings``): every settings field; ``dead_band`` defaults to 0.8 of the
+scenario's safe radius (``MPC_DEAD_BAND``), ``w_thrust`` and ``w_rate`` to ``MPC_DEFAULTS``;
+``period`` [s] is the re-solve period (default the prediction step).
 
 The defaults were tuned on the fpso design storm (``docs/controllers.md``): the PID as the
 softest restoring loop that keeps the vessel inside the safe circle, the MPC with a dead band at
-0.7 of the safe radius and soft heading and position weights.
+0.8 of the safe radius, a lazy and smooth thrust (w_thrust 10, w_rate 5) and soft heading and
+position weights.
 """
 
 from __future__ import annotations
@@ -42,6 +44,13 @@ _MAX_HORIZON = 500  # prediction steps (horizon x substeps): the default is 20
 
 PID_DEFAULTS = {"periods": (250.0, 250.0, 150.0), "damping": (0.8, 0.8, 0.8), "integral_ratio": 0.1,
                 "modes": "normal_restoring", "tau_limit": None}
+
+
+#: Study defaults of the MPCs that differ from MPCSettings' (tuned on the fpso design storm with a
+#: line break, docs/controllers.md "Tuning the MPC"): a lazy thrust and a smooth one.
+MPC_DEFAULTS = {"w_thrust": 10.0, "w_rate": 5.0}
+#: Dead band of the MPCs' turret offset as a fraction of the safe radius.
+MPC_DEAD_BAND = 0.8
 
 
 class ControllerSpecError(TapmError, ValueError):
@@ -113,8 +122,8 @@ def build_controller(system: Any, spec: Mapping[str, Any] | str, *, where: str =
         _unknown(set(spec), allowed, where)
         period = spec.pop("period", None)
         if "dead_band" not in spec and system.limits.safe_radius is not None:
-            spec["dead_band"] = 0.7 * system.limits.safe_radius
-        settings = MPCSettings(**spec)
+            spec["dead_band"] = MPC_DEAD_BAND * system.limits.safe_radius
+        settings = MPCSettings(**{**MPC_DEFAULTS, **spec})
         n_pred = settings.horizon * settings.substeps
         if n_pred > _MAX_HORIZON:
             raise ControllerSpecError(
