@@ -147,7 +147,7 @@ def _agreement_cases():
 
 @pytest.mark.parametrize("name, thrusters, kw, warmup", list(_agreement_cases()), ids=lambda v: v if isinstance(v, str) else "")
 def test_osqp_and_cvxpy_agree_on_feasible_and_infeasible_tau(name, thrusters, kw, warmup):
-    al = ThrustAllocator(thrusters, **kw)
+    al = ThrustAllocator(thrusters, solver="osqp", **kw)
     rng = np.random.default_rng(7)
     for k in range(warmup):  # leave the rest state: thrusters loaded and turned
         al.allocate([1e6 * math.sin(0.05 * k), 8e5, 3e7])

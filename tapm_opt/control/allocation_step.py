@@ -1,5 +1,6 @@
 """Thrust allocation: the QP data of one step — sector arithmetic, direction intervals, local
-frames and bounds — shared by the OSQP allocator and the cvxpy reference.
+frames and bounds — and the post-processing of a QP solution, shared by the DAQP and OSQP paths
+of the allocator and by the cvxpy reference.
 
 Rates and sectors are linearised about the previous command ``(f_p, alpha_p)``. The allowed
 direction interval is ``[-Da, Da]`` (``Da = max_azimuth_rate dt``) intersected with the allowed
@@ -19,11 +20,29 @@ arc that contains alpha_p (forbidden sectors); b_i is its bisector, hw its half-
 * empty (failed; or alpha_p inside a forbidden sector with no allowed direction within Da):
   u = 0, and a live thruster turns toward the nearest allowed direction.
 
-:class:`_StepBounds` is a base class of :class:`~tapm_opt.control.allocation.ThrustAllocator`; its
-methods read the thruster data the allocator sets up (``F_ref``, ``polygon_sides``, ``_R``,
-``_Rin``, ``_rate``, ``_arate``, ``_iaz``, ``_ifx``, ``_nfx``, ``_ffmin``, ``_ffmax``,
-``_sectors``, ``_jsec``) and its rate-limit state (``_fa_prev``, ``_aa_prev``, ``_ff_prev``,
-``_failed``, ``_any_failed``), and cache the per-dt constants in ``_dtd``.
+A narrow rectangle with hw <= 2 pi / m (m = polygon_sides) only holds directions within one
+polygon side of b_i, so of the inscribed m-gon only the two sides at its vertex on b_i can bind.
+:func:`step_kernel` reports whether that holds for every live azimuth (the usual case in a
+control loop), and the DAQP path then solves a QP with those two rows per azimuth instead of m.
+
+Both kernels are scalar loops over the thrusters, compiled with numba (``cache=True``, numpy
+floating-point semantics; plain Python when numba is missing). They work on arrays the allocator
+builds once, one column per thruster in the allocator's order, rows indexed by the ``C_*``,
+``S_*`` and ``G_*`` constants below:
+
+* ``C`` (constants): kind (1 azimuth, 0 tunnel/fixed), the QP columns of p and v (of f for a
+  tunnel/fixed thruster), scaled thrust rate ``max_thrust_rate / F_ref`` [1/s], azimuth rate
+  [rad/s] (inf: none), scaled thrust bounds (azimuth: 0 and the capacity R) and the polygon
+  apothem, position (x, y) [m], scaled power weight, the balance columns ``S B_i`` of f_x and
+  f_y (``S = diag(1, 1, 1/L_ref)``), the same times F_ref (tau in N, N m; a tunnel/fixed
+  thruster: its configuration-matrix column times F_ref), the fixed angle, the number of
+  forbidden sectors;
+* ``Sec`` (forbidden sectors, merged, one row per thruster): starts [rad] in columns
+  ``0..K-1``, widths in ``K..2K-1``;
+* ``S`` (state, written in place): the previous command (scaled thrust, alpha), the failed flag
+  and the frame b_i last written to the DAQP matrix;
+* ``G`` (the step data, written in place): b, the reported direction range offset from b, the
+  bounds of p and v (tunnel/fixed: of f, as p) and of the reported magnitude.
 """
 
 from __future__ import annotations
@@ -44,144 +63,306 @@ _KEEP = 0.5
 _INF = math.inf
 with warnings.catch_warnings():
     warnings.simplefilter("ignore")
-    _BIG = float(osqp.constant("OSQP_INFTY"))  # OSQP's infinity (1e30): no clipping in update()
+    _BIG = float(osqp.constant("OSQP_INFTY"))  # OSQP's infinity (1e30, also DAQP's): no clipping in update()
+
+# rows of C (constants)
+C_KIND, C_IP, C_IV, C_RATE, C_ARATE, C_FMIN, C_FMAX, C_RIN, C_X, C_Y, C_W = range(11)
+C_BX, C_BY = 11, 14         # 3 rows each: S B_i e_x, S B_i e_y (scaled balance rows; azimuths)
+C_TX, C_TY = 17, 20         # 3 rows each: F_ref B_i e_x, F_ref B_i e_y (tau in N, N m; tunnel/fixed: C_TX)
+C_ANGLE, C_NSEC = 23, 24
+N_C = 25
+# rows of S (state)
+S_F, S_ALPHA, S_FAILED, S_B = range(4)
+N_S = 4
+# rows of G (step data; tunnel/fixed: the bounds of f in G_LP, G_HP)
+G_B, G_OLO, G_OHI, G_LP, G_HP, G_LV, G_HV, G_LM, G_HM = range(9)
+N_G = 9
+#: step_kernel's return code: bit 0 (value 1) set when the full polygon is needed (else its two
+#: sides at b_i suffice), bit 1 (value 2) when a frame b_i moved (the DAQP matrix was rewritten);
+#: -1 when tau is not finite (nothing written).
+CODE_FULL, CODE_MOVED, CODE_BAD_TAU = 1, 2, -1
+
+try:
+    from numba import njit
+except ImportError:  # numba is a declared dependency: this is a safety net (same results, slower)
+    def njit(*args, **kwargs):  # noqa: D103 - keeps the definitions below importable
+        if args and callable(args[0]):
+            return args[0]
+        return lambda f: f
+
+
+def _jit(fn):
+    """Compile ``fn`` lazily with numpy floating-point semantics, cached on disk when a cache
+    directory can be written (else compiled once per process)."""
+    try:
+        return njit(cache=True, error_model="numpy")(fn)
+    except RuntimeError:  # numba found no writable cache location
+        return njit(error_model="numpy")(fn)
 
 
 # -- sectors -----------------------------------------------------------------------------------------
 
-def _arc(alpha: float, starts: tuple[float, ...], widths: tuple[float, ...]) -> tuple[float, float]:
+@_jit
+def _ssa(a):  # pragma: no cover - compiled
+    """Smallest signed angle in [-pi, pi) (as :func:`tapm_opt.geometry.ssa`)."""
+    return a - TWO_PI * math.floor((a + math.pi) / TWO_PI)
+
+
+@_jit
+def arc(alpha, sec, K):  # pragma: no cover - compiled
     """Allowed arc relative to alpha, ``(lo, hi)`` [rad]: the arc containing alpha (lo <= 0 <= hi),
-    or, when alpha lies in a forbidden sector, the nearest allowed arc (lo > 0 or hi < 0)."""
-    K = len(starts)
+    or, when alpha lies in a forbidden sector, the nearest allowed arc (lo > 0 or hi < 0).
+
+    ``sec``: the K merged forbidden sectors, starts in ``sec[:K]`` and widths in
+    ``sec[n:n + K]`` with ``n = len(sec) // 2`` (K >= 1)."""
+    n = sec.shape[0] // 2
     for k in range(K):
-        t = (alpha - starts[k]) % TWO_PI
-        if 0.0 < t < widths[k]:
-            t2 = widths[k] - t
-            if t <= t2:  # leave clockwise: the allowed arc ending at starts[k]
-                w_prev = (starts[k] - starts[k - 1] - widths[k - 1]) % TWO_PI or TWO_PI - widths[k]
+        t = (alpha - sec[k]) % TWO_PI
+        w = sec[n + k]
+        if 0.0 < t < w:
+            t2 = w - t
+            if t <= t2:  # leave clockwise: the allowed arc ending at the start of sector k
+                kp = k - 1 if k > 0 else K - 1
+                w_prev = (sec[k] - sec[kp] - sec[n + kp]) % TWO_PI
+                if w_prev == 0.0:
+                    w_prev = TWO_PI - w
                 return -t - w_prev, -t
-            k1 = (k + 1) % K
-            w_next = (starts[k1] - starts[k] - widths[k]) % TWO_PI or TWO_PI - widths[k]
+            k1 = k + 1 if k + 1 < K else 0
+            w_next = (sec[k1] - sec[k] - w) % TWO_PI
+            if w_next == 0.0:
+                w_next = TWO_PI - w
             return t2, t2 + w_next
-    hi = min((s - alpha) % TWO_PI for s in starts)
-    lo = -min((alpha - s - w) % TWO_PI for s, w in zip(starts, widths))
-    return lo, hi
+    hi = _INF
+    lo = _INF
+    for k in range(K):
+        hi = min(hi, (sec[k] - alpha) % TWO_PI)
+        lo = min(lo, (alpha - sec[k] - sec[n + k]) % TWO_PI)
+    return -lo, hi
+
+
+# -- the step data ---------------------------------------------------------------------------------
+
+@_jit
+def step_kernel(dt, tau, C, Sec, S, m, tau_scale, G, write, A, bu, bl):  # pragma: no cover - compiled
+    """The step data (module docstring) into ``G``; returns a ``CODE_*`` bit set.
+
+    With ``write``, also the DAQP data: bounds of p, v, f (``bl``, ``bu`` entries ``0..nv-1``),
+    the scaled tau of the balance rows (entries ``nv..nv+2``) and, for the frames b_i that moved
+    since the last write (``S[S_B]``), the balance entries of the (p_i, v_i) columns of ``A``.
+    """
+    n = G.shape[1]
+    t0, t1, t2 = tau[0], tau[1], tau[2]
+    if not math.isfinite(t0 + t1 + t2):
+        return CODE_BAD_TAU
+    side = TWO_PI / m
+    full = False
+    moved = False
+    nv = 0
+    for i in range(n):
+        fa = S[S_F, i]
+        dead = S[S_FAILED, i] != 0.0
+        rdt = C[C_RATE, i] * dt
+        ip = int(C[C_IP, i])
+        if C[C_KIND, i] == 0.0:  # tunnel/fixed: the thrust rate and its bounds
+            lf = max(C[C_FMIN, i], fa - rdt)
+            hf = min(C[C_FMAX, i], fa + rdt)
+            if dead:
+                lf = hf = 0.0
+            G[G_LP, i] = lf
+            G[G_HP, i] = hf
+            if write:
+                bl[ip] = lf
+                bu[ip] = hf
+            nv += 1
+            continue
+        nv += 2
+        aa = S[S_ALPHA, i]
+        D = C[C_ARATE, i] * dt
+        if D >= math.pi:
+            D = _INF                             # can point anywhere within dt
+        R = C[C_FMAX, i]
+        lm = max(fa - rdt, 0.0)
+        hm = min(fa + rdt, R)
+        lo = -D
+        hi = D
+        empty = dead
+        K = int(C[C_NSEC, i])
+        if K > 0 and not dead:
+            slo, shi = arc(aa, Sec[i], K)
+            if slo > D or shi < -D:  # out of its allowed arc and out of reach: empty, turn toward it
+                empty = True
+                hi = min(max(slo if slo > 0.0 else shi, -D), D)
+            else:
+                lo = max(slo, -D)
+                hi = min(shi, D)
+        restricted = (not empty) and math.isfinite(lo)
+        narrow = restricted and hi - lo < math.pi
+        half = restricted and not narrow
+        if narrow:
+            mid = 0.5 * (lo + hi)
+            hw = 0.5 * (hi - lo)
+        elif half:
+            mid = min(max(0.0, lo + HALF_PI), hi - HALF_PI)   # half-plane direction, closest to alpha_p
+            hw = HALF_PI
+        else:
+            mid = 0.0
+            hw = HALF_PI
+        if restricted:
+            olo = -hw
+            ohi = hw
+        elif empty:
+            olo = ohi = 0.0 if dead else hi         # relative to b = alpha_p (mid = 0)
+        else:
+            olo = -_INF
+            ohi = _INF
+        if empty:
+            lp = hp = lv = hv = lm = hm = 0.0
+        elif narrow:                                # the rectangle
+            pp = fa * math.cos(mid)                 # u_p in the local frame
+            lp = max(min(fa - rdt, pp), _KEEP * max(pp, 0.0))
+            hp = max((fa + rdt) * math.cos(hw), pp)
+            hv = lp * math.tan(hw)
+            lv = -hv
+            if hw > side:
+                full = True
+        else:  # box |Delta u| <= r dt / sqrt(2) about u_p (moved into the polygon)
+            fb = min(fa, C[C_RIN, i] / math.cos((-mid) % side - math.pi / m))
+            pb = fb * math.cos(mid)
+            vb = -fb * math.sin(mid)
+            h = rdt * _SQRT1_2
+            lp = max(max(-R, pb - h), 0.0 if half else -R)
+            hp = min(R, pb + h)
+            lv = max(-R, vb - h)
+            hv = min(R, vb + h)
+            full = True
+        b = aa + mid
+        G[G_B, i] = b
+        G[G_OLO, i] = olo
+        G[G_OHI, i] = ohi
+        G[G_LP, i] = lp
+        G[G_HP, i] = hp
+        G[G_LV, i] = lv
+        G[G_HV, i] = hv
+        G[G_LM, i] = lm
+        G[G_HM, i] = hm
+        if write:
+            iv = int(C[C_IV, i])
+            bl[ip] = lp
+            bu[ip] = hp
+            bl[iv] = lv
+            bu[iv] = hv
+            if b != S[S_B, i]:
+                moved = True
+                S[S_B, i] = b
+                cb = math.cos(b)
+                sb = math.sin(b)
+                for r in range(3):
+                    bx = C[C_BX + r, i]
+                    by = C[C_BY + r, i]
+                    A[r, ip] = bx * cb + by * sb         # p column: B_i e(b)
+                    A[r, iv] = by * cb - bx * sb         # v column: B_i e(b + pi/2)
+    if write:
+        for r in range(3):
+            bu[nv + r] = bl[nv + r] = tau[r] * tau_scale[r]
+    return (CODE_FULL if full else 0) + (CODE_MOVED if moved else 0)
+
+
+# -- the solution ---------------------------------------------------------------------------------
+
+@_jit
+def finish_kernel(x, y, iy, tau, G, C, S, F_ref, L_ref, idle_tol, steer, commit, out):  # pragma: no cover - compiled
+    """Clip a scaled QP solution x (p, v, f, ...) to the exact limits of the step ``G``; returns
+    1 (and writes nothing) when x is not finite, else 0.
+
+    Writes ``out`` (2 n + 6): f [N], alpha [rad] per thruster, the tau they produce and
+    ``tau - that`` [N, N, N m]. An azimuth with |u_i| <= idle_tol gets the lowest thrust the rate
+    allows (0 unless it is falling from more than r dt) and keeps alpha_p or, with ``steer``,
+    turns within its interval toward its preferred direction ``-W_i^-1 B_i^T y / 2`` (y = the
+    multiplier of the force balance, ``y[iy:iy + 3]``, convention P x + q + A^T y = 0). With
+    ``commit``, the command becomes the previous command of the next step (``S``).
+    """
+    n = G.shape[1]
+    s = 0.0
+    for i in range(x.shape[0]):
+        s += x[i]
+    if not math.isfinite(s):
+        return 1
+    y0 = y[iy]
+    y1 = y[iy + 1]
+    y2 = y[iy + 2] / L_ref                      # multiplier of the scaled moment row, per N m / F_ref
+    pref_ok = steer and math.isfinite(y0 + y1 + y2)
+    t0 = 0.0
+    t1 = 0.0
+    t2 = 0.0
+    for i in range(n):
+        ip = int(C[C_IP, i])
+        if C[C_KIND, i] == 0.0:  # tunnel/fixed
+            ff = min(max(x[ip], G[G_LP, i]), G[G_HP, i])
+            t0 += C[C_TX, i] * ff
+            t1 += C[C_TX + 1, i] * ff
+            t2 += C[C_TX + 2, i] * ff
+            out[i] = ff * F_ref
+            out[n + i] = C[C_ANGLE, i]
+            if commit:
+                S[S_F, i] = ff
+            continue
+        b = G[G_B, i]
+        olo = G[G_OLO, i]
+        ohi = G[G_OHI, i]
+        p = min(max(x[ip], G[G_LP, i]), G[G_HP, i])
+        v = min(max(x[int(C[C_IV, i])], G[G_LV, i]), G[G_HV, i])
+        mag = math.hypot(p, v)
+        th = min(max(math.atan2(v, p), olo), ohi) + b   # direction kept within the interval
+        fa = min(max(mag, G[G_LM, i]), G[G_HM, i])      # exact |Delta f| <= r dt and f <= max_thrust
+        if mag <= idle_tol:
+            fa = G[G_LM, i]
+            th = S[S_ALPHA, i]
+            if pref_ok:  # preferred u_i = -W_i^-1 B_i^T y / 2 (stationarity with u_i free)
+                w2 = 2.0 * C[C_W, i]
+                px = -(y0 - C[C_Y, i] * y2) / w2
+                py = -(y1 + C[C_X, i] * y2) / w2
+                pref = math.hypot(px, py) > idle_tol
+                toff = _ssa(math.atan2(py, px) - b) if pref else 0.0
+                if pref or olo > 0.0 or ohi < 0.0:          # also: out of a forbidden sector
+                    th = b + min(max(toff, olo), ohi)
+        fx = fa * math.cos(th)
+        fy = fa * math.sin(th)
+        t0 += C[C_TX, i] * fx + C[C_TY, i] * fy
+        t1 += C[C_TX + 1, i] * fx + C[C_TY + 1, i] * fy
+        t2 += C[C_TX + 2, i] * fx + C[C_TY + 2, i] * fy
+        al = _ssa(th)
+        out[i] = fa * F_ref
+        out[n + i] = al
+        if commit:
+            S[S_F, i] = fa
+            S[S_ALPHA, i] = al
+    out[2 * n] = t0
+    out[2 * n + 1] = t1
+    out[2 * n + 2] = t2
+    out[2 * n + 3] = tau[0] - t0
+    out[2 * n + 4] = tau[1] - t1
+    out[2 * n + 5] = tau[2] - t2
+    return 0
 
 
 class _Step(NamedTuple):
-    """Data of one step, scaled units; arrays (naz,) over the azimuths unless noted."""
+    """Data of one step, scaled units (module docstring): ``G`` (N_G, n), the azimuth and
+    tunnel/fixed columns, and whether the full polygon is needed. The attributes are arrays over
+    the azimuths (lf, hf: over the tunnel/fixed thrusters)."""
 
-    b: np.ndarray        # local frame direction (bisector of the allowed interval) [rad]
-    olo: np.ndarray      # range of the reported direction, offset from b [rad]
-    ohi: np.ndarray
-    lp: np.ndarray       # bounds of the radial force p and the tangential force v
-    hp: np.ndarray
-    lv: np.ndarray
-    hv: np.ndarray
-    lm: np.ndarray       # bounds of the reported magnitude |u| (thrust rate, capacity)
-    hm: np.ndarray
-    lf: np.ndarray       # bounds of the tunnel/fixed thrusts, shape (nfx,)
-    hf: np.ndarray
+    G: np.ndarray
+    iaz: np.ndarray
+    ifx: np.ndarray
+    full: bool
 
-
-class _DtData(NamedTuple):
-    """Per-dt constants (cached)."""
-
-    dt: float
-    rdt_a: np.ndarray    # max_thrust_rate dt / F_ref of the azimuths
-    rdt_f: np.ndarray    # ... of the tunnel/fixed thrusters
-    D: np.ndarray        # max_azimuth_rate dt [rad] (inf: can point anywhere)
-    h: np.ndarray        # half-width of the box, rdt / sqrt(2)
-    simple: tuple        # fast-path constants (no azimuth has a sector or has failed)
-
-
-class _StepBounds:
-    """The QP data of one allocation step (module docstring); a base class of ThrustAllocator."""
-
-    def _dt_data(self, dt: float) -> _DtData:
-        d = self._dtd
-        if d is not None and d.dt == dt:
-            return d
-        F, R = self.F_ref, self._R
-        rdt = self._rate * dt / F
-        rdt_a, rdt_f = rdt[self._iaz], rdt[self._ifx]
-        D = self._arate * dt
-        D = np.where(D >= math.pi, _INF, D)          # can point anywhere within dt
-        h = rdt_a * _SQRT1_2
-        narrow = D < HALF_PI
-        half = ~narrow & np.isfinite(D)
-        hw = np.where(narrow, D, HALF_PI)
-        olo = np.where(narrow | half, -hw, -_INF)
-        # without sectors (b = alpha_p): lp = max(fa - a0, fa a8 + a1); hp = max(min((fa + a2) a3, a4), fa a5);
-        # hv = max(lp a6, a7): the narrow rectangle or the box (module docstring)
-        simple = (olo, -olo, np.where(narrow, rdt_a, h), np.where(narrow, 0.0, np.where(half, 0.0, -R)),
-                  np.where(narrow, rdt_a, h), np.where(narrow, np.cos(hw), 1.0), np.where(narrow, _BIG, R),
-                  narrow.astype(float), np.where(narrow, np.tan(hw), 0.0), np.where(narrow, 0.0, np.minimum(R, h)),
-                  np.where(narrow, _KEEP, 0.0))
-        d = self._dtd = _DtData(dt, rdt_a, rdt_f, D, h, simple)
-        return d
-
-    def _geometry(self, dt: float) -> _Step:
-        """Direction intervals, local frames and bounds of one step (shared by OSQP and cvxpy)."""
-        d = self._dt_data(dt)
-        fa = self._fa_prev
-        if self._nfx:
-            lf = np.maximum(self._ffmin, self._ff_prev - d.rdt_f)
-            hf = np.minimum(self._ffmax, self._ff_prev + d.rdt_f)
-            if self._any_failed:
-                dead = self._failed[self._ifx]
-                lf[dead] = hf[dead] = 0.0
-        else:
-            lf = hf = fa[:0]
-        lm = np.maximum(fa - d.rdt_a, 0.0)
-        hm = np.minimum(fa + d.rdt_a, self._R)
-        if not (self._jsec or self._any_failed):  # fast path: b = alpha_p, modes fixed by dt
-            olo, ohi, a0, a1, a2, a3, a4, a5, a6, a7, a8 = d.simple
-            lp = np.maximum(fa - a0, fa * a8 + a1)
-            hp = np.maximum(np.minimum((fa + a2) * a3, a4), fa * a5)
-            hv = np.maximum(lp * a6, a7)
-            return _Step(self._aa_prev, olo, ohi, lp, hp, -hv, hv, lm, hm, lf, hf)
-        return self._geometry_general(d, fa, lm, hm, lf, hf)
-
-    def _geometry_general(self, d: _DtData, fa, lm, hm, lf, hf) -> _Step:
-        D, R = d.D, self._R
-        lo, hi = -D, D.copy()
-        aa = self._aa_prev
-        for j in self._jsec:
-            slo, shi = _arc(float(aa[j]), *self._sectors[j])
-            Dj = float(D[j])
-            if slo > Dj or shi < -Dj:  # out of its allowed arc and out of reach: empty, turn toward it
-                lo[j], hi[j] = math.nan, min(max(slo if slo > 0.0 else shi, -Dj), Dj)
-            else:
-                lo[j], hi[j] = max(slo, -Dj), min(shi, Dj)
-        dead = self._failed[self._iaz]
-        empty = dead | np.isnan(lo)
-        restricted = np.isfinite(lo) & ~dead
-        lo0, hi0 = np.where(restricted, lo, 0.0), np.where(restricted, hi, 0.0)
-        narrow = restricted & (hi0 - lo0 < math.pi)
-        half = restricted & ~narrow
-        c = np.clip(0.0, lo0 + HALF_PI, hi0 - HALF_PI)      # half-plane direction, closest to alpha_p
-        mid = np.where(narrow, 0.5 * (lo0 + hi0), np.where(half, c, 0.0))
-        hw = np.where(narrow, 0.5 * (hi0 - lo0), HALF_PI)
-        olo = np.where(restricted, -hw, -_INF)
-        ohi = -olo
-        e = empty & ~dead
-        olo[e] = ohi[e] = hi[e]                               # relative to b = alpha_p (mid = 0)
-        olo[dead] = ohi[dead] = 0.0
-        pp = fa * np.cos(mid)                                 # u_p in the local frame
-        lp = np.maximum(np.minimum(fa - d.rdt_a, pp), _KEEP * np.maximum(pp, 0.0))  # narrow: rectangle
-        hp = np.maximum((fa + d.rdt_a) * np.cos(hw), pp)
-        hv = lp * np.tan(np.where(narrow, hw, 0.0))
-        lv = -hv
-        box = ~(narrow | empty)
-        if box.any():  # box |Delta u| <= r dt / sqrt(2) about u_p (moved into the polygon)
-            m = self.polygon_sides
-            fb = np.minimum(fa, self._Rin / np.cos(np.mod(-mid, TWO_PI / m) - math.pi / m))
-            pb, vb = fb * np.cos(mid), -fb * np.sin(mid)
-            lp = np.where(box, np.maximum(np.maximum(-R, pb - d.h), np.where(half, 0.0, -R)), lp)
-            hp = np.where(box, np.minimum(R, pb + d.h), hp)
-            lv = np.where(box, np.maximum(-R, vb - d.h), lv)
-            hv = np.where(box, np.minimum(R, vb + d.h), hv)
-        if empty.any():
-            lp, hp, lv, hv, lm, hm = (np.where(empty, 0.0, v) for v in (lp, hp, lv, hv, lm, hm))
-        return _Step(aa + mid, olo, ohi, lp, hp, lv, hv, lm, hm, lf, hf)
+    b = property(lambda s: s.G[G_B, s.iaz])      # local frame direction (bisector of the allowed interval) [rad]
+    olo = property(lambda s: s.G[G_OLO, s.iaz])  # range of the reported direction, offset from b [rad]
+    ohi = property(lambda s: s.G[G_OHI, s.iaz])
+    lp = property(lambda s: s.G[G_LP, s.iaz])    # bounds of the radial force p and the tangential force v
+    hp = property(lambda s: s.G[G_HP, s.iaz])
+    lv = property(lambda s: s.G[G_LV, s.iaz])
+    hv = property(lambda s: s.G[G_HV, s.iaz])
+    lm = property(lambda s: s.G[G_LM, s.iaz])    # bounds of the reported magnitude |u| (thrust rate, capacity)
+    hm = property(lambda s: s.G[G_HM, s.iaz])
+    lf = property(lambda s: s.G[G_LP, s.ifx])    # bounds of the tunnel/fixed thrusts
+    hf = property(lambda s: s.G[G_HP, s.ifx])
