@@ -487,4 +487,4 @@ def test_mpc_sweep_is_the_comparison_the_mpc_must_win():
     sc = scenario_from_dict(s.cases[0].inputs["scenario"])
     mpc = build_controller(sc, {"type": "lmpc", "horizon": 3})
     assert all(getattr(mpc.settings, k) == v for k, v in MPC_DEFAULTS.items())
-    assert mpc.settings.dead_band == pytest.approx(0.8 * sc.limits.safe_radius)
+    assert mpc.settings.dead_band == pytest.approx(0.6 * sc.limits.safe_radius)

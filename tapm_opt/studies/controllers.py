@@ -12,14 +12,14 @@ list of modes), ``tau_limit`` (default: the capacity box of the thrusters,
 ``models.system.ThrusterSet.capacity_box``, the same box the MPC uses). Its position loop acts on
 the turret offset (the reference point is the centre of turret).
 
-MPC (``tapm_opt.control.mpc.MPCSettings``): every settings field; ``dead_band`` defaults to 0.8 of the
-scenario's safe radius (``MPC_DEAD_BAND``), ``w_thrust`` and ``w_rate`` to ``MPC_DEFAULTS``;
+MPC (``tapm_opt.control.mpc.MPCSettings``): every settings field; ``dead_band`` defaults to 0.6 of the
+scenario's safe radius (``MPC_DEAD_BAND``), ``w_thrust``, ``w_rate`` and ``w_velocity`` to ``MPC_DEFAULTS``;
 ``period`` [s] is the re-solve period (default the prediction step).
 
 The defaults were tuned on the fpso design storm (``docs/controllers.md``): the PID as the
 softest restoring loop that keeps the vessel inside the safe circle, the MPC with a dead band at
-0.8 of the safe radius, a lazy and smooth thrust (w_thrust 10, w_rate 5) and soft heading and
-position weights.
+0.6 of the safe radius, a lazy and smooth thrust (w_thrust 10, w_rate 5), damping (w_velocity 5)
+and soft heading and position weights.
 """
 
 from __future__ import annotations
@@ -46,11 +46,11 @@ PID_DEFAULTS = {"periods": (250.0, 250.0, 150.0), "damping": (0.8, 0.8, 0.8), "i
                 "modes": "normal_restoring", "tau_limit": None}
 
 
-#: Study defaults of the MPCs that differ from MPCSettings' (tuned on the fpso design storm with a
-#: line break, docs/controllers.md "Tuning the MPC"): a lazy thrust and a smooth one.
-MPC_DEFAULTS = {"w_thrust": 10.0, "w_rate": 5.0}
+#: Study defaults of the MPCs that differ from MPCSettings' (tuned on the fpso design storm, intact
+#: and with a line break, docs/controllers.md "Tuning the MPC"): a lazy and smooth thrust, damping.
+MPC_DEFAULTS = {"w_thrust": 10.0, "w_rate": 5.0, "w_velocity": 5.0}
 #: Dead band of the MPCs' turret offset as a fraction of the safe radius.
-MPC_DEAD_BAND = 0.8
+MPC_DEAD_BAND = 0.6
 
 
 class ControllerSpecError(TapmError, ValueError):
