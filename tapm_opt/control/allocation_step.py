@@ -54,6 +54,8 @@ from typing import NamedTuple
 import numpy as np
 import osqp
 
+from .._jit import jit
+
 TWO_PI = 2.0 * math.pi
 HALF_PI = 0.5 * math.pi
 _SQRT1_2 = math.sqrt(0.5)
@@ -82,22 +84,7 @@ N_G = 9
 #: -1 when tau is not finite (nothing written).
 CODE_FULL, CODE_MOVED, CODE_BAD_TAU = 1, 2, -1
 
-try:
-    from numba import njit
-except ImportError:  # numba is a declared dependency: this is a safety net (same results, slower)
-    def njit(*args, **kwargs):  # noqa: D103 - keeps the definitions below importable
-        if args and callable(args[0]):
-            return args[0]
-        return lambda f: f
-
-
-def _jit(fn):
-    """Compile ``fn`` lazily with numpy floating-point semantics, cached on disk when a cache
-    directory can be written (else compiled once per process)."""
-    try:
-        return njit(cache=True, error_model="numpy")(fn)
-    except RuntimeError:  # numba found no writable cache location
-        return njit(error_model="numpy")(fn)
+_jit = jit  # compiled with numba when it can be imported (tapm_opt._jit)
 
 
 # -- sectors -----------------------------------------------------------------------------------------

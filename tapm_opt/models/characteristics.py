@@ -277,15 +277,9 @@ def _compiled_kernel():
     numba. Compiled on first use, so importing tapm_opt does not load numba."""
     global _KERNEL
     if _KERNEL is None:
-        try:
-            from numba import njit
-        except ImportError:  # numba is a declared dependency: this is a safety net
-            _KERNEL = False
-        else:
-            try:
-                _KERNEL = njit(cache=True, error_model="numpy")(_tau_kernel_py)
-            except RuntimeError:  # no writable cache location
-                _KERNEL = njit(error_model="numpy")(_tau_kernel_py)
+        from .._jit import jit
+
+        _KERNEL = jit(_tau_kernel_py, fallback=False)
     return _KERNEL or None
 
 

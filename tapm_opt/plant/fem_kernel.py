@@ -31,29 +31,13 @@ import numpy as np
 
 __all__ = ["AVAILABLE", "advance"]
 
-try:
-    from numba import njit
-except ImportError as _exc:  # numba is a declared dependency: this is a safety net
-    AVAILABLE = False
-    warnings.warn(f"numba is not available ({_exc}); the FEM mooring lines use the numpy path, which is "
+from .._jit import jit as _jit, numba_available
+
+AVAILABLE = numba_available()
+if not AVAILABLE:
+    warnings.warn("numba is not available; the FEM mooring lines use the numpy path, which is "
                   "several times slower per step (install numba to restore the compiled kernel)",
                   RuntimeWarning, stacklevel=2)
-
-    def njit(*args, **kwargs):  # noqa: D103 - keeps the definitions below importable
-        if args and callable(args[0]):
-            return args[0]
-        return lambda f: f
-else:
-    AVAILABLE = True
-
-
-def _jit(fn):
-    """Compile ``fn`` lazily with numpy floating-point semantics, cached on disk when a cache
-    directory can be written (else compiled once per process)."""
-    try:
-        return njit(cache=True, error_model="numpy")(fn)
-    except RuntimeError:  # numba found no writable cache location
-        return njit(error_model="numpy")(fn)
 
 
 @_jit
