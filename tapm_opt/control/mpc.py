@@ -1,26 +1,30 @@
-"""Model predictive control of a thruster-assisted moored vessel (CasADi; OSQP for the linear MPC).
+"""Model predictive control of a thruster-assisted moored vessel (CasADi; piqp, OSQP, IPOPT, fatrop).
 
 One formulation serves both controllers. :func:`build_problem` (module ``mpc_problem``) writes the
 optimal control problem over CasADi symbols, in scaled variables, with multiple shooting:
 
 * prediction model: the design form of the vessel (survey eq. 14–15/31, ``models.vessel``) with the
-  mooring restoring model (``"catenary"``, ``"characteristic"`` or ``"linear"``) and the slowly
-  varying environmental load ``b`` in {E} as a parameter, ``tau_env = R(psi)^T b``; RK4 over ``dt``;
+  mooring restoring model (``"characteristic"``: every line's characteristic centred at the present
+  pose, eq. 26–28, its coefficients parameters of the problem; ``"catenary"``; ``"linear"``) and
+  the slowly varying environmental load ``b`` in {E} as a parameter, ``tau_env = R(psi)^T b``;
+  RK4 over ``dt``;
 * decision variables: generalised thrust ``tau`` (allocation afterwards) or the thrusters' force
   components directly (extended thrust; allocation inside the MPC);
-* cost: thrust power surrogate (so the mooring does the work), position error outside a dead band
-  (the TAPM philosophy, survey §4.1) and optionally inside it, heading error, velocity, thrust rate,
-  a terminal cost;
-* constraints: thrust capacity (the one capacity model, ``models.system.ThrusterSet``) and rate
-  (hard); the safe circle and every line's tension limit (soft, exact L1 penalty plus a small
+* cost, as least squares plus L1 penalties: thrust power surrogate (so the mooring does the work),
+  position error outside a dead band (the TAPM philosophy, survey §4.1) and optionally inside it,
+  heading error, velocity, thrust rate, a terminal cost;
+* constraints: thrust inside the attainable polytope of the one ``models.system.ThrusterSet`` and
+  its change per step inside the same polytope scaled by rate x dt (or the capacity box and rate
+  box) — hard; the safe circle and every line's tension limit (soft, exact L1 penalty plus a small
   quadratic one); dead band as a polygon with a slack. Positions are turret offsets
   (``geometry.turret_offset``), expanded to first order in the heading about the present one.
 
-:class:`NonlinearMPC` solves it with an NLP solver (IPOPT, SQP with a QP solver, or fatrop).
-:class:`LinearMPC` linearises the dynamics and the tensions about an operating point: the problem is
-then a QP whose constant matrices are taken from the same CasADi expressions once, and each step
-only updates the parameter-dependent vectors of an OSQP problem set up once (warm started).
-On a failed solve both apply the shifted previous plan and say so in their diagnostics.
+:class:`NonlinearMPC` solves it with an NLP solver (SQP on the Gauss–Newton Hessian with piqp for
+its QPs, IPOPT, or fatrop). :class:`LinearMPC` solves the same problem linearised about an
+operating point that is a parameter (by default the present state): its QP matrices are CasADi
+functions of the parameters built once, evaluated each step and handed to piqp or OSQP; nothing is
+rebuilt in the loop. On a failed solve both apply the shifted previous plan and say so in their
+diagnostics.
 """
 
 from __future__ import annotations

@@ -47,14 +47,19 @@ class MPCSettings:
     substeps : int
         RK4 steps per prediction step.
     mooring : {"characteristic", "catenary", "linear"}
-        Mooring model in the prediction (``models.mooring.MooringModel.force_function``).
+        Mooring model in the prediction: ``"characteristic"`` — each line's horizontal tension
+        linear in its anchor–fairlead distance about the pose of ``linearise_about`` (eq. 26–28,
+        coefficients from the elastic catenary there, :func:`mooring_parameters`); ``"catenary"``
+        and ``"linear"`` as ``models.mooring.MooringModel.force_function``.
     decision : {"tau", "thrusters"}
         Optimise the generalised thrust (allocation after) or the thruster forces directly.
     solver : {"sqp", "ipopt", "fatrop"}
-        NLP solver of :class:`NonlinearMPC` (SQP: CasADi ``sqpmethod`` with the active-set
-        ``qrqp`` for its QP subproblems, retried with OSQP when it fails; IPOPT; fatrop).
+        NLP solver of :class:`NonlinearMPC` (SQP: CasADi ``sqpmethod`` with the sparse
+        interior-point ``piqp`` for its QP subproblems, retried with OSQP when it fails; IPOPT;
+        fatrop).
     w_thrust, w_rate : float
-        Weights on (tau / tau_ref)^2 (or (f_i / f_max,i)^2) and on its change per step.
+        Weights on (tau / tau_ref)^2 (or (f_i / f_max,i)^2) and on its change per step; tau_ref is
+        ``ThrusterSet.max_tau()`` (``thrust_set="polytope"``) or the capacity box (``"box"``).
     w_position : float
         Weight on (distance outside the dead band / r_ref)^2.
     w_position_in : float
