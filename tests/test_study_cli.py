@@ -35,7 +35,7 @@ def test_compare_without_storm_uses_the_most_severe_sea_state(capsys, tmp_path, 
     assert code == 0, err
     assert f"scenario {scenario} has no sea state 'storm': using {which}, '{sea_state}'" in stdout
     rows = list(csv.DictReader(open(out / "kpis.csv", newline="")))
-    assert sorted(r["controller"] for r in rows) == ["MPC", "PID"]
+    assert sorted(r["controller"] for r in rows) == ["MPC", "NMPC", "PID"]
     assert {(r["scenario"], r["sea_state"], r["condition"]) for r in rows} == {(scenario, sea_state,
                                                                                 "line 1 broken at 20 s")}
     assert all(float(r["offset_max"]) > 0 for r in rows)
