@@ -609,7 +609,7 @@ def test_failed_thrusters_shrink_the_thrust_box(fpso, cls):
 
 
 def test_failed_sqp_solve_is_retried_with_osqp(fpso, monkeypatch):
-    """When the SQP with qrqp fails, the same SQP with OSQP for its subproblems solves the step:
+    """When the SQP with piqp fails, the same SQP with OSQP for its subproblems solves the step:
     the move is that of an undisturbed solve and the diagnostics say so."""
     s = MPCSettings(solver="sqp", **QUADRATIC)
     ref = NonlinearMPC(fpso, s).update(0.0, est(X0), SP0)
@@ -681,8 +681,7 @@ def test_attainable_polytope_is_inside_the_thrusters_reach_and_nearly_fills_it(f
 def test_linear_mpc_about_the_state_predicts_better_far_out(fpso):
     """40 m off, where the catenary has hardened: the linear MPC's predicted first state, linearised
     about the state estimate, matches the nonlinear model (the independent RK4 of the design model
-    with the exact catenary mooring) far better than linearised about the setpoint, and its
-    parameters need no new problem: one OSQP set-up for both and for every update."""
+    with the exact catenary mooring) far better than linearised about the setpoint."""
     vp = VesselParams.from_scenario(fpso)
     exact = moored_function(vp, MooringModel.from_scenario(fpso).force_function("catenary"), form="design")
     x0 = np.array([40.0, -12.0, math.radians(5.0), 0.2, 0.0, 0.0])
@@ -692,9 +691,70 @@ def test_linear_mpc_about_the_state_predicts_better_far_out(fpso):
         ctrl = LinearMPC(fpso, MPCSettings(linearise_about=about, horizon=10, dead_band=0.0, w_position=1.0))
         for k in range(3):
             ctrl.update(k * 5.0, est(x0, rot_z(x0[2]).T @ b), SP0)
-        assert ctrl.setups == 1
         X = ctrl._z[ctrl._prob.idx["X"]].reshape(-1, 6) * ctrl._prob.scale["x"]
         x1 = rk4(exact, x0, ctrl.tau_from_u(ctrl.plan_u[0]), b, 5.0, substeps=5)
         errs[about] = np.linalg.norm((X[1] - x1)[:2])
     assert errs["state"] < 0.2 * errs["setpoint"], errs
     assert errs["state"] < 0.05, errs
+
+
+def test_linear_mpc_qp_moves_with_the_operating_point_on_one_sparsity(fpso):
+    """One parametric QP: at two poses 30 m apart the constraint matrix values differ (the mooring
+    stiffness and the rotation are linearised where the vessel is) on the same sparsity, and the
+    reported cost is the problem's f(z) (the QP's constant f(0) added back): the nonlinear MPC at
+    the same small offset reports the same cost."""
+    ctrl = LinearMPC(fpso, MPCSettings(**QUADRATIC))
+    p = ctrl._params(est(X0), SP0)
+    pi = ctrl._prob.p_idx
+    data = []
+    for x in (X0, X0 + np.array([30.0, 0.0, 0.0, 0.0, 0.0, 0.0])):
+        p = ctrl._params(est(x), SP0)
+        p[pi["x_op"]], p[pi["u_op"]], p[pi["b_op"]] = p[pi["x0"]], p[pi["u_prev"]], p[pi["b"]]
+        data.append([np.asarray(v).ravel() for v in ctrl._qp_data(p)])
+    assert data[0][1].shape == data[1][1].shape == (ctrl._A_sp.nnz(),)
+    assert np.max(np.abs(data[0][1] - data[1][1])) > 1e-3
+    x = 0.1 * X0
+    a, b = LinearMPC(fpso, MPCSettings(**QUADRATIC)), NonlinearMPC(fpso, MPCSettings(**QUADRATIC))
+    a.update(0.0, est(x), SP0)
+    b.update(0.0, est(x), SP0)
+    assert a.last_step().cost == pytest.approx(b.last_step().cost, rel=1e-3)
+
+
+@pytest.mark.parametrize("cls", [LinearMPC, NonlinearMPC], ids=["linear", "nonlinear-sqp"])
+def test_thruster_failure_while_saturated_keeps_the_polytope_feasible(fpso, plant_fn, cls):
+    """Saturated against a 43 m offset with the default polytope, then the three aft azimuths fail:
+    the previous move lies far outside what the bow thrusters can deliver, yet every later solve
+    succeeds and every applied tau is inside the reduced polytope (the rate rows start from the
+    part of the previous move the remaining thrusters can deliver). With five of six failed no
+    polytope has an interior: the capacity box of the last one stands in, and nothing raises."""
+    s = MPCSettings(**dict(AGGRESSIVE, thrust_set="polytope", horizon=5))
+    ctrl = cls(fpso, s)
+    taus, _ = closed_loop(ctrl, plant_fn, [35.0, -25.0, 0.1, 0.0, 0.0, 0.0], np.zeros(3), 4, s.dt)
+    aft = frozenset(t.id for t in fpso.thrusters[:3])
+    ths = ThrusterSet.from_scenario(fpso).without(aft)
+    A, b = ths.attainable_polytope(s.polytope_directions)
+    assert np.max(A @ taus[-1] / b) > 2.0  # the last move is far outside the reduced set
+    ctrl.set_failed_thrusters(aft)
+    x = est([35.0, -25.0, 0.1, 0.0, 0.0, 0.0])
+    for k in range(4, 8):
+        tau = ctrl.update(k * s.dt, x, SP0)
+        assert ctrl.last_step().success, ctrl.last_step().status
+        assert np.all(A @ tau <= b * (1 + 1e-4) + 1e-6), np.max(A @ tau / b)
+    five = frozenset(t.id for t in fpso.thrusters[:5])
+    ctrl.set_failed_thrusters(five)
+    box = ThrusterSet.from_scenario(fpso).without(five).capacity_box(s.capacity_fraction)
+    tau = ctrl.update(40.0, x, SP0)
+    assert np.all(np.abs(tau) <= box * (1 + 1e-4) + 1e-6)
+
+
+def test_study_spec_takes_the_linear_mpc_qp_solver_and_bounds_the_polytope(fpso):
+    from tapm_opt.studies.controllers import ControllerSpecError, build_controller
+
+    assert build_controller(fpso, {"type": "lmpc", "horizon": 3, "qp_solver": "osqp"}).qp_solver == "osqp"
+    assert build_controller(fpso, {"type": "lmpc", "horizon": 3}).qp_solver == "piqp"
+    with pytest.raises(ControllerSpecError, match="qp_solver"):
+        build_controller(fpso, {"type": "mpc", "horizon": 3, "qp_solver": "osqp"})  # the NLP has its solver
+    with pytest.raises(ControllerSpecError, match="qp_solver = 'qrqp'"):
+        build_controller(fpso, {"type": "lmpc", "horizon": 3, "qp_solver": "qrqp"})
+    with pytest.raises(ControllerSpecError, match="polytope_directions = 5000 is above 400"):
+        build_controller(fpso, {"type": "lmpc", "horizon": 3, "polytope_directions": 5000})

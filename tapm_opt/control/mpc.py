@@ -37,6 +37,7 @@ import casadi as ca
 import numpy as np
 import scipy.sparse as sp
 
+from ..errors import ModelError
 from ..geometry import body_from_turret, rot_z, ssa
 from ..interfaces import Estimate, Setpoint, ThrusterCommand
 from ..models.system import as_system
@@ -71,6 +72,7 @@ class _MPCBase:
         self.diagnostics: list[MPCStep] = []
         self.plan_u: np.ndarray | None = None
         self._poly: np.ndarray | None = None  # thrust-polytope parameters of the thrusters alive
+        self._poly_box: np.ndarray | None = None  # the stand-in box when no polytope has an interior
 
     @property
     def owns_allocation(self) -> bool:
@@ -90,19 +92,55 @@ class _MPCBase:
                 raise MPCError(f"{name} = {v.tolist()} must be a finite 3-vector")
         eta_d[2] = eta[2] + ssa(eta_d[2] - eta[2])  # heading setpoint unwrapped next to the heading
         b_E = rot_z(eta[2]) @ tau_env
-        u_prev = np.zeros(self._n_u) if self._u_prev is None else self._u_prev
         pi = self._prob.p_idx
         p = np.zeros(self._prob.p.numel())
+        if self._prob.n_poly:
+            if self._poly is None:
+                self._poly = self._polytope()
+            n = self._prob.n_poly
+            p[pi["poly_A"]], p[pi["poly_b"]], p[pi["rate_dt"]] = self._poly[:3 * n], self._poly[3 * n:4 * n], self._poly[-1]
+        u_prev = np.zeros(self._n_u) if self._u_prev is None else self._u_prev
+        # after a thruster failure the previous move may lie outside what the rest can deliver: the
+        # rate rows start from its part inside (else the first move could have no feasible value)
+        u_prev = self._into_polytope(u_prev / self._prob.scale["u"]) * self._prob.scale["u"]
         p[pi["x0"]], p[pi["u_prev"]], p[pi["eta_d"]], p[pi["b"]] = np.concatenate([eta, nu]), u_prev, eta_d, b_E
         if pi["moor"].stop > pi["moor"].start:
             p[pi["moor"]] = mooring_parameters(self.model, self._centre(eta, eta_d))
-        if self._prob.n_poly:
-            if self._poly is None:
-                ths = self.system.thrusters.without(self._failed) if self._failed else self.system.thrusters
-                self._poly = polytope_parameters(ths, self.settings, self._prob.scale["u"], self._prob.n_poly)
-            n = self._prob.n_poly
-            p[pi["poly_A"]], p[pi["poly_b"]], p[pi["rate_dt"]] = self._poly[:3 * n], self._poly[3 * n:4 * n], self._poly[-1]
         return p
+
+    def _polytope(self) -> np.ndarray:
+        """Thrust-polytope parameters of the thrusters alive (``polytope_parameters``). When the
+        remaining thrusters leave a DOF without any thrust (no polytope with an interior), the
+        capacity box of what remains, with zero on that DOF, stands in as the polytope."""
+        ths = self.system.thrusters.without(self._failed) if self._failed else self.system.thrusters
+        n = self._prob.n_poly
+        try:
+            self._poly_box = None
+            return polytope_parameters(ths, self.settings, self._prob.scale["u"], n)
+        except ModelError:
+            lim = np.asarray(ths.capacity_box(self.settings.capacity_fraction)) / self._prob.scale["u"]
+            As = np.zeros((n, 3))
+            bs = np.ones(n)
+            As[:6] = np.vstack([np.eye(3), -np.eye(3)])
+            bs[:6] = np.concatenate([lim, lim])
+            self._poly_box = lim
+            alive = ths.alive
+            ratio = min((ths.rate[i] / ths.f_max[i] for i in range(ths.n) if alive[i]), default=0.0)
+            return np.concatenate([As.ravel(order="F"), bs, [ratio * self.settings.dt]])
+
+    def _into_polytope(self, u_s: np.ndarray) -> np.ndarray:
+        """Scaled thrust rows (..., 3) moved into the thrust polytope: a row outside it is scaled
+        toward zero onto its boundary (the origin is inside), or clipped when the polytope is the
+        stand-in box. Unchanged without a polytope."""
+        if not self._prob.n_poly or self._poly is None:
+            return u_s
+        if self._poly_box is not None:
+            return np.clip(u_s, -self._poly_box, self._poly_box)
+        n = self._prob.n_poly
+        A, b = self._poly[:3 * n].reshape(3, n).T, self._poly[3 * n:4 * n]
+        u2 = np.atleast_2d(u_s)
+        over = np.maximum(1.0, np.max(u2 @ A.T / b, axis=1))
+        return (u2 / over[:, None]).reshape(np.shape(u_s))
 
     def _centre(self, eta: np.ndarray, eta_d: np.ndarray) -> np.ndarray:
         """Pose about which the model is centred (``MPCSettings.linearise_about``): the estimate,
@@ -140,10 +178,12 @@ class _MPCBase:
                 z = self._initial(self._last_p)
                 z[idx["U"]] = np.tile((self._u_prev if self._u_prev is not None else np.zeros(self._n_u))
                                       / self._prob.scale["u"], N)
-        U = z[idx["U"]].reshape(N, self._n_u) * self._prob.scale["u"]
-        # hard input bounds are guaranteed even for a fallback plan
-        U = np.clip(U, self._prob.lbz[idx["U"]].reshape(N, self._n_u) * self._prob.scale["u"],
-                    self._prob.ubz[idx["U"]].reshape(N, self._n_u) * self._prob.scale["u"])
+        # hard input bounds (and the thrust polytope) are kept even by a fallback plan
+        U_s = np.clip(z[idx["U"]].reshape(N, self._n_u), self._prob.lbz[idx["U"]].reshape(N, self._n_u),
+                      self._prob.ubz[idx["U"]].reshape(N, self._n_u))
+        if fallback:
+            U_s = self._into_polytope(U_s)
+        U = U_s * self._prob.scale["u"]
         self._z = z
         u0 = U[0]
         self._u_prev = u0.copy()
@@ -251,7 +291,8 @@ class NonlinearMPC(_MPCBase):
     """Nonlinear MPC on the design model with the chosen mooring model (CasADi NLP).
 
     The NLP solver is built once; each :meth:`update` sets the parameters (state estimate, previous
-    thrust, setpoint, environmental load) and warm-starts from the shifted previous solution.
+    thrust, setpoint, environmental load, the line characteristics at the centre pose and the
+    thrust polytope of the thrusters alive) and warm-starts from the shifted previous solution.
     """
 
     def __init__(self, system: Any, settings: MPCSettings = MPCSettings(), *, period: float | None = None):
@@ -344,8 +385,8 @@ class LinearMPC(_MPCBase):
     solved as a sparse QP, set up once.
 
     The QP is written once with the operating point ``(x_op, u_op, b_op)`` among its parameters
-    (``build_problem(..., linear=True)``): its Hessian, constraint matrix, gradient and bounds are
-    CasADi functions of the parameters with a fixed sparsity. Each update evaluates them at the
+    (``build_problem(..., linear=True)``): its Hessian, constraint matrix, gradient and the constant
+    part of its constraints are CasADi functions of the parameters with a fixed sparsity. Each update evaluates them at the
     present operating point — with ``linearise_about="state"`` the state estimate, the previous
     thrust and the load estimate, so the prediction is exact to first order where the vessel is —
     and solves (no problem construction in the loop). ``linearise_about="setpoint"`` linearises
@@ -355,7 +396,7 @@ class LinearMPC(_MPCBase):
     CasADi's ``conic``; ``"osqp"`` with OSQP (set up once, values updated, warm-started from the
     shifted plan). In the fpso storm closed loop OSQP stopped at its iteration limit or "solved
     inaccurate" on 2–7 of 720 steps with the thrust polytope in the problem; piqp on none, at a
-    similar time per step.
+    similar time per step. ``eps_abs``, ``eps_rel``: OSQP's tolerances (piqp keeps its defaults).
     """
 
     def __init__(self, system: Any, settings: MPCSettings = MPCSettings(), *, qp_solver: str = "piqp",
@@ -382,8 +423,9 @@ class LinearMPC(_MPCBase):
             H, Aq = Hfull, ca.jacobian(prob.g, z)
             self._conic = ca.conic("lmpc", "piqp", {"h": H.sparsity(), "a": Aq.sparsity()}, {"error_on_fail": False})
         self._H_sp, self._A_sp = H.sparsity(), Aq.sparsity()
-        # the QP in the step from z = 0: H, A (nonzeros in CSC order), the gradient q and g(0) at p
-        f_all = ca.Function("qp_data", [z, p], [_nonzeros(H), _nonzeros(Aq), ca.gradient(prob.f, z), prob.g])
+        # the QP in the step from z = 0: H, A (nonzeros in CSC order), the gradient q, g(0) and the
+        # cost f(0) at p (the QP solvers report f(z) - f(0))
+        f_all = ca.Function("qp_data", [z, p], [_nonzeros(H), _nonzeros(Aq), ca.gradient(prob.f, z), prob.g, prob.f])
         self._qp_data = lambda pv: f_all(zero, pv)
         self._qp = None
         self.setups = 0
@@ -403,7 +445,8 @@ class LinearMPC(_MPCBase):
             x_op = np.concatenate([self._centre(eta, eta_d), np.zeros(3)])
             u_op = np.zeros(self._n_u)
         p[pi["x_op"]], p[pi["u_op"]], p[pi["b_op"]] = x_op, u_op, p[pi["b"]]
-        Hx, Ax, q, g0 = (np.asarray(v, float).ravel() for v in self._qp_data(p))
+        Hx, Ax, q, g0, f0 = (np.asarray(v, float).ravel() for v in self._qp_data(p))
+        self._f0 = float(f0[0])
         if self.qp_solver == "piqp":
             return self._solve_conic(t, Hx, Ax, q, g0)
         big = 1e20
@@ -425,9 +468,10 @@ class LinearMPC(_MPCBase):
         res = self._qp.solve(raise_error=False)
         dt = time.perf_counter() - t0
         st = int(res.info.status_val)
-        ok = st == int(self._osqp_mod.SolverStatus.OSQP_SOLVED) and res.x is not None and np.all(np.isfinite(res.x))
+        ok = bool(st == int(self._osqp_mod.SolverStatus.OSQP_SOLVED) and res.x is not None
+                  and np.all(np.isfinite(res.x)))
         z = np.asarray(res.x, float) if res.x is not None else np.full(self._nz, np.nan)
-        cost = float(res.info.obj_val) if ok else math.nan
+        cost = float(res.info.obj_val) + self._f0 if ok else math.nan
         return self._finish(t, z, ok, str(res.info.status), dt, int(res.info.iter), cost)
 
     def _solve_conic(self, t: float, Hx: np.ndarray, Ax: np.ndarray, q: np.ndarray, g0: np.ndarray) -> np.ndarray:
@@ -445,11 +489,12 @@ class LinearMPC(_MPCBase):
             status = str(st.get("return_status", "unknown"))
             it = int(st.get("iter_count", -1)) if "iter_count" in st else -1
             z = np.array(sol["x"], float).ravel()
-            cost = float(sol["cost"]) + 0.0
+            cost = float(sol["cost"]) + self._f0
         except RuntimeError as exc:  # a failure inside the QP solver
             ok, status, it, z, cost = False, f"error: {str(exc).splitlines()[0][:120]}", -1, np.full(self._nz, np.nan), math.nan
         dt = time.perf_counter() - t0
-        return self._finish(t, z, ok and np.all(np.isfinite(z)), status, dt, it, cost if ok else math.nan)
+        ok = bool(ok and np.all(np.isfinite(z)))
+        return self._finish(t, z, ok, status, dt, it, cost if ok else math.nan)
 
 
 def _nonzeros(M: Any) -> Any:

@@ -4,10 +4,11 @@
 :class:`MPCSettings` holds the weights, limits and solver options; :func:`build_problem` writes the
 problem over CasADi symbols in scaled variables with multiple shooting — the prediction model (the
 design form of the vessel with the chosen mooring model and the slowly varying environmental load),
-the thrust decision (generalised thrust in the one capacity box, or the thrusters' force
-components), the cost and the hard and soft constraints, all position terms on the turret offset.
-With ``linear_about`` the dynamics and tensions are linearised about an operating point and the
-problem is a QP.
+the thrust decision (generalised thrust in the attainable polytope of the one ``ThrusterSet`` or
+its capacity box, or the thrusters' force components), the cost as least squares plus L1
+penalties, and the hard and soft constraints, all position terms on the turret offset. With
+``linear=True`` the dynamics and tensions are linearised about an operating point that is a
+parameter, and the problem is a QP whose matrices are functions of the parameters.
 """
 
 from __future__ import annotations
@@ -296,7 +297,7 @@ def build_problem(system: Any, settings: MPCSettings, *, linear: bool = False,
             u_ref = cap
             rate_s = np.asarray(system.thrusters.rate_box(s.capacity_fraction), float) / cap
         else:
-            u_ref = np.asarray(system.thrusters.max_tau(), float)  # each DOF alone: the polytope's box
+            u_ref = np.asarray(system.thrusters.max_tau(), float)  # each DOF alone: scale and outer box
             rate_s = None
             n_poly = 2 * s.polytope_directions  # at most 2 n - 4 facets of a hull of n points
         u_lo_s, u_hi_s = -np.ones(3), np.ones(3)

@@ -39,10 +39,10 @@ __all__ = ["System", "ThrusterSet", "CAPACITY_FRACTION", "ATTAINABLE_DIRECTIONS"
 #: Fraction of each single-DOF thrust maximum that the capacity box allows in X, Y and N at once.
 CAPACITY_FRACTION = 0.6
 
-_DISK_SIDES = 128
+_DISK_SIDES = 128  # polygon inscribed in an azimuth's thrust disk in the capacity LP
 
 #: Directions of the support points of :meth:`ThrusterSet.attainable_polytope` (the MPC's thrust set).
-ATTAINABLE_DIRECTIONS = 32  # polygon inscribed in an azimuth's thrust disk in the capacity LP
+ATTAINABLE_DIRECTIONS = 32
 
 
 @dataclass(frozen=True, eq=False)

@@ -14,7 +14,8 @@ the turret offset (the reference point is the centre of turret).
 
 MPC (``tapm_opt.control.mpc.MPCSettings``): every settings field; ``dead_band`` defaults to 0.6 of the
 scenario's safe radius (``MPC_DEAD_BAND``), ``w_thrust``, ``w_rate`` and ``w_velocity`` to ``MPC_DEFAULTS``;
-``period`` [s] is the re-solve period (default the prediction step).
+``period`` [s] is the re-solve period (default the prediction step); ``lmpc`` also takes
+``qp_solver`` (``"piqp"``, default, or ``"osqp"``).
 
 The defaults were tuned on the fpso design storm (``docs/controllers.md``): the PID as the
 softest restoring loop that keeps the vessel inside the safe circle, the MPC with a dead band at
@@ -118,9 +119,10 @@ def build_controller(system: Any, spec: Mapping[str, Any] | str, *, where: str =
                                        thrusters=system.thrusters)
             ctrl.design = design
             return ctrl
-        allowed = {f.name for f in fields(MPCSettings)} | {"period"}
+        allowed = {f.name for f in fields(MPCSettings)} | {"period"} | ({"qp_solver"} if kind == "lmpc" else set())
         _unknown(set(spec), allowed, where)
         period = spec.pop("period", None)
+        qp_solver = spec.pop("qp_solver", "piqp")
         if "dead_band" not in spec and system.limits.safe_radius is not None:
             spec["dead_band"] = MPC_DEAD_BAND * system.limits.safe_radius
         settings = MPCSettings(**{**MPC_DEFAULTS, **spec})
@@ -130,11 +132,12 @@ def build_controller(system: Any, spec: Mapping[str, Any] | str, *, where: str =
                 f"{where}.horizon = {settings.horizon} (x substeps = {settings.substeps}) makes {n_pred} prediction "
                 f"steps, above {_MAX_HORIZON}: the optimisation problem grows with them (look further ahead with a "
                 "larger dt)")
-        for name, hi in (("polygon_sides", 256), ("max_iter", 10000)):
+        for name, hi in (("polygon_sides", 256), ("max_iter", 10000), ("polytope_directions", 400)):
             if getattr(settings, name) > hi:
                 raise ControllerSpecError(f"{where}.{name} = {getattr(settings, name)!r} is above {hi}")
-        cls = NonlinearMPC if kind == "mpc" else LinearMPC
-        return cls(system, settings, period=None if period is None else float(period))
+        if kind == "mpc":
+            return NonlinearMPC(system, settings, period=None if period is None else float(period))
+        return LinearMPC(system, settings, period=None if period is None else float(period), qp_solver=qp_solver)
     except ControllerSpecError:
         raise
     except (MPCError, ControlError) as exc:
