@@ -54,7 +54,7 @@ from typing import NamedTuple
 import numpy as np
 import osqp
 
-from .._jit import jit
+from .._jit import jit as _jit
 
 TWO_PI = 2.0 * math.pi
 HALF_PI = 0.5 * math.pi
@@ -83,9 +83,6 @@ N_G = 9
 #: sides at b_i suffice), bit 1 (value 2) when a frame b_i moved (the DAQP matrix was rewritten);
 #: -1 when tau is not finite (nothing written).
 CODE_FULL, CODE_MOVED, CODE_BAD_TAU = 1, 2, -1
-
-_jit = jit  # compiled with numba when it can be imported (tapm_opt._jit)
-
 
 # -- sectors -----------------------------------------------------------------------------------------
 

@@ -37,7 +37,6 @@ import casadi as ca
 import numpy as np
 import scipy.sparse as sp
 
-from ..errors import ModelError
 from ..geometry import body_from_turret, rot_z, ssa
 from ..interfaces import Estimate, Setpoint, ThrusterCommand
 from ..models.system import as_system
@@ -97,8 +96,7 @@ class _MPCBase:
         if self._prob.n_poly:
             if self._poly is None:
                 self._poly = self._polytope()
-            n = self._prob.n_poly
-            p[pi["poly_A"]], p[pi["poly_b"]], p[pi["rate_dt"]] = self._poly[:3 * n], self._poly[3 * n:4 * n], self._poly[-1]
+            p[pi["poly_A"].start:pi["rate_dt"].stop] = self._poly  # rows, bounds, r dt: consecutive in p
         u_prev = np.zeros(self._n_u) if self._u_prev is None else self._u_prev
         # after a thruster failure the previous move may lie outside what the rest can deliver: the
         # rate rows start from its part inside (else the first move could have no feasible value)
@@ -109,24 +107,16 @@ class _MPCBase:
         return p
 
     def _polytope(self) -> np.ndarray:
-        """Thrust-polytope parameters of the thrusters alive (``polytope_parameters``). When the
-        remaining thrusters leave a DOF without any thrust (no polytope with an interior), the
-        capacity box of what remains, with zero on that DOF, stands in as the polytope."""
+        """Thrust-polytope parameters of the thrusters alive (``polytope_parameters``; a DOF left
+        without thrust gets the stand-in box, kept in ``_poly_box``)."""
         ths = self.system.thrusters.without(self._failed) if self._failed else self.system.thrusters
+        params, self._poly_box = polytope_parameters(ths, self.settings, self._prob.scale["u"], self._prob.n_poly)
+        return params
+
+    def _poly_rows(self) -> tuple[np.ndarray, np.ndarray]:
+        """(A_s (n, 3), b (n,)) of the thrust polytope in the scaled thrust (padding included)."""
         n = self._prob.n_poly
-        try:
-            self._poly_box = None
-            return polytope_parameters(ths, self.settings, self._prob.scale["u"], n)
-        except ModelError:
-            lim = np.asarray(ths.capacity_box(self.settings.capacity_fraction)) / self._prob.scale["u"]
-            As = np.zeros((n, 3))
-            bs = np.ones(n)
-            As[:6] = np.vstack([np.eye(3), -np.eye(3)])
-            bs[:6] = np.concatenate([lim, lim])
-            self._poly_box = lim
-            alive = ths.alive
-            ratio = min((ths.rate[i] / ths.f_max[i] for i in range(ths.n) if alive[i]), default=0.0)
-            return np.concatenate([As.ravel(order="F"), bs, [ratio * self.settings.dt]])
+        return self._poly[:3 * n].reshape(3, n).T, self._poly[3 * n:4 * n]
 
     def _into_polytope(self, u_s: np.ndarray) -> np.ndarray:
         """Scaled thrust rows (..., 3) moved into the thrust polytope: a row outside it is scaled
@@ -136,8 +126,7 @@ class _MPCBase:
             return u_s
         if self._poly_box is not None:
             return np.clip(u_s, -self._poly_box, self._poly_box)
-        n = self._prob.n_poly
-        A, b = self._poly[:3 * n].reshape(3, n).T, self._poly[3 * n:4 * n]
+        A, b = self._poly_rows()
         u2 = np.atleast_2d(u_s)
         over = np.maximum(1.0, np.max(u2 @ A.T / b, axis=1))
         return (u2 / over[:, None]).reshape(np.shape(u_s))
@@ -201,9 +190,8 @@ class _MPCBase:
         free = hi > lo  # a failed thruster's column (bounds 0, 0) is not a capacity limit
         at_box = np.any(free & (np.abs(us) >= np.minimum(-lo, hi) - 1e-4))
         if self._prob.n_poly and self._poly is not None:  # a facet of the attainable polytope
-            n = self._prob.n_poly
-            A = self._poly[:3 * n].reshape(3, n).T
-            at_box = at_box or bool(np.any(A @ us - self._poly[3 * n:4 * n] >= -1e-4))
+            A, b = self._poly_rows()
+            at_box = at_box or bool(np.any(A @ us - b >= -1e-4))
         if at_box:
             active.append("thrust_capacity")
         self.diagnostics.append(MPCStep(t=t, success=ok, status=status, solve_time=solve_time, iterations=it,
@@ -428,7 +416,6 @@ class LinearMPC(_MPCBase):
         f_all = ca.Function("qp_data", [z, p], [_nonzeros(H), _nonzeros(Aq), ca.gradient(prob.f, z), prob.g, prob.f])
         self._qp_data = lambda pv: f_all(zero, pv)
         self._qp = None
-        self.setups = 0
 
     def _csc(self, spy: ca.Sparsity, data: np.ndarray) -> sp.csc_matrix:
         return sp.csc_matrix((data, np.array(spy.row()), np.array(spy.colind())), shape=spy.shape)
@@ -459,7 +446,6 @@ class LinearMPC(_MPCBase):
             self._qp.setup(P=self._csc(self._H_sp, Hx), q=q, A=self._csc(self._A_sp, Ax), l=l, u=u, verbose=False,
                            warm_starting=True, eps_abs=self._eps[0], eps_rel=self._eps[1], max_iter=20000,
                            polishing=True)
-            self.setups += 1
         else:
             self._qp.update(Px=Hx, Ax=Ax, q=q, l=l, u=u)
         if self._z is not None:
@@ -478,7 +464,6 @@ class LinearMPC(_MPCBase):
         prob = self._prob
         if self._qp is None:
             self._qp = self._conic
-            self.setups += 1
         H = ca.DM(self._H_sp, Hx)
         A = ca.DM(self._A_sp, Ax)
         t0 = time.perf_counter()

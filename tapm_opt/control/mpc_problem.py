@@ -20,7 +20,7 @@ from typing import Any, Literal
 import casadi as ca
 import numpy as np
 
-from ..errors import TapmError
+from ..errors import ModelError, TapmError
 from ..geometry import R2, rot_z
 from ..interfaces import ControllerStep
 from ..models.mooring import MooringModel
@@ -227,30 +227,34 @@ def _turret(eta: Any, p_cot_B: np.ndarray, psi_op: Any) -> Any:
 
 def mooring_parameters(model: MooringModel, eta_c: np.ndarray) -> np.ndarray:
     """Line characteristics of ``mooring="characteristic"`` centred at the pose ``eta_c``
-    (survey eq. 26–28): per line the horizontal tension H0 [N], its slope k = dH/dXF [N/m], the
-    horizontal distance XF0 [m], the fairlead tension T0 [N] and its slope dT/dXF [N/m], from the
-    elastic catenary at ``eta_c``; concatenated, shape (5 n,)."""
-    sol = model.solve_lines(eta_c)
-    _, _, XF0 = model.spans(np.asarray(eta_c, float))
-    dT = (sol.HF * sol.dHF_dXF + sol.VF * sol.dVF_dXF) / np.maximum(sol.TF, 1e-300)
-    return np.concatenate([sol.HF, sol.dHF_dXF, XF0, sol.TF, dT])
+    (``MooringModel.characteristics``, survey eq. 26–28): H0, dH/dXF, XF0, T0, dT/dXF of every line,
+    concatenated row by row, shape (5 n,)."""
+    return model.characteristics(eta_c).ravel()
 
 
-def polytope_parameters(thrusters: Any, settings: MPCSettings, u_ref: np.ndarray, n_rows: int) -> np.ndarray:
+def polytope_parameters(thrusters: Any, settings: MPCSettings, u_ref: np.ndarray,
+                        n_rows: int) -> tuple[np.ndarray, np.ndarray | None]:
     """Parameters of the thrust polytope in the scaled thrust ``u = tau / u_ref``: the rows
     ``A_s = A diag(u_ref)`` (column-major, ``n_rows`` x 3, padded with zero rows), their bounds ``b``
-    (padding: 1) and the rate factor ``r dt`` (the slowest thruster's max_thrust_rate / max_thrust
-    times dt), from ``thrusters.attainable_polytope`` (failed thrusters excluded)."""
-    A, b = thrusters.attainable_polytope(settings.polytope_directions)
-    if len(b) > n_rows:
-        raise MPCError(f"the attainable polytope has {len(b)} facets, more than the {n_rows} rows reserved")
+    (padding: 1) and the rate factor ``r dt`` (``ThrusterSet.rate_ratio()`` times dt), from
+    ``thrusters.attainable_polytope`` (failed thrusters excluded).
+
+    When the thrusters leave a DOF without any thrust, no polytope has an interior: the capacity
+    box of what remains (zero on that DOF) stands in, as the rows ``+-e_j``. Returns
+    ``(parameters, box)`` with ``box`` the scaled half-widths of that stand-in, else None."""
     As = np.zeros((n_rows, 3))
     bs = np.ones(n_rows)
-    As[:len(b)] = A * u_ref[None, :]
+    try:
+        A, b = thrusters.attainable_polytope(settings.polytope_directions)
+        A, box = A * u_ref[None, :], None
+    except ModelError:
+        box = np.asarray(thrusters.capacity_box(settings.capacity_fraction)) / u_ref
+        A, b = np.vstack([np.eye(3), -np.eye(3)]), np.concatenate([box, box])
+    if len(b) > n_rows:
+        raise MPCError(f"the attainable polytope has {len(b)} facets, more than the {n_rows} rows reserved")
+    As[:len(b)] = A
     bs[:len(b)] = b
-    alive = thrusters.alive
-    ratio = min((thrusters.rate[i] / thrusters.f_max[i] for i in range(thrusters.n) if alive[i]), default=0.0)
-    return np.concatenate([As.ravel(order="F"), bs, [ratio * settings.dt]])
+    return np.concatenate([As.ravel(order="F"), bs, [thrusters.rate_ratio() * settings.dt]]), box
 
 
 def build_problem(system: Any, settings: MPCSettings, *, linear: bool = False,
@@ -329,9 +333,7 @@ def build_problem(system: Any, settings: MPCSettings, *, linear: bool = False,
     # mooring restoring load and fairlead tensions of a pose, as expressions of the symbols
     def mooring_terms(eta_e: Any, mp: Any) -> tuple[Any, Any]:
         if kind == "characteristic":
-            H0, k, XF0, T0, dT = (mp[i * n_lines:(i + 1) * n_lines] for i in range(5))
-            _, _, XF = moor.spans(eta_e)
-            return moor.tau_from_H(eta_e, H0 + k * (XF - XF0)), T0 + dT * (XF - XF0)
+            return moor.characteristic_load(eta_e, [mp[i * n_lines:(i + 1) * n_lines] for i in range(5)])
         if kind == "linear":
             tau = moor.force_function("linear").expand()(eta_e)
             return tau, moor.tension_function("characteristic").expand()(eta_e)

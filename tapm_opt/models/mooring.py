@@ -350,8 +350,7 @@ class MooringModel:
         _, _, XF0 = self.spans(eta0)
         _, _, XF = self.spans(eta)
         if kind == "characteristic":
-            dT = (sol0.HF * sol0.dHF_dXF + sol0.VF * sol0.dVF_dXF) / np.maximum(sol0.TF, 1e-300)
-            T = ca.DM(sol0.TF) + ca.DM(dT) * (XF - ca.DM(XF0))
+            T = self.characteristic_load(eta, self.characteristics(eta0))[1]
         elif kind == "catenary":
             dX = XF - XF0
             DM = ca.DM
@@ -367,6 +366,26 @@ class MooringModel:
         fn = ca.Function(f"T_fairlead_{kind}", [eta], [T], ["eta"], ["T"])
         self._cache[key] = fn
         return fn
+
+    def characteristics(self, eta0) -> np.ndarray:
+        """Every line's characteristic about the pose ``eta0`` (survey eq. 26–28), from the elastic
+        catenary there: rows H0 [N] (horizontal fairlead tension), dH/dXF [N/m], XF0 [m]
+        (horizontal anchor–fairlead distance), T0 [N] (fairlead tension) and dT/dXF [N/m]; shape
+        (5, n). :meth:`characteristic_load` evaluates them at a pose."""
+        eta0 = self._check_eta(eta0)
+        sol = self.solve_lines(eta0)
+        _, _, XF0 = self.spans(eta0)
+        dT = (sol.HF * sol.dHF_dXF + sol.VF * sol.dVF_dXF) / np.maximum(sol.TF, 1e-300)
+        return np.stack([sol.HF, sol.dHF_dXF, XF0, sol.TF, dT])
+
+    def characteristic_load(self, eta, coeffs):
+        """Mooring load in {B} and fairlead tensions of the characteristics ``coeffs`` (the rows of
+        :meth:`characteristics`, numbers or CasADi symbols) at the pose ``eta`` (numpy or CasADi):
+        ``H_i = H0_i + (dH/dXF)_i (XF_i(eta) - XF0_i)``, ``T_i = T0_i + (dT/dXF)_i (XF_i - XF0_i)``
+        with the exact geometry (eq. 27–28). Returns ``(tau (3,), T (n,))``."""
+        H0, k, XF0, T0, dT = (coeffs[i] for i in range(5))
+        _, _, XF = self.spans(eta)
+        return self.tau_from_H(eta, H0 + k * (XF - XF0)), T0 + dT * (XF - XF0)
 
     def linearised(self, eta0=(0.0, 0.0, 0.0), *, D_mo=None) -> "LinearMooring":
         """Linear spring model about the working point ``eta0`` (survey eq. 26–30)."""
@@ -496,8 +515,7 @@ class LinearMooring:
         the exact geometry.
         """
         if kind == "characteristic":
-            _, _, XF = self.model.spans(eta)
-            tau = self.model.tau_from_H(eta, self.H0 + self.k * (XF - self.XF0))
+            tau = self.model.characteristic_load(eta, (self.H0, self.k, self.XF0, 0.0, 0.0))[0]
         elif kind == "linear":
             Rt = rot_z(eta[2]).T
             if bk.is_symbolic(eta):

@@ -283,12 +283,17 @@ class ThrusterSet:
             raise ModelError(f"capacity fraction = {fraction!r} must be in (0, 1]")
         return readonly(fraction * self.max_tau())
 
+    def rate_ratio(self) -> float:
+        """The slowest thruster's ratio of thrust rate to maximum thrust [1/s] (failed ones
+        excluded; 0 when none is left): the fraction of any attainable thrust the set can change
+        by per second."""
+        alive = self.alive
+        return min((self.rate[i] / self.f_max[i] for i in range(self.n) if alive[i]), default=0.0)
+
     def rate_box(self, fraction: float = CAPACITY_FRACTION) -> np.ndarray:
         """Rate of change of tau the thrusters can follow in X, Y and N at once [N/s, N/s, N m/s]:
-        the capacity box scaled by the slowest thruster's ratio of rate to thrust."""
-        alive = self.alive
-        ratio = min((self.rate[i] / self.f_max[i] for i in range(self.n) if alive[i]), default=0.0)
-        return readonly(self.capacity_box(fraction) * ratio)
+        the capacity box scaled by :meth:`rate_ratio`."""
+        return readonly(self.capacity_box(fraction) * self.rate_ratio())
 
 
 @dataclass(frozen=True)
