@@ -19,14 +19,14 @@ centre of turret, as an offset from where it rests at the field zero point
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Protocol, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
 from ._io import readonly
 
 __all__ = ["Measurement", "Truth", "Estimate", "Setpoint", "ThrusterCommand", "ControllerStep",
-           "Controller", "ThrusterController", "FaultAware", "Estimator", "SetpointLayer"]
+           "Controller", "ThrusterController", "FaultAware", "Logged", "Estimator", "SetpointLayer"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -68,6 +68,13 @@ class Measurement:
         Generalised thrust the thrusters deliver in {B} [N, N, N m], from the feedback.
     truth : Truth or None
         The plant's true LF state (validation only; see :class:`Truth`).
+    riser_angles : ndarray, shape (4,) or None
+        Measured riser angles (top_x, top_y, bottom_x, bottom_y) [rad] in {E}: the horizontal
+        components of the riser's inclination from the vertical at the hang-off and at the
+        wellhead, dw/ds with s up from the wellhead (:mod:`tapm_opt.models.riser`); held since
+        ``t_riser_angles``. None without a riser.
+    t_riser_angles : float or None
+        Time [s] at which the held riser angles were sampled (None without a riser).
     """
 
     t: float
@@ -82,9 +89,11 @@ class Measurement:
     thruster_failed: np.ndarray | None = None
     tau_thr: np.ndarray | None = None
     truth: Truth | None = None
+    riser_angles: np.ndarray | None = None
+    t_riser_angles: float | None = None
 
     def __post_init__(self) -> None:
-        for name in ("position", "tensions", "thruster_f", "thruster_alpha", "tau_thr"):
+        for name in ("position", "tensions", "thruster_f", "thruster_alpha", "tau_thr", "riser_angles"):
             v = getattr(self, name)
             if v is not None:
                 object.__setattr__(self, name, readonly(v))
@@ -109,6 +118,16 @@ class Estimate:
         unknown.
     tensions : ndarray, shape (n_lines,), optional
         Measured fairlead tensions [N], if available.
+    riser_angles : ndarray, shape (4,), optional
+        Measured riser angles (top_x, top_y, bottom_x, bottom_y) [rad] in {E}, as
+        :attr:`Measurement.riser_angles`; None without a riser.
+    broken_lines : frozenset of str
+        Ids of the lines the estimator's line-break detector reports broken (empty: none known,
+        or no detector). Faults reach the setpoint layer and the controller only this way.
+    reliability : ReliabilityState or None
+        The estimator's on-line reliability statistics of the measured tensions and riser angles
+        (:class:`tapm_opt.estimation.reliability.ReliabilityState`: ``x_lf``, ``sigma``, ``k``,
+        ``delta`` per signal, ``names``, ``ready``), None without a monitor.
     """
 
     t: float
@@ -116,13 +135,18 @@ class Estimate:
     nu: np.ndarray
     tau_env: np.ndarray
     tensions: np.ndarray | None = None
+    riser_angles: np.ndarray | None = None
+    broken_lines: frozenset = frozenset()
+    reliability: Any = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "t", float(self.t))
+        object.__setattr__(self, "broken_lines", frozenset(str(b) for b in self.broken_lines))
         for name in ("eta", "nu", "tau_env"):
             object.__setattr__(self, name, readonly(getattr(self, name)))
-        if self.tensions is not None:
-            object.__setattr__(self, "tensions", readonly(self.tensions))
+        for name in ("tensions", "riser_angles"):
+            if getattr(self, name) is not None:
+                object.__setattr__(self, name, readonly(getattr(self, name)))
 
 
 @dataclass(frozen=True, eq=False)
@@ -224,6 +248,16 @@ class FaultAware(Protocol):
     """A component that is told which thrusters the feedback reports as failed."""
 
     def set_failed_thrusters(self, failed: frozenset[str]) -> None:
+        ...
+
+
+@runtime_checkable
+class Logged(Protocol):
+    """A component that keeps a log of what it decided (e.g. a setpoint layer's re-optimisations);
+    the runner stores it in the result's metadata under ``"<role>_log"``."""
+
+    def log(self) -> list[dict]:
+        """JSON-ready records, oldest first."""
         ...
 
 

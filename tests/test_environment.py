@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 from scipy.integrate import quad
 
 from tapm_opt.config import SeaState, load_scenario
+from tapm_opt.errors import ModelError
 from tapm_opt.plant.environment import (
     CurrentProfile,
     Environment,
@@ -97,13 +98,17 @@ def test_current_piecewise_interpolation_and_constant_beyond():
 
 
 def test_current_bad_input():
-    with pytest.raises(PlantError, match="current_profile"):
+    """The profile is the models' (a ModelError); the plant's Environment reports it as a PlantError."""
+    with pytest.raises(ModelError, match="current_profile"):
         CurrentProfile(sea(current_profile="piecewise", current_profile_depths=(0.0, 10.0),
                            current_profile_factors=(1.0,)), 100.0)
-    with pytest.raises(PlantError, match="current_speed"):
+    with pytest.raises(ModelError, match="current_speed"):
         CurrentProfile(sea(current_speed=-1.0), 100.0)
-    with pytest.raises(PlantError, match=r"z\[1\]"):
+    with pytest.raises(ModelError, match=r"z\[1\]"):
         CurrentProfile(sea(current_speed=1.0), 100.0).velocity([1.0, math.nan])
+    sc = dataclasses.replace(SC, sea_states=(sea(id="bad", current_speed=-1.0),))
+    with pytest.raises(PlantError, match="current_speed"):
+        Environment(sc, "bad", 0)
 
 
 # --- waves --------------------------------------------------------------------------------------

@@ -641,6 +641,10 @@ def _plausibility(sc: Scenario, fl_x: np.ndarray, fl_y: np.ndarray, issues: list
             issues.append(ScenarioIssue("riser.length", (
                 f"= {rs.length:g} m is over {MAX_RISER_LENGTH_FACTOR:g} x (horizontal offset {horiz:.0f} m + water "
                 f"depth {env.water_depth:g} m) = {longest:.0f} m")))
+        if rs.wall_thickness >= 0.5 * rs.diameter:
+            issues.append(ScenarioIssue("riser.wall_thickness", (
+                f"= {rs.wall_thickness:g} m must be less than half of riser.diameter = {rs.diameter:g} m "
+                f"({0.5 * rs.diameter:g} m): the pipe would have no bore")))
         weight = rs.submerged_weight * (env.water_depth - top)
         if rs.top_tension > MAX_RISER_TENSION_FACTOR * rs.submerged_weight * rs.length:
             issues.append(ScenarioIssue("riser.top_tension", (

@@ -381,7 +381,9 @@ class SeaState:
 
 @dataclass(frozen=True, kw_only=True)
 class Riser:
-    """A single top-tensioned or catenary riser treated quasi-statically (reliability seed §2.1)."""
+    """A single riser treated quasi-statically (reliability seed §2.1). The plant's riser model
+    (``tapm_opt.models.riser``, a tensioned beam) needs a top-tensioned riser: no longer than the
+    water depth, hanging from a hang-off at depth water_depth - length."""
 
     hangoff: Vec = spec("Hang-off point in {B}.", "m", shape=(2,))
     wellhead: Vec = spec("Lower end (wellhead / touchdown) in {E}.", "m", shape=(2,))
@@ -391,12 +393,26 @@ class Riser:
     submerged_weight: float = spec("Submerged weight per unit length, contents included.", "N/m", check=positive)
     top_tension: float = spec("Mean top tension.", "N", check=positive)
     Cd: float = spec("Normal drag coefficient (on diameter).", default=1.0, check=bounded(0.0, 10.0, _COEF))
+    wall_thickness: float = spec(
+        "Wall thickness t of the riser pipe, less than diameter / 2 (0: no bending stiffness, a tensioned "
+        "string).", "m", default=0.0, check=nonneg)
+    youngs_modulus: float = spec("Young's modulus E of the pipe wall (steel: 2.1e11 Pa).", "Pa", default=2.1e11,
+                                 check=positive_at_most(1.2e12, "diamond, the stiffest material, is about 1.2e12 Pa"))
     critical_top_angle: float = spec("Mean critical top angle (threshold r_t).", "deg", check=positive_at_most(90.0))
     critical_top_angle_std: float = spec("Standard deviation of the critical top angle.", "deg",
                                          check=positive_at_most(90.0))
     critical_bottom_angle: float = spec("Mean critical bottom angle.", "deg", check=positive_at_most(90.0))
     critical_bottom_angle_std: float = spec("Standard deviation of the critical bottom angle.", "deg",
                                             check=positive_at_most(90.0))
+
+    @property
+    def EI(self) -> float:
+        """Bending stiffness of the pipe, ``E pi/64 (D^4 - (D - 2 t)^4)`` [N m^2] (0 for
+        ``wall_thickness = 0``)."""
+        D, t = self.diameter, self.wall_thickness
+        if t <= 0.0:
+            return 0.0
+        return self.youngs_modulus * math.pi / 64.0 * (D**4 - max(D - 2.0 * t, 0.0) ** 4)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -422,6 +438,10 @@ class Sensors:
     tension_std_rel: float = spec("Tension-cell noise, standard deviation as a fraction of the line's MBS.",
                                   default=0.002, check=bounded(0.0, 1.0, "a noise of the whole MBS"))
     tension_rate: float = spec("Tension-cell update rate.", "Hz", default=1.0, check=positive)
+    riser_angle_std: float = spec("Riser-angle noise (inclinometers at the top and bottom flex joints), standard "
+                                  "deviation per component.", "deg", default=math.radians(0.05),
+                                  check=bounded(0.0, 90.0, "an angle from the vertical"))
+    riser_angle_rate: float = spec("Riser-angle update rate.", "Hz", default=1.0, check=positive)
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -1,10 +1,12 @@
-"""Control-design models: vessel (CasADi), elastic catenary, mooring restoring model."""
+"""Control-design models: vessel (CasADi), elastic catenary, mooring restoring model, current
+profile, quasi-static riser."""
 
 from . import catenary
 from .catenary import CatenarySolution
 from .characteristics import line_characteristics, offset_curves
-from .environment import HullWindLoad
+from .environment import CurrentProfile, HullWindLoad
 from .mooring import LinearMooring, MooringModel
+from .riser import RiserModel
 from .statics import EquilibriumError
 from .system import System, ThrusterSet
 from .vessel import (
@@ -22,12 +24,14 @@ __all__ = [
     "CatenarySolution",
     "line_characteristics",
     "offset_curves",
+    "CurrentProfile",
     "HullWindLoad",
     "EquilibriumError",
     "System",
     "ThrusterSet",
     "LinearMooring",
     "MooringModel",
+    "RiserModel",
     "VesselParams",
     "coriolis",
     "equilibrium",

@@ -1,4 +1,9 @@
-"""Environmental loads of the models: the wind load on the hull (Fossen 2011 §8.1).
+"""Environment of the models: the current over depth (survey eq. 7) and the wind load on the hull
+(Fossen 2011 §8.1).
+
+:class:`CurrentProfile` is the one definition of the current over depth: the plant's environment
+(:class:`tapm_opt.plant.environment.Environment`, the FEM lines' drag) and the quasi-static riser
+(:class:`tapm_opt.models.riser.RiserModel`) both evaluate it.
 
 One definition of the wind-load formula. The plant's gusty wind
 (:meth:`tapm_opt.plant.environment.Wind.tau_wind`, with the vessel velocity) and the mean load of
@@ -31,9 +36,10 @@ from typing import Any
 import numpy as np
 
 from .._io import readonly
+from ..config import schema
 from ..errors import ModelError
 
-__all__ = ["HullWindLoad"]
+__all__ = ["CurrentProfile", "HullWindLoad"]
 
 
 def _nonneg(name: str, value: Any, *, strict: bool = False) -> float:
@@ -44,6 +50,85 @@ def _nonneg(name: str, value: Any, *, strict: bool = False) -> float:
     if not math.isfinite(v) or v < 0.0 or (strict and v == 0.0):
         raise ModelError(f"{name}={value!r} must be finite and {'>' if strict else '>='} 0")
     return v
+
+
+def _num(name: str, value: Any, *, lo: float = -math.inf, strict: bool = False, unit: str = "") -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ModelError(f"{name}={value!r} is not a number") from None
+    if not math.isfinite(v) or v < lo or (strict and v == lo):
+        bound = f" and {'>' if strict else '>='} {lo:g}" if lo > -math.inf else ""
+        raise ModelError(f"{name}={value!r}{' ' + unit if unit else ''} must be finite{bound}")
+    return v
+
+
+def _array(name: str, x: Any, unit: str, lo: float = 0.0) -> np.ndarray:
+    x = np.asarray(x, dtype=float)
+    ok = np.isfinite(x) if lo == -math.inf else np.isfinite(x) & (x >= lo)
+    if not ok.all():
+        i = int(np.flatnonzero(~ok.ravel())[0])
+        raise ModelError(f"{name}[{i}]={float(x.ravel()[i])!r} {unit} must be finite and >= {lo:g}")
+    return x
+
+
+class CurrentProfile:
+    """Current over depth: ``v_c(z) = V_c phi(z) (cos beta_c, sin beta_c, 0)`` in {E} (eq. 7).
+
+    ``phi = 1`` ('uniform'); linear from 1 at z = 0 to ``current_profile_factors[0]`` at the
+    seabed ('linear'); linear through ``(current_profile_depths, current_profile_factors)``,
+    constant beyond the ends ('piecewise'). Depths are clamped to [0, water_depth]. The direction
+    does not change with depth.
+
+    Parameters
+    ----------
+    sea_state : tapm_opt.config.SeaState
+    water_depth : float
+        Seabed depth [m], > 0.
+
+    Raises
+    ------
+    ModelError
+        A speed, direction, depth or factor that is not finite or out of range, or an
+        inconsistent profile (the message names the field and its value).
+    """
+
+    def __init__(self, sea_state: schema.SeaState, water_depth: float):
+        self.water_depth = _num("environment.water_depth", water_depth, lo=0.0, strict=True, unit="m")
+        V = _num("sea_state.current_speed", sea_state.current_speed, lo=0.0, unit="m/s")
+        beta = _num("sea_state.current_direction", sea_state.current_direction, unit="rad")
+        self.kind = kind = sea_state.current_profile
+        d = _array("sea_state.current_profile_depths", sea_state.current_profile_depths, "m")
+        fac = _array("sea_state.current_profile_factors", sea_state.current_profile_factors, "")
+        if (kind not in ("uniform", "linear", "piecewise") or (kind == "linear" and fac.size != 1) or (
+                kind == "piecewise" and (d.size < 1 or d.size != fac.size or np.any(np.diff(d) <= 0)))):
+            raise ModelError(f"sea_state.current_profile={kind!r}, depths {d.tolist()}, factors {fac.tolist()}: "
+                             "need 'uniform', 'linear' (1 factor) or 'piecewise' (increasing depths, 1 factor each)")
+        self._depths, self._factors = d, fac
+        self.surface = np.array([V * math.cos(beta), V * math.sin(beta), 0.0])
+        self.surface.flags.writeable = False
+
+    @property
+    def breakpoints(self) -> np.ndarray:
+        """Depths [m] inside (0, water_depth) where phi(z) changes slope (the 'piecewise' depths;
+        none for 'uniform' and 'linear'): phi is linear between them."""
+        if self.kind != "piecewise":
+            return readonly(np.zeros(0))
+        d = self._depths
+        return readonly(d[(d > 0.0) & (d < self.water_depth)])
+
+    def factor(self, z: Any) -> np.ndarray:
+        """Speed factor phi(z) [-] at depths z [m] (positive down), shape of ``z``."""
+        z = np.minimum(np.maximum(z, 0.0), self.water_depth)
+        if self.kind == "uniform":
+            return np.ones_like(z)
+        if self.kind == "linear":
+            return 1.0 + (self._factors[0] - 1.0) * (z / self.water_depth)
+        return np.interp(z, self._depths, self._factors)
+
+    def velocity(self, z: Any) -> np.ndarray:
+        """Current velocity in {E} at depths ``z`` [m], shape ``z.shape + (3,)`` [m/s]; v_z = 0."""
+        return np.multiply.outer(self.factor(_array("z", z, "m", -math.inf)), self.surface)
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)

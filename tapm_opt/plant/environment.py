@@ -1,5 +1,10 @@
 """Plant environment: current profile, irregular waves (WF motion, 2nd-order drift), wind.
 
+The current over depth is the models' :class:`tapm_opt.models.environment.CurrentProfile` (one
+definition, also used by the riser model), imported here so ``plant.environment.CurrentProfile``
+keeps working; it raises :class:`~tapm_opt.errors.ModelError` for bad input, which
+:class:`Environment` reports as a :class:`PlantError`.
+
 Directions (survey eq. 7): where a current, wave or wind is *going to*, in {E} from north (x)
 toward east (y). Loads in {B}, motions in {E}. Current loads act through ``nu_r`` in the vessel
 model (eq. 8-15). Randomness is drawn once at construction (``numpy.random.default_rng(seed)``).
@@ -14,8 +19,8 @@ from typing import Any
 import numpy as np
 
 from ..config import schema
-from ..errors import TapmError
-from ..models.environment import HullWindLoad
+from ..errors import ModelError, TapmError
+from ..models.environment import CurrentProfile, HullWindLoad
 
 __all__ = ["PlantError", "jonswap", "npd_spectrum", "CurrentProfile", "WaveParams", "WaveField",
            "WindParams", "Wind", "Environment"]
@@ -100,49 +105,6 @@ def npd_spectrum(f: Any, U10: float, z: float = 10.0) -> np.ndarray:
     n = 0.468
     x = 172.0 * f * (z / 10.0) ** (2.0 / 3.0) * (U10 / 10.0) ** -0.75
     return 320.0 * (U10 / 10.0) ** 2 * (z / 10.0) ** 0.45 / (1.0 + x**n) ** (5.0 / (3.0 * n))
-
-
-class CurrentProfile:
-    """Current over depth: ``v_c(z) = V_c phi(z) (cos beta_c, sin beta_c, 0)`` in {E} (eq. 7).
-
-    ``phi = 1`` ('uniform'); linear from 1 at z = 0 to ``current_profile_factors[0]`` at the
-    seabed ('linear'); linear through ``(current_profile_depths, current_profile_factors)``,
-    constant beyond the ends ('piecewise'). Depths are clamped to [0, water_depth].
-
-    Parameters
-    ----------
-    sea_state : tapm_opt.config.SeaState
-    water_depth : float
-        Seabed depth [m], > 0.
-    """
-
-    def __init__(self, sea_state: schema.SeaState, water_depth: float):
-        self.water_depth = _num("environment.water_depth", water_depth, lo=0.0, strict=True, unit="m")
-        V = _num("sea_state.current_speed", sea_state.current_speed, lo=0.0, unit="m/s")
-        beta = _num("sea_state.current_direction", sea_state.current_direction, unit="rad")
-        self.kind = kind = sea_state.current_profile
-        d = _array("sea_state.current_profile_depths", sea_state.current_profile_depths, "m")
-        fac = _array("sea_state.current_profile_factors", sea_state.current_profile_factors, "")
-        if (kind not in ("uniform", "linear", "piecewise") or (kind == "linear" and fac.size != 1) or (
-                kind == "piecewise" and (d.size < 1 or d.size != fac.size or np.any(np.diff(d) <= 0)))):
-            raise PlantError(f"sea_state.current_profile={kind!r}, depths {d.tolist()}, factors {fac.tolist()}: "
-                             "need 'uniform', 'linear' (1 factor) or 'piecewise' (increasing depths, 1 factor each)")
-        self._depths, self._factors = d, fac
-        self.surface = np.array([V * math.cos(beta), V * math.sin(beta), 0.0])
-        self.surface.flags.writeable = False
-
-    def factor(self, z: Any) -> np.ndarray:
-        """Speed factor phi(z) [-] at depths z [m] (positive down), shape of ``z``."""
-        z = np.minimum(np.maximum(z, 0.0), self.water_depth)
-        if self.kind == "uniform":
-            return np.ones_like(z)
-        if self.kind == "linear":
-            return 1.0 + (self._factors[0] - 1.0) * (z / self.water_depth)
-        return np.interp(z, self._depths, self._factors)
-
-    def velocity(self, z: Any) -> np.ndarray:
-        """Current velocity in {E} at depths ``z`` [m], shape ``z.shape + (3,)`` [m/s]; v_z = 0."""
-        return np.multiply.outer(self.factor(_array("z", z, "m", -math.inf)), self.surface)
 
 
 def _check_params(p: Any, band: tuple[str, str], nonneg: tuple[str, ...]) -> None:
@@ -383,7 +345,10 @@ class Environment:
         self.sea_state = sea_state
         env, ves = scenario.environment, scenario.vessel
         s_wave, s_wind = np.random.SeedSequence(seed).spawn(2)
-        self.current = CurrentProfile(sea_state, env.water_depth)
+        try:
+            self.current = CurrentProfile(sea_state, env.water_depth)
+        except ModelError as exc:
+            raise PlantError(str(exc)) from None
         self.waves = WaveField(sea_state, ves, env, s_wave, params=wave_params)
         self.wind = Wind(sea_state, ves, env, s_wind, params=wind_params)
         self.eta_wf, self.eta_wf_dot = self.waves.eta_wf, self.waves.eta_wf_dot

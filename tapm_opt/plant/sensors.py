@@ -1,10 +1,16 @@
-"""Sensors of the plant: GNSS position, gyro-compass heading and fairlead tension cells.
+"""Sensors of the plant: GNSS position, gyro-compass heading, fairlead tension cells and, when
+the scenario has a riser, inclinometers at the riser's top and bottom flex joints.
 
 Each sensor samples at its own rate with sample-and-hold: at the first call, and whenever t
 reaches the next sample instant k / rate, it takes a new noisy sample of the true value at t
 (additive zero-mean Gaussian white noise); between instants it returns the held value. The heading
-is wrapped with ``ssa``. Noise is drawn from three independent generators spawned from one seed
-(GNSS, heading, tensions), so e.g. changing the number of lines does not change the GNSS noise.
+is wrapped with ``ssa``. Noise is drawn from four independent generators spawned from one seed
+(GNSS, heading, tensions, riser angles), so e.g. changing the number of lines does not change the
+GNSS noise, and a riser leaves the other sensors' noise as it was.
+
+The riser angles (top_x, top_y, bottom_x, bottom_y) [rad] in {E} are sampled at
+``riser_angle_rate`` (default 1 Hz, the tension cells' rate: the bottom angle reaches the surface
+by acoustic telemetry at about that rate) with the noise ``riser_angle_std`` on each component.
 """
 
 from __future__ import annotations
@@ -22,18 +28,19 @@ from .environment import PlantError, _num
 
 __all__ = ["SensorSpec", "Measurement", "Sensors"]
 
-_GNSS, _HEADING, _TENSION = 0, 1, 2
+_GNSS, _HEADING, _TENSION, _RISER = 0, 1, 2, 3
 
 
 #: The sensor specification is the scenario's ``[sensors]`` section (one definition of the fields,
-#: units and defaults: :class:`tapm_opt.config.schema.Sensors`; ``heading_std`` is in rad in code).
+#: units and defaults: :class:`tapm_opt.config.schema.Sensors`; ``heading_std`` and
+#: ``riser_angle_std`` are in rad in code).
 SensorSpec = schema.Sensors
 
 
 def _check_spec(spec: SensorSpec) -> None:
-    for name in ("gnss_std", "heading_std", "tension_std_rel"):
+    for name in ("gnss_std", "heading_std", "tension_std_rel", "riser_angle_std"):
         _num(f"sensors.{name}", getattr(spec, name), lo=0.0)
-    for name in ("gnss_rate", "heading_rate", "tension_rate"):
+    for name in ("gnss_rate", "heading_rate", "tension_rate", "riser_angle_rate"):
         _num(f"sensors.{name}", getattr(spec, name), lo=0.0, strict=True, unit="Hz")
 
 
@@ -67,11 +74,12 @@ class Sensors:
         else:
             raise PlantError("give MBS: the tension noise is sensors.tension_std_rel times each line's MBS")
         self.tension_std = readonly(std)
-        self._rates = (spec.gnss_rate, spec.heading_rate, spec.tension_rate)
-        self._rngs = [np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(3)]
-        self._next: list[float] = [-math.inf] * 3  # next sample index k per sensor
-        self._held: list[Any] = [None] * 3
-        self._t_held = [math.nan] * 3
+        self._rates = (spec.gnss_rate, spec.heading_rate, spec.tension_rate, spec.riser_angle_rate)
+        # spawn(4): the first three streams are those of the sensors without the riser's
+        self._rngs = [np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(4)]
+        self._next: list[float] = [-math.inf] * 4  # next sample index k per sensor
+        self._held: list[Any] = [None] * 4
+        self._t_held = [math.nan] * 4
         self._t_last = -math.inf
 
     @classmethod
@@ -88,9 +96,11 @@ class Sensors:
         self._t_held[i] = t
         return True
 
-    def sample(self, t: float, eta_total: Any, tensions: Any) -> Measurement:
+    def sample(self, t: float, eta_total: Any, tensions: Any, riser_angles: Any = None) -> Measurement:
         """Measurement at time t [s] of the true pose ``eta_total`` (3,) = (x [m], y [m], psi [rad])
-        in {E} (LF + WF) and the true fairlead tensions (n_lines,) [N]. Times must not decrease."""
+        in {E} (LF + WF), the true fairlead tensions (n_lines,) [N] and, for a vessel with a riser,
+        the true riser angles (4,) = (top_x, top_y, bottom_x, bottom_y) [rad] in {E} (None: no
+        riser, and ``Measurement.riser_angles`` is None). Times must not decrease."""
         t = _num("t", t, unit="s")
         if t < self._t_last:
             raise PlantError(f"t={t!r} s is before the previous sample time {self._t_last!r} s")
@@ -103,6 +113,11 @@ class Sensors:
             bad = [] if T.shape != (self.n_lines,) else np.flatnonzero(~np.isfinite(T)).tolist()
             raise PlantError(f"tensions (shape {T.shape}) must be {self.n_lines} finite values [N]; "
                              f"bad lines {bad}")
+        if riser_angles is not None:
+            theta = np.asarray(riser_angles, dtype=float)
+            if theta.shape != (4,) or not np.all(np.isfinite(theta)):
+                raise PlantError(f"riser_angles={theta.tolist()} must be 4 finite angles (top_x, top_y, bottom_x, "
+                                 "bottom_y) [rad]")
         s = self.spec
         if self._due(_GNSS, t):
             self._held[_GNSS] = readonly(eta[:2] + s.gnss_std * self._rngs[_GNSS].standard_normal(2))
@@ -110,6 +125,13 @@ class Sensors:
             self._held[_HEADING] = float(ssa(eta[2] + s.heading_std * self._rngs[_HEADING].standard_normal()))
         if self._due(_TENSION, t):
             self._held[_TENSION] = readonly(T + self.tension_std * self._rngs[_TENSION].standard_normal(self.n_lines))
+        if riser_angles is None:
+            riser, t_riser = None, None
+        else:
+            if self._due(_RISER, t):
+                self._held[_RISER] = readonly(theta + s.riser_angle_std * self._rngs[_RISER].standard_normal(4))
+            riser, t_riser = self._held[_RISER], self._t_held[_RISER]
         return Measurement(t=t, position=self._held[_GNSS], heading=self._held[_HEADING],
                            tensions=self._held[_TENSION], t_position=self._t_held[_GNSS],
-                           t_heading=self._t_held[_HEADING], t_tensions=self._t_held[_TENSION])
+                           t_heading=self._t_held[_HEADING], t_tensions=self._t_held[_TENSION],
+                           riser_angles=riser, t_riser_angles=t_riser)

@@ -12,6 +12,11 @@ Time stepping (multirate, all explicit):
   the fairleads following the *total* motion (LF + wave-frequency), interpolated linearly over the
   outer step.
 
+A scenario with a riser also gets its quasi-static end angles
+(:class:`tapm_opt.models.riser.RiserModel`, the affine map of the tensioned beam) at the
+instantaneous hang-off (LF + wave-frequency pose) and the sea state's current, at the end of
+every outer step; the riser does not load the vessel ([R] §2.1).
+
 The controller sees the plant only through :meth:`Plant.measure` (sensors), as a real one would.
 """
 
@@ -25,6 +30,7 @@ import numpy as np
 
 from ..geometry import rot_z
 from ..interfaces import Measurement, ThrusterCommand, Truth
+from ..models.riser import RiserModel
 from ..models.system import System
 from ..models.vessel import vessel_rhs
 from ..results import Result, ResultBuilder
@@ -88,6 +94,8 @@ class Plant:
                                   geometry=self.system.lines)
         self.thrusters = ThrusterBank.from_scenario(scenario)
         self.sensors = Sensors.from_scenario(scenario, seed=noise_seed)
+        #: Quasi-static riser model (None without a riser), in the sea state's current.
+        self.riser = RiserModel.from_scenario(scenario, ss) if scenario.riser is not None else None
         self.vessel = self.system.vessel
         self._v_c = np.zeros(2) if current is None else np.asarray(self.env.current.surface[:2], dtype=float)
         self.line_ids = tuple(ln.id for ln in scenario.lines)
@@ -125,6 +133,7 @@ class Plant:
         self.mooring.initialise(pose)
         self.settle_info: SettleInfo = self.mooring.settle(pose)
         self._tau_moor = self.mooring.tau(pose)
+        self._riser_angles = self.riser.angles_at(pose) if self.riser is not None else None
         self._rate = np.asarray(self.env.eta_wf_dot(0.0, self.eta[2]), dtype=float) if self.wave_frequency \
             else np.zeros(3)
         self.loads = {"tau_wind": np.zeros(3), "tau_drift": np.zeros(3), "tau_moor": self._tau_moor.copy(),
@@ -176,11 +185,11 @@ class Plant:
             self._outer_step(h)
 
     def measure(self, *, truth: bool = False) -> Measurement:
-        """Sensor readings at the current time (GNSS, heading, tension cells) and the thruster
-        feedback (delivered thrust and azimuth, failure flags, the generalised thrust they give);
-        with ``truth=True`` also the true LF state (:class:`~tapm_opt.interfaces.Truth`), for
-        validation estimators only."""
-        m = self.sensors.sample(self.t, self.eta_total, self.mooring.fairlead_tension())
+        """Sensor readings at the current time (GNSS, heading, tension cells, riser inclinometers
+        if the scenario has a riser) and the thruster feedback (delivered thrust and azimuth,
+        failure flags, the generalised thrust they give); with ``truth=True`` also the true LF
+        state (:class:`~tapm_opt.interfaces.Truth`), for validation estimators only."""
+        m = self.sensors.sample(self.t, self.eta_total, self.mooring.fairlead_tension(), self._riser_angles)
         th = self.thrusters
         tr = Truth(eta=self.eta, nu=self.nu, tau_env=self.loads["tau_wind"] + self.loads["tau_drift"]) if truth else None
         return replace(m, thruster_f=th.f, thruster_alpha=th.alpha, thruster_failed=th.failed, tau_thr=th.tau(),
@@ -307,6 +316,8 @@ class Plant:
         self._rate = rate
         self._check_overload(T_bonds)
         self._tau_moor = m.tau(pose1, a_fl)
+        if self.riser is not None:
+            self._riser_angles = self.riser.angles_at(pose1)
         self.loads = {"tau_wind": tau_wind, "tau_drift": tau_drift, "tau_moor": self._tau_moor, "tau_thr": tau_thr}
 
     # -- logging ---------------------------------------------------------------------------
@@ -322,16 +333,23 @@ class Plant:
         ch += [(f"P[{i}]", "W") for i in self.thrusters.ids]
         for load in ("tau_thr", "tau_moor", "tau_wind", "tau_drift"):
             ch += [(f"{load}[X]", "N"), (f"{load}[Y]", "N"), (f"{load}[N]", "N m")]
+        if self.riser is not None:
+            ch += [("riser_top[x]", "rad"), ("riser_top[y]", "rad"), ("riser_bottom[x]", "rad"),
+                   ("riser_bottom[y]", "rad"), ("riser_top_angle", "rad"), ("riser_bottom_angle", "rad")]
         return ch
 
     def sample_row(self) -> np.ndarray:
         """Current values of all :meth:`channels` (true states, not measurements)."""
         m = self.mooring
-        return np.concatenate([
+        parts = [
             self.eta, self.nu, self._eta_wf, m.fairlead_tension(), m.anchor_tension(), m.fem.L,
             self.thrusters.f, self.thrusters.alpha, self.thrusters.power(),
             self.loads["tau_thr"], self.loads["tau_moor"], self.loads["tau_wind"], self.loads["tau_drift"],
-        ])
+        ]
+        if self._riser_angles is not None:
+            a = self._riser_angles
+            parts += [a, (math.hypot(a[0], a[1]), math.hypot(a[2], a[3]))]
+        return np.concatenate(parts)
 
     def metadata(self) -> dict:
         """Inputs and settings that identify a run."""
