@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 import tapm_opt
+from tapm_opt.estimation.reliability import ReliabilityError
 from tapm_opt.results import Result
 from tapm_opt.studies.kpis import (KpiError, basic_kpis, case_kpis, gumbel_k, kpi_order, kpi_table, kpi_unit,
                                    low_pass, reliability_index)
@@ -61,7 +62,7 @@ def test_gumbel_k_by_hand():
     s = math.sqrt(2 * math.log(1000))  # 3.716922
     assert gumbel_k(1000) == pytest.approx(s + EULER / s, rel=1e-12)
     assert gumbel_k(1000) == pytest.approx(3.87221, abs=1e-5)
-    with pytest.raises(KpiError, match="more than one maximum"):
+    with pytest.raises(ReliabilityError, match="more than one maximum"):
         gumbel_k(1)
 
 
@@ -80,28 +81,39 @@ def test_reliability_index_of_a_sinusoid_equals_the_hand_value():
     delta = (MBS - k * a / math.sqrt(2) - T0) / sb
     assert tr.k == pytest.approx(k, rel=1e-12)
     np.testing.assert_allclose(tr.delta, delta, rtol=1e-9)
-    # the same through case_kpis
+    # the same through case_kpis (delta_min_offline); the causal delta_min is evaluated from
+    # 700 s (100 s low-pass + 600 s sigma window): 60 up-crossings in the 600 s window, exposure 600 s
     kp = case_kpis(make_result(t, T={lid: T for lid in LINES}), scenario(MBS, sb))
+    s60 = math.sqrt(2 * math.log(60))
+    delta_causal = (MBS - (s60 + EULER / s60) * a / math.sqrt(2) - T0) / sb
     for lid in LINES:
-        assert kp[f"delta_min[{lid}]"] == pytest.approx(delta, rel=1e-9)
+        assert kp[f"delta_min_offline[{lid}]"] == pytest.approx(delta, rel=1e-9)
+        assert kp[f"delta_min[{lid}]"] == pytest.approx(delta_causal, rel=1e-9)
         assert kp[f"delta_frac_below[{lid}]"] == 0.0
-    assert kp["delta_min"] == pytest.approx(delta, rel=1e-9)
+    assert kp["delta_min_offline"] == pytest.approx(delta, rel=1e-9)
+    assert kp["delta_min"] == pytest.approx(delta_causal, rel=1e-9)
 
 
 def test_reliability_index_follows_the_low_frequency_tension():
     t = grid(1000.0, 0.1)
-    T0, b, a, MBS, sb = 2e6, 12e3, 3e5, 10e6, 0.5e6
+    T0, b, a, MBS, sb = 2e6, 8e3, 3e5, 10e6, 0.5e6
     T = T0 + b * t + a * np.sin(2 * np.pi * t / 10.0 + 0.3)
     tr = reliability_index(t, T, MBS, sb)
     np.testing.assert_allclose(tr.T_LF, T0 + b * tr.time, rtol=1e-9)  # a centred average keeps a ramp
     s = math.sqrt(2 * math.log(90))
     kσ = (s + EULER / s) * a / math.sqrt(2)
     assert tr.delta.min() == pytest.approx((MBS - kσ - T0 - b * 950.0) / sb, rel=1e-9)
-    # delta < 2 after t* (hand): fraction of the evaluated 900 s
-    t_star = (MBS - kσ - T0 - 2.0 * sb) / b
-    assert 60 < t_star < 940
     kp = case_kpis(make_result(t, T={lid: T for lid in LINES}), scenario(MBS, sb))
-    assert kp["delta_frac_below[1]"] == pytest.approx((950.0 - t_star) / 900.0, abs=0.2 / 900)
+    assert kp["delta_min_offline[1]"] == pytest.approx(tr.delta.min(), rel=1e-12)
+    # causal: the trailing average reads the ramp 50 s late, T_LF(t) = T0 + b (t - 50); the centred
+    # residual is the sine alone (sigma = a/sqrt 2, 60 up-crossings in 600 s); evaluated 700..1000 s
+    s60 = math.sqrt(2 * math.log(60))
+    kσ60 = (s60 + EULER / s60) * a / math.sqrt(2)
+    assert kp["delta_min[1]"] == pytest.approx((MBS - kσ60 - T0 - b * 950.0) / sb, rel=1e-9)
+    # delta < 2 after t* (hand): fraction of the evaluated 300 s
+    t_star = (MBS - kσ60 - T0 - 2.0 * sb) / b + 50.0
+    assert 710 < t_star < 990
+    assert kp["delta_frac_below[1]"] == pytest.approx((1000.0 - t_star) / 300.0, abs=0.2 / 300)
     assert kp["delta_frac_below"] == kp["delta_frac_below[4]"]
 
 
@@ -210,10 +222,13 @@ def test_dnv_als_after_a_line_break_excludes_the_broken_line():
     def k(n):
         s = math.sqrt(2 * math.log(n))
         return s + EULER / s
-    assert kp["delta_min[1]"] == pytest.approx((10e6 - k(40) * 1e6 / math.sqrt(2) - 2e6) / 0.5e6, rel=1e-9)
+    assert kp["delta_min_offline[1]"] == pytest.approx((10e6 - k(40) * 1e6 / math.sqrt(2) - 2e6) / 0.5e6, rel=1e-9)
     lo, hi = ((10e6 - k(n) * 0.5e6 / math.sqrt(2) - 6e6) / 0.5e6 for n in (9, 7))
-    assert lo - 1e-3 <= kp["delta_min[2]"] <= hi + 1e-3
-    assert kp["delta_min"] == kp["delta_min[2]"]
+    assert lo - 1e-3 <= kp["delta_min_offline[2]"] <= hi + 1e-3
+    assert kp["delta_min_offline"] == kp["delta_min_offline[2]"]
+    # the causal index needs 700 s of a segment (low-pass + sigma window): neither the 500 s intact
+    # part nor the 500 s damaged part fills it, so there is none
+    assert not any(k.startswith(("delta_min[", "delta_frac_below")) for k in kp) and "delta_min" not in kp
     # a break before t_start: the broken line has no per-line KPIs, the rest is ALS only
     kp2 = case_kpis(res, scenario(MBS=10e6), t_start=600.0)
     assert not any(k.endswith("[1]") for k in kp2)

@@ -1,0 +1,15 @@
+"""State and response estimation from measurements.
+
+* :mod:`tapm_opt.estimation.lowpass` -- low-pass state and environmental-load estimate
+  (``LowPassEstimator``, ``TrueStateEstimator``).
+* :mod:`tapm_opt.estimation.reliability` -- the causal (on-line) structural reliability index of
+  line tensions and riser angles (survey eq. 32; reliability seed §2.2), re-exported here.
+"""
+
+from .reliability import (LP_WINDOW_DEFAULT as LP_WINDOW_DEFAULT, SIGMA_WINDOW_DEFAULT as SIGMA_WINDOW_DEFAULT,
+                          ReliabilityError as ReliabilityError, ReliabilityMonitor as ReliabilityMonitor,
+                          ReliabilityRecord as ReliabilityRecord, ReliabilityState as ReliabilityState,
+                          causal_reliability as causal_reliability, gumbel_k as gumbel_k)
+
+__all__ = ["ReliabilityMonitor", "ReliabilityState", "ReliabilityRecord", "ReliabilityError", "causal_reliability",
+           "gumbel_k", "LP_WINDOW_DEFAULT", "SIGMA_WINDOW_DEFAULT"]

@@ -10,7 +10,8 @@ Environmental load: a quasi-static balance, assuming the LF motion is slow enoug
 and damping to be small on average: ``b = -(tau_moor(eta_hat) + tau_thr)`` expressed in {E} and
 low-pass filtered with time constant ``T_env``; handed to controllers in {B} as ``tau_env``. The
 mooring load is the design model's (``MooringModel``) at the estimated pose, so a broken line that
-the model still contains shows up as part of the "environment". It is evaluated by the model's
+the model still contains shows up as part of the "environment"; with a line-break ``detector``
+(:class:`~tapm_opt.estimation.detection.TensionDropDetector`) a detected line leaves the model. It is evaluated by the model's
 :meth:`~tapm_opt.models.mooring.MooringModel.load_evaluator` (the same catenary, tabulated per line
 configuration: each line's horizontal tension within 1e-9 of ``MooringModel.force``'s, relative to
 its tension or pretension; exact ``force`` beyond the tables), a few microseconds per step instead
@@ -20,6 +21,7 @@ of a catenary solve per line.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -27,6 +29,7 @@ from ..errors import TapmError
 from ..geometry import rot_z, ssa
 from ..interfaces import Estimate, Measurement
 from ..models.mooring import MooringModel
+from .reliability import monitor_signals
 
 __all__ = ["LowPassEstimator", "TrueStateEstimator", "EstimationError"]
 
@@ -46,13 +49,23 @@ class LowPassEstimator:
         Cut-off of the position/heading filters [rad/s] (default 2 pi / 40 s).
     T_env : float
         Time constant of the environmental-load filter [s].
+    detector : TensionDropDetector, optional
+        Line-break detector fed with the measured tensions: the lines it reports broken are left
+        out of the load balance's model from then on and reported in ``Estimate.broken_lines``.
+    monitor : ReliabilityMonitor, optional
+        On-line reliability statistics of the measured tensions and riser angles
+        (:func:`~tapm_opt.estimation.reliability.monitor_for`), handed on as
+        ``Estimate.reliability``.
     """
 
-    def __init__(self, model: MooringModel, *, omega_c: float = 2 * math.pi / 40.0, T_env: float = 60.0):
+    def __init__(self, model: MooringModel, *, omega_c: float = 2 * math.pi / 40.0, T_env: float = 60.0,
+                 detector: Any = None, monitor: Any = None):
         for name, v in (("omega_c", omega_c), ("T_env", T_env)):
             if not (math.isfinite(v) and v > 0):
                 raise EstimationError(f"{name} = {v!r} must be a positive number")
-        self.model = model
+        self.model = self.intact_model = model
+        self.detector = detector
+        self.monitor = monitor
         self.omega_c = float(omega_c)
         self.T_env = float(T_env)
         self._y = None  # filtered (x, y, psi_unwrapped)
@@ -78,15 +91,35 @@ class LowPassEstimator:
 
     def reset(self) -> None:
         self._y, self._yd, self._psi_prev, self._b, self._t = None, np.zeros(3), None, None, None
+        self.model = self.intact_model
+        for part in (self.detector, self.monitor):
+            if part is not None:
+                part.reset()
+
+    def log(self) -> list[dict]:
+        """The detector's events (``{"t", "line", "event"}``), if there is a detector."""
+        return [] if self.detector is None else list(self.detector.events)
+
+    def _broken(self, t: float, m: Measurement) -> frozenset:
+        """Feed the detector; on a new break, leave the line out of the model."""
+        if self.detector is None or m.tensions is None:
+            return frozenset()
+        broken = self.detector.update(t, m.tensions)
+        if broken and set(broken) & set(self.model.line_ids):
+            self.model = self.intact_model.without(broken)
+        return broken
 
     def update(self, t: float, measurement: Measurement) -> Estimate:
         """The :class:`~tapm_opt.interfaces.Estimator` step: filter the measured position and
         heading; the thrust in the load balance is the thruster feedback ``measurement.tau_thr``
-        (zero when the measurement carries none)."""
+        (zero when the measurement carries none). The measured tensions and riser angles pass
+        through unfiltered."""
         m = measurement
         tau_thr = np.zeros(3) if m.tau_thr is None else m.tau_thr
+        broken = self._broken(t, m)
         eta, nu, tau_env = self.filter(t, m.position, m.heading, tau_thr)
-        return Estimate(t=t, eta=eta, nu=nu, tau_env=tau_env, tensions=m.tensions)
+        return Estimate(t=t, eta=eta, nu=nu, tau_env=tau_env, tensions=m.tensions, riser_angles=m.riser_angles,
+                        broken_lines=broken, reliability=_reliability(self.monitor, t, m))
 
     def filter(self, t: float, position: np.ndarray, heading: float, tau_thr: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Feed one measurement; returns (eta_hat (3,), nu_hat (3,), tau_env_hat (3,) in {B}).
@@ -141,13 +174,35 @@ class LowPassEstimator:
 
 class TrueStateEstimator:
     """Validation estimator: hands on the plant's true LF state and mean environmental load
-    (``measurement.truth``), to separate controller performance from estimation error."""
+    (``measurement.truth``), to separate controller performance from estimation error; the
+    measured tensions and riser angles pass through."""
+
+    def __init__(self, *, detector: Any = None, monitor: Any = None):
+        self.detector = detector
+        self.monitor = monitor
 
     def update(self, t: float, measurement: Measurement) -> Estimate:
         tr = measurement.truth
         if tr is None:
             raise EstimationError("the measurement carries no truth: TrueStateEstimator needs a simulated plant")
-        return Estimate(t=t, eta=tr.eta, nu=tr.nu, tau_env=tr.tau_env, tensions=measurement.tensions)
+        broken = frozenset() if self.detector is None or measurement.tensions is None else \
+            self.detector.update(t, measurement.tensions)
+        return Estimate(t=t, eta=tr.eta, nu=tr.nu, tau_env=tr.tau_env, tensions=measurement.tensions,
+                        riser_angles=measurement.riser_angles, broken_lines=broken,
+                        reliability=_reliability(self.monitor, t, measurement))
+
+    def log(self) -> list[dict]:
+        """The detector's events, if there is a detector."""
+        return [] if self.detector is None else list(self.detector.events)
 
     def reset(self) -> None:
-        pass
+        for part in (self.detector, self.monitor):
+            if part is not None:
+                part.reset()
+
+
+def _reliability(monitor: Any, t: float, m: Measurement) -> Any:
+    """Feed the monitor the measured tensions and riser-angle magnitudes (when it has both)."""
+    if monitor is None or m.tensions is None:
+        return None
+    return monitor.update(t, monitor_signals(m.tensions, m.riser_angles, monitor.m))

@@ -135,6 +135,20 @@ class MooringModel:
             h_A=readonly(h_A[keep]),
         )
 
+    def without(self, broken: Iterable[str]) -> "MooringModel":
+        """The model with the lines ``broken`` (ids) left out; ids not in the model (already left
+        out) are ignored. Leaving no line raises :class:`ModelError`."""
+        broken = {str(b) for b in broken}
+        keep = np.array([i not in broken for i in self.line_ids])
+        if keep.all():
+            return self
+        if not keep.any():
+            raise ModelError("every line is broken: there is no mooring left to model")
+        arrays = {name: readonly(np.asarray(getattr(self, name))[keep])
+                  for name in ("anchors", "p_T", "ZF", "L", "EA", "w", "CB", "MBS", "h_A")}
+        return MooringModel(line_ids=tuple(i for i, k in zip(self.line_ids, keep) if k), p_cot_B=self.p_cot_B,
+                            turret_angle=self.turret_angle, turret_mode=self.turret_mode, **arrays)
+
     @property
     def n_lines(self) -> int:
         return len(self.line_ids)

@@ -3,9 +3,12 @@
 :func:`case_kpis` turns one :class:`~tapm_opt.results.Result` (and the scenario it was run with)
 into a flat ``{name: number}`` dict: offsets (of the centre of turret from its field-zero-point
 position, ``geometry.turret_offset``), heading error, line tensions, the structural
-reliability index of survey eq. (32), the DNV-OS-E301 (October 2008) line-strength check, thrust
-energy and a fuel proxy, and the controller's solve-time statistics. :func:`kpi_table` writes one
-row per case as CSV and Markdown. Every definition, unit and assumption is in ``docs/kpis.md``.
+reliability index of survey eq. (32) -- causal, as a monitor on board would compute it
+(:mod:`tapm_opt.estimation.reliability`), and offline over the whole record as its cross-check --,
+the riser end angles and their indices ([G] §2.2) when the result carries them, the DNV-OS-E301
+(October 2008) line-strength check, thrust energy and a fuel proxy, and the controller's
+solve-time statistics. :func:`kpi_table` writes one row per case as CSV and Markdown. Every
+definition, unit and assumption is in ``docs/kpis.md``.
 
 :func:`basic_kpis` (used by ``tapm simulate``) is the historical subset of :func:`case_kpis`.
 """
@@ -22,13 +25,15 @@ from typing import Any, Iterable, Mapping, Sequence
 import numpy as np
 
 from ..errors import TapmError
+from ..estimation.reliability import LP_WINDOW_DEFAULT, SIGMA_WINDOW_DEFAULT, causal_reliability, gumbel_k
 from ..geometry import ssa, turret_offset
 from ..results import Result
 
 __all__ = [
     "KpiError", "case_kpis", "basic_kpis", "kpi_table", "kpi_unit", "kpi_order",
     "gumbel_k", "low_pass", "reliability_index", "ReliabilityTrace",
-    "DNV_E301_2008_FACTORS", "DNV_CAPACITY_FACTOR", "SFC_DEFAULT", "LP_WINDOW_DEFAULT", "DELTA_S_DEFAULT",
+    "DNV_E301_2008_FACTORS", "DNV_CAPACITY_FACTOR", "SFC_DEFAULT", "LP_WINDOW_DEFAULT", "SIGMA_WINDOW_DEFAULT",
+    "DELTA_S_DEFAULT", "RISER_ENDS",
 ]
 
 
@@ -53,8 +58,9 @@ DNV_CAPACITY_FACTOR = 0.95
 DNV_CLASS1_COMMON_FACTOR = 1.3
 #: Specific fuel consumption of the fuel proxy [kg/kWh] (diesel-electric, ~200 g/kWh).
 SFC_DEFAULT = 0.2
-#: Width of the centred moving average that defines the low-frequency tension [s].
-LP_WINDOW_DEFAULT = 100.0
+# LP_WINDOW_DEFAULT (100 s): width of the moving average that defines the low-frequency tension,
+# centred offline, trailing in the causal index; SIGMA_WINDOW_DEFAULT (600 s): trailing window of
+# the causal index's wave-frequency sigma and up-crossing count (both from estimation.reliability).
 #: Lower threshold of the reliability index (seed line-break example).
 DELTA_S_DEFAULT = 2.0
 
@@ -67,17 +73,20 @@ _AGG_ORDER: tuple[tuple[str, str], ...] = (
     ("time_outside_safe", "s"), ("time_outside_alert", "s"),
     ("heading_error_max", "deg"),
     ("T_max", "N"), ("util_max", "-"),
-    ("delta_min", "-"), ("delta_frac_below", "-"),
+    ("delta_min", "-"), ("delta_frac_below", "-"), ("delta_min_offline", "-"),
     ("dnv_uls_max", "-"), ("dnv_uls_pass", "lines"), ("dnv_uls_fail", "lines"),
     ("dnv_als_max", "-"), ("dnv_als_pass", "lines"), ("dnv_als_fail", "lines"),
     ("lines_broken", "lines"),
+    ("riser_top_angle_max_deg", "deg"), ("riser_bottom_angle_max_deg", "deg"),
+    ("riser_delta_min", "-"), ("riser_delta_top_min", "-"), ("riser_delta_bottom_min", "-"),
+    ("riser_delta_frac_below", "-"),
     ("thrust_energy", "J"), ("thrust_power_mean", "W"), ("fuel", "kg"),
     ("solver_time_median", "s"), ("solver_time_p95", "s"), ("solver_time_max", "s"),
     ("solver_failures", "-"), ("solver_fallbacks", "-"), ("allocation_fallbacks", "-"),
 )
 _LINE_ORDER: tuple[tuple[str, str], ...] = (
     ("T_max", "N"), ("T_mean", "N"), ("util_max", "-"), ("delta_min", "-"), ("delta_frac_below", "-"),
-    ("dnv_uls", "-"), ("dnv_als", "-"),
+    ("delta_min_offline", "-"), ("dnv_uls", "-"), ("dnv_als", "-"),
 )
 _UNITS = {**dict(_AGG_ORDER), **{f"{k}[]": u for k, u in _LINE_ORDER}, "utilisation_max": "-"}
 _DIAG_KEYS = ("solver_time_median", "solver_time_p95", "solver_time_max", "solver_failures", "solver_fallbacks",
@@ -85,19 +94,14 @@ _DIAG_KEYS = ("solver_time_median", "solver_time_p95", "solver_time_max", "solve
 _COUNT_KEYS = {"dnv_uls_pass", "dnv_uls_fail", "dnv_als_pass", "dnv_als_fail", "lines_broken", "solver_failures",
                "solver_fallbacks", "allocation_fallbacks"}
 _LABEL_ORDER = ("scenario", "sea_state", "controller", "condition", "seed")
+#: The riser ends: (KPI name part, angle-magnitude channel [rad], Riser field of the mean critical angle).
+RISER_ENDS: tuple[tuple[str, str, str], ...] = (
+    ("top", "riser_top_angle", "critical_top_angle"),
+    ("bottom", "riser_bottom_angle", "critical_bottom_angle"),
+)
 
 
 # -- building blocks ---------------------------------------------------------------------------
-
-def gumbel_k(n: float) -> float:
-    """Extreme-value factor k = sqrt(2 ln n) + gamma_E / sqrt(2 ln n) of a narrow-band Gaussian
-    process with ``n`` individual maxima in the considered period (Gumbel asymptote;
-    reliability-setpoint-riser-mooring §2.2). ``n`` must be > 1."""
-    if not (n > 1 and math.isfinite(n)):
-        raise KpiError(f"gumbel_k needs more than one maximum, got n = {n!r}")
-    s = math.sqrt(2.0 * math.log(n))
-    return s + float(np.euler_gamma) / s
-
 
 def _cumint(t: np.ndarray, x: np.ndarray) -> np.ndarray:
     """Cumulative trapezoid integral of x over t, starting at 0."""
@@ -194,7 +198,9 @@ class ReliabilityTrace:
 
 def reliability_index(t: Sequence[float], T: Sequence[float], T_b: float, sigma_b: float, *,
                       window: float = LP_WINDOW_DEFAULT) -> ReliabilityTrace:
-    """Reliability index of survey eq. (32) for a tension record of one line.
+    """Offline reliability index of survey eq. (32) for a tension record of one line (the whole
+    record known: the cross-check of the causal index of
+    :func:`tapm_opt.estimation.reliability.causal_reliability`, KPI ``delta_min_offline``).
 
     T_LF is the centred moving average of width ``window`` (:func:`low_pass`), the wave-frequency
     part is T - T_LF, sigma its time-weighted standard deviation, n its zero up-crossings (the
@@ -225,6 +231,40 @@ def reliability_index(t: Sequence[float], T: Sequence[float], T_b: float, sigma_
     k = gumbel_k(max(n, 2))
     delta = (T_b - k * sigma - lf) / sigma_b
     return ReliabilityTrace(time=tc, delta=delta, T_LF=lf, sigma=sigma, n=n, k=k)
+
+
+def _causal_runs(t: np.ndarray, X: np.ndarray, r_t: np.ndarray, sigma_t: np.ndarray,
+                 segments: Sequence[np.ndarray], alive: np.ndarray, *, names: Sequence[str], lp_window: float,
+                 sigma_window: float) -> list[list[tuple[np.ndarray, np.ndarray]]]:
+    """The causal index (:func:`~tapm_opt.estimation.reliability.causal_reliability`) of the columns
+    of X (N, m), restarted on each segment (boolean masks over t); per column, the runs
+    ``(time, delta)`` where the estimate is ready and the column's ``alive`` (m, N) holds. Within a
+    segment that run is contiguous (ready stays true once the window has filled, alive is a prefix).
+    The estimate being causal, a column's values before its end of life do not depend on the
+    samples after it."""
+    runs: list[list[tuple[np.ndarray, np.ndarray]]] = [[] for _ in range(X.shape[1])]
+    for seg in segments:
+        if seg.sum() < 2:
+            continue
+        ts = t[seg]
+        rec = causal_reliability(ts, X[seg], r_t, sigma_t, names=names, lp_window=lp_window,
+                                 sigma_window=sigma_window)
+        for j in range(X.shape[1]):
+            ok = rec.ready & alive[j][seg]
+            if ok.any():
+                runs[j].append((ts[ok], rec.delta[ok, j]))
+    return runs
+
+
+def _run_stats(runs: Sequence[tuple[np.ndarray, np.ndarray]], delta_s: float) -> tuple[float, float]:
+    """(min delta, fraction of the evaluated time with delta < delta_s) of a column's runs."""
+    d_min = float(min(d.min() for _, d in runs))
+    span = sum(float(tt[-1] - tt[0]) for tt, _ in runs)
+    if span > 0:
+        frac = sum(float(np.sum(_hold_weights(tt)[d < delta_s])) for tt, d in runs) / span
+    else:
+        frac = float(any(bool(np.any(d < delta_s)) for _, d in runs))
+    return d_min, frac
 
 
 def _dnv_ratio(t: np.ndarray, T: np.ndarray, mbs: float, limit_state: str, consequence_class: int,
@@ -269,13 +309,21 @@ def _break_times(result: Result, line_ids: Sequence[str]) -> dict[str, float]:
 
 def _compute(result: Result, scenario: Any, *, t_start: float, lp_window: float, delta_s: float,
              consequence_class: int, sfc: float, dnv_class1_common_factor: bool,
-             require_setpoint: bool = True) -> dict[str, float]:
+             require_setpoint: bool = True, sigma_window: float = SIGMA_WINDOW_DEFAULT,
+             reliability: bool = True) -> dict[str, float]:
     if consequence_class not in (1, 2):
         raise KpiError(f"consequence_class = {consequence_class!r} must be 1 or 2")
     if not (sfc >= 0 and math.isfinite(sfc)):
         raise KpiError(f"sfc = {sfc!r} kg/kWh must be a non-negative number")
     if not math.isfinite(delta_s):
         raise KpiError(f"delta_s = {delta_s!r} must be finite")
+    for name, v in (("lp_window", lp_window), ("sigma_window", sigma_window)):
+        try:
+            ok = math.isfinite(float(v)) and float(v) > 0
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise KpiError(f"{name} = {v!r} s must be a positive number")
     t_all = result.time
     if len(t_all) < 2:
         raise KpiError(f"the result has {len(t_all)} sample(s); KPIs need at least two")
@@ -319,15 +367,20 @@ def _compute(result: Result, scenario: Any, *, t_start: float, lp_window: float,
     mbs_all = scenario.line_arrays["MBS"]
     mbs_std_all = scenario.line_arrays["MBS_std"]
     per: dict[str, dict[str, float]] = {k: {} for k, _ in _LINE_ORDER}
-    below_time: dict[str, float] = {}
     eps = 1e-9 * max(1.0, abs(float(t[-1])))
+    intact_all = t <= t_b1 + eps
+    segments = (intact_all, ~intact_all)
+    rel_cols: list[int] = []  # lines with a reliability index (MBS_std > 0, alive after t_start)
+    tensions: dict[str, np.ndarray] = {}
+    alive_of: dict[str, np.ndarray] = {}
     for j, lid in enumerate(line_ids):
         T = _channel(result, f"T_fairlead[{lid}]", f"the tension KPIs of line {lid}", win)
         mbs, mbs_std = float(mbs_all[j]), float(mbs_std_all[j])
         alive = t <= breaks.get(lid, math.inf) + eps  # the sample at the break time is logged before it
         if alive.sum() == 0:
             continue  # broken before t_start: no per-line KPIs
-        intact = alive & (t <= t_b1 + eps)
+        tensions[lid], alive_of[lid] = T, alive
+        intact = alive & intact_all
         damaged = alive & ~intact
         ta, Ta = t[alive], T[alive]
         per["T_max"][lid] = float(Ta.max())
@@ -339,21 +392,30 @@ def _compute(result: Result, scenario: Any, *, t_start: float, lp_window: float,
         if damaged.any():
             per["dnv_als"][lid] = _dnv_ratio(t[damaged], T[damaged], mbs, "ALS", consequence_class,
                                              dnv_class1_common_factor)
-        if mbs_std > 0:
+        if mbs_std > 0 and reliability:
+            rel_cols.append(j)
             traces = [reliability_index(t[seg], T[seg], mbs, mbs_std, window=lp_window)
                       for seg in (intact, damaged) if seg.sum() >= 2]
-            span = sum(tr.span for tr in traces)
             if traces:
-                per["delta_min"][lid] = float(min(tr.delta.min() for tr in traces))
-                below_time[lid] = sum(tr.time_below(delta_s) for tr in traces)
-                per["delta_frac_below"][lid] = below_time[lid] / span if span > 0 else float(
-                    any(bool(np.any(tr.delta < delta_s)) for tr in traces))
+                per["delta_min_offline"][lid] = float(min(tr.delta.min() for tr in traces))
+    if rel_cols:
+        # causal index of every line at once, restarted at the first break; a line's values count
+        # while it is alive
+        ids = [line_ids[j] for j in rel_cols]
+        runs = _causal_runs(t, np.column_stack([tensions[lid] for lid in ids]), mbs_all[rel_cols],
+                            mbs_std_all[rel_cols], segments, np.stack([alive_of[lid] for lid in ids]),
+                            names=ids, lp_window=lp_window, sigma_window=sigma_window)
+        for lid, r in zip(ids, runs):
+            if r:
+                per["delta_min"][lid], per["delta_frac_below"][lid] = _run_stats(r, delta_s)
     if per["T_max"]:
         out["T_max"] = max(per["T_max"].values())
         out["util_max"] = max(per["util_max"].values())
     if per["delta_min"]:
         out["delta_min"] = min(per["delta_min"].values())
         out["delta_frac_below"] = max(per["delta_frac_below"].values())
+    if per["delta_min_offline"]:
+        out["delta_min_offline"] = min(per["delta_min_offline"].values())
     for ls in ("uls", "als"):
         r = per[f"dnv_{ls}"]
         if r:
@@ -361,6 +423,30 @@ def _compute(result: Result, scenario: Any, *, t_start: float, lp_window: float,
         out[f"dnv_{ls}_pass"] = int(sum(v <= 1.0 for v in r.values()))
         out[f"dnv_{ls}_fail"] = int(sum(v > 1.0 for v in r.values()))
     out["lines_broken"] = len(breaks)
+
+    # riser end angles and their reliability indices ([G] §2.2)
+    riser = getattr(scenario, "riser", None)
+    ends = [(end, ch, fld) for end, ch, fld in RISER_ENDS if ch in result]
+    ang: dict[str, np.ndarray] = {}
+    for end, ch, _ in ends:
+        ang[end] = _channel(result, ch, f"the riser {end} angle KPIs", win)
+        out[f"riser_{end}_angle_max_deg"] = float(np.degrees(ang[end].max()))
+    if riser is not None and ends and reliability:
+        r_t = np.array([float(getattr(riser, fld)) for _, _, fld in ends])
+        s_t = np.array([float(getattr(riser, fld + "_std")) for _, _, fld in ends])
+        for (_, _, fld), v, sd in zip(ends, r_t, s_t):
+            if not (math.isfinite(v) and math.isfinite(sd) and sd > 0):
+                raise KpiError(f"riser.{fld} = {v!r} rad with riser.{fld}_std = {sd!r} rad: the riser reliability "
+                               "index needs a finite angle and a positive standard deviation")
+        runs = _causal_runs(t, np.column_stack([ang[end] for end, _, _ in ends]), r_t, s_t, segments,
+                            np.ones((len(ends), len(t)), bool), names=[end for end, _, _ in ends],
+                            lp_window=lp_window, sigma_window=sigma_window)
+        for (end, _, _), r in zip(ends, runs):
+            if r:
+                out[f"riser_delta_{end}_min"] = _run_stats(r, delta_s)[0]
+        if all(runs):  # every end has the same ready instants: the worst end at each of them
+            worst = [(seg_runs[0][0], np.min([d for _, d in seg_runs], axis=0)) for seg_runs in zip(*runs)]
+            out["riser_delta_min"], out["riser_delta_frac_below"] = _run_stats(worst, delta_s)
 
     # thrust energy and fuel
     th_ids = [th.id for th in scenario.thrusters]
@@ -387,7 +473,8 @@ def _compute(result: Result, scenario: Any, *, t_start: float, lp_window: float,
 
 
 def case_kpis(result: Result, scenario: Any, *, t_start: float = 0.0, lp_window: float = LP_WINDOW_DEFAULT,
-              delta_s: float = DELTA_S_DEFAULT, consequence_class: int = 1, sfc: float = SFC_DEFAULT,
+              sigma_window: float = SIGMA_WINDOW_DEFAULT, delta_s: float = DELTA_S_DEFAULT,
+              consequence_class: int = 1, sfc: float = SFC_DEFAULT,
               dnv_class1_common_factor: bool = True) -> dict[str, float]:
     """All KPIs of one closed-loop run as a flat, JSON-serialisable ``{name: number}`` dict.
 
@@ -395,15 +482,21 @@ def case_kpis(result: Result, scenario: Any, *, t_start: float = 0.0, lp_window:
     ----------
     result : Result
         A closed-loop result (channels ``x, y, psi, psi_d, T_fairlead[<line>]`` for every scenario
-        line, ``P[<thruster>]`` for every scenario thruster; ``meta["events"]`` and
+        line, ``P[<thruster>]`` for every scenario thruster; ``riser_top_angle``,
+        ``riser_bottom_angle`` [rad] (angle magnitudes) and ``meta["events"]``,
         ``meta["diagnostics"]`` when present).
     scenario : Scenario
-        The scenario the result was run with (MBS, MBS_std, limits, line and thruster ids).
+        The scenario the result was run with (MBS, MBS_std, limits, line and thruster ids, the
+        riser's critical angles).
     t_start : float
         Samples before this time [s] are left out of every statistic (start-up transient);
         default 0. The solver statistics from ``meta["diagnostics"]`` always cover the whole run.
     lp_window : float
-        Width [s] of the centred moving average defining the low-frequency tension (default 100).
+        Width [s] of the moving average defining the low-frequency tension and riser angle: trailing
+        in the causal index, centred in the offline one (default 100).
+    sigma_window : float
+        Trailing window [s] of the causal index's wave-frequency sigma and up-crossing count, and its
+        exposure period (default 600); the causal index is evaluated once it has filled.
     delta_s : float
         Reliability-index threshold for ``delta_frac_below`` (default 2).
     consequence_class : int
@@ -420,15 +513,19 @@ def case_kpis(result: Result, scenario: Any, *, t_start: float = 0.0, lp_window:
         Names, units and definitions in ``docs/kpis.md``; order of columns: :func:`kpi_order`.
         Every value is finite. Keys whose quantity does not exist for the case are left out
         (``dnv_als*`` without a line break, per-line keys of a line broken before ``t_start``,
-        ``delta*`` of lines with MBS_std = 0, solver statistics without an MPC).
+        ``delta*`` of lines with MBS_std = 0, the causal ``delta_min``/``delta_frac_below`` of a
+        line whose segments are all shorter than ``lp_window + sigma_window``, ``riser_*`` without
+        the riser channels, ``riser_delta*`` without a scenario riser, solver statistics without
+        an MPC).
 
     Raises
     ------
     KpiError
         A needed channel is missing or not finite, or an option is out of range.
     """
-    return _compute(result, scenario, t_start=t_start, lp_window=lp_window, delta_s=delta_s,
-                    consequence_class=consequence_class, sfc=sfc, dnv_class1_common_factor=dnv_class1_common_factor)
+    return _compute(result, scenario, t_start=t_start, lp_window=lp_window, sigma_window=sigma_window,
+                    delta_s=delta_s, consequence_class=consequence_class, sfc=sfc,
+                    dnv_class1_common_factor=dnv_class1_common_factor)
 
 
 def basic_kpis(result: Result, scenario: Any) -> dict[str, float]:
@@ -442,7 +539,7 @@ def basic_kpis(result: Result, scenario: Any) -> dict[str, float]:
     """
     k = _compute(result, scenario, t_start=float(result.time[0]) if len(result.time) else 0.0,
                  lp_window=LP_WINDOW_DEFAULT, delta_s=DELTA_S_DEFAULT, consequence_class=1, sfc=SFC_DEFAULT,
-                 dnv_class1_common_factor=False, require_setpoint=False)
+                 dnv_class1_common_factor=False, require_setpoint=False, reliability=False)
     keep = ("duration", "offset_max", "offset_mean", "offset_std", "time_outside_safe", "time_outside_alert",
             "heading_error_max", "T_max")
     out = {n: k[n] for n in keep if n in k}
@@ -473,8 +570,8 @@ def kpi_unit(name: str) -> str:
 def kpi_order(names: Iterable[str]) -> list[str]:
     """Sort KPI names into the documented column order: the aggregate KPIs in their fixed order,
     then the per-line KPIs grouped by quantity (T_max, T_mean, util_max, delta_min,
-    delta_frac_below, dnv_uls, dnv_als) with line ids in natural order, then any other names
-    alphabetically."""
+    delta_frac_below, delta_min_offline, dnv_uls, dnv_als) with line ids in natural order, then any
+    other names alphabetically."""
     names = list(dict.fromkeys(names))
     agg = [k for k, _ in _AGG_ORDER]
     line_q = [k for k, _ in _LINE_ORDER]
