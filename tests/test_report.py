@@ -42,9 +42,9 @@ def _case_id(inputs: dict) -> str:
     return hashlib.sha256(json.dumps(inputs, sort_keys=True, separators=(",", ":")).encode()).hexdigest()[:12]
 
 
-def _result(controller: str, seed: int) -> Result:
+def _result(controller: str, seed: int, *, duration: float = 1200.0, t_break: float = 600.0) -> Result:
     rng = np.random.default_rng(seed)
-    t = np.arange(0.0, 1200.0 + 0.5, 0.5)
+    t = np.arange(0.0, duration + 0.5, 0.5)
     amp = 20.0 if controller == "PID" else 15.0
     x = amp * np.sin(2 * np.pi * t / 400.0) + 0.3 * rng.standard_normal(len(t))
     y = 0.6 * amp * np.sin(2 * np.pi * t / 300.0 + 0.5)
@@ -55,13 +55,13 @@ def _result(controller: str, seed: int) -> Result:
     for k, lid in enumerate(LINES):
         T = 2.0e6 + 0.5e5 * k + 1.5e6 * x / 40.0 * np.cos(np.radians(30 * k)) + 1e5 * np.sin(2 * np.pi * t / 11.0)
         if lid == "7":
-            T = np.where(t > 600.0, 0.0, T)
+            T = np.where(t > t_break, 0.0, T)
         ch.append((f"T_fairlead[{lid}]", "N", np.maximum(T, 0.0)))
     for k, tid in enumerate(THR):
         f = 3e5 + 2e5 * np.sin(2 * np.pi * t / 200.0 + k)
         ch.append((f"f[{tid}]", "N", f))
         ch.append((f"P[{tid}]", "W", 1e6 * (f / 1e6) ** 1.5))
-    meta = {"scenario": "fpso", "events": [[600.0, "line 7 broke"]],
+    meta = {"scenario": "fpso", "events": [[t_break, "line 7 broke"]],
             "diagnostics": {"solver_time_median": 0.0125} if controller == "MPC" else {}}
     return Result(time=t, data=np.column_stack([c[2] for c in ch]), channels=tuple(c[0] for c in ch),
                   units=tuple(c[1] for c in ch), meta=meta)
@@ -213,8 +213,11 @@ def test_better_convention():
     for k in ("offset_max", "time_outside_alert", "T_max", "util_max", "thrust_energy", "fuel",
               "solver_time_p95", "solver_failures", "T_max[3]"):
         assert kpi_direction(k) == -1, k
-    for k in ("delta_min", "delta_min[7]"):
+    for k in ("delta_min", "delta_min[7]", "delta_min_offline", "delta_min_offline[7]", "riser_delta_min",
+              "riser_delta_top_min", "riser_delta_bottom_min"):
         assert kpi_direction(k) == 1, k
+    for k in ("riser_top_angle_max_deg", "riser_bottom_angle_max_deg", "riser_delta_frac_below", "delta_frac_below"):
+        assert kpi_direction(k) == -1, k
     assert kpi_direction("duration") == 0 and kpi_direction("lines_broken") == 0
 
 
@@ -287,19 +290,50 @@ def test_decimate_keeps_extremes_and_bounds_points():
 
 
 def test_reliability_trace_matches_the_kpi_definition():
-    """The delta(t) curves of the tension figure use the same segments (split at the first break,
-    broken line only while alive) as case_kpis, so their minima equal the per-line delta_min."""
-    kpis = pytest.importorskip("tapm_opt.studies.kpis")
-    from tapm_opt.report.series import reliability_traces
+    """The delta(t) curves of the tension figure are the causal index evaluated as case_kpis does
+    (restarted at the first break, a broken line only while alive, values where the estimate is
+    ready), so their minima equal the per-line delta_min and the lowest-line curve's minimum the
+    aggregate delta_min; the lowest lines are always drawn."""
+    from tapm_opt.report.figures import tension_figure
+    from tapm_opt.report.series import causal_traces
+    from tapm_opt.studies import kpis
 
-    res = _result("PID", seed=3)
-    traces, delta_s = reliability_traces(res, SC)
+    res = _result("PID", seed=3, duration=2200.0, t_break=900.0)   # both segments > 700 s
+    tr = causal_traces(res, SC)
     ref = kpis.case_kpis(res, SC)
-    assert delta_s == kpis.DELTA_S_DEFAULT
-    assert set(traces) == set(LINES)
-    for lid, segs in traces.items():
-        assert min(float(d.min()) for _, d in segs) == pytest.approx(ref[f"delta_min[{lid}]"], rel=1e-12)
-    assert max(float(t.max()) for t, _ in traces["7"]) <= 600.0  # line 7 broke at 600 s
+    assert tr.delta_s == kpis.DELTA_S_DEFAULT
+    assert set(tr.lines) == set(LINES) and tr.riser == {} and tr.riser_min == []
+    assert tr.t_break == 900.0 and tr.broken == ("7",)
+    assert tr.ready_from == [700.0, pytest.approx(900.5 + 700.0)]
+    for lid, runs in tr.lines.items():
+        assert min(float(r.delta.min()) for r in runs) == ref[f"delta_min[{lid}]"]
+        assert all(r.t[0] >= tr.ready_from[r.segment] for r in runs)
+    assert max(float(r.t.max()) for r in tr.lines["7"]) <= 900.0   # line 7 broke at 900 s
+    assert [r.segment for r in tr.lines["7"]] == [0] and [r.segment for r in tr.lines["1"]] == [0, 1]
+    assert min(float(r.delta.min()) for r in tr.lines_min) == ref["delta_min"]
+    # k sigma is the monitor's: positive where the waves act
+    assert all(np.all(r.ksigma > 0) for runs in tr.lines.values() for r in runs)
+    fig = tension_figure(res, SC, title="t", traces=tr)
+    drawn = [ln for ln in fig.axes[1].lines if (ln.get_gid() or "").startswith("delta:line ")]
+    assert 0 < len({ln.get_gid() for ln in drawn}) <= 4
+    assert min(float(np.min(ln.get_ydata())) for ln in drawn) == ref["delta_min"]
+
+
+def test_a_record_too_short_for_the_causal_index_has_empty_runs():
+    res = _result("PID", seed=3)   # 1200 s, break at 600 s: neither segment fills 700 s
+    tr = causal_traces_of(res)
+    assert tr.lines == {} and tr.lines_min == [] and tr.ready_from == [None, None]
+    assert tr.segments == [(0.0, 600.0), (600.5, 1200.0)]
+    from tapm_opt.report.figures import tension_figure
+
+    fig = tension_figure(res, SC, title="t", traces=tr)
+    assert any("no causal index" in t.get_text() for t in fig.axes[1].texts)
+
+
+def causal_traces_of(res):
+    from tapm_opt.report.series import causal_traces
+
+    return causal_traces(res, SC)
 
 
 def test_gain_tables_are_included(report):
@@ -632,3 +666,36 @@ def test_a_panel_no_case_can_fill_says_so():
     assert any("heading not logged" in t.get_text() for t in axes[1].texts)
     assert len(ov.notes) == 3 and all(n.startswith("PID: ") for n in ov.notes)
     report_figures.png_bytes(ov.figure)  # renders
+
+
+def test_after_a_break_the_safe_region_leaves_the_broken_line_out():
+    """The condition's second map: line 7 left out, k sigma from the damaged record's ready part,
+    drawn dashed; the intact one solid and filled."""
+    from tapm_opt.report.reliability import case_reliability, reliability_figure, safe_regions
+
+    res = _result("PID", seed=3, duration=2200.0, t_break=900.0)
+    tr = causal_traces_of(res)
+    cr = case_reliability(res, SC, tr, label="PID", controller="PID", setpoint="fixed")
+    assert [c.segment for c in cr.conditions] == [0, 1] and all(c.ready for c in cr.conditions)
+    assert cr.conditions[1].window == (pytest.approx(1600.5), 2200.0)
+    regions = safe_regions([cr], SC, SC.sea_state("normal"), n=21)
+    assert [r.inputs.state for r in regions] == ["intact", "after the break"]
+    intact, after = regions
+    assert intact.map is not None and after.map is not None
+    assert intact.inputs.broken == () and after.inputs.broken == ("7",)
+    assert "7" in intact.inputs.ksigma_lines and "7" not in after.inputs.ksigma_lines
+    ks1 = np.median(np.concatenate([r.ksigma for r in tr.lines["1"] if r.segment == 1]))
+    assert after.inputs.ksigma_lines["1"] == pytest.approx(ks1, rel=1e-12)
+    assert "after the break record" in after.inputs.source
+    psi = res["psi"][res.time >= 700.0 - 1e-9]
+    psi = psi[res.time[res.time >= 700.0 - 1e-9] <= 900.0]
+    assert intact.inputs.heading == pytest.approx(np.arctan2(np.sin(psi).sum(), np.cos(psi).sum()))
+    assert intact.inputs.tau_env is None   # no tau_env_hat channels in this record
+    rf = reliability_figure([cr], regions, SC.limits, title="t", delta_s=2.0)
+    assert set(rf.contours) == {"intact", "after the break"}
+    assert rf.contours["intact"].get_linestyle()[0][1] is None           # solid
+    assert rf.contours["after the break"].get_linestyle()[0][1] is not None   # dashed
+    assert rf.filled is not None
+    # the break is marked on the delta(t) panel
+    assert any(t.get_text().startswith(" line 7 broke") for t in rf.figure.axes[1].texts)
+    report_figures.png_bytes(rf.figure)

@@ -24,8 +24,8 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Polygon, Rectangle
 
 from ..geometry import rot2_apply, turret_position
-from .series import (MAX_POINTS, ComparisonSeries, TurretTrack, decimate, events_of, turret_position_of,
-                     turret_track)
+from .series import (MAX_POINTS, CausalTraces, ComparisonSeries, TurretTrack, decimate, events_of,
+                     turret_position_of, turret_track)
 
 __all__ = ["MAX_POINTS", "DPI", "CONTROLLER_COLORS", "decimate", "png_bytes", "controller_styles", "layout_figure",
            "motion_figure", "tension_figure", "thruster_figure", "OverlayFigure", "comparison_figure",
@@ -285,11 +285,16 @@ def motion_figure(result: Any, scenario: Any | None, *, title: str, track: Turre
     return fig
 
 
-def tension_figure(result: Any, scenario: Any | None, *, title: str,
-                   delta: Mapping[str, Sequence[tuple[np.ndarray, np.ndarray]]] | None = None,
-                   delta_s: float | None = None) -> Figure | None:
+def tension_figure(result: Any, scenario: Any | None, *, title: str, traces: CausalTraces | None = None,
+                   n_lowest: int = 4) -> Figure | None:
     """Fairlead tension per line with the allowed tension (tension_utilisation x MBS) and the MBS;
-    below it the reliability index delta(t) per line when ``delta`` is given."""
+    below it, with ``traces`` (:func:`~tapm_opt.report.series.causal_traces`), the causal
+    reliability index delta(t) of the ``n_lowest`` lines with the lowest minimum and of the riser
+    top and bottom angles, against delta_s, grey where the index is not ready yet.
+
+    Every delta curve carries ``gid="delta:line <id>"`` or ``"delta:riser <end>"``; the lowest line
+    and riser end are always drawn, so the lowest plotted value is the KPI ``delta_min`` (and
+    ``riser_delta_min``)."""
     if not any(c.startswith("T_fairlead[") for c in result.channels):
         return None
     t = result.time
@@ -304,7 +309,7 @@ def tension_figure(result: Any, scenario: Any | None, *, title: str,
         util = float(scenario.limits.tension_utilisation)
     refs = list(mbs.values()) or [float(np.nanmax(T))]
     f, unit = _scale([max(refs), float(np.nanmax(T))], "N")
-    with_delta = bool(delta)
+    with_delta = traces is not None
     fig = Figure(figsize=(13, 7.8 if with_delta else 4.8), layout="constrained")
     axes = fig.subplots(2 if with_delta else 1, 1, sharex=True, squeeze=False)[:, 0]
     ax = axes[0]
@@ -325,14 +330,32 @@ def tension_figure(result: Any, scenario: Any | None, *, title: str,
     ax.grid(True, alpha=0.3)
     if with_delta:
         axd = axes[1]
-        for j, lid in enumerate(ids):
-            for k, (tt, dd) in enumerate(delta.get(lid, ())):
-                tdd, ddd = decimate(tt, dd)
-                axd.plot(tdd, ddd, **sty[j], lw=0.8, label=f"line {lid}" if k == 0 else None)
-        if delta_s is not None:
-            axd.axhline(delta_s, color=ALERT_COLOR, ls="--", lw=1.5, label=f"threshold δ_s = {delta_s:g}")
+        lows = sorted(traces.lines, key=lambda lid: min(float(r.delta.min()) for r in traces.lines[lid]))
+        lows = lows[:max(int(n_lowest), 1)]
+        for lid in sorted(lows, key=lambda i: ids.index(i) if i in ids else len(ids)):
+            st = sty[ids.index(lid)] if lid in ids else {"color": "0.4", "ls": "-"}
+            for k, run in enumerate(traces.lines[lid]):
+                tdd, ddd = decimate(run.t, run.delta)
+                axd.plot(tdd, ddd, **st, lw=0.9, label=f"line {lid}" if k == 0 else None, gid=f"delta:line {lid}")
+        for end, ls in (("top", "-"), ("bottom", "--")):
+            for k, run in enumerate(traces.riser.get(end, ())):
+                tdd, ddd = decimate(run.t, run.delta)
+                axd.plot(tdd, ddd, color="k", ls=ls, lw=1.1, label=f"riser {end} angle" if k == 0 else None,
+                         gid=f"delta:riser {end}")
+        for k, (a, b) in enumerate(traces.segments):
+            r = traces.ready_from[k] if k < len(traces.ready_from) else None
+            b = b if r is None else r
+            if b > a:
+                axd.axvspan(a, b, color="0.85", alpha=0.6, lw=0,
+                            label="index not ready (windows filling)" if k == 0 else None)
+        axd.axhline(traces.delta_s, color=ALERT_COLOR, ls="--", lw=1.5, label=f"threshold δ_s = {traces.delta_s:g}")
+        if not (traces.lines or traces.riser):
+            _no_data(axd, "no causal index: each segment is shorter than the monitor's windows")
+        n_more = len(traces.lines) - len(lows)
         axd.set_ylabel("reliability index δ [-]")
-        axd.set_title("Reliability index per line (higher is safer)")
+        axd.set_title("Causal reliability index (higher is safer): "
+                      + (f"the {len(lows)} lowest lines" if n_more > 0 else "every line")
+                      + (" and the riser ends" if traces.riser else ""))
         axd.grid(True, alpha=0.3)
         axd.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7.5)
     axes[-1].set_xlabel("time [s]")

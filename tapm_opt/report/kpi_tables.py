@@ -2,9 +2,11 @@
 tables (controllers compared on otherwise equal cases), the full KPI table and the per-line table.
 
 "Better": lower is better for offsets, time outside the circles, heading error, tensions,
-utilisation, DNV ratios and failing lines, energy, power, fuel, solve times and failure/fallback
-counts; higher is better for the reliability index ``delta_min`` and the number of lines that pass
-a DNV check. Neutral (never marked): ``duration``, ``lines_broken`` and any KPI not named here.
+utilisation, the time below delta_s, DNV ratios and failing lines, riser end angles, energy, power,
+fuel, solve times and failure/fallback counts; higher is better for the reliability indices
+(``delta_min``, ``delta_min_offline``, ``riser_delta_min``, ``riser_delta_top_min``,
+``riser_delta_bottom_min``) and the number of lines that pass a DNV check. Neutral (never marked):
+``duration``, ``lines_broken`` and any KPI not named here.
 """
 
 from __future__ import annotations
@@ -29,8 +31,10 @@ _LOWER = {
     "dnv_uls", "dnv_als", "dnv_uls_fail", "dnv_als_fail", "thrust_energy", "thrust_power_mean", "fuel",
     "solver_time_median", "solver_time_p95", "solver_time_max", "solver_failures", "solver_fallbacks",
     "allocation_fallbacks", "controller_time_median", "controller_time_max",
+    "riser_top_angle_max_deg", "riser_bottom_angle_max_deg", "riser_delta_frac_below",
 }
-_HIGHER = {"delta_min", "dnv_uls_pass", "dnv_als_pass"}
+_HIGHER = {"delta_min", "delta_min_offline", "riser_delta_min", "riser_delta_top_min", "riser_delta_bottom_min",
+           "dnv_uls_pass", "dnv_als_pass"}
 _PER_LINE = re.compile(r"^(.*)\[(.*)\]$")
 
 #: The headline KPIs charted per condition (name, what it is), in chart order; ``util_max`` is
@@ -40,6 +44,7 @@ HEADLINE_KPIS: tuple[tuple[str, str], ...] = (
     ("time_outside_safe", "time outside the safe circle"),
     ("util_max", "max tension utilisation T/MBS"),
     ("delta_min", "min reliability index δ"),
+    ("riser_delta_min", "min riser reliability index δ"),
     ("thrust_energy", "thrust energy"),
 )
 _ALIASES = {"util_max": ("utilisation_max",)}
@@ -79,7 +84,9 @@ _FALLBACK_UNITS = {
     "dnv_uls": "-", "dnv_als": "-", "dnv_uls_pass": "lines", "dnv_uls_fail": "lines", "dnv_als_pass": "lines",
     "dnv_als_fail": "lines", "lines_broken": "lines", "thrust_energy": "J", "thrust_power_mean": "W", "fuel": "kg",
     "solver_time_median": "s", "solver_time_p95": "s", "solver_time_max": "s", "solver_failures": "-",
-    "solver_fallbacks": "-", "allocation_fallbacks": "-",
+    "solver_fallbacks": "-", "allocation_fallbacks": "-", "delta_min_offline": "-",
+    "riser_top_angle_max_deg": "deg", "riser_bottom_angle_max_deg": "deg", "riser_delta_min": "-",
+    "riser_delta_top_min": "-", "riser_delta_bottom_min": "-", "riser_delta_frac_below": "-",
 }
 
 
@@ -242,7 +249,8 @@ def _csv_table(header: list[str], rows: list[list[str]]) -> Table:
 
 
 def _line_table(kpis: dict, line_ids: Sequence[str]) -> Table | None:
-    qs = [q for q in ("T_max", "T_mean", "util_max", "delta_min", "delta_frac_below", "dnv_uls", "dnv_als")
+    qs = [q for q in ("T_max", "T_mean", "util_max", "delta_min", "delta_frac_below", "delta_min_offline", "dnv_uls",
+                      "dnv_als")
           if any(f"{q}[{lid}]" in kpis for lid in line_ids)]
     if not qs:
         return None

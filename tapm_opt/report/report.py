@@ -7,7 +7,9 @@ inline as base64 PNG, CSS inline, no external resource) and ``report.md`` (figur
 ``result.npz``, ``kpis.json``, ``kpis.csv`` and gain tables.
 
 Sections: 1 Study, 2 Scenario, 3 Controllers compared (per condition, every controller overlaid:
-turret offset, heading, max line tension, thrust power), 4 Cases, 5 KPIs (bar charts of the
+turret offset, heading, max line tension, thrust power; the setpoint layers and lowest causal
+reliability indices; with a riser or an optimal setpoint, the reliability-safe region, tracks,
+setpoints and delta(t), :mod:`tapm_opt.report.reliability`), 4 Cases, 5 KPIs (bar charts of the
 headline KPIs, then the tables), 6 Gains, 7 Failed cases. Each result is read once: the case
 sections are built first and keep the reduced curves the comparison figures need.
 
@@ -24,6 +26,8 @@ import os
 import re
 from pathlib import Path
 
+import numpy as np
+
 from .._io import atomic_write_bytes, atomic_write_text
 from . import figures as figs
 from .data import CaseInfo, ReportError, StudyData, read_study
@@ -32,7 +36,8 @@ from .document import (BEST_MARK, Cell, Details, Fig, Heading, Para, Pre, RawMar
 from .kpi_tables import (_PER_LINE, HEADLINE_KPIS, ConditionGroup, _csv_table, _full_kpi_table, _kpi_unit,
                          _label_keys, _line_table, condition_groups, headline_kpis, kpi_direction,
                          side_by_side_tables)
-from .series import comparison_series, events_of, reliability_traces
+from .reliability import OPTIMAL_SETPOINTS, case_reliability, plan_half_width, reliability_figure, safe_regions
+from .series import causal_traces, comparison_series, events_of
 
 __all__ = ["write_report", "ReportError", "kpi_direction", "side_by_side_tables", "BEST_MARK"]
 
@@ -46,9 +51,10 @@ def _slug(s: str) -> str:
 
 
 def _case_section(c: CaseInfo, blocks: list, figures_out: list[Fig], problems: list[str],
-                  overlay_out: dict | None = None) -> None:
+                  overlay_out: dict | None = None, rel_out: dict | None = None) -> None:
     """The figures and tables of one finished case; with ``overlay_out``, also store
-    ``overlay_out[c.id] = (ComparisonSeries, scenario limits or None)`` for the controller overlays."""
+    ``overlay_out[c.id] = (ComparisonSeries, scenario limits or None)`` for the controller overlays,
+    with ``rel_out``, ``rel_out[c.id] = (CaseReliability, scenario)`` for the reliability figures."""
     lab = ", ".join(f"{k} {v}" for k, v in c.labels.items())
     blocks.append(Heading(3, f"{c.name}", anchor=f"case-{c.id}"))
     blocks.append(Para(f"Case `{c.id}` · {lab}"))
@@ -92,18 +98,28 @@ def _case_section(c: CaseInfo, blocks: list, figures_out: list[Fig], problems: l
         f"{c.name}: turret offset — the centre of turret relative to its position at the field zero point — "
         "in plan view (y east right, x north up) with the safe and alert circles and the setpoint; turret "
         "offset and heading with their setpoints over time.")
-    rel = None
+    traces = None
     try:
-        rel = reliability_traces(result, scenario)
+        traces = causal_traces(result, scenario)
     except Exception as exc:  # noqa: BLE001
         problems.append(f"case {c.id}: reliability index not drawn: {exc}")
+    if rel_out is not None and (traces is not None or _setpoint_of(c, result) in OPTIMAL_SETPOINTS):
+        try:
+            rel_out[c.id] = (case_reliability(result, scenario, traces, label=c.controller, controller=c.controller,
+                                              setpoint=_setpoint_of(c, result)), scenario)
+        except Exception as exc:  # noqa: BLE001 - the condition's reliability figure then leaves this case out
+            problems.append(f"case {c.id}: tracks for the reliability figure not computed: {exc}")
     cap = (f"{c.name}: fairlead tension per line with the allowed tension (tension_utilisation·MBS, dashed red) "
            "and the MBS (black)")
-    if rel:
-        cap += ("; below, the reliability index δ(t) recomputed from the saved tensions (100 s low-pass "
-                "window, whole record, split at the first line break); δ_min in the table below is from kpis.json")
-    add("lines", lambda: figs.tension_figure(result, scenario, title=f"{title}: mooring lines",
-                                             delta=rel[0] if rel else None, delta_s=rel[1] if rel else None),
+    if traces is not None:
+        cap += ("; below, the causal reliability index δ(t) as the KPIs evaluate it (recomputed from the saved "
+                "tensions and riser angles: 100 s trailing low-pass, 600 s σ window, restarted at the first line "
+                "break, a broken line counted up to its break; grey where the estimate is not ready yet) of the "
+                "four lowest lines" + (" and of the riser top (solid black) and bottom (dashed black) angles"
+                                       if traces.riser else "")
+                + f", against δ_s = {traces.delta_s:g} (dashed red). Its lowest line value is the KPI `delta_min`"
+                + (", its lowest riser value `riser_delta_min`" if traces.riser else ""))
+    add("lines", lambda: figs.tension_figure(result, scenario, title=f"{title}: mooring lines", traces=traces),
         cap + ".")
     add("thrusters", lambda: figs.thruster_figure(result, title=f"{title}: thrusters"),
         f"{c.name}: thrust of each thruster and total thruster power.")
@@ -172,6 +188,111 @@ def _comparison_section(g: ConditionGroup, n: int, blocks: list, figures_out: li
         blocks.append(Para("Not in the figure: " + "; ".join(ov.notes) + ".", css="note"))
 
 
+def _setpoint_of(c: CaseInfo, result=None) -> str:
+    """The setpoint layer of a case: the study's ``closed_loop`` inputs, else the result's metadata."""
+    loop = c.inputs.get("closed_loop")
+    sp = loop.get("setpoint") if isinstance(loop, dict) else None
+    if sp is None and result is not None and isinstance(result.meta, dict):
+        sp = result.meta.get("setpoint")
+    return str(sp) if sp is not None else "?"
+
+
+def _setpoint_text(c: CaseInfo, layer: str) -> str:
+    loop = c.inputs.get("closed_loop")
+    opts = loop.get("setpoint_options") if isinstance(loop, dict) else None
+    if isinstance(opts, dict) and opts:
+        return f"{layer}, " + ", ".join(f"{k} = {_fmt(v) if isinstance(v, (int, float)) else v}"
+                                        for k, v in opts.items())
+    return layer
+
+
+def _reliability_section(g: ConditionGroup, n: int, blocks: list, figures_out: list[Fig], problems: list[str],
+                         rel: dict, styles: dict) -> None:
+    """Section 3, one condition: the lowest causal index of lines and riser per controller and the
+    setpoint layer (a paragraph), then, with a riser or an optimal setpoint, the reliability figure."""
+    from ..studies.kpis import DELTA_S_DEFAULT
+
+    parts = []
+    for col, m in zip(g.columns, g.members):
+        got = rel.get(m.id)
+        layer = got[0].setpoint if got is not None else _setpoint_of(m)
+        k = m.kpis or {}
+        vals = []
+        for key, what in (("delta_min", "lines"), ("riser_delta_min", "riser")):
+            v = k.get(key)
+            if isinstance(v, (int, float)):
+                vals.append(f"{what} {_fmt(v)}" + (" (below δ_s)" if v < DELTA_S_DEFAULT else ""))
+            elif key == "delta_min" or (got is not None and got[0].has_riser):
+                vals.append(f"{what} n/a")
+        parts.append(f"**{col}** (setpoint {_setpoint_text(m, layer)}): " + ", ".join(vals))
+    if parts:
+        blocks.append(Para(f"Lowest causal reliability index over the run (KPIs `delta_min`, `riser_delta_min` "
+                           f"from kpis.json; δ_s = {DELTA_S_DEFAULT:g}; n/a: no segment long enough for the "
+                           "monitor's 700 s of windows): " + "; ".join(parts) + "."))
+    members = [(col, m, rel[m.id]) for col, m in zip(g.columns, g.members) if m.id in rel]
+    if not members:
+        return
+    want = any(got[0].has_riser for _, _, got in members) or any(got[0].setpoint in OPTIMAL_SETPOINTS
+                                                                  for _, _, got in members)
+    if not want:
+        return
+    cases = []
+    for col, m, (cr, _) in members:
+        cr.label = col
+        cases.append(cr)
+    scenario = next((sc for _, _, (_, sc) in members if sc is not None), None)
+    limits = scenario.limits if scenario is not None else None
+    regions, map_note = [], ""
+    hw = plan_half_width(cases, limits)
+    if scenario is None:
+        map_note = "no safe region: the scenario could not be rebuilt"
+    else:
+        ss = None
+        sid = g.members[0].inputs.get("sea_state")
+        try:
+            ss = scenario.sea_state(sid) if isinstance(sid, str) else None
+        except Exception as exc:  # noqa: BLE001 - the map then sees still water
+            map_note = f"sea state {sid!r} not found ({exc}): the riser's current is left out of the map"
+        regions = safe_regions(cases, scenario, ss, half_width=hw)
+    try:
+        rf = reliability_figure(cases, regions, limits, title=f"Reliability and setpoints: {g.description}",
+                                delta_s=DELTA_S_DEFAULT, styles=styles, half_width=hw)
+        png = figs.png_bytes(rf.figure)
+    except Exception as exc:  # noqa: BLE001 - one figure must not stop the report
+        problems.append(f"reliability figure of {g.description} not drawn: {exc}")
+        blocks.append(Para(f"**Reliability figure not drawn:** {exc}", css="error"))
+        return
+    inputs = []
+    for reg in regions:
+        i = reg.inputs
+        tau = ("mean τ_env = (" + ", ".join(f"{v / 1e3:.0f}" for v in i.tau_env) + ") kN, kN, kN·m in {B}"
+               if i.tau_env is not None else "τ_env not logged")
+        ks = list(i.ksigma_lines.values())
+        kstxt = (f"k·σ of the lines {min(ks) / 1e3:.0f}–{max(ks) / 1e3:.0f} kN" if ks else "no line k·σ")
+        if reg.map is not None and reg.map.delta_riser is not None:
+            kstxt += (f", of the riser top {np.degrees(i.ksigma_riser[0]):.2f}° and bottom "
+                      f"{np.degrees(i.ksigma_riser[1]):.2f}°")
+        state = i.state + (f" (lines {', '.join(i.broken)} left out; dashed teal)" if i.broken
+                           else " (solid dark green, filled)")
+        inputs.append(f"{state}: heading {np.degrees(i.heading):.1f}°, {tau}, {kstxt} — {i.source}"
+                      + (f"; **not computed:** {reg.error}" if reg.map is None else ""))
+    cap = (f"{g.short}: left, the reliability-safe region — turret offsets where every line's and the riser's "
+           f"reliability index is at least δ_s = {DELTA_S_DEFAULT:g} on the design models "
+           "(`design.setpoint.reliability_map`: catenary lines, quasi-static riser in the sea state's current) — "
+           "with the safe (green) and alert (red) circles, each controller's turret track (thin) and setpoint "
+           "trajectory x_d, y_d (dashed, its re-optimised targets ✕), in the controller colours. Right: the "
+           "lowest causal reliability index over the lines and over the riser ends (the KPIs `delta_min`, "
+           "`riser_delta_min` are their minima), grey where the monitor's windows are still filling, events "
+           "dotted. The maps are evaluated at the condition's mean conditions, pooled over its controllers: "
+           + "; ".join(inputs) + ("" if inputs else "no map") + ".")
+    notes = ([map_note] if map_note else []) + rf.notes
+    if notes:
+        cap += " Notes: " + "; ".join(notes) + "."
+    f = Fig(name=f"reliability_{n + 1}", png=png, caption=cap)
+    figures_out.append(f)
+    blocks.append(f)
+
+
 def _kpi_charts(study: StudyData, blocks: list, figures_out: list[Fig], problems: list[str], overlay: dict,
                 styles: dict) -> None:
     """Section 5: grouped bar charts of the headline KPIs, one group per condition, one bar per controller."""
@@ -193,7 +314,8 @@ def _kpi_charts(study: StudyData, blocks: list, figures_out: list[Fig], problems
     try:
         from ..studies.kpis import DELTA_S_DEFAULT
 
-        refs["delta_min"] = [(DELTA_S_DEFAULT, f"δ_s = {DELTA_S_DEFAULT:g}", figs.ALERT_COLOR)]
+        refs["delta_min"] = refs["riser_delta_min"] = [(DELTA_S_DEFAULT, f"δ_s = {DELTA_S_DEFAULT:g}",
+                                                        figs.ALERT_COLOR)]
     except ImportError:
         pass
     chunks = [groups[i:i + BARS_PER_CHART] for i in range(0, len(groups), BARS_PER_CHART)]
@@ -320,8 +442,9 @@ def _build(study: StudyData, fig_dir_rel: str, kpi_csv_rel: str) -> tuple[list, 
     done = [c for c in study.cases if c.status == "finished"]
     case_blocks: list = []
     overlay: dict = {}
+    rel: dict = {}
     for c in done:
-        _case_section(c, case_blocks, fig_list, problems, overlay)
+        _case_section(c, case_blocks, fig_list, problems, overlay, rel)
 
     # 3. controllers compared
     blocks.append(Heading(2, "3 Controllers compared", anchor="compare"))
@@ -334,9 +457,13 @@ def _build(study: StudyData, fig_dir_rel: str, kpi_csv_rel: str) -> tuple[list, 
             "on shared time axes — turret offset, heading, the largest line tension and the thrust power. "
             "Colours: " + ", ".join(f"{nm} {st['color'].replace('tab:', '')}" for nm, st in styles.items())
             + ", the same in every comparison figure and KPI chart. Curves reduced to at most "
-            f"{figs.MAX_POINTS} points (min/max per bucket, peaks kept)."))
+            f"{figs.MAX_POINTS} points (min/max per bucket, peaks kept). Below each, the setpoint layer and the "
+            "lowest causal reliability index of every controller and, with a riser or an optimal setpoint, "
+            "the reliability-safe region with the turret tracks and setpoint trajectories and δ(t) of lines "
+            "and riser against δ_s."))
     for n, g in enumerate(groups):
         _comparison_section(g, n, blocks, fig_list, problems, overlay, styles)
+        _reliability_section(g, n, blocks, fig_list, problems, rel, styles)
 
     # 4. cases
     blocks.append(Heading(2, "4 Cases", anchor="cases"))
@@ -351,9 +478,11 @@ def _build(study: StudyData, fig_dir_rel: str, kpi_csv_rel: str) -> tuple[list, 
     blocks.append(Heading(3, "KPI tables"))
     blocks.append(Para("Controllers side by side: one table per set of cases that share every label except the "
                        f"controller. The better value of each KPI is **bold** and marked {BEST_MARK} (lower is "
-                       "better for offsets, time outside the circles, heading error, tensions, utilisation, DNV "
-                       "ratios, energy, power, fuel, solve times and failure/fallback counts; higher is better for "
-                       "the reliability index δ and the number of lines passing a DNV check; `duration` and "
+                       "better for offsets, time outside the circles, heading error, tensions, utilisation, time "
+                       "below δ_s, DNV ratios, riser end angles, energy, power, fuel, solve times and "
+                       "failure/fallback counts; higher is better for the reliability indices δ of the lines and "
+                       "the riser (causal `delta_min`, offline `delta_min_offline`, `riser_delta_*_min`) and the "
+                       "number of lines passing a DNV check; `duration` and "
                        "`lines_broken` are not compared). Values from each case's `kpis.json`, 4 significant "
                        "digits; definitions in `docs/kpis.md`."))
     sbs = side_by_side_tables(study.cases)
@@ -439,7 +568,7 @@ def write_report(study_dir: str | Path, *, out_html: str | Path | None = None,
         atomic_write_bytes(fig_dir / f"{f.name}.png", f.png)
         names.add(f"{f.name}.png")
     for old in fig_dir.glob("*.png"):
-        if old.name not in names and old.name.startswith(("case_", "layout", "compare_", "kpi_bars")):
+        if old.name not in names and old.name.startswith(("case_", "layout", "compare_", "kpi_bars", "reliability_")):
             old.unlink(missing_ok=True)
     atomic_write_text(out_md, md)
     atomic_write_text(out_html, page)

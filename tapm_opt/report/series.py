@@ -4,7 +4,8 @@
   §4.2.1; ``docs/nomenclature.md``): trajectories, safe and alert circles and offsets refer to the
   centre of turret's horizontal position relative to where it rests at the field zero point,
   :func:`tapm_opt.geometry.turret_offset` of the logged body-origin pose (x, y, psi).
-* :func:`reliability_traces`: the reliability index delta(t) per line from the saved tensions.
+* :func:`causal_traces`: the causal reliability index delta(t) of every line and riser end from the
+  saved tensions and riser angles, evaluated as the KPIs do (:func:`causal_runs`).
 * :func:`events_of`: the ``[time, text]`` events of a result.
 * :func:`comparison_series`: the four curves of one case in the controller overlay figure (turret
   offset, heading, maximum line tension, total thrust power), reduced with :func:`decimate`.
@@ -20,14 +21,18 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from ..estimation.reliability import LP_WINDOW_DEFAULT, SIGMA_WINDOW_DEFAULT, causal_reliability
 from ..geometry import turret_offset
+from ..studies.kpis import DELTA_S_DEFAULT, RISER_ENDS
 from .data import ReportError
 
-__all__ = ["MAX_POINTS", "TurretTrack", "ComparisonSeries", "decimate", "turret_position_of", "turret_track",
-           "reliability_traces", "events_of", "comparison_series"]
+__all__ = ["MAX_POINTS", "TurretTrack", "ComparisonSeries", "IndexRun", "CausalTraces", "decimate",
+           "turret_position_of", "turret_track", "break_times", "causal_runs", "causal_traces", "events_of",
+           "comparison_series"]
 
 #: Most points per plotted curve (see :func:`decimate`).
 MAX_POINTS = 2000
+_BREAK_RE = re.compile(r"line\s+(\S+)\s+broke")
 
 
 def decimate(t: np.ndarray, y: np.ndarray, n: int = MAX_POINTS) -> tuple[np.ndarray, np.ndarray]:
@@ -135,56 +140,188 @@ def turret_track(result: Any, p_cot_B: Any) -> TurretTrack:
                        y_d=np.asarray(result["y_d"], dtype=float) if has_sp else None, p_cot_B=p)
 
 
-def reliability_traces(result: Any, scenario: Any) -> tuple[dict[str, list], float] | None:
-    """delta(t) per line from the saved tensions with the KPI module's reliability index (survey
-    eq. 32, default window), split at the first line break like the KPIs.
+@dataclass(frozen=True)
+class IndexRun:
+    """The causal reliability index of one signal (or the lowest over several) on one segment,
+    at the samples where the estimate is ready (and the signal alive).
+
+    Attributes
+    ----------
+    segment : int
+        0: the intact record (up to and including the first line break), 1: the damaged record.
+    t : ndarray, shape (k,)
+        Times [s].
+    delta : ndarray, shape (k,)
+        delta(t) [-] (survey eq. 32; [R] §2.2).
+    ksigma : ndarray, shape (k,) or None
+        The extreme allowance k sigma at those times, in the unit of the signal (N for a line, rad
+        for a riser end); None for a lowest-over-signals run.
+    """
+
+    segment: int
+    t: np.ndarray
+    delta: np.ndarray
+    ksigma: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class CausalTraces:
+    """The causal reliability index of one saved case, evaluated as its KPIs are (:func:`causal_traces`).
+
+    Attributes
+    ----------
+    lines : dict
+        ``lines[line_id]``: the :class:`IndexRun` of each segment where that line has values (lines
+        with MBS_std > 0 only). Their minimum is the KPI ``delta_min[<id>]``.
+    riser : dict
+        ``riser["top"]``, ``riser["bottom"]``: the same for the riser end angles (scenario riser and
+        channels ``riser_top_angle``, ``riser_bottom_angle`` present). Minima: ``riser_delta_<end>_min``.
+    lines_min, riser_min : list of IndexRun
+        Per segment, the lowest index over the alive lines (over both riser ends) at each ready
+        instant; their minima are the KPIs ``delta_min`` and ``riser_delta_min``.
+    segments : list of (float, float)
+        First and last time [s] of each segment that has at least two samples.
+    ready_from : list of float or None
+        Per segment, the first time the index is ready (None: never, the segment is shorter than
+        ``lp_window + sigma_window``).
+    t_break : float or None
+        Time of the first line break [s].
+    broken : tuple of str
+        Lines broken during the record (the ``"line <id> broke"`` events).
+    delta_s : float
+        Threshold of the index [-] (:data:`tapm_opt.studies.kpis.DELTA_S_DEFAULT`).
+    """
+
+    lines: dict[str, list[IndexRun]]
+    riser: dict[str, list[IndexRun]]
+    lines_min: list[IndexRun]
+    riser_min: list[IndexRun]
+    segments: list[tuple[float, float]]
+    ready_from: list[float | None]
+    t_break: float | None
+    broken: tuple[str, ...]
+    delta_s: float
+
+
+def break_times(result: Any) -> dict[str, float]:
+    """``{line id: time [s]}`` of the ``"line <id> broke"`` events of a result (the first per line)."""
+    out: dict[str, float] = {}
+    for ev in events_of(result):
+        try:
+            m = _BREAK_RE.fullmatch(str(ev[1]).strip())
+            if m:
+                out[m.group(1)] = min(float(ev[0]), out.get(m.group(1), math.inf))
+        except (TypeError, ValueError, IndexError):
+            continue
+    return out
+
+
+def causal_runs(t: np.ndarray, X: np.ndarray, r_t: np.ndarray, sigma_t: np.ndarray,
+                segments: Sequence[np.ndarray], alive: np.ndarray, *, names: Sequence[str],
+                lp_window: float = LP_WINDOW_DEFAULT, sigma_window: float = SIGMA_WINDOW_DEFAULT,
+                ) -> tuple[list[list[IndexRun]], list[IndexRun]]:
+    """The causal index of the columns of ``X`` (N, m), restarted on each segment, exactly as the
+    KPIs evaluate it (:func:`tapm_opt.studies.kpis.case_kpis`): one
+    :func:`~tapm_opt.estimation.reliability.causal_reliability` per segment (boolean masks over
+    ``t``), a column's values kept where the estimate is ready and the column's ``alive`` (m, N)
+    holds. Unlike the KPI module's own loop it also keeps ``k sigma`` and the lowest index over the
+    columns at each instant.
 
     Returns
     -------
-    (traces, delta_s) or None
-        ``traces[line_id]`` is a list of ``(t [s], delta [-])`` segments (intact record, then the
-        damaged record while the line is alive); ``delta_s`` is the KPI module's threshold [-].
-        None when the KPI module, the scenario or every line's breaking-strength scatter is missing.
+    (per_column, lowest)
+        ``per_column[j]``: the :class:`IndexRun` of column j on each segment where it has values;
+        ``lowest``: per segment, the minimum over the alive columns at each ready instant.
     """
-    try:
-        from ..studies.kpis import DELTA_S_DEFAULT, LP_WINDOW_DEFAULT, reliability_index
-    except ImportError:
-        return None
-    if scenario is None:
-        return None
-    t = result.time
-    breaks: dict[str, float] = {}
-    for ev in events_of(result):
-        try:
-            m = re.fullmatch(r"line\s+(\S+)\s+broke", str(ev[1]).strip())
-            if m:
-                breaks[m.group(1)] = min(float(ev[0]), breaks.get(m.group(1), math.inf))
-        except (TypeError, ValueError, IndexError):
+    per: list[list[IndexRun]] = [[] for _ in range(X.shape[1])]
+    lowest: list[IndexRun] = []
+    for s, seg in enumerate(segments):
+        if seg.sum() < 2:
             continue
+        ts = t[seg]
+        rec = causal_reliability(ts, X[seg], r_t, sigma_t, names=names, lp_window=lp_window,
+                                 sigma_window=sigma_window)
+        ok = rec.ready[None, :] & alive[:, seg]           # (m, n)
+        ks = np.asarray(rec.k) * np.asarray(rec.sigma)     # (n, m)
+        for j in range(X.shape[1]):
+            if ok[j].any():
+                per[j].append(IndexRun(segment=s, t=ts[ok[j]], delta=np.asarray(rec.delta[ok[j], j]),
+                                       ksigma=ks[ok[j], j]))
+        anyok = ok.any(axis=0)
+        if anyok.any():
+            d = np.where(ok.T, np.asarray(rec.delta), np.inf)[anyok]
+            lowest.append(IndexRun(segment=s, t=ts[anyok], delta=d.min(axis=1)))
+    return per, lowest
+
+
+def causal_traces(result: Any, scenario: Any, *, lp_window: float = LP_WINDOW_DEFAULT,
+                  sigma_window: float = SIGMA_WINDOW_DEFAULT) -> CausalTraces | None:
+    """The causal reliability index delta(t) (survey eq. 32; [R] §2.2) of every line and riser end
+    of a saved result, as the KPIs evaluate it: the record split at the first line break (the
+    estimate restarts there), a broken line counted up to its break, values only where the
+    estimate is ready (``lp_window + sigma_window`` = 700 s into each segment by default). The
+    minima of the runs are the KPIs ``delta_min[<id>]``, ``delta_min``, ``riser_delta_top_min``,
+    ``riser_delta_bottom_min`` and ``riser_delta_min`` of :func:`tapm_opt.studies.kpis.case_kpis`
+    with its defaults.
+
+    Returns
+    -------
+    CausalTraces or None
+        None without a scenario or without a signal that has an index (a line with MBS_std > 0, a
+        riser end); a record too short for the index gives empty runs.
+
+    Raises
+    ------
+    TapmError
+        A tension or riser channel is not finite (``ReliabilityError``).
+    """
+    if scenario is None or len(result.time) < 2:
+        return None
+    t = np.asarray(result.time, dtype=float)
+    breaks = break_times(result)
+    ids_all = [ln.id for ln in scenario.lines]
+    breaks = {k: v for k, v in breaks.items() if k in ids_all}
     t_b1 = min(breaks.values(), default=math.inf)
     eps = 1e-9 * max(1.0, abs(float(t[-1])))
+    intact_all = t <= t_b1 + eps
+    segments = (intact_all, ~intact_all)
+    spans = [(float(t[s][0]), float(t[s][-1])) for s in segments if s.sum() >= 2]
     mbs = scenario.line_arrays["MBS"]
     mbs_std = scenario.line_arrays["MBS_std"]
-    out: dict[str, list] = {}
-    for j, ln in enumerate(scenario.lines):
-        ch = f"T_fairlead[{ln.id}]"
-        if ch not in result or not mbs_std[j] > 0:
-            continue
-        T = result[ch]
-        alive = t <= breaks.get(ln.id, math.inf) + eps
-        intact = alive & (t <= t_b1 + eps)
-        damaged = alive & ~intact
-        segs = []
-        for seg in (intact, damaged):
-            if seg.sum() >= 2:
-                try:
-                    tr = reliability_index(t[seg], T[seg], float(mbs[j]), float(mbs_std[j]), window=LP_WINDOW_DEFAULT)
-                except Exception:  # noqa: BLE001 - a figure must not stop the report
-                    continue
-                segs.append((np.asarray(tr.time), np.asarray(tr.delta)))
-        if segs:
-            out[ln.id] = segs
-    return (out, float(DELTA_S_DEFAULT)) if out else None
+    cols = [j for j, lid in enumerate(ids_all) if f"T_fairlead[{lid}]" in result and mbs_std[j] > 0]
+    lines: dict[str, list[IndexRun]] = {}
+    lines_min: list[IndexRun] = []
+    ready: dict[int, float] = {}
+    if cols:
+        ids = [ids_all[j] for j in cols]
+        X = np.column_stack([np.asarray(result[f"T_fairlead[{lid}]"], dtype=float) for lid in ids])
+        alive = np.stack([t <= breaks.get(lid, math.inf) + eps for lid in ids])
+        per, lines_min = causal_runs(t, X, mbs[cols], mbs_std[cols], segments, alive, names=ids,
+                                     lp_window=lp_window, sigma_window=sigma_window)
+        lines = {lid: r for lid, r in zip(ids, per) if r}
+    riser: dict[str, list[IndexRun]] = {}
+    riser_min: list[IndexRun] = []
+    rs = getattr(scenario, "riser", None)
+    ends = [(end, ch, fld) for end, ch, fld in RISER_ENDS if ch in result]
+    if rs is not None and ends:
+        r_t = np.array([float(getattr(rs, fld)) for _, _, fld in ends])
+        s_t = np.array([float(getattr(rs, fld + "_std")) for _, _, fld in ends])
+        if np.all(np.isfinite(r_t)) and np.all(np.isfinite(s_t) & (s_t > 0)):
+            X = np.column_stack([np.asarray(result[ch], dtype=float) for _, ch, _ in ends])
+            per, low = causal_runs(t, X, r_t, s_t, segments, np.ones((len(ends), len(t)), bool),
+                                   names=[e for e, _, _ in ends], lp_window=lp_window, sigma_window=sigma_window)
+            riser = {end: r for (end, _, _), r in zip(ends, per) if r}
+            if all(per):  # as the KPI: the worst end only when every end has values
+                riser_min = low
+    if not cols and not (rs is not None and ends):
+        return None
+    for run in [*lines_min, *riser_min]:
+        ready[run.segment] = min(float(run.t[0]), ready.get(run.segment, math.inf))
+    n_seg = sum(1 for s in segments if s.sum() >= 2)
+    return CausalTraces(lines=lines, riser=riser, lines_min=lines_min, riser_min=riser_min, segments=spans,
+                        ready_from=[ready.get(s) for s in range(n_seg)],
+                        t_break=None if not math.isfinite(t_b1) else float(t_b1),
+                        broken=tuple(sorted(breaks, key=lambda k: (breaks[k], k))), delta_s=float(DELTA_S_DEFAULT))
 
 
 # -- controller overlay ------------------------------------------------------------------------
