@@ -432,16 +432,20 @@ def plant_forced_motion(scenario_name: str, dof: str, amplitude: float, period: 
 @click.option("--segments", type=click.IntRange(2, 1000), default=None, help="FEM segments per line.")
 @click.option("--dt-control", type=float, default=1.0, show_default=True,
               help="Control/allocation period [s], >= 0.01; the run is logged every control step, at least 1 s apart.")
-@click.option("--setpoint", type=click.Choice(["fixed", "chasing"]), default="fixed", show_default=True,
-              help="Fixed setpoint (turret at its field-zero-point position), or setpoint chasing (survey eq. 38).")
+@click.option("--setpoint", type=click.Choice(["fixed", "chasing", "quadratic", "reliability", "unified"]),
+              default="fixed", show_default=True,
+              help="Fixed setpoint (turret at its field-zero-point position), setpoint chasing (survey eq. 38), or "
+                   "the optimum of the quadratic (eq. 34), reliability-index (eq. 36) or unified riser + mooring cost.")
+@click.option("--setpoint-option", "setpoint_options", multiple=True, metavar="KEY=VALUE",
+              help="Option of the optimal setpoints, e.g. --setpoint-option period=60 (repeatable).")
 @click.option("--heading", type=click.Choice(["chasing", "fixed"]), default="chasing", show_default=True,
               help="Weather-optimal heading (bow into the estimated mean environmental force) or fixed north.")
 @click.option("--true-state", is_flag=True, help="Give the controller the true LF state (no estimator).")
 @click.option("--option", "options", multiple=True, metavar="KEY=VALUE",
               help="Controller option, e.g. --option horizon=30 --option solver=ipopt (repeatable).")
 def simulate(scenario_name: str, controller: str, duration: float, out_dir: str, sea_state: str | None, seed: int,
-             segments: int | None, dt_control: float, setpoint: str, heading: str, true_state: bool,
-             options: tuple[str, ...]) -> None:
+             segments: int | None, dt_control: float, setpoint: str, setpoint_options: tuple[str, ...], heading: str,
+             true_state: bool, options: tuple[str, ...]) -> None:
     """Run CONTROLLER in closed loop against the FEM plant of SCENARIO and save the run.
 
     Writes OUT/result.npz (all channels, labelled; numpy.load reads it) and OUT/summary.json
@@ -461,12 +465,11 @@ def simulate(scenario_name: str, controller: str, duration: float, out_dir: str,
         raise click.BadParameter(f"--dt-control = {dt_control:g} s must be between 0.01 s (100 Hz, faster than any "
                                  f"position-control loop) and --duration = {duration:g} s")
     dt_log = dt_control * max(1, math.ceil(1.0 / dt_control - 1e-9))  # every control step, >= 1 s apart
-    spec: dict = {"type": controller}
-    for opt in options:
-        if "=" not in opt:
-            raise click.BadParameter(f"--option {opt!r} must look like KEY=VALUE")
-        k, v = opt.split("=", 1)
-        spec[k.strip()] = _parse_value(v.strip())
+    spec: dict = {"type": controller, **_key_values(options, "--option")}
+    sp_opts = _key_values(setpoint_options, "--setpoint-option")
+    if sp_opts and setpoint not in ("quadratic", "reliability", "unified"):
+        raise click.BadParameter(f"--setpoint-option is for the optimal setpoints (quadratic, reliability, unified), "
+                                 f"not --setpoint {setpoint}")
     sc = _load(scenario_name)
     if sea_state is not None and sea_state != "none" and sea_state not in [s.id for s in sc.sea_states]:
         raise click.BadParameter(f"{sea_state!r} is not a sea state of scenario {sc.name!r}; its sea states: "
@@ -476,10 +479,10 @@ def simulate(scenario_name: str, controller: str, duration: float, out_dir: str,
     _check_issues(log_size_issues(sc, duration, dt_log, where="--duration", dt_name="every control step, >= 1 s apart"))
     system = System.from_scenario(sc)  # built once: controller, runner and estimator share it
     ctrl = build_controller(system, spec, where="--option")
+    settings = ClosedLoopSettings(duration=duration, dt_control=dt_control, dt_log=dt_log, true_state=true_state,
+                                  setpoint=setpoint, heading=heading, setpoint_options=sp_opts or None)
     w0 = time.perf_counter()
     plant = Plant(system, sea_state=sea_state, seed=seed, segments=segments)
-    settings = ClosedLoopSettings(duration=duration, dt_control=dt_control, dt_log=dt_log, true_state=true_state,
-                                  setpoint=setpoint, heading=heading)
     res = run_closed_loop(plant, ctrl, settings, system=system, meta={"controller_spec": spec, "seed": seed})
     out = Path(out_dir)
     res.save(out / "result.npz")
@@ -503,6 +506,17 @@ def simulate(scenario_name: str, controller: str, duration: float, out_dir: str,
     click.echo(f"wrote {out / 'result.npz'} and {out / 'summary.json'}")
 
 
+def _key_values(items: tuple[str, ...], flag: str) -> dict:
+    """``KEY=VALUE`` options as a dict (values by :func:`_parse_value`)."""
+    out: dict = {}
+    for opt in items:
+        if "=" not in opt:
+            raise click.BadParameter(f"{flag} {opt!r} must look like KEY=VALUE")
+        k, v = opt.split("=", 1)
+        out[k.strip()] = _parse_value(v.strip())
+    return out
+
+
 def _parse_value(text: str):
     """A --option value: number, list of numbers (comma-separated), true/false, or text."""
     low = text.lower()
@@ -520,6 +534,80 @@ def _parse_value(text: str):
 # ------------------------------------------------------------------------------------------
 # tapm gains
 # ------------------------------------------------------------------------------------------
+
+
+@cli.command()
+@click.argument("scenario_name", metavar="SCENARIO")
+@click.option("--sea-state", "sea_state", required=True, help="Sea state id of the scenario.")
+@click.option("--method", type=click.Choice(["quadratic", "reliability", "unified"]), required=True,
+              help="Quadratic thrust + offset cost (survey eq. 34), thrust + failure probability (eq. 36), or the "
+                   "unified riser + mooring reliability cost (reliability-setpoint-riser-mooring §2.2).")
+@click.option("--broken", default="", help="Comma-separated ids of lines known broken.")
+@click.option("--heading", "heading", default="weathervane", show_default=True,
+              help="Heading [deg], or 'weathervane' (where the mooring balances the mean yaw moment).")
+@click.option("--from", "working_point", default="0,0", show_default=True, metavar="X,Y",
+              help="Present turret offset [m]: the working point of the closed form and the solver's start.")
+@click.option("--option", "options", multiple=True, metavar="KEY=VALUE",
+              help="Setpoint option, e.g. --option w_bottom=20 (repeatable).")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of text.")
+def setpoint(scenario_name: str, sea_state: str, method: str, broken: str, heading: str, working_point: str,
+             options: tuple[str, ...], as_json: bool) -> None:
+    """Print the optimal turret setpoint of SCENARIO in a sea state and every reliability index there.
+
+    The mean environmental load and the wave-frequency allowance k sigma come from the scenario
+    (quasi-static, over 3 hours); for --method unified also the closed-form optimum of the
+    reliability paper and its distance to the numeric one.
+    """
+    import json
+
+    from .design.setpoint import static_setpoint
+
+    sc = _load(scenario_name)
+    if sea_state not in [s.id for s in sc.sea_states]:
+        raise click.BadParameter(f"{sea_state!r} is not a sea state of scenario {sc.name!r}; its sea states: "
+                                 f"{', '.join(s.id for s in sc.sea_states) or 'none'}", param_hint="'--sea-state'")
+    ids = [ln.id for ln in sc.lines]
+    bl = [b.strip() for b in broken.split(",") if b.strip()]
+    for b in bl:
+        if b not in ids:
+            raise click.BadParameter(f"{b!r} is not a line of scenario {sc.name!r}; lines: {', '.join(ids)}",
+                                     param_hint="'--broken'")
+    if heading.strip().lower() == "weathervane":
+        psi = None
+    else:
+        try:
+            psi = math.radians(float(heading))
+        except ValueError:
+            psi = math.nan
+        if not math.isfinite(psi):
+            raise click.BadParameter(f"{heading!r} must be a heading in degrees or 'weathervane'",
+                                     param_hint="'--heading'")
+    wp = _parse_floats(working_point, "--from")
+    if wp.shape != (2,):
+        raise click.BadParameter(f"{working_point!r} must be two numbers X,Y [m]", param_hint="'--from'")
+    res = static_setpoint(sc, sea_state, method, broken=bl, heading=psi, working_point=wp,
+                          options=_key_values(options, "--option"))
+    if as_json:
+        click.echo(json.dumps(res.as_json(), indent=2))
+        return
+    x, y = res.setpoint
+    click.echo(f"{sc.name}, {res.sea_state} sea, {method} setpoint"
+               + (f", line(s) {', '.join(res.broken)} broken" if res.broken else "")
+               + f"; heading {math.degrees(res.heading):.1f} deg")
+    click.echo(f"  setpoint (turret offset): x = {x:.2f} m, y = {y:.2f} m (|p| = {math.hypot(x, y):.2f} m); "
+               f"thrust needed {100 * res.info['F_T']:.1f} % of capacity")
+    worst = min(res.delta_lines, key=res.delta_lines.get) if res.delta_lines else None
+    click.echo("  line delta: " + ", ".join(f"{k} {v:.2f}" for k, v in res.delta_lines.items())
+               + (f"  (lowest: line {worst})" if worst else ""))
+    if res.delta_riser_top is not None:
+        click.echo(f"  riser delta: top {res.delta_riser_top:.2f}, bottom {res.delta_riser_bottom:.2f}")
+    if res.closed_form is not None:
+        cx, cy = res.closed_form
+        ix, iy = res.closed_form_iterated
+        nx, ny = res.numeric
+        click.echo(f"  the paper's unified cost as printed: numeric optimum x = {nx:.2f} m, y = {ny:.2f} m; closed form "
+                   f"one step from {wp[0]:g},{wp[1]:g}: x = {cx:.2f} m, y = {cy:.2f} m ({res.distance:.2f} m from it); "
+                   f"iterated: x = {ix:.2f} m, y = {iy:.2f} m ({res.distance_iterated:.2f} m)")
 
 
 @cli.command()

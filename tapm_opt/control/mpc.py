@@ -72,6 +72,15 @@ class _MPCBase:
         self.plan_u: np.ndarray | None = None
         self._poly: np.ndarray | None = None  # thrust-polytope parameters of the thrusters alive
         self._poly_box: np.ndarray | None = None  # the stand-in box when no polytope has an interior
+        # reliability constraints: the riser (its angles are affine in the hang-off position; the
+        # current's share is learnt from the measured angles) and the limits the indices give
+        self.riser = None
+        if settings.reliability and self.system.scenario.riser is not None:
+            from ..models.riser import RiserModel
+
+            self.riser = RiserModel.from_scenario(self.system.scenario, None)
+        self._theta_lf: np.ndarray | None = None   # low-passed measured riser angles (4,) [rad]
+        self._t_theta: float | None = None
 
     @property
     def owns_allocation(self) -> bool:
@@ -104,7 +113,59 @@ class _MPCBase:
         p[pi["x0"]], p[pi["u_prev"]], p[pi["eta_d"]], p[pi["b"]] = np.concatenate([eta, nu]), u_prev, eta_d, b_E
         if pi["moor"].stop > pi["moor"].start:
             p[pi["moor"]] = mooring_parameters(self.model, self._centre(eta, eta_d))
+        p[pi["T_lim"]] = self._tension_limits(est)
+        if pi["riser"].stop > pi["riser"].start:
+            p[pi["riser"]] = self._riser_parameters(est)
         return p
+
+    #: Time constant of the low-pass of the measured riser angles that gives the current's share [s].
+    RISER_LF_TIME = 60.0
+
+    def _tension_limits(self, est: Estimate) -> np.ndarray:
+        """Allowed fairlead tension of every modelled line [N]: ``tension_utilisation`` x MBS, or
+        with ``reliability`` the tension at which the line's index is ``delta_s``,
+        ``T_b - k sigma - delta_s sigma_b`` (``k sigma`` from ``est.reliability``; lines without
+        sigma_b keep the utilisation limit), floored at 5 % of MBS."""
+        s, prob = self.settings, self._prob
+        T_allow = np.asarray(prob.scale["T_allow"], float)
+        if not s.reliability:
+            return T_allow
+        sc = self.system.scenario
+        std = dict(zip([ln.id for ln in sc.lines], np.asarray(sc.line_arrays["MBS_std"], float)))
+        ks = {} if est.reliability is None else est.reliability.allowance()
+        mbs = np.asarray(self.model.MBS, float)
+        out = T_allow.copy()
+        for i, lid in enumerate(self.model.line_ids):
+            if std[lid] > 0:
+                out[i] = max(mbs[i] - ks.get(f"line {lid}", 0.0) - s.delta_s * std[lid], 0.05 * mbs[i])
+        return out
+
+    def _riser_parameters(self, est: Estimate) -> np.ndarray:
+        """(limit top, limit bottom, current's share of the top angle (2), of the bottom angle (2))
+        [rad]: the limits are the angles at which each end's index is ``delta_s``,
+        ``r - k sigma - delta_s sigma_r`` (floored at 0.05 deg); the shares are the low-passed
+        measured angles less the hang-off part ``c (p_h - wellhead)`` at the estimated pose
+        (zero without measured angles: still water)."""
+        rs, R = self.system.scenario.riser, self.riser
+        ks = {} if est.reliability is None else est.reliability.allowance()
+        floor = math.radians(0.05)
+        lim = [max(rs.critical_top_angle - ks.get("riser top", 0.0) - self.settings.delta_s * rs.critical_top_angle_std,
+                   floor),
+               max(rs.critical_bottom_angle - ks.get("riser bottom", 0.0)
+                   - self.settings.delta_s * rs.critical_bottom_angle_std, floor)]
+        share = np.zeros(4)
+        if est.riser_angles is not None:
+            th = np.asarray(est.riser_angles, float)
+            if self._theta_lf is None or self._t_theta is None:
+                self._theta_lf = th.copy()
+            else:
+                a = math.exp(-max(est.t - self._t_theta, 0.0) / self.RISER_LF_TIME)
+                self._theta_lf = a * self._theta_lf + (1 - a) * th
+            self._t_theta = est.t
+            c = R.coefficients
+            d = R.hangoff_E(np.asarray(est.eta, float)) - np.asarray(R.wellhead, float)
+            share = self._theta_lf - np.concatenate([c["c_t"] * d, c["c_b"] * d])
+        return np.concatenate([lim, share])
 
     def _polytope(self) -> np.ndarray:
         """Thrust-polytope parameters of the thrusters alive (``polytope_parameters``; a DOF left
@@ -145,7 +206,7 @@ class _MPCBase:
         U = z[idx["U"]].reshape(N, self._n_u)
         out[idx["X"]] = np.vstack([X[1:], X[-1:]]).ravel()
         out[idx["U"]] = np.vstack([U[1:], U[-1:]]).ravel()
-        for key in ("S_db", "S_safe", "S_T"):
+        for key in ("S_db", "S_safe", "S_T", "S_R"):
             sl = z[idx[key]]
             out[idx[key]] = np.concatenate([sl[1:], sl[-1:]])
         return out
@@ -177,8 +238,10 @@ class _MPCBase:
         u0 = U[0]
         self._u_prev = u0.copy()
         self.plan_u = U
-        soft = max(float(np.max(z[idx["S_safe"]], initial=0.0)), float(np.max(z[idx["S_T"]], initial=0.0)))
+        soft = max(float(np.max(z[idx[k]], initial=0.0)) for k in ("S_safe", "S_T", "S_R"))
         active = []
+        if float(np.max(z[idx["S_R"]], initial=0.0)) > 1e-4:
+            active.append("riser")
         if float(np.max(z[idx["S_safe"]], initial=0.0)) > 1e-4:
             active.append("safe_circle")
         if float(np.max(z[idx["S_T"]], initial=0.0)) > 1e-4:
@@ -273,6 +336,7 @@ class _MPCBase:
         self._z = None
         self._u_prev = None
         self.diagnostics = []
+        self._theta_lf = self._t_theta = None
 
 
 class NonlinearMPC(_MPCBase):
@@ -285,7 +349,7 @@ class NonlinearMPC(_MPCBase):
 
     def __init__(self, system: Any, settings: MPCSettings = MPCSettings(), *, period: float | None = None):
         super().__init__(system, settings, period=period)
-        prob = build_problem(self.system, settings, model=self.model)
+        prob = build_problem(self.system, settings, model=self.model, riser=self.riser)
         self._prob = prob
         self._n_u = prob.n_u
         nlp = {"x": prob.z, "p": prob.p, "f": prob.f, "g": prob.g}
@@ -394,7 +458,7 @@ class LinearMPC(_MPCBase):
             raise MPCError(f"qp_solver = {qp_solver!r} is not one of piqp, osqp")
         self.qp_solver = qp_solver
         self._eps = (eps_abs, eps_rel)
-        prob = build_problem(self.system, settings, linear=True, model=self.model)
+        prob = build_problem(self.system, settings, linear=True, model=self.model, riser=self.riser)
         self._prob, self._n_u = prob, prob.n_u
         z, p = prob.z, prob.p
         nz = z.numel()

@@ -105,6 +105,15 @@ class MPCSettings:
     max_time : float
         Wall-clock limit of one IPOPT solve [s]; SQP is bounded by ``max_iter`` and its QP solver's
         own iteration limit.
+    reliability : bool
+        Reliability constraints (survey eq. 32; reliability seed §2.2) as soft constraints of the
+        prediction: every line's tension at most ``T_b - k sigma - delta_s sigma_b`` (its index at
+        least ``delta_s``) instead of ``tension_utilisation`` x MBS, and, with a riser, both riser
+        angles inside ``r - k sigma - delta_s sigma_r`` (as inscribed octagons). ``k sigma`` comes
+        online from the controller's reliability monitor; the current's share of the riser angles
+        from the measured angles (:class:`~tapm_opt.control.mpc.NonlinearMPC`).
+    delta_s : float
+        Reliability-index threshold of those constraints [-].
     """
 
     horizon: int = 20
@@ -137,6 +146,8 @@ class MPCSettings:
     polygon_sides: int = 16
     max_iter: int = 30
     max_time: float = 10.0
+    reliability: bool = False
+    delta_s: float = 2.0
 
     def __post_init__(self) -> None:
         pos = ("dt", "r_ref", "psi_ref", "nu_ref", "r_rate_ref", "capacity_fraction", "max_time")
@@ -150,6 +161,10 @@ class MPCSettings:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
                 raise MPCError(f"MPCSettings.{name} = {v!r} must be a number >= 0")
+        if not isinstance(self.reliability, bool):
+            raise MPCError(f"MPCSettings.reliability = {self.reliability!r} must be true or false")
+        if not (isinstance(self.delta_s, (int, float)) and math.isfinite(self.delta_s)):
+            raise MPCError(f"MPCSettings.delta_s = {self.delta_s!r} must be a finite number")
         for name, lo in (("horizon", 1), ("substeps", 1), ("polygon_sides", 3), ("max_iter", 1),
                          ("polytope_directions", 8)):
             v = getattr(self, name)
@@ -198,9 +213,10 @@ class _Problem:
     B_thr: np.ndarray | None
     #: Least-squares residuals: ``f = sumsqr(r) + soft_l1 * (sum of the L1 slacks)``.
     r: Any = None
-    #: Slices of the parameter vector (``x0``, ``u_prev``, ``eta_d``, ``b``, and when present
-    #: ``moor`` — the line characteristics —, ``poly_A``, ``poly_b``, ``rate_dt``, and for the
-    #: linear problem ``x_op``, ``u_op``, ``b_op``).
+    #: Slices of the parameter vector (``x0``, ``u_prev``, ``eta_d``, ``b``, ``T_lim`` — each
+    #: line's allowed tension [N] —, and when present ``moor`` — the line characteristics —,
+    #: ``poly_A``, ``poly_b``, ``rate_dt``, ``riser`` — angle limits and the current's shares —,
+    #: and for the linear problem ``x_op``, ``u_op``, ``b_op``).
     p_idx: dict | None = None
     #: Rows of the thrust polytope (padded: a row of zeros with bound 1 is always met).
     n_poly: int = 0
@@ -258,7 +274,7 @@ def polytope_parameters(thrusters: Any, settings: MPCSettings, u_ref: np.ndarray
 
 
 def build_problem(system: Any, settings: MPCSettings, *, linear: bool = False,
-                  model: MooringModel | None = None) -> _Problem:
+                  model: MooringModel | None = None, riser: Any = None) -> _Problem:
     """Write the MPC problem (module docstring of ``control.mpc``) as CasADi expressions.
 
     Parameters
@@ -272,6 +288,8 @@ def build_problem(system: Any, settings: MPCSettings, *, linear: bool = False,
         problem is a QP whose matrices are functions of the parameters.
     model : MooringModel, optional
         The line model of the prediction (default: the system's).
+    riser : RiserModel, optional
+        With ``settings.reliability``: the riser whose angles are kept inside their limits.
 
     Returns the decision vector ``z`` (scaled), parameters ``p`` in SI (slices in ``p_idx``), cost
     ``f`` with its least-squares residuals ``r``, constraints ``g`` with bounds, and index maps.
@@ -318,9 +336,11 @@ def build_problem(system: Any, settings: MPCSettings, *, linear: bool = False,
     polyg = _polygon(s.polygon_sides)
 
     Sym = ca.MX if kind == "catenary" else ca.SX
+    use_riser = bool(s.reliability and riser is not None)
     sizes = [("x0", 6), ("u_prev", n_u), ("eta_d", 3), ("b", 3),
              ("moor", 5 * n_lines if kind == "characteristic" else 0),
-             ("poly_A", 3 * n_poly), ("poly_b", n_poly), ("rate_dt", 1 if n_poly else 0)]
+             ("poly_A", 3 * n_poly), ("poly_b", n_poly), ("rate_dt", 1 if n_poly else 0),
+             ("T_lim", n_lines), ("riser", 6 if use_riser else 0)]
     if linear:
         sizes += [("x_op", 6), ("u_op", n_u), ("b_op", 3)]
     p_idx, at = {}, 0
@@ -384,15 +404,24 @@ def build_problem(system: Any, settings: MPCSettings, *, linear: bool = False,
         Pb = p[p_idx["poly_b"]]
         rdt = p[p_idx["rate_dt"]]
 
-    # decision variables (scaled): X (6 x N+1), U (n_u x N), slacks: dead band, safe, tension (N each)
+    # decision variables (scaled): X (6 x N+1), U (n_u x N), slacks: dead band, safe, tension, riser
+    # (N each)
     nX, nU = 6 * (N + 1), n_u * N
-    z = Sym.sym("z", nX + nU + 3 * N)
+    z = Sym.sym("z", nX + nU + 4 * N)
     X = ca.reshape(z[:nX], 6, N + 1)
     U = ca.reshape(z[nX:nX + nU], n_u, N)
     S_db = z[nX + nU:nX + nU + N]
     S_safe = z[nX + nU + N:nX + nU + 2 * N]
     S_T = z[nX + nU + 2 * N:nX + nU + 3 * N]
+    S_R = z[nX + nU + 3 * N:nX + nU + 4 * N]
     Dx, Du = ca.DM(x_ref), ca.DM(u_ref)
+    T_lim = p[p_idx["T_lim"]]
+    if use_riser:
+        rp = p[p_idx["riser"]]          # angle limits (top, bottom) [rad], current shares (2 + 2) [rad]
+        c_t, c_b = float(riser.coefficients["c_t"]), float(riser.coefficients["c_b"])
+        h_B = np.asarray(riser.hangoff_B, float)
+        wh = ca.DM(np.asarray(riser.wellhead, float))
+        octa = _polygon(8)
 
     g, lbg, ubg = [], [], []
     res = []  # least-squares residuals
@@ -475,23 +504,36 @@ def build_problem(system: Any, settings: MPCSettings, *, linear: bool = False,
                 lbg.append(-ca.inf)
                 ubg.append(1.0)
         T = tension(xe[0:3])
-        g.append(T / ca.DM(T_allow) - S_T[k])
-        lbg += [-ca.inf] * len(T_allow)
-        ubg += [1.0] * len(T_allow)
-        f_lin += s.soft_l1 * (S_safe[k] + S_T[k])
-        sq(s.soft_l2, ca.vertcat(S_safe[k], S_T[k]))
+        g.append(T / T_lim - S_T[k])
+        lbg += [-ca.inf] * n_lines
+        ubg += [1.0] * n_lines
+        if use_riser:
+            # riser angles, affine in the hang-off position (models.riser): theta = c (p_h - wellhead)
+            # + the current's share; inside inscribed octagons of the limits (linear rows)
+            p_h = _turret(xe[0:3], h_B, psi_lin) + ca.DM(h_B)
+            for j, (c_e, sh) in enumerate(((c_t, rp[2:4]), (c_b, rp[4:6]))):
+                th = c_e * (p_h - wh) + sh
+                for nrm in octa:
+                    g.append((nrm[0] * th[0] + nrm[1] * th[1]) / rp[j] - S_R[k])
+                    lbg.append(-ca.inf)
+                    ubg.append(math.cos(math.pi / 8))
+        f_lin += s.soft_l1 * (S_safe[k] + S_T[k] + S_R[k])
+        sq(s.soft_l2, ca.vertcat(S_safe[k], S_T[k], S_R[k]))
     g = ca.vertcat(*g)
     r = ca.vertcat(*res)
     cost = ca.sumsqr(r) + f_lin
-    lbz = np.concatenate([np.full(nX, -np.inf), np.tile(u_lo_s, N), np.zeros(3 * N)])
-    ubz = np.concatenate([np.full(nX, np.inf), np.tile(u_hi_s, N), np.full(3 * N, np.inf)])
+    lbz = np.concatenate([np.full(nX, -np.inf), np.tile(u_lo_s, N), np.zeros(4 * N)])
+    ubz = np.concatenate([np.full(nX, np.inf), np.tile(u_hi_s, N), np.full(4 * N, np.inf)])
     # slacks of constraints that are not there are held at zero
     if s.dead_band <= 0:
         ubz[nX + nU:nX + nU + N] = 0.0
     if R_safe is None:
         ubz[nX + nU + N:nX + nU + 2 * N] = 0.0
+    if not use_riser:
+        ubz[nX + nU + 3 * N:nX + nU + 4 * N] = 0.0
     idx = {"X": slice(0, nX), "U": slice(nX, nX + nU), "S_db": slice(nX + nU, nX + nU + N),
-           "S_safe": slice(nX + nU + N, nX + nU + 2 * N), "S_T": slice(nX + nU + 2 * N, nX + nU + 3 * N)}
+           "S_safe": slice(nX + nU + N, nX + nU + 2 * N), "S_T": slice(nX + nU + 2 * N, nX + nU + 3 * N),
+           "S_R": slice(nX + nU + 3 * N, nX + nU + 4 * N)}
     scale = {"x": x_ref, "u": u_ref, "T_allow": T_allow, "R_safe": R_safe, "p_cot_B": p_cot}
     return _Problem(z=z, p=p, f=cost, g=g, lbz=lbz, ubz=ubz, lbg=np.array(lbg, float), ubg=np.array(ubg, float),
                     idx=idx, scale=scale, n_u=n_u, B_thr=Bu if s.decision == "thrusters" else None, r=r,

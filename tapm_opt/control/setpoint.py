@@ -15,7 +15,7 @@ import numpy as np
 
 from ..errors import TapmError
 from ..geometry import rot_z, ssa, turret_offset
-from ..interfaces import Estimate, Setpoint
+from ..interfaces import Estimate, Logged, Setpoint
 
 __all__ = ["FixedSetpoint", "SetpointChasing", "HeadingChasing", "SetpointError"]
 
@@ -106,6 +106,10 @@ class HeadingChasing:
         self.psi_0 = float(psi_0)
         self.min_force = float(min_force)
         self.reset()
+
+    def log(self) -> list[dict]:
+        """The inner layer's log (:class:`~tapm_opt.interfaces.Logged`), if it keeps one."""
+        return self.inner.log() if isinstance(self.inner, Logged) else []
 
     def reset(self) -> None:
         self.inner.reset()

@@ -52,24 +52,32 @@ def _nonneg(name: str, value: Any, *, strict: bool = False) -> float:
     return v
 
 
-def _num(name: str, value: Any, *, lo: float = -math.inf, strict: bool = False, unit: str = "") -> float:
+def finite_number(name: str, value: Any, *, lo: float = -math.inf, strict: bool = False, unit: str = "",
+                  error: type[Exception] = ModelError) -> float:
+    """``value`` as a float, finite and >= ``lo`` (> with ``strict``), else ``error`` naming
+    ``name``, the value and its unit."""
     try:
         v = float(value)
     except (TypeError, ValueError):
-        raise ModelError(f"{name}={value!r} is not a number") from None
+        raise error(f"{name}={value!r} is not a number") from None
     if not math.isfinite(v) or v < lo or (strict and v == lo):
         bound = f" and {'>' if strict else '>='} {lo:g}" if lo > -math.inf else ""
-        raise ModelError(f"{name}={value!r}{' ' + unit if unit else ''} must be finite{bound}")
+        raise error(f"{name}={value!r}{' ' + unit if unit else ''} must be finite{bound}")
     return v
 
 
-def _array(name: str, x: Any, unit: str, lo: float = 0.0) -> np.ndarray:
+def finite_array(name: str, x: Any, unit: str, lo: float = 0.0, *, error: type[Exception] = ModelError) -> np.ndarray:
+    """``x`` as a float array, every element finite and >= ``lo`` (no bound for ``-inf``), else
+    ``error`` naming the first bad element."""
     x = np.asarray(x, dtype=float)
     ok = np.isfinite(x) if lo == -math.inf else np.isfinite(x) & (x >= lo)
     if not ok.all():
         i = int(np.flatnonzero(~ok.ravel())[0])
-        raise ModelError(f"{name}[{i}]={float(x.ravel()[i])!r} {unit} must be finite and >= {lo:g}")
+        raise error(f"{name}[{i}]={float(x.ravel()[i])!r} {unit} must be finite and >= {lo:g}")
     return x
+
+
+_num, _array = finite_number, finite_array
 
 
 class CurrentProfile:

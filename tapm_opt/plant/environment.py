@@ -20,7 +20,7 @@ import numpy as np
 
 from ..config import schema
 from ..errors import ModelError, TapmError
-from ..models.environment import CurrentProfile, HullWindLoad
+from ..models.environment import CurrentProfile, HullWindLoad, finite_array, finite_number
 
 __all__ = ["PlantError", "jonswap", "npd_spectrum", "CurrentProfile", "WaveParams", "WaveField",
            "WindParams", "Wind", "Environment"]
@@ -31,23 +31,11 @@ class PlantError(TapmError, ValueError):
 
 
 def _num(name: str, value: Any, *, lo: float = -math.inf, strict: bool = False, unit: str = "") -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise PlantError(f"{name}={value!r} is not a number") from None
-    if not math.isfinite(v) or v < lo or (strict and v == lo):
-        bound = f" and {'>' if strict else '>='} {lo:g}" if lo > -math.inf else ""
-        raise PlantError(f"{name}={value!r}{' ' + unit if unit else ''} must be finite{bound}")
-    return v
+    return finite_number(name, value, lo=lo, strict=strict, unit=unit, error=PlantError)
 
 
 def _array(name: str, x: Any, unit: str, lo: float = 0.0) -> np.ndarray:
-    x = np.asarray(x, dtype=float)
-    ok = np.isfinite(x) if lo == -math.inf else np.isfinite(x) & (x >= lo)
-    if not ok.all():
-        i = int(np.flatnonzero(~ok.ravel())[0])
-        raise PlantError(f"{name}[{i}]={float(x.ravel()[i])!r} {unit} must be finite and >= {lo:g}")
-    return x
+    return finite_array(name, x, unit, lo, error=PlantError)
 
 
 def _time(t: Any) -> float | np.ndarray:

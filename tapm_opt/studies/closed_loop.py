@@ -26,21 +26,25 @@ import math
 import time
 from collections import Counter
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any, Literal, Mapping
 
 import numpy as np
 
 from ..control.allocation import ThrustAllocator
 from ..control.setpoint import FixedSetpoint, HeadingChasing, SetpointChasing
+from ..control.setpoint_opt import METHODS, OptimalSetpoint, SetpointOptions
 from ..errors import TapmError
+from ..estimation.detection import TensionDropDetector
 from ..estimation.lowpass import LowPassEstimator, TrueStateEstimator
-from ..interfaces import (Controller, ControllerStep, Estimate, Estimator, FaultAware, Setpoint, SetpointLayer,
+from ..estimation.reliability import monitor_for
+from ..interfaces import (Controller, ControllerStep, Estimate, Estimator, FaultAware, Logged, Setpoint, SetpointLayer,
                           ThrusterCommand, ThrusterController)
 from ..models.system import System
 from ..plant.simulator import Plant
 from ..results import Result, ResultBuilder
 
-__all__ = ["ClosedLoopSettings", "SetpointChasing", "run_closed_loop", "default_setpoint_layer", "ClosedLoopError"]
+__all__ = ["ClosedLoopSettings", "SetpointChasing", "run_closed_loop", "default_setpoint_layer",
+           "optimal_setpoint_layer", "SETPOINT_KINDS", "ClosedLoopError"]
 
 
 class ClosedLoopError(TapmError, ValueError):
@@ -64,9 +68,13 @@ class ClosedLoopSettings:
     true_state : bool
         Hand the controller the true LF state and the true mean environmental load instead of the
         low-pass estimate.
-    setpoint : {"fixed", "chasing"}
-        Fixed setpoint ``eta_d``, or setpoint chasing (survey eq. 38) with time constant
-        ``chase_time`` projected into ``chase_margin`` times the safe radius.
+    setpoint : {"fixed", "chasing", "quadratic", "reliability", "unified"}
+        Fixed setpoint ``eta_d``; setpoint chasing (survey eq. 38) with time constant
+        ``chase_time`` projected into ``chase_margin`` times the safe radius; or the optimum of the
+        quadratic (eq. 34), reliability (eq. 36) or unified riser + mooring cost ([R] §2.2) of
+        :class:`~tapm_opt.control.setpoint_opt.OptimalSetpoint`, started at ``eta_d``.
+    setpoint_options : mapping or None
+        Options of the optimal setpoints (:class:`~tapm_opt.control.setpoint_opt.SetpointOptions`).
     eta_d : (3,)
         Fixed setpoint — turret offset x [m], y [m] (the centre of turret relative to its
         field-zero-point position) and heading [rad] — or the heading of the chased setpoint.
@@ -82,7 +90,8 @@ class ClosedLoopSettings:
     controller_period: float | None = None
     dt_log: float = 1.0
     true_state: bool = False
-    setpoint: Literal["fixed", "chasing"] = "fixed"
+    setpoint: Literal["fixed", "chasing", "quadratic", "reliability", "unified"] = "fixed"
+    setpoint_options: Mapping[str, Any] | None = None
     heading: Literal["fixed", "chasing"] = "fixed"
     eta_d: tuple[float, float, float] = (0.0, 0.0, 0.0)
     chase_time: float = 300.0
@@ -96,21 +105,59 @@ class ClosedLoopSettings:
                 raise ClosedLoopError(f"{name} = {v!r} must be a positive number")
         if self.controller_period is not None and not (math.isfinite(self.controller_period) and self.controller_period > 0):
             raise ClosedLoopError(f"controller_period = {self.controller_period!r} must be a positive number or None")
-        for name in ("setpoint", "heading"):
-            if getattr(self, name) not in ("fixed", "chasing"):
-                raise ClosedLoopError(f"{name} = {getattr(self, name)!r} is not one of 'fixed', 'chasing'")
+        if self.setpoint not in SETPOINT_KINDS:
+            raise ClosedLoopError(f"setpoint = {self.setpoint!r} is not one of {', '.join(map(repr, SETPOINT_KINDS))}")
+        if self.heading not in ("fixed", "chasing"):
+            raise ClosedLoopError(f"heading = {self.heading!r} is not one of 'fixed', 'chasing'")
+        if self.setpoint_options is not None:
+            if not isinstance(self.setpoint_options, Mapping):
+                raise ClosedLoopError(f"setpoint_options = {self.setpoint_options!r} must be a table of options")
+            if self.setpoint_options and self.setpoint not in METHODS:
+                raise ClosedLoopError(f"setpoint_options are for the optimal setpoints ({', '.join(METHODS)}), "
+                                      f"not setpoint = {self.setpoint!r}")
+            SetpointOptions.from_mapping(self.setpoint_options)
         ratio = self.dt_log / self.dt_control
         if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
             raise ClosedLoopError(f"dt_log = {self.dt_log:g} s must be a whole multiple of dt_control = {self.dt_control:g} s")
 
 
-def default_setpoint_layer(system: System, settings: ClosedLoopSettings) -> Any:
-    """The setpoint layer a :class:`ClosedLoopSettings` describes (fixed or chasing, with the
-    heading fixed or chased)."""
+#: Every ``ClosedLoopSettings.setpoint``.
+SETPOINT_KINDS = ("fixed", "chasing", *METHODS)
+
+
+def optimal_setpoint_layer(system: System, method: str, sea_state: Any = None, *,
+                           options: Mapping[str, Any] | None = None, eta_d: Any = (0.0, 0.0, 0.0)) -> OptimalSetpoint:
+    """An :class:`~tapm_opt.control.setpoint_opt.OptimalSetpoint` of ``method`` on ``system``, with
+    the scenario's riser under ``sea_state``'s current (the wave-frequency statistics come with the
+    estimate, from the estimator's reliability monitor)."""
+    from ..models.riser import RiserModel
+
+    sc = system.scenario
+    riser = RiserModel.from_scenario(sc, sea_state) if sc.riser is not None else None
+    return OptimalSetpoint(system, method, riser=riser, options=options, eta_d=eta_d)
+
+
+def _sea_state(system: System, sea_state_id: Any) -> Any:
+    """The plant's sea state (by its id in the metadata) from the system's scenario, or None."""
+    if sea_state_id is None:
+        return None
+    try:
+        return system.scenario.sea_state(sea_state_id)
+    except (KeyError, ValueError, TapmError):
+        return None
+
+
+def default_setpoint_layer(system: System, settings: ClosedLoopSettings, sea_state: Any = None) -> Any:
+    """The setpoint layer a :class:`ClosedLoopSettings` describes (fixed, chasing or optimal, with
+    the heading fixed or chased). ``sea_state`` gives the current the riser model of the optimal
+    setpoints sees (None: still water)."""
     s = settings
     R = system.limits.safe_radius
-    if s.setpoint == "chasing":
-        layer: Any = SetpointChasing(s.chase_time, None if R is None else s.chase_margin * R, s.eta_d[2],
+    if s.setpoint in METHODS:
+        layer: Any = optimal_setpoint_layer(system, s.setpoint, sea_state, options=s.setpoint_options,
+                                            eta_d=s.eta_d)
+    elif s.setpoint == "chasing":
+        layer = SetpointChasing(s.chase_time, None if R is None else s.chase_margin * R, s.eta_d[2],
                                      p_cot_B=system.p_cot_B)
     else:
         layer = FixedSetpoint(s.eta_d)
@@ -140,7 +187,8 @@ def run_closed_loop(plant: Plant, controller: Controller, settings: ClosedLoopSe
         built from).
     estimator : Estimator, optional
         Default: the low-pass estimator on ``system.lines`` (``settings.true_state``: the plant's
-        truth).
+        truth), with the tension-drop line-break detector and the reliability monitor of the
+        measured tensions and riser angles (``monitor_for``).
     setpoint_layer : SetpointLayer, optional
         Default: :func:`default_setpoint_layer` of the settings.
     allocator : ThrustAllocator, optional
@@ -160,8 +208,10 @@ def run_closed_loop(plant: Plant, controller: Controller, settings: ClosedLoopSe
     period = s.controller_period or controller.period or s.dt_control
     period = max(period, s.dt_control)
     if estimator is None:
-        estimator = TrueStateEstimator() if s.true_state else LowPassEstimator(system.lines)
-    layer = setpoint_layer or default_setpoint_layer(system, s)
+        det, mon = TensionDropDetector(system.lines), monitor_for(system.scenario)
+        estimator = (TrueStateEstimator(detector=det, monitor=mon) if s.true_state
+                     else LowPassEstimator(system.lines, detector=det, monitor=mon))
+    layer = setpoint_layer or default_setpoint_layer(system, s, _sea_state(system, plant.metadata().get("sea_state")))
     extra = [("tau_cmd[X]", "N"), ("tau_cmd[Y]", "N"), ("tau_cmd[N]", "N m"),
              ("x_d", "m"), ("y_d", "m"), ("psi_d", "rad"),
              ("x_hat", "m"), ("y_hat", "m"), ("psi_hat", "rad"),
@@ -231,6 +281,9 @@ def run_closed_loop(plant: Plant, controller: Controller, settings: ClosedLoopSe
           "estimator": type(estimator).__name__, "setpoint_layer": type(layer).__name__,
           "turret_position_B": [float(v) for v in system.p_cot_B],
           "wall_time": wall, "diagnostics": diag, **(meta or {})}
+    for role, comp in (("setpoint", layer), ("controller", controller), ("estimator", estimator)):
+        if isinstance(comp, Logged) and comp.log():
+            md[f"{role}_log"] = list(comp.log())
     return rb.build(md)
 
 

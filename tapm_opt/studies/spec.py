@@ -87,7 +87,7 @@ class Study:
 
 _STUDY_KEYS = {"name", "description", "scenario", "duration", "segments", "break_on_overload", "dt_control",
                "dt_log", "heading",
-               "setpoint", "true_state", "seeds", "mode"}
+               "setpoint", "setpoint_options", "true_state", "seeds", "mode"}
 _TOP_KEYS = {"study", "sea_states", "controllers", "conditions", "cases"}
 _CONDITION_KEYS = {"name", "line_break", "thruster_failure"}
 _FAULT_KEYS = {"line_break": {"line", "time", "time_fraction"}, "thruster_failure": {"thruster", "time", "time_fraction"}}
@@ -168,6 +168,7 @@ class _Parsed:
     seeds: list = field(default_factory=list)
     sea_states: list = field(default_factory=list)    # [(id, SeaState or None)]
     controllers: list = field(default_factory=list)   # [(display name, normalised spec or None)]
+    controller_loop: list = field(default_factory=list)  # [closed-loop overrides of each controller]
     conditions: list = field(default_factory=list)    # [_Condition]
     listed: list = field(default_factory=list)        # [(path, i_ss, i_ctrl, i_cond, seed, duration or None, name)]
 
@@ -204,7 +205,7 @@ def _parse_study_table(ck: Checker, data: Mapping, base_dir: Path, out: _Parsed)
             ck.err("study.dt_log", f"= {dt_log:g} s must be a whole multiple of dt_control = {dt_control:g} s")
     out.closed_loop = {
         "dt_control": dt_control, "dt_log": dt_log,
-        "setpoint": ck.choice(st.get("setpoint", "fixed"), ("fixed", "chasing"), "study.setpoint"),
+        **_setpoint_fields(ck, st, "study", {"setpoint": "fixed"}),
         "heading": ck.choice(st.get("heading", "chasing"), ("chasing", "fixed"), "study.heading"),
         "true_state": ck.boolean(st.get("true_state", False), "study.true_state")}
     out.mode = ck.choice(st.get("mode", "product"), ("product", "list"), "study.mode")
@@ -278,6 +279,37 @@ def _parse_sea_states(ck: Checker, data: Mapping, out: _Parsed) -> None:
             out.sea_states.append((sc.sea_states[0].id, sc.sea_states[0]))
 
 
+def _setpoint_fields(ck: Checker, table: Mapping, where: str, default: dict) -> dict:
+    """``setpoint`` and ``setpoint_options`` of a [study] or [[controllers]] table, checked."""
+    from ..control.setpoint_opt import SetpointOptError, SetpointOptions
+    from .closed_loop import SETPOINT_KINDS
+
+    out = dict(default)
+    if "setpoint" in table:
+        out["setpoint"] = ck.choice(table["setpoint"], SETPOINT_KINDS, f"{where}.setpoint")
+    if "setpoint_options" in table:
+        opts = ck.table(table["setpoint_options"], f"{where}.setpoint_options")
+        if opts is not None:
+            try:
+                SetpointOptions.from_mapping(opts, where=f"{where}.setpoint_options")
+                out["setpoint_options"] = dict(opts)
+            except SetpointOptError as exc:
+                ck.err("", str(exc))
+    return out
+
+
+def _loop(study: dict, controller: dict) -> dict:
+    """The closed-loop settings of one controller's cases: the study's, with the controller's own
+    setpoint (and its options) in place of the study's."""
+    out = dict(study)
+    if "setpoint" in controller:
+        out.pop("setpoint_options", None)
+    out.update({k: v for k, v in controller.items() if v is not None})
+    if out.get("setpoint") in ("fixed", "chasing"):
+        out.pop("setpoint_options", None)
+    return out
+
+
 def _parse_controllers(ck: Checker, data: Mapping, out: _Parsed) -> None:
     from ..control.mpc import MPCSettings
 
@@ -293,7 +325,10 @@ def _parse_controllers(ck: Checker, data: Mapping, out: _Parsed) -> None:
             ck.err(f"{p}.type", f"missing required field ({', '.join(CONTROLLER_TYPES)})")
         kind = ck.choice(e["type"], CONTROLLER_TYPES, f"{p}.type") if "type" in e else None
         cname = ck.text(e["name"], f"{p}.name") if "name" in e else _NAMES.get(kind or "")
-        opts = {k: v for k, v in e.items() if k not in ("name", "type")}
+        opts = {k: v for k, v in e.items() if k not in ("name", "type", "setpoint", "setpoint_options")}
+        loop = _setpoint_fields(ck, e, p, {}) if ("setpoint" in e or "setpoint_options" in e) else {}
+        if "setpoint_options" in e and "setpoint" not in e:
+            loop["setpoint"] = out.closed_loop.get("setpoint")
         spec = None
         if kind is not None:
             n_issues = len(ck.issues)
@@ -307,6 +342,7 @@ def _parse_controllers(ck: Checker, data: Mapping, out: _Parsed) -> None:
                         ck.err("", str(exc))
                         spec = None
         out.controllers.append((cname or f"controller {i + 1}", spec))
+        out.controller_loop.append(loop)
     ck.unique(list(enumerate(n for n, _ in out.controllers)), "controllers", "name")
 
 
@@ -418,7 +454,8 @@ def _expand(ck: Checker, P: _Parsed) -> list[Case]:
         sc_dict = {**base, "sea_states": [scenario_to_dict(ss)],
                    "faults": list(base.get("faults", [])) + [scenario_to_dict(f) for f in faults]}
         inputs = {"scenario": sc_dict, "scenario_name": sc.name, "sea_state": sid, "controller": spec,
-                  "seed": int(seed), "duration": float(dur), "segments": P.segments, "closed_loop": dict(P.closed_loop)}
+                  "seed": int(seed), "duration": float(dur), "segments": P.segments,
+                  "closed_loop": _loop(P.closed_loop, P.controller_loop[i_ctrl])}
         labels = {"scenario": sc.name, "sea_state": sid, "controller": ctrl_name, "condition": cond.label(dur),
                   "seed": int(seed)}
         name = cname or (f"{sid}, {ctrl_name}, {labels['condition']}, seed {seed}"
