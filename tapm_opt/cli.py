@@ -470,6 +470,10 @@ def simulate(scenario_name: str, controller: str, duration: float, out_dir: str,
     if sp_opts and setpoint not in ("quadratic", "reliability", "unified"):
         raise click.BadParameter(f"--setpoint-option is for the optimal setpoints (quadratic, reliability, unified), "
                                  f"not --setpoint {setpoint}")
+    if sp_opts:
+        from .control.setpoint_opt import SetpointOptions
+
+        SetpointOptions.from_mapping(sp_opts, where="--setpoint-option")
     sc = _load(scenario_name)
     if sea_state is not None and sea_state != "none" and sea_state not in [s.id for s in sc.sea_states]:
         raise click.BadParameter(f"{sea_state!r} is not a sea state of scenario {sc.name!r}; its sea states: "
@@ -585,8 +589,10 @@ def setpoint(scenario_name: str, sea_state: str, method: str, broken: str, headi
     wp = _parse_floats(working_point, "--from")
     if wp.shape != (2,):
         raise click.BadParameter(f"{working_point!r} must be two numbers X,Y [m]", param_hint="'--from'")
-    res = static_setpoint(sc, sea_state, method, broken=bl, heading=psi, working_point=wp,
-                          options=_key_values(options, "--option"))
+    from .control.setpoint_opt import SetpointOptions
+
+    opts = SetpointOptions.from_mapping(_key_values(options, "--option"), where="--option")
+    res = static_setpoint(sc, sea_state, method, broken=bl, heading=psi, working_point=wp, options=opts)
     if as_json:
         click.echo(json.dumps(res.as_json(), indent=2))
         return

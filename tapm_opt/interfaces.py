@@ -141,7 +141,8 @@ class Estimate:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "t", float(self.t))
-        object.__setattr__(self, "broken_lines", frozenset(str(b) for b in self.broken_lines))
+        bl = self.broken_lines
+        object.__setattr__(self, "broken_lines", frozenset([bl] if isinstance(bl, str) else (str(b) for b in bl)))
         for name in ("eta", "nu", "tau_env"):
             object.__setattr__(self, name, readonly(getattr(self, name)))
         for name in ("tensions", "riser_angles"):

@@ -22,34 +22,39 @@ def fpso():
 
 
 class _Stats:
-    def __init__(self, ks):
-        self.ks = ks
+    def __init__(self, ks, ready=True):
+        self.ks, self.ready = ks, ready
 
     def allowance(self):
         return self.ks
 
 
-KS = {**{f"line {i}": 3e5 for i in range(1, 13)}, "riser top": math.radians(0.2), "riser bottom": math.radians(0.4)}
+# distinct per line, so a mix-up of line ids and indices shows
+KS = {**{f"line {i}": 1e5 * i for i in range(1, 13)}, "riser top": math.radians(0.2), "riser bottom": math.radians(0.4)}
 
 
-def _estimate(fpso, eta, tau_env=np.zeros(3), *, current=True, ks=KS):
+def _estimate(fpso, eta, tau_env=np.zeros(3), *, current=True, ks=KS, ready=True):
     riser = RiserModel.from_scenario(fpso, "normal" if current else None)
     return Estimate(t=0.0, eta=np.asarray(eta, float), nu=np.zeros(3), tau_env=tau_env,
                     tensions=np.full(12, 3e6), riser_angles=riser.angles_at(np.asarray(eta, float)),
-                    reliability=_Stats(ks))
+                    reliability=_Stats(ks, ready))
 
 
 @pytest.mark.parametrize("cls", [NonlinearMPC, LinearMPC])
 def test_limits_follow_the_indices(fpso, cls):
-    """T_lim = T_b - k sigma - delta_s sigma_b per line; the riser limits r - k sigma - delta_s
-    sigma_r; the current's share is the measured angle less the hang-off part, i.e. what the
-    current alone does to the riser."""
-    ctrl = cls(System.from_scenario(fpso), MPCSettings(reliability=True, delta_s=2.0))
+    """T_lim = min(utilisation x MBS, T_b - k sigma - delta_s sigma_b) per line, the design limit
+    until the monitor is ready; the riser limits r - k sigma - delta_s sigma_r; the current's share
+    is the measured angle less the hang-off part, i.e. what the current alone does to the riser."""
+    util = 0.86  # between the reliability limits of the lines with small and large allowances
+    ctrl = cls(System.from_scenario(fpso), MPCSettings(reliability=True, delta_s=2.0, tension_utilisation=util))
     eta = np.array([-20.0, 5.0, 0.1])
     est = _estimate(fpso, eta)
     T_lim = ctrl._tension_limits(est)
     mbs, std = fpso.line_arrays["MBS"], fpso.line_arrays["MBS_std"]
-    np.testing.assert_allclose(T_lim, mbs - 3e5 - 2.0 * std)
+    rel = mbs - 1e5 * np.arange(1, 13) - 2.0 * std
+    np.testing.assert_allclose(T_lim, np.minimum(util * mbs, rel))
+    assert np.any(rel < util * mbs) and np.any(rel > util * mbs)      # both limits bind somewhere
+    np.testing.assert_allclose(ctrl._tension_limits(_estimate(fpso, eta, ready=False)), util * mbs)
     rp = ctrl._riser_parameters(est)
     rs = fpso.riser
     np.testing.assert_allclose(rp[:2], [rs.critical_top_angle - math.radians(0.2) - 2 * rs.critical_top_angle_std,

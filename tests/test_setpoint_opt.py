@@ -222,7 +222,7 @@ class _Stats:
 
 
 def _estimate(t, tau, broken=()):
-    ks = {**{f"line {i}": 2e5 for i in range(1, 13)}, "riser top": 1e-3, "riser bottom": 2e-3}
+    ks = {**{f"line {i}": 1e4 * i for i in range(1, 13)}, "riser top": 1e-3, "riser bottom": 2e-3}  # distinct
     return Estimate(t=t, eta=np.zeros(3), nu=np.zeros(3), tau_env=tau, tensions=np.full(12, 3e6),
                     broken_lines=frozenset(broken), reliability=_Stats(ks))
 
@@ -245,7 +245,7 @@ def test_layer_warms_up_rate_limits_and_resolves_on_a_break(normal):
     assert len(layer.history) == 2 and layer.history[1]["broken"] == ["2"]
     assert frozenset({"2"}) in layer._problems
     wp = layer.working_point(_estimate(200.0, wp.tau_env, broken=("2",)), frozenset({"2"}))
-    assert wp.ksigma_lines.shape == (11,) and np.all(wp.ksigma_lines == 2e5)
+    np.testing.assert_array_equal(wp.ksigma_lines, [1e4 * i for i in range(1, 13) if i != 2])
     np.testing.assert_allclose(wp.ksigma_riser, [1e-3, 2e-3])
 
 
@@ -411,3 +411,79 @@ def test_the_reliability_study_is_the_seeds_case():
         assert [(f["kind"], f["line"], f["time"]) for f in faults] == [("line_break", "2", 2500.0)]
     ss = load_scenario("fpso").sea_state("normal")
     assert (ss.Hs, ss.Tp, ss.current_speed, ss.wind_speed) == (7.0, 10.0, 0.8, 8.0)
+
+
+def _study(tmp_path, study_extra: str, controllers: str):
+    from tapm_opt.studies.spec import load_study
+
+    f = tmp_path / "s.toml"
+    f.write_text(f"""
+[study]
+name = "s"
+scenario = "fpso"
+duration = 600.0
+{study_extra}
+[[sea_states]]
+id = "normal"
+{controllers}
+""")
+    return load_study(f)
+
+
+def test_setpoint_options_merge_key_by_key_and_follow_the_setpoint(tmp_path):
+    st = _study(tmp_path, 'setpoint = "unified"\nsetpoint_options = { w_bottom = 20.0, period = 90.0 }', """
+[[controllers]]
+name = "A"
+type = "pid"
+setpoint = "reliability"
+[[controllers]]
+name = "B"
+type = "pid"
+setpoint_options = { period = 60.0 }
+[[controllers]]
+name = "C"
+type = "pid"
+setpoint = "fixed"
+""")
+    loops = {c.labels["controller"]: c.inputs["closed_loop"] for c in st.cases}
+    assert loops["A"]["setpoint"] == "reliability"
+    assert loops["A"]["setpoint_options"] == {"w_bottom": 20.0, "period": 90.0}
+    assert loops["B"]["setpoint"] == "unified"
+    assert loops["B"]["setpoint_options"] == {"w_bottom": 20.0, "period": 60.0}
+    assert loops["C"]["setpoint"] == "fixed" and "setpoint_options" not in loops["C"]
+
+
+@pytest.mark.parametrize("study_extra, ctrl, path", [
+    ('setpoint = "fixed"\nsetpoint_options = { period = 60.0 }', "", "study.setpoint_options"),
+    ('setpoint = "chasing"', "setpoint_options = { period = 60.0 }", "controllers[0].setpoint_options"),
+    ("", 'setpoint = "fixed"\nsetpoint_options = { period = 60.0 }', "controllers[0].setpoint_options"),
+])
+def test_setpoint_options_without_an_optimal_setpoint_are_an_error(tmp_path, study_extra, ctrl, path):
+    from tapm_opt.studies.store import StudyError
+
+    with pytest.raises(StudyError) as exc:
+        _study(tmp_path, study_extra, f'[[controllers]]\ntype = "pid"\n{ctrl}')
+    assert path in str(exc.value) and "optimal setpoints" in str(exc.value)
+
+
+def test_closed_form_solver_needs_the_printed_unified_cost(normal):
+    system, riser, _ = normal
+    with pytest.raises(SetpointOptError, match="unified_form = 'printed'"):
+        OptimalSetpoint(system, "unified", riser=riser, options={"solver": "closed_form"})
+    with pytest.raises(SetpointOptError, match="setpoint = 'reliability'"):
+        OptimalSetpoint(system, "reliability", riser=riser, options={"solver": "closed_form", "unified_form": "printed"})
+    OptimalSetpoint(system, "unified", riser=riser, options={"solver": "closed_form", "unified_form": "printed"})
+
+
+def test_bad_working_points_and_estimates_are_named(normal):
+    system, riser, wp = normal
+    with pytest.raises(SetpointOptError, match="tau_env"):
+        dataclasses.replace(wp, tau_env=np.zeros(2))
+    with pytest.raises(SetpointOptError, match="v_c"):
+        dataclasses.replace(wp, v_c=np.array([np.nan, 0.0]))
+    with pytest.raises(SetpointOptError, match="r_lf"):
+        dataclasses.replace(wp, r_lf=-1.0)
+    layer = OptimalSetpoint(system, "quadratic", riser=riser)
+    bad = Estimate(t=1.0, eta=np.array([np.nan, 0.0, 0.0]), nu=np.zeros(3), tau_env=np.zeros(3))
+    with pytest.raises(SetpointOptError, match="eta"):
+        layer.update(1.0, bad)

@@ -122,13 +122,14 @@ class _MPCBase:
     RISER_LF_TIME = 60.0
 
     def _tension_limits(self, est: Estimate) -> np.ndarray:
-        """Allowed fairlead tension of every modelled line [N]: ``tension_utilisation`` x MBS, or
-        with ``reliability`` the tension at which the line's index is ``delta_s``,
-        ``T_b - k sigma - delta_s sigma_b`` (``k sigma`` from ``est.reliability``; lines without
-        sigma_b keep the utilisation limit), floored at 5 % of MBS."""
+        """Allowed fairlead tension of every modelled line [N]: ``tension_utilisation`` x MBS, and
+        with ``reliability`` the lower of that and the tension at which the line's index is
+        ``delta_s``, ``T_b - k sigma - delta_s sigma_b`` (``k sigma`` from ``est.reliability`` once
+        its windows are full; lines without sigma_b keep the utilisation limit), floored at 5 % of
+        MBS. The reliability limit only ever tightens the design limit."""
         s, prob = self.settings, self._prob
         T_allow = np.asarray(prob.scale["T_allow"], float)
-        if not s.reliability:
+        if not s.reliability or est.reliability is None or not est.reliability.ready:
             return T_allow
         sc = self.system.scenario
         std = dict(zip([ln.id for ln in sc.lines], np.asarray(sc.line_arrays["MBS_std"], float)))
@@ -137,7 +138,7 @@ class _MPCBase:
         out = T_allow.copy()
         for i, lid in enumerate(self.model.line_ids):
             if std[lid] > 0:
-                out[i] = max(mbs[i] - ks.get(f"line {lid}", 0.0) - s.delta_s * std[lid], 0.05 * mbs[i])
+                out[i] = min(T_allow[i], max(mbs[i] - ks.get(f"line {lid}", 0.0) - s.delta_s * std[lid], 0.05 * mbs[i]))
         return out
 
     def _riser_parameters(self, est: Estimate) -> np.ndarray:

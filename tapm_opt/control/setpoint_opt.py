@@ -38,11 +38,16 @@ Costs (``method``):
     ``L = K_T F_T^2 + K_P sum_j Phi(-delta_j)``, the sum over every line's and riser end's index
     (``Phi(-delta)`` is the failure probability of each; their sum bounds the system's).
 ``"unified"`` ([R] §2.2)
+    As printed (``unified_form="printed"``):
     ``L = w_t (delta_s - delta_t)^2 + w_b (delta_s - delta_b)^2 + sum_i w_i (delta_s - delta_i)^2``,
-    every index pulled to the threshold ``delta_s`` — so the load is shared in proportion to the
-    reserve each component has — with the riser weighted above the lines and the bottom angle above
-    the top ([R]: "higher weight added to the riser angles due to their criticality"). Solved
-    numerically, or by the closed form of [R] (:func:`unified_closed_form`): every index linearised
+    every index pulled to the threshold ``delta_s`` from either side, with the riser weighted above
+    the lines and the bottom angle above the top ([R]: "higher weight added to the riser angles due
+    to their criticality"). With every index far above ``delta_s`` that cost drives the vessel to
+    where the components are worst, so the default (``"one_sided"``) lets an index pull only below
+    ``delta_s + margin``, ``sum w max(0, delta_s + margin - delta)^2``, plus ``anchor (|p - p_o| /
+    R_ref)^2`` holding the nominal setpoint ``p_o`` otherwise (the survey's "only activated when
+    needed", §4.3.2). The printed cost is solved numerically, or by the closed form of [R]
+    (:func:`unified_closed_form`; ``solver="closed_form"``): every index linearised
     about the working point, ``delta_s - delta_j ~ a_j + g_j . dp``, the cost is a 2-D linear least
     squares whose minimiser ``dp = -(sum w g g^T)^-1 sum w a g`` is [R]'s (Delta r_v, beta_op) in
     polar form (:func:`unified_polar`, with the printed coefficients' typos corrected; see
@@ -160,7 +165,7 @@ class SetpointOptions:
     solver: Literal["numeric", "closed_form"] = "numeric"
     unified_form: Literal["one_sided", "printed"] = "one_sided"
     margin: float = 1.0
-    anchor: float = 0.01
+    anchor: float = 1.0
     thrust_limit: float = 0.8
     lf_factor: float = 3.0
     lf_window: float = 600.0
@@ -191,7 +196,8 @@ class SetpointOptions:
         try:
             return cls(**options)
         except SetpointOptError as exc:
-            raise SetpointOptError(str(exc).replace("setpoint_options", where, 1)) from None
+            prefix = f"{where} " if where.startswith("--") else f"{where}."
+            raise SetpointOptError(str(exc).replace("setpoint_options.", prefix, 1)) from None
 
 
 @dataclass(frozen=True)
@@ -220,6 +226,23 @@ class WorkingPoint:
     v_c: np.ndarray = field(default_factory=lambda: np.zeros(2))
     p_o: np.ndarray = field(default_factory=lambda: np.zeros(2))
     r_lf: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name, n in (("p", 2), ("tau_env", 3), ("ksigma_riser", 2), ("v_c", 2), ("p_o", 2)):
+            v = np.asarray(getattr(self, name), dtype=float)
+            if v.shape != (n,) or not np.all(np.isfinite(v)):
+                raise SetpointOptError(f"working point {name} = {np.asarray(getattr(self, name)).tolist()} must be "
+                                       f"{n} finite numbers")
+            object.__setattr__(self, name, v)
+        ks = np.asarray(self.ksigma_lines, dtype=float)
+        if ks.ndim != 1 or not np.all(np.isfinite(ks)):
+            raise SetpointOptError(f"working point ksigma_lines = {ks.tolist()} must be finite numbers, one per line")
+        object.__setattr__(self, "ksigma_lines", ks)
+        for name in ("psi", "r_lf"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float, np.floating)) and math.isfinite(v)) or (name == "r_lf" and v < 0):
+                raise SetpointOptError(f"working point {name} = {v!r} must be a finite number"
+                                       + (" >= 0" if name == "r_lf" else ""))
 
     def at(self, p: Any) -> "WorkingPoint":
         """The same working point with the present offset moved to ``p``."""
@@ -338,7 +361,7 @@ class SetpointProblem:
         nlp = {"x": p, "p": par, "f": J_total, "g": ca.sumsqr(p)}
         self._solver = ca.nlpsol("setpoint_nlp", "ipopt", nlp, {
             "ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes", "ipopt.max_iter": 100,
-            "ipopt.tol": 1e-6, "ipopt.acceptable_tol": 1e-4, "ipopt.max_iter": 50, "error_on_fail": False})
+            "ipopt.tol": 1e-8, "ipopt.acceptable_tol": 1e-6, "error_on_fail": False})
 
     def _par(self, wp: WorkingPoint) -> np.ndarray:
         ks = np.asarray(wp.ksigma_lines, float)
@@ -370,8 +393,8 @@ class SetpointProblem:
             self._many = (N, self._eval.map(N, "serial"))
         par = np.repeat(self._par(wp)[:, None], N, axis=1)
         out = self._many[1](p=P, par=par)
-        return {k: np.asarray(v).reshape(-1, N).squeeze(0) if np.asarray(v).shape[0] == 1 else np.asarray(v)
-                for k, v in out.items()}
+        scalars = ("J", "J_total", "FT2", "J_printed")
+        return {k: np.asarray(v).reshape(N) if k in scalars else np.asarray(v).reshape(-1, N) for k, v in out.items()}
 
     def solve(self, wp: WorkingPoint, starts: Iterable[Any] = (), *, warm: bool = False) -> tuple[np.ndarray, dict]:
         """Numeric optimum (IPOPT from each start — the present offset, the nominal setpoint, the
@@ -452,22 +475,31 @@ class SetpointProblem:
         return np.asarray(out["delta"]).ravel(), np.asarray(out["ddelta_dp"]).reshape(-1, 2)
 
     def closed_form(self, wp: WorkingPoint) -> tuple[np.ndarray, dict]:
-        """[R]'s closed-form unified optimum about the working point, backtracked on the full
-        models until every index is at least ``delta_s`` (or the step vanishes)."""
-        d0, G = self.linearise(wp)
-        dp = unified_closed_form(d0, G, self.delta_weights, self.o.delta_s)
+        """[R]'s closed-form unified optimum about the working point (the printed cost, one
+        linearised step), halved until, on the full models, every index is at least ``delta_s``
+        and the thrust needed within ``thrust_limit`` — or, from a start that already breaks
+        them, until the step improves both the lowest index and the thrust excess."""
+        o = self.o
+        ev0 = self.evaluate(wp.p, wp)
+        dp = unified_closed_form(ev0["delta"], self.linearise(wp)[1], self.delta_weights, o.delta_s)
         p0 = np.asarray(wp.p, float)
+        lim2 = o.thrust_limit ** 2
+        ok0 = bool(np.all(ev0["delta"] >= o.delta_s - 1e-9) and ev0["FT2"] <= lim2)
         s = 1.0
         for _ in range(12):
             p = p0 + s * dp
             r = float(np.hypot(*p))
             if r > self.R_max:
                 p = p * (self.R_max / r)
-            d = self.evaluate(p, wp)["delta"]
-            if np.all(d >= self.o.delta_s - 1e-9) or not np.all(d0 >= self.o.delta_s):
-                return p, {"success": True, "status": "closed form", "step": s}
+            ev = self.evaluate(p, wp)
+            ok = bool(np.all(ev["delta"] >= o.delta_s - 1e-9) and ev["FT2"] <= lim2)
+            better = (ev["delta"].min() >= ev0["delta"].min() - 1e-9
+                      and max(ev["FT2"] - lim2, 0.0) <= max(ev0["FT2"] - lim2, 0.0) + 1e-12)
+            if ok or (not ok0 and better):
+                return p, {"success": ok, "status": "closed form" if ok else "closed form: bounds still broken",
+                           "step": s}
             s *= 0.5
-        return p0, {"success": False, "status": "closed form: no step keeps every index >= delta_s", "step": 0.0}
+        return p0, {"success": ok0, "status": "closed form: no step keeps the bounds", "step": 0.0}
 
 
 def unified_closed_form(delta0: Any, grad: Any, weights: Any, delta_s: float) -> np.ndarray:
@@ -562,6 +594,10 @@ class OptimalSetpoint:
         if method not in METHODS:
             raise SetpointOptError(f"setpoint = {method!r} is not one of {', '.join(METHODS)}")
         self.options = options if isinstance(options, SetpointOptions) else SetpointOptions.from_mapping(options)
+        if self.options.solver == "closed_form" and (method != "unified" or self.options.unified_form != "printed"):
+            raise SetpointOptError(f"setpoint_options.solver = 'closed_form' is [R]'s closed form of the printed unified "
+                                   f"cost: it needs setpoint = 'unified' with unified_form = 'printed' (got setpoint = "
+                                   f"{method!r}, unified_form = {self.options.unified_form!r})")
         eta_d = np.asarray(eta_d, float)
         if eta_d.shape != (3,) or not np.all(np.isfinite(eta_d)):
             raise SetpointOptError(f"eta_d = {eta_d.tolist()} must be 3 finite numbers (x [m], y [m], psi [rad])")
@@ -611,6 +647,10 @@ class OptimalSetpoint:
         return self.options.lf_factor * math.sqrt(self._ms_lf)
 
     def update(self, t: float, estimate: Estimate) -> Setpoint:
+        eta = np.asarray(estimate.eta, float)
+        if eta.shape != (3,) or not np.all(np.isfinite(eta)) or not math.isfinite(float(t)):
+            raise SetpointOptError(f"estimate at t = {t!r} s: eta = {eta.tolist()} must be 3 finite numbers "
+                                   "(x [m], y [m], psi [rad])")
         broken = frozenset(estimate.broken_lines)
         dt = 0.0 if self._t is None else max(t - self._t, 0.0)
         self._t = float(t)

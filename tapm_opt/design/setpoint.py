@@ -90,31 +90,41 @@ class StaticSetpoint:
         return out
 
 
-def _turret_wf(scenario: Any, sea_state: Any, psi: float, exposure: float, dt: float, seed: int) -> np.ndarray:
-    """Wave-frequency turret motion (dx, dy) in {E} [m] over ``exposure`` s, shape (N, 2)."""
+def _point_wf(scenario: Any, sea_state: Any, psi: float, exposure: float, dt: float, seed: int,
+              points_B: Any) -> list[np.ndarray]:
+    """Wave-frequency motion (dx, dy) in {E} [m] of body-fixed points (each (2,) in {B}) over
+    ``exposure`` s, each shape (N, 2)."""
     env = Environment(scenario, sea_state, seed=seed)
     t = np.arange(0.0, float(exposure), float(dt))
     wf = env.waves.eta_wf(t, psi)
-    cx, cy = rot2_apply(psi, float(scenario.turret.position[0]), float(scenario.turret.position[1]))
-    # R(psi + dpsi) p_cot - R(psi) p_cot ~ dpsi (-c_y, c_x)
-    return np.stack([wf[:, 0] - cy * wf[:, 2], wf[:, 1] + cx * wf[:, 2]], axis=1)
+    out = []
+    for pt in points_B:
+        cx, cy = rot2_apply(psi, float(pt[0]), float(pt[1]))
+        # R(psi + dpsi) c - R(psi) c ~ dpsi (-c_y, c_x)
+        out.append(np.stack([wf[:, 0] - cy * wf[:, 2], wf[:, 1] + cx * wf[:, 2]], axis=1))
+    return out
 
 
 def wave_frequency_ksigma(prob: SetpointProblem, wp: WorkingPoint, p: Any, motion: np.ndarray,
-                          exposure: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                          exposure: float, motion_hangoff: np.ndarray | None = None
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Quasi-static ``k sigma`` of every modelled line's tension [N] and of the riser's two angles
-    [rad] at turret offset ``p`` under the wave-frequency turret ``motion`` (N, 2) [m] (module
-    docstring). Returns ``(ksigma_lines (n,), ksigma_riser (2,), n_maxima (m,))``."""
+    [rad] at turret offset ``p`` under the wave-frequency turret ``motion`` (N, 2) [m] (the riser's
+    under its hang-off's, ``motion_hangoff``, default the turret's; at a fixed heading a hang-off
+    displacement is a turret-offset displacement) (module docstring). Returns ``(ksigma_lines (n,),
+    ksigma_riser (2,), n_maxima (m,))``."""
     _, G = prob.linearise(wp.at(p))              # d delta / d p, rows: lines with an index, riser top, bottom
     scale = np.concatenate([prob.sigma_b[prob.has_index], prob.sigma_r if prob.riser is not None else []])
-    resp = motion @ (-(G * scale[:, None])).T  # WF response of each tension [N] / angle [rad]
+    Gs = -(G * scale[:, None])                   # d response / d p: tensions [N/m], angles [rad/m]
+    m = int(np.sum(prob.has_index))
+    mh = motion if motion_hangoff is None else motion_hangoff
+    resp = np.hstack([motion @ Gs[:m].T, mh @ Gs[m:].T])  # WF response of each tension [N] / angle [rad]
     sigma = resp.std(axis=0)
     wd = resp - resp.mean(axis=0)
     n = np.sum((wd[:-1] < 0) & (wd[1:] >= 0), axis=0) * 1.0
     k = np.array([gumbel_k(max(v, 2.0)) for v in n])
     ks = k * sigma
     ks_lines = np.zeros(len(prob.line_ids))
-    m = int(np.sum(prob.has_index))
     ks_lines[prob.has_index] = ks[:m]
     ks_riser = ks[m:m + 2] if prob.riser is not None else np.zeros(2)
     return ks_lines, ks_riser, n
@@ -164,13 +174,15 @@ def static_setpoint(scenario: Any, sea_state: Any, method: str, *, broken: Itera
     prob = SetpointProblem(sys_b, riser, method, opts)
     v_c = np.zeros(2) if riser is None else np.asarray(riser.v_c, float)[:2]
     wp = WorkingPoint(p=wp0, psi=psi, tau_env=tau, ksigma_lines=np.zeros(len(prob.line_ids)), v_c=v_c)
-    motion = _turret_wf(scenario, ss, psi, exposure, min(0.5, ss.Tp / 20.0), seed)
-    ks_l, ks_r, _ = wave_frequency_ksigma(prob, wp, wp0, motion, exposure)
+    pts = [scenario.turret.position] + ([scenario.riser.hangoff] if riser is not None else [])
+    motions = _point_wf(scenario, ss, psi, exposure, min(0.5, ss.Tp / 20.0), seed, pts)
+    motion, motion_h = motions[0], motions[-1]
+    ks_l, ks_r, _ = wave_frequency_ksigma(prob, wp, wp0, motion, exposure, motion_h)
     p_opt = wp0
     for _ in range(2):   # sigma at the optimum, then the optimum with that sigma
         wp = WorkingPoint(p=wp0, psi=psi, tau_env=tau, ksigma_lines=ks_l, ksigma_riser=ks_r, v_c=v_c)
         p_opt, info = prob.solve(wp, starts=(p_opt,))
-        ks_l, ks_r, _ = wave_frequency_ksigma(prob, wp, p_opt, motion, exposure)
+        ks_l, ks_r, _ = wave_frequency_ksigma(prob, wp, p_opt, motion, exposure, motion_h)
     wp = WorkingPoint(p=wp0, psi=psi, tau_env=tau, ksigma_lines=ks_l, ksigma_riser=ks_r, v_c=v_c)
     p_opt, info = prob.solve(wp, starts=(p_opt,))
     ev = prob.evaluate(p_opt, wp)
@@ -219,12 +231,13 @@ class ReliabilityMap:
     @property
     def delta_min(self) -> np.ndarray:
         """Lowest of every index at each point."""
-        return self.delta_lines if self.delta_riser is None else np.fmin(self.delta_lines, self.delta_riser)
+        return self.delta_lines if self.delta_riser is None else np.minimum(self.delta_lines, self.delta_riser)
 
     @property
     def safe(self) -> np.ndarray:
-        """True where every index is at least ``delta_s``."""
-        return self.delta_min >= self.delta_s
+        """True where every index is at least ``delta_s`` (False where the catenary has no solution)."""
+        with np.errstate(invalid="ignore"):
+            return self.delta_min >= self.delta_s
 
 
 def reliability_map(scenario: Any, sea_state: Any, *, broken: Iterable[str] = (), heading: float = 0.0,
@@ -249,8 +262,8 @@ def reliability_map(scenario: Any, sea_state: Any, *, broken: Iterable[str] = ()
     ksigma_lines : (n_lines,) or mapping id -> value, optional
         [N]; ``ksigma_riser`` (2,) [rad].
     half_width : float, optional
-        Grid from -half_width to +half_width [m] (default 1.25 x the alert radius, or 10 % of the
-        water depth).
+        Grid from -half_width to +half_width [m] (default 1.25 x the alert radius, else the safe
+        radius, else 8 % of the water depth).
     n : int
         Points per axis (>= 3).
     delta_s : float, optional

@@ -4,8 +4,9 @@
 measured fairlead tension stays below ``fraction`` of its pretension (the design model's tension at
 the field zero point) for ``hold`` seconds is declared broken, and stays so. It needs no model of
 the vessel's motion: the fairlead tension of an intact catenary line cannot fall below the weight
-of the line hanging between the fairlead and the seabed (about 40 % of the pretension on fpso, at
-any offset inside the alert circle), while a broken line reads its cell's noise about zero.
+of the line hanging between the fairlead and the seabed (on fpso the slack side keeps at least 75 % of
+its pretension quasi-statically anywhere on the alert circle), while a broken line reads its cell's
+noise about zero.
 
 Detected breaks reach the setpoint layer and the controllers through ``Estimate.broken_lines``.
 """

@@ -277,7 +277,8 @@ def run_closed_loop(plant: Plant, controller: Controller, settings: ClosedLoopSe
     wall = time.perf_counter() - t_wall0
     diag = _diagnostics(steps, ctrl_times, alloc_times, alloc_fallbacks)
     md = {**plant.metadata(), "controller": type(controller).__name__, "controller_period": period,
-          "dt_control": s.dt_control, "true_state": s.true_state, "setpoint": s.setpoint, "heading": s.heading,
+          "dt_control": s.dt_control, "true_state": s.true_state, "setpoint": s.setpoint,
+          "setpoint_options": dict(s.setpoint_options or {}), "heading": s.heading,
           "estimator": type(estimator).__name__, "setpoint_layer": type(layer).__name__,
           "turret_position_B": [float(v) for v in system.p_cot_B],
           "wall_time": wall, "diagnostics": diag, **(meta or {})}

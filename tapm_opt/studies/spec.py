@@ -279,9 +279,10 @@ def _parse_sea_states(ck: Checker, data: Mapping, out: _Parsed) -> None:
             out.sea_states.append((sc.sea_states[0].id, sc.sea_states[0]))
 
 
-def _setpoint_fields(ck: Checker, table: Mapping, where: str, default: dict) -> dict:
-    """``setpoint`` and ``setpoint_options`` of a [study] or [[controllers]] table, checked."""
-    from ..control.setpoint_opt import SetpointOptError, SetpointOptions
+def _setpoint_fields(ck: Checker, table: Mapping, where: str, default: dict, inherited: str | None = None) -> dict:
+    """``setpoint`` and ``setpoint_options`` of a [study] or [[controllers]] table, checked;
+    options with a setpoint (its own, else ``inherited``) that takes none are an error."""
+    from ..control.setpoint_opt import METHODS, SetpointOptError, SetpointOptions
     from .closed_loop import SETPOINT_KINDS
 
     out = dict(default)
@@ -289,7 +290,11 @@ def _setpoint_fields(ck: Checker, table: Mapping, where: str, default: dict) -> 
         out["setpoint"] = ck.choice(table["setpoint"], SETPOINT_KINDS, f"{where}.setpoint")
     if "setpoint_options" in table:
         opts = ck.table(table["setpoint_options"], f"{where}.setpoint_options")
-        if opts is not None:
+        kind = out.get("setpoint", inherited)
+        if opts is not None and kind is not None and kind not in METHODS:
+            ck.err(f"{where}.setpoint_options", f"are options of the optimal setpoints ({', '.join(METHODS)}); "
+                   f"the setpoint here is {kind!r}")
+        elif opts is not None:
             try:
                 SetpointOptions.from_mapping(opts, where=f"{where}.setpoint_options")
                 out["setpoint_options"] = dict(opts)
@@ -300,13 +305,17 @@ def _setpoint_fields(ck: Checker, table: Mapping, where: str, default: dict) -> 
 
 def _loop(study: dict, controller: dict) -> dict:
     """The closed-loop settings of one controller's cases: the study's, with the controller's own
-    setpoint (and its options) in place of the study's."""
+    setpoint in place of the study's and its options over the study's (key by key); a controller
+    whose setpoint is fixed or chased takes none of the study's options."""
+    from ..control.setpoint_opt import METHODS
+
     out = dict(study)
     if "setpoint" in controller:
-        out.pop("setpoint_options", None)
-    out.update({k: v for k, v in controller.items() if v is not None})
-    if out.get("setpoint") in ("fixed", "chasing"):
-        out.pop("setpoint_options", None)
+        out["setpoint"] = controller["setpoint"]
+    opts = {**(study.get("setpoint_options") or {}), **(controller.get("setpoint_options") or {})}
+    out.pop("setpoint_options", None)
+    if opts and out.get("setpoint") in METHODS:
+        out["setpoint_options"] = opts
     return out
 
 
@@ -326,9 +335,7 @@ def _parse_controllers(ck: Checker, data: Mapping, out: _Parsed) -> None:
         kind = ck.choice(e["type"], CONTROLLER_TYPES, f"{p}.type") if "type" in e else None
         cname = ck.text(e["name"], f"{p}.name") if "name" in e else _NAMES.get(kind or "")
         opts = {k: v for k, v in e.items() if k not in ("name", "type", "setpoint", "setpoint_options")}
-        loop = _setpoint_fields(ck, e, p, {}) if ("setpoint" in e or "setpoint_options" in e) else {}
-        if "setpoint_options" in e and "setpoint" not in e:
-            loop["setpoint"] = out.closed_loop.get("setpoint")
+        loop = _setpoint_fields(ck, e, p, {}, inherited=out.closed_loop.get("setpoint"))
         spec = None
         if kind is not None:
             n_issues = len(ck.issues)
