@@ -107,8 +107,8 @@ class MPCSettings:
         own iteration limit.
     reliability : bool
         Reliability constraints (survey eq. 32; reliability seed §2.2) as soft constraints of the
-        prediction: every line's tension at most ``T_b - k sigma - delta_s sigma_b`` (its index at
-        least ``delta_s``) instead of ``tension_utilisation`` x MBS, and, with a riser, both riser
+        prediction: every line's tension at most the lower of ``tension_utilisation`` x MBS and
+        ``T_b - k sigma - delta_s sigma_b`` (its index at least ``delta_s``), and, with a riser, both riser
         angles inside ``r - k sigma - delta_s sigma_r`` (as inscribed octagons). ``k sigma`` comes
         online from the controller's reliability monitor; the current's share of the riser angles
         from the measured angles (:class:`~tapm_opt.control.mpc.NonlinearMPC`).
