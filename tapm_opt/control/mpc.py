@@ -112,11 +112,23 @@ class _MPCBase:
         u_prev = self._into_polytope(u_prev / self._prob.scale["u"]) * self._prob.scale["u"]
         p[pi["x0"]], p[pi["u_prev"]], p[pi["eta_d"]], p[pi["b"]] = np.concatenate([eta, nu]), u_prev, eta_d, b_E
         if pi["moor"].stop > pi["moor"].start:
-            p[pi["moor"]] = mooring_parameters(self.model, self._centre(eta, eta_d))
+            moor = mooring_parameters(self.model, self._centre(eta, eta_d))
+            if self.settings.fault_tolerance and est.broken_lines:
+                moor = self._without_broken(moor, frozenset(est.broken_lines))
+            p[pi["moor"]] = moor
         p[pi["T_lim"]] = self._tension_limits(est)
         if pi["riser"].stop > pi["riser"].start:
             p[pi["riser"]] = self._riser_parameters(est)
         return p
+
+    def _without_broken(self, moor: np.ndarray, broken: frozenset) -> np.ndarray:
+        """Line characteristics (5 n,) with the lines ``broken`` dropped: their H0, dH/dXF, T0 and
+        dT/dXF zeroed (XF0 kept), so they pull nothing and carry no tension in the prediction."""
+        out = moor.reshape(5, -1).copy()
+        cols = [i for i, lid in enumerate(self.model.line_ids) if lid in broken]
+        if cols:
+            out[np.ix_([0, 1, 3, 4], cols)] = 0.0
+        return out.ravel()
 
     #: Time constant of the low-pass of the measured riser angles that gives the current's share [s].
     RISER_LF_TIME = 60.0

@@ -114,6 +114,11 @@ class MPCSettings:
         from the measured angles (:class:`~tapm_opt.control.mpc.NonlinearMPC`).
     delta_s : float
         Reliability-index threshold of those constraints [-].
+    fault_tolerance : bool
+        When the estimate reports broken lines (``Estimate.broken_lines``), drop them from the
+        prediction: their characteristics (``mooring="characteristic"``, the only kind whose lines
+        are parameters) are zeroed, so the predicted mooring load and tensions are those of the
+        lines left, with no new problem.
     """
 
     horizon: int = 20
@@ -148,6 +153,7 @@ class MPCSettings:
     max_time: float = 10.0
     reliability: bool = False
     delta_s: float = 2.0
+    fault_tolerance: bool = False
 
     def __post_init__(self) -> None:
         pos = ("dt", "r_ref", "psi_ref", "nu_ref", "r_rate_ref", "capacity_fraction", "max_time")
@@ -161,8 +167,12 @@ class MPCSettings:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
                 raise MPCError(f"MPCSettings.{name} = {v!r} must be a number >= 0")
-        if not isinstance(self.reliability, bool):
-            raise MPCError(f"MPCSettings.reliability = {self.reliability!r} must be true or false")
+        for name in ("reliability", "fault_tolerance"):
+            if not isinstance(getattr(self, name), bool):
+                raise MPCError(f"MPCSettings.{name} = {getattr(self, name)!r} must be true or false")
+        if self.fault_tolerance and self.mooring != "characteristic":
+            raise MPCError(f"MPCSettings.fault_tolerance needs mooring = 'characteristic' (the lines are parameters "
+                           f"of the problem only then), got mooring = {self.mooring!r}")
         if not (isinstance(self.delta_s, (int, float)) and math.isfinite(self.delta_s)):
             raise MPCError(f"MPCSettings.delta_s = {self.delta_s!r} must be a finite number")
         for name, lo in (("horizon", 1), ("substeps", 1), ("polygon_sides", 3), ("max_iter", 1),

@@ -233,6 +233,14 @@ class TAPMPID:
         (:meth:`set_failed_thrusters`), ``tau_limit`` shrinks by the ratio of the remaining
         thrusters' capacity box to the intact one (``models.system.ThrusterSet``). Without it the
         limit stays.
+    line_model : MooringModel, optional
+        The intact line model, for ``fault_tolerance``.
+    fault_tolerance : bool
+        When the estimate reports broken lines (``Estimate.broken_lines``), add the load they
+        gave the vessel at the estimated pose as feed-forward, ``tau_moor,intact(eta) -
+        tau_moor,without them(eta)`` ([S] §4.2.4: "the thrusters must be used in feedforward to
+        compensate for the lost mooring force"; the tabulated catenary of
+        :meth:`MooringModel.load_evaluator`). Needs ``line_model``.
 
     Notes
     -----
@@ -246,9 +254,16 @@ class TAPMPID:
     def __init__(self, gains: PIDGains, *, modes: str | Sequence[str] = MODES,
                  tau_limit: Any = None, integral_limit: Any = None, anti_windup: bool = True,
                  env_feedforward: bool = False, reference_point: Any = (0.0, 0.0),
-                 period: float | None = None, thrusters: Any = None) -> None:
+                 period: float | None = None, thrusters: Any = None, line_model: Any = None,
+                 fault_tolerance: bool = False) -> None:
         if not isinstance(gains, PIDGains):
             raise ControlError(f"gains must be a PIDGains, got {type(gains).__name__}")
+        if not isinstance(fault_tolerance, bool):
+            raise ControlError(f"fault_tolerance = {fault_tolerance!r} must be true or false")
+        if fault_tolerance and line_model is None:
+            raise ControlError("fault_tolerance needs the intact line model (line_model)")
+        self._line_model, self._ft = line_model, fault_tolerance
+        self._reduced: dict[frozenset, Any] = {}
         self._gains = gains
         self._tau_limit = _limit("tau_limit", tau_limit, allow_zero=False)
         self._tau_limit_intact = self._tau_limit
@@ -409,12 +424,24 @@ class TAPMPID:
         tau = -(self._Ki @ (Rt @ self._xi)) - self._Kp @ e_b - self._Kd @ (nu - nu_d)
         if tau_env is not None:
             tau = tau - tau_env
+        if self._ft and estimate.broken_lines:
+            tau = tau + self.lost_load(eta, frozenset(estimate.broken_lines))
         self._tau_unsat = tau
         if self._tau_limit is not None:
             self._sat = np.abs(tau) > self._tau_limit
             tau = np.clip(tau, -self._tau_limit, self._tau_limit)
         self._last = ControllerStep(t=t, active=("saturated",) if np.any(self._sat) else ())
         return np.array(tau)
+
+    def lost_load(self, eta: np.ndarray, broken: frozenset) -> np.ndarray:
+        """The load in {B} [N, N, N m] the lines ``broken`` gave the vessel at pose ``eta`` (the
+        fault-tolerant feed-forward): the intact model's minus the model without them."""
+        broken = frozenset(broken) & frozenset(self._line_model.line_ids)
+        if not broken:
+            return np.zeros(3)
+        if broken not in self._reduced:
+            self._reduced[broken] = self._line_model.without(broken)
+        return np.asarray(self._line_model.force_fast(eta), float) - np.asarray(self._reduced[broken].force_fast(eta), float)
 
     def _integrate(self, e_b: np.ndarray, Rt: np.ndarray, dt: float) -> None:
         """xi += (eta - eta_d) dt with conditional integration and clamping (anti-windup)."""

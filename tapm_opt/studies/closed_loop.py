@@ -283,7 +283,7 @@ def run_closed_loop(plant: Plant, controller: Controller, settings: ClosedLoopSe
           "turret_position_B": [float(v) for v in system.p_cot_B],
           "wall_time": wall, "diagnostics": diag, **(meta or {})}
     for role, comp in (("setpoint", layer), ("controller", controller), ("estimator", estimator)):
-        if isinstance(comp, Logged) and comp.log():
+        if isinstance(comp, Logged):   # an empty log says "nothing happened", so it is kept too
             md[f"{role}_log"] = list(comp.log())
     return rb.build(md)
 

@@ -9,11 +9,14 @@ PID (``tapm_opt.control.pid``): gains by pole placement on the design model line
 zero point — ``periods`` (surge, sway, yaw) [s], ``damping`` (-), ``integral_ratio`` —, ``modes``
 (a Table 3 set: ``calm``, ``normal``, ``normal_restoring``, ``extreme``, ``extreme_restoring``, or a
 list of modes), ``tau_limit`` (default: the capacity box of the thrusters,
-``models.system.ThrusterSet.capacity_box``, the same box the MPC uses). Its position loop acts on
-the turret offset (the reference point is the centre of turret).
+``models.system.ThrusterSet.capacity_box``, the same box the MPC uses), ``fault_tolerance``
+(default true: a line the estimator reports broken has its load fed forward). Its position loop
+acts on the turret offset (the reference point is the centre of turret).
 
 MPC (``tapm_opt.control.mpc.MPCSettings``): every settings field; ``dead_band`` defaults to 0.6 of the
-scenario's safe radius (``MPC_DEAD_BAND``), ``w_thrust``, ``w_rate`` and ``w_velocity`` to ``MPC_DEFAULTS``;
+scenario's safe radius (``MPC_DEAD_BAND``), ``w_thrust``, ``w_rate`` and ``w_velocity`` to ``MPC_DEFAULTS``,
+``fault_tolerance`` to true with the (default) characteristic mooring (a line reported broken
+leaves the prediction);
 ``period`` [s] is the re-solve period (default the prediction step); ``lmpc`` also takes
 ``qp_solver`` (``"piqp"``, default, or ``"osqp"``).
 
@@ -44,7 +47,7 @@ CONTROLLER_TYPES = ("pid", "mpc", "lmpc")
 _MAX_HORIZON = 500  # prediction steps (horizon x substeps): the default is 20
 
 PID_DEFAULTS = {"periods": (250.0, 250.0, 150.0), "damping": (0.8, 0.8, 0.8), "integral_ratio": 0.1,
-                "modes": "normal_restoring", "tau_limit": None}
+                "modes": "normal_restoring", "tau_limit": None, "fault_tolerance": True}
 
 
 #: Study defaults of the MPCs that differ from MPCSettings' (tuned on the fpso design storm, intact
@@ -114,9 +117,12 @@ def build_controller(system: Any, spec: Mapping[str, Any] | str, *, where: str =
             except (TypeError, ValueError):
                 raise ControllerSpecError(f"{where}.tau_limit = {o['tau_limit']!r} must be a number or 3 numbers "
                                           f"(X [N], Y [N], N [N m])") from None
+            if not isinstance(o["fault_tolerance"], bool):
+                raise ControllerSpecError(f"{where}.fault_tolerance = {o['fault_tolerance']!r} must be true or false")
             ctrl = TAPMPID.from_design(design, modes=o["modes"] if isinstance(o["modes"], str) else tuple(o["modes"]),
                                        tau_limit=tau_limit, reference_point=system.p_cot_B,
-                                       thrusters=system.thrusters)
+                                       thrusters=system.thrusters, line_model=system.lines,
+                                       fault_tolerance=o["fault_tolerance"])
             ctrl.design = design
             return ctrl
         allowed = {f.name for f in fields(MPCSettings)} | {"period"} | ({"qp_solver"} if kind == "lmpc" else set())
@@ -125,7 +131,8 @@ def build_controller(system: Any, spec: Mapping[str, Any] | str, *, where: str =
         qp_solver = spec.pop("qp_solver", "piqp")
         if "dead_band" not in spec and system.limits.safe_radius is not None:
             spec["dead_band"] = MPC_DEAD_BAND * system.limits.safe_radius
-        settings = MPCSettings(**{**MPC_DEFAULTS, **spec})
+        ft = {"fault_tolerance": spec.get("mooring", "characteristic") == "characteristic"}  # where it can be
+        settings = MPCSettings(**{**MPC_DEFAULTS, **ft, **spec})
         n_pred = settings.horizon * settings.substeps
         if n_pred > _MAX_HORIZON:
             raise ControllerSpecError(
