@@ -15,9 +15,9 @@ fallback) is summarised in the result's diagnostics.
 Positions of setpoints are turret offsets (``geometry.turret_offset``).
 
 Faults: a thruster failure reaches the allocator (and a :class:`~tapm_opt.interfaces.FaultAware`
-controller) through the thruster feedback of the measurement; a line break is not reported to the
-controller (no line-break detection yet) — the estimator's environmental-load estimate absorbs the
-lost line force.
+controller) through the thruster feedback of the measurement; a line break reaches the setpoint
+layer and the controller through the default estimator's tension-drop detector
+(``Estimate.broken_lines``), which also drops the line from the estimator's load balance.
 """
 
 from __future__ import annotations
