@@ -90,7 +90,7 @@ def _result_with(log, events):
 
 
 def test_detection_kpis_from_the_estimators_log():
-    from tapm_opt.studies.kpis import _break_times, _detection
+    from tapm_opt.studies.kpis import _detection, break_times as _break_times
 
     ev = [[100.0, "line 2 broke"]]
     log = [{"t": 50.0, "line": "1", "event": "line break detected"},

@@ -37,6 +37,7 @@ import casadi as ca
 import numpy as np
 import scipy.sparse as sp
 
+from ..estimation.reliability import RISER_BOTTOM, RISER_TOP, line_signal
 from ..geometry import body_from_turret, rot_z, ssa
 from ..interfaces import Estimate, Setpoint, ThrusterCommand
 from ..models.system import as_system
@@ -143,15 +144,11 @@ class _MPCBase:
         T_allow = np.asarray(prob.scale["T_allow"], float)
         if not s.reliability or est.reliability is None or not est.reliability.ready:
             return T_allow
-        sc = self.system.scenario
-        std = dict(zip([ln.id for ln in sc.lines], np.asarray(sc.line_arrays["MBS_std"], float)))
-        ks = {} if est.reliability is None else est.reliability.allowance()
-        mbs = np.asarray(self.model.MBS, float)
-        out = T_allow.copy()
-        for i, lid in enumerate(self.model.line_ids):
-            if std[lid] > 0:
-                out[i] = min(T_allow[i], max(mbs[i] - ks.get(f"line {lid}", 0.0) - s.delta_s * std[lid], 0.05 * mbs[i]))
-        return out
+        ks = est.reliability.allowance()
+        mbs, std = np.asarray(self.model.MBS, float), np.asarray(self.model.MBS_std, float)
+        kl = np.array([ks.get(line_signal(lid), 0.0) for lid in self.model.line_ids])
+        rel = np.maximum(mbs - kl - s.delta_s * std, 0.05 * mbs)
+        return np.where(std > 0, np.minimum(T_allow, rel), T_allow)
 
     def _riser_parameters(self, est: Estimate) -> np.ndarray:
         """(limit top, limit bottom, current's share of the top angle (2), of the bottom angle (2))
@@ -162,9 +159,9 @@ class _MPCBase:
         rs, R = self.system.scenario.riser, self.riser
         ks = {} if est.reliability is None else est.reliability.allowance()
         floor = math.radians(0.05)
-        lim = [max(rs.critical_top_angle - ks.get("riser top", 0.0) - self.settings.delta_s * rs.critical_top_angle_std,
+        lim = [max(rs.critical_top_angle - ks.get(RISER_TOP, 0.0) - self.settings.delta_s * rs.critical_top_angle_std,
                    floor),
-               max(rs.critical_bottom_angle - ks.get("riser bottom", 0.0)
+               max(rs.critical_bottom_angle - ks.get(RISER_BOTTOM, 0.0)
                    - self.settings.delta_s * rs.critical_bottom_angle_std, floor)]
         share = np.zeros(4)
         if est.riser_angles is not None:

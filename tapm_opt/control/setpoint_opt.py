@@ -71,6 +71,7 @@ import casadi as ca
 import numpy as np
 
 from ..errors import TapmError
+from ..estimation.reliability import RISER_BOTTOM, RISER_TOP, line_signal
 from ..geometry import body_from_turret, rot2_apply, turret_offset
 from ..interfaces import Estimate, Setpoint
 
@@ -278,10 +279,9 @@ class SetpointProblem:
         self.system, self.riser, self.method, self.o = system, riser, method, options
         lines = system.lines
         sc = system.scenario
-        std = dict(zip([ln.id for ln in sc.lines], np.asarray(sc.line_arrays["MBS_std"], float)))
         self.line_ids = tuple(lines.line_ids)
         self.T_b = np.asarray(lines.MBS, float)
-        self.sigma_b = np.array([std[i] for i in self.line_ids], float)
+        self.sigma_b = np.asarray(lines.MBS_std, float)
         self.has_index = self.sigma_b > 0
         self.p_cot_B = np.asarray(system.p_cot_B, float)
         tmax = np.asarray(system.thrusters.max_tau(), float)
@@ -637,8 +637,8 @@ class OptimalSetpoint:
         ks = {} if estimate.reliability is None else estimate.reliability.allowance()
         return WorkingPoint(p=np.array(turret_offset(estimate.eta, self.system0.p_cot_B), float),
                             psi=float(estimate.eta[2]), tau_env=np.asarray(estimate.tau_env, float),
-                            ksigma_lines=np.array([ks.get(f"line {i}", 0.0) for i in self.line_ids if i not in broken]),
-                            ksigma_riser=np.array([ks.get("riser top", 0.0), ks.get("riser bottom", 0.0)]),
+                            ksigma_lines=np.array([ks.get(line_signal(i), 0.0) for i in self.line_ids if i not in broken]),
+                            ksigma_riser=np.array([ks.get(RISER_TOP, 0.0), ks.get(RISER_BOTTOM, 0.0)]),
                             v_c=self.v_c, p_o=self.eta_d0[:2], r_lf=self.r_lf)
 
     @property

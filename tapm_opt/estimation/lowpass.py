@@ -38,7 +38,36 @@ class EstimationError(TapmError, ValueError):
     """Bad estimator settings or measurements."""
 
 
-class LowPassEstimator:
+class _WithDetectorAndMonitor:
+    """The parts both estimators carry: an optional line-break detector and reliability monitor,
+    fed the measured tensions (and riser angles), reset with the estimator, their log shared."""
+
+    detector: Any = None
+    monitor: Any = None
+
+    def log(self) -> list[dict]:
+        """The detector's events (``{"t", "line", "event"}``), if there is a detector."""
+        return [] if self.detector is None else list(self.detector.events)
+
+    def _reset_parts(self) -> None:
+        for part in (self.detector, self.monitor):
+            if part is not None:
+                part.reset()
+
+    def _detect(self, t: float, m: Measurement) -> frozenset:
+        """The lines the detector reports broken so far (empty without a detector or tensions)."""
+        if self.detector is None or m.tensions is None:
+            return frozenset()
+        return self.detector.update(t, m.tensions)
+
+    def _reliability(self, t: float, m: Measurement) -> Any:
+        """Feed the monitor the measured tensions and riser-angle magnitudes (when it has both)."""
+        if self.monitor is None or m.tensions is None:
+            return None
+        return self.monitor.update(t, monitor_signals(m.tensions, m.riser_angles, self.monitor.m))
+
+
+class LowPassEstimator(_WithDetectorAndMonitor):
     """Low-pass state and environmental-load estimate (module docstring).
 
     Parameters
@@ -92,19 +121,11 @@ class LowPassEstimator:
     def reset(self) -> None:
         self._y, self._yd, self._psi_prev, self._b, self._t = None, np.zeros(3), None, None, None
         self.model = self.intact_model
-        for part in (self.detector, self.monitor):
-            if part is not None:
-                part.reset()
-
-    def log(self) -> list[dict]:
-        """The detector's events (``{"t", "line", "event"}``), if there is a detector."""
-        return [] if self.detector is None else list(self.detector.events)
+        self._reset_parts()
 
     def _broken(self, t: float, m: Measurement) -> frozenset:
         """Feed the detector; on a new break, leave the line out of the model."""
-        if self.detector is None or m.tensions is None:
-            return frozenset()
-        broken = self.detector.update(t, m.tensions)
+        broken = self._detect(t, m)
         if broken and set(broken) & set(self.model.line_ids):
             self.model = self.intact_model.without(broken)
         return broken
@@ -119,7 +140,7 @@ class LowPassEstimator:
         broken = self._broken(t, m)
         eta, nu, tau_env = self.filter(t, m.position, m.heading, tau_thr)
         return Estimate(t=t, eta=eta, nu=nu, tau_env=tau_env, tensions=m.tensions, riser_angles=m.riser_angles,
-                        broken_lines=broken, reliability=_reliability(self.monitor, t, m))
+                        broken_lines=broken, reliability=self._reliability(t, m))
 
     def filter(self, t: float, position: np.ndarray, heading: float, tau_thr: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Feed one measurement; returns (eta_hat (3,), nu_hat (3,), tau_env_hat (3,) in {B}).
@@ -172,7 +193,7 @@ class LowPassEstimator:
         self._yd = (c1 - w * (e + c1 * dt)) * ex
 
 
-class TrueStateEstimator:
+class TrueStateEstimator(_WithDetectorAndMonitor):
     """Validation estimator: hands on the plant's true LF state and mean environmental load
     (``measurement.truth``), to separate controller performance from estimation error; the
     measured tensions and riser angles pass through."""
@@ -185,24 +206,9 @@ class TrueStateEstimator:
         tr = measurement.truth
         if tr is None:
             raise EstimationError("the measurement carries no truth: TrueStateEstimator needs a simulated plant")
-        broken = frozenset() if self.detector is None or measurement.tensions is None else \
-            self.detector.update(t, measurement.tensions)
         return Estimate(t=t, eta=tr.eta, nu=tr.nu, tau_env=tr.tau_env, tensions=measurement.tensions,
-                        riser_angles=measurement.riser_angles, broken_lines=broken,
-                        reliability=_reliability(self.monitor, t, measurement))
-
-    def log(self) -> list[dict]:
-        """The detector's events, if there is a detector."""
-        return [] if self.detector is None else list(self.detector.events)
+                        riser_angles=measurement.riser_angles, broken_lines=self._detect(t, measurement),
+                        reliability=self._reliability(t, measurement))
 
     def reset(self) -> None:
-        for part in (self.detector, self.monitor):
-            if part is not None:
-                part.reset()
-
-
-def _reliability(monitor: Any, t: float, m: Measurement) -> Any:
-    """Feed the monitor the measured tensions and riser-angle magnitudes (when it has both)."""
-    if monitor is None or m.tensions is None:
-        return None
-    return monitor.update(t, monitor_signals(m.tensions, m.riser_angles, monitor.m))
+        self._reset_parts()

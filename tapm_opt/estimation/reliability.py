@@ -67,7 +67,8 @@ from .._io import readonly
 from ..errors import TapmError
 
 __all__ = ["ReliabilityError", "ReliabilityMonitor", "ReliabilityState", "ReliabilityRecord",
-           "causal_reliability", "gumbel_k", "monitor_for", "monitor_signals", "LP_WINDOW_DEFAULT",
+           "causal_reliability", "gumbel_k", "monitor_for", "monitor_signals", "line_signal", "RISER_TOP",
+           "RISER_BOTTOM", "LP_WINDOW_DEFAULT",
            "SIGMA_WINDOW_DEFAULT", "N_MAXIMA_FLOOR"]
 
 #: Width of the moving average that defines the low-frequency mean r_m [s].
@@ -611,6 +612,15 @@ def causal_reliability(t: Sequence[float] | np.ndarray, X: Sequence[Sequence[flo
     return ReliabilityRecord(t=tv, names=mon.names, span=span, ready=ready, **out)
 
 
+#: Signal names of the riser's two ends in :func:`monitor_for`'s monitor.
+RISER_TOP, RISER_BOTTOM = "riser top", "riser bottom"
+
+
+def line_signal(line_id: str) -> str:
+    """Signal name of a line's tension in :func:`monitor_for`'s monitor."""
+    return f"line {line_id}"
+
+
 def monitor_for(scenario: Any, **settings: Any) -> ReliabilityMonitor:
     """The monitor of a scenario's measured signals, in the order the estimators feed them: every
     line's fairlead tension (scenario order; ``r_t`` = MBS, ``sigma_t`` = MBS_std — a line without
@@ -621,12 +631,12 @@ def monitor_for(scenario: Any, **settings: Any) -> ReliabilityMonitor:
     la = scenario.line_arrays
     r_t = list(np.asarray(la["MBS"], float))
     s_t = [v if v > 0 else 1.0 for v in np.asarray(la["MBS_std"], float)]
-    names = [f"line {ln.id}" for ln in scenario.lines]
+    names = [line_signal(ln.id) for ln in scenario.lines]
     rs = scenario.riser
     if rs is not None:
         r_t += [rs.critical_top_angle, rs.critical_bottom_angle]
         s_t += [rs.critical_top_angle_std, rs.critical_bottom_angle_std]
-        names += ["riser top", "riser bottom"]
+        names += [RISER_TOP, RISER_BOTTOM]
     return ReliabilityMonitor(np.array(r_t), np.array(s_t), names=names, **settings)
 
 

@@ -58,6 +58,9 @@ class MooringModel:
     ZF, L, EA, w, CB, MBS : ndarray, shape (n,)
         Fairlead height above anchor [m], unstretched length [m], axial stiffness [N], submerged
         weight [N/m], seabed friction [-], minimum breaking strength [N].
+    MBS_std : ndarray, shape (n,)
+        Standard deviation of the breaking strength [N] (sigma_b of the reliability index, survey
+        eq. 32; 0: the line has no index).
     h_A : ndarray, shape (n,)
         Height of each anchor (the line's lower end) above the seabed [m], >= 0 (0: on the seabed).
         Seabed friction is not applied to a line whose anchor is above the seabed (see
@@ -77,6 +80,7 @@ class MooringModel:
     CB: np.ndarray
     MBS: np.ndarray
     h_A: np.ndarray
+    MBS_std: np.ndarray = field(default_factory=lambda: readonly(np.zeros(0)))
     _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     # -- construction ---------------------------------------------------------------------
@@ -133,6 +137,7 @@ class MooringModel:
             CB=readonly(la["CB"][keep]),
             MBS=readonly(la["MBS"][keep]),
             h_A=readonly(h_A[keep]),
+            MBS_std=readonly(np.asarray(la["MBS_std"], float)[keep]),
         )
 
     def without(self, broken: Iterable[str]) -> "MooringModel":
@@ -145,7 +150,7 @@ class MooringModel:
         if not keep.any():
             raise ModelError("every line is broken: there is no mooring left to model")
         arrays = {name: readonly(np.asarray(getattr(self, name))[keep])
-                  for name in ("anchors", "p_T", "ZF", "L", "EA", "w", "CB", "MBS", "h_A")}
+                  for name in ("anchors", "p_T", "ZF", "L", "EA", "w", "CB", "MBS", "h_A", "MBS_std")}
         return MooringModel(line_ids=tuple(i for i, k in zip(self.line_ids, keep) if k), p_cot_B=self.p_cot_B,
                             turret_angle=self.turret_angle, turret_mode=self.turret_mode, **arrays)
 

@@ -15,15 +15,14 @@
 from __future__ import annotations
 
 import math
-import re
 from dataclasses import dataclass, field
 from typing import Any, Sequence
 
 import numpy as np
 
-from ..estimation.reliability import LP_WINDOW_DEFAULT, SIGMA_WINDOW_DEFAULT, causal_reliability
+from ..estimation.reliability import LP_WINDOW_DEFAULT, SIGMA_WINDOW_DEFAULT
 from ..geometry import turret_offset
-from ..studies.kpis import DELTA_S_DEFAULT, RISER_ENDS
+from ..studies.kpis import DELTA_S_DEFAULT, RISER_ENDS, IndexRun, break_times, causal_runs
 from .data import ReportError
 
 __all__ = ["MAX_POINTS", "TurretTrack", "ComparisonSeries", "IndexRun", "CausalTraces", "decimate",
@@ -32,7 +31,6 @@ __all__ = ["MAX_POINTS", "TurretTrack", "ComparisonSeries", "IndexRun", "CausalT
 
 #: Most points per plotted curve (see :func:`decimate`).
 MAX_POINTS = 2000
-_BREAK_RE = re.compile(r"line\s+(\S+)\s+broke")
 
 
 def decimate(t: np.ndarray, y: np.ndarray, n: int = MAX_POINTS) -> tuple[np.ndarray, np.ndarray]:
@@ -141,30 +139,6 @@ def turret_track(result: Any, p_cot_B: Any) -> TurretTrack:
 
 
 @dataclass(frozen=True)
-class IndexRun:
-    """The causal reliability index of one signal (or the lowest over several) on one segment,
-    at the samples where the estimate is ready (and the signal alive).
-
-    Attributes
-    ----------
-    segment : int
-        0: the intact record (up to and including the first line break), 1: the damaged record.
-    t : ndarray, shape (k,)
-        Times [s].
-    delta : ndarray, shape (k,)
-        delta(t) [-] (survey eq. 32; [R] §2.2).
-    ksigma : ndarray, shape (k,) or None
-        The extreme allowance k sigma at those times, in the unit of the signal (N for a line, rad
-        for a riser end); None for a lowest-over-signals run.
-    """
-
-    segment: int
-    t: np.ndarray
-    delta: np.ndarray
-    ksigma: np.ndarray | None = None
-
-
-@dataclass(frozen=True)
 class CausalTraces:
     """The causal reliability index of one saved case, evaluated as its KPIs are (:func:`causal_traces`).
 
@@ -201,57 +175,6 @@ class CausalTraces:
     t_break: float | None
     broken: tuple[str, ...]
     delta_s: float
-
-
-def break_times(result: Any) -> dict[str, float]:
-    """``{line id: time [s]}`` of the ``"line <id> broke"`` events of a result (the first per line)."""
-    out: dict[str, float] = {}
-    for ev in events_of(result):
-        try:
-            m = _BREAK_RE.fullmatch(str(ev[1]).strip())
-            if m:
-                out[m.group(1)] = min(float(ev[0]), out.get(m.group(1), math.inf))
-        except (TypeError, ValueError, IndexError):
-            continue
-    return out
-
-
-def causal_runs(t: np.ndarray, X: np.ndarray, r_t: np.ndarray, sigma_t: np.ndarray,
-                segments: Sequence[np.ndarray], alive: np.ndarray, *, names: Sequence[str],
-                lp_window: float = LP_WINDOW_DEFAULT, sigma_window: float = SIGMA_WINDOW_DEFAULT,
-                ) -> tuple[list[list[IndexRun]], list[IndexRun]]:
-    """The causal index of the columns of ``X`` (N, m), restarted on each segment, exactly as the
-    KPIs evaluate it (:func:`tapm_opt.studies.kpis.case_kpis`): one
-    :func:`~tapm_opt.estimation.reliability.causal_reliability` per segment (boolean masks over
-    ``t``), a column's values kept where the estimate is ready and the column's ``alive`` (m, N)
-    holds. Unlike the KPI module's own loop it also keeps ``k sigma`` and the lowest index over the
-    columns at each instant.
-
-    Returns
-    -------
-    (per_column, lowest)
-        ``per_column[j]``: the :class:`IndexRun` of column j on each segment where it has values;
-        ``lowest``: per segment, the minimum over the alive columns at each ready instant.
-    """
-    per: list[list[IndexRun]] = [[] for _ in range(X.shape[1])]
-    lowest: list[IndexRun] = []
-    for s, seg in enumerate(segments):
-        if seg.sum() < 2:
-            continue
-        ts = t[seg]
-        rec = causal_reliability(ts, X[seg], r_t, sigma_t, names=names, lp_window=lp_window,
-                                 sigma_window=sigma_window)
-        ok = rec.ready[None, :] & alive[:, seg]           # (m, n)
-        ks = np.asarray(rec.k) * np.asarray(rec.sigma)     # (n, m)
-        for j in range(X.shape[1]):
-            if ok[j].any():
-                per[j].append(IndexRun(segment=s, t=ts[ok[j]], delta=np.asarray(rec.delta[ok[j], j]),
-                                       ksigma=ks[ok[j], j]))
-        anyok = ok.any(axis=0)
-        if anyok.any():
-            d = np.where(ok.T, np.asarray(rec.delta), np.inf)[anyok]
-            lowest.append(IndexRun(segment=s, t=ts[anyok], delta=d.min(axis=1)))
-    return per, lowest
 
 
 def causal_traces(result: Any, scenario: Any, *, lp_window: float = LP_WINDOW_DEFAULT,

@@ -33,7 +33,7 @@ __all__ = [
     "KpiError", "case_kpis", "basic_kpis", "kpi_table", "kpi_unit", "kpi_order",
     "gumbel_k", "low_pass", "reliability_index", "ReliabilityTrace",
     "DNV_E301_2008_FACTORS", "DNV_CAPACITY_FACTOR", "SFC_DEFAULT", "LP_WINDOW_DEFAULT", "SIGMA_WINDOW_DEFAULT",
-    "DELTA_S_DEFAULT", "RISER_ENDS",
+    "DELTA_S_DEFAULT", "RISER_ENDS", "IndexRun", "causal_runs", "break_times",
 ]
 
 
@@ -235,37 +235,75 @@ def reliability_index(t: Sequence[float], T: Sequence[float], T_b: float, sigma_
     return ReliabilityTrace(time=tc, delta=delta, T_LF=lf, sigma=sigma, n=n, k=k)
 
 
-def _causal_runs(t: np.ndarray, X: np.ndarray, r_t: np.ndarray, sigma_t: np.ndarray,
-                 segments: Sequence[np.ndarray], alive: np.ndarray, *, names: Sequence[str], lp_window: float,
-                 sigma_window: float) -> list[list[tuple[np.ndarray, np.ndarray]]]:
-    """The causal index (:func:`~tapm_opt.estimation.reliability.causal_reliability`) of the columns
-    of X (N, m), restarted on each segment (boolean masks over t); per column, the runs
-    ``(time, delta)`` where the estimate is ready and the column's ``alive`` (m, N) holds. Within a
-    segment that run is contiguous (ready stays true once the window has filled, alive is a prefix).
-    The estimate being causal, a column's values before its end of life do not depend on the
-    samples after it."""
-    runs: list[list[tuple[np.ndarray, np.ndarray]]] = [[] for _ in range(X.shape[1])]
-    for seg in segments:
+@dataclass(frozen=True)
+class IndexRun:
+    """The causal reliability index of one signal (or the lowest over several) on one segment,
+    at the samples where the estimate is ready (and the signal alive).
+
+    Attributes
+    ----------
+    segment : int
+        0: the intact record (up to and including the first line break), 1: the damaged record.
+    t : ndarray, shape (k,)
+        Times [s].
+    delta : ndarray, shape (k,)
+        delta(t) [-] (survey eq. 32; [R] §2.2).
+    ksigma : ndarray, shape (k,) or None
+        The extreme allowance k sigma at those times, in the unit of the signal (N for a line, rad
+        for a riser end); None for a lowest-over-signals run.
+    """
+
+    segment: int
+    t: np.ndarray
+    delta: np.ndarray
+    ksigma: np.ndarray | None = None
+
+
+def causal_runs(t: np.ndarray, X: np.ndarray, r_t: np.ndarray, sigma_t: np.ndarray,
+                segments: Sequence[np.ndarray], alive: np.ndarray, *, names: Sequence[str],
+                lp_window: float = LP_WINDOW_DEFAULT, sigma_window: float = SIGMA_WINDOW_DEFAULT,
+                ) -> tuple[list[list[IndexRun]], list[IndexRun]]:
+    """The causal index of the columns of ``X`` (N, m), restarted on each segment, exactly as the
+    KPIs evaluate it (:func:`case_kpis`): one
+    :func:`~tapm_opt.estimation.reliability.causal_reliability` per segment (boolean masks over
+    ``t``), a column's values kept where the estimate is ready and the column's ``alive`` (m, N)
+    holds; with ``k sigma`` and the lowest index over the columns at each instant (for the report).
+
+    Returns
+    -------
+    (per_column, lowest)
+        ``per_column[j]``: the :class:`IndexRun` of column j on each segment where it has values;
+        ``lowest``: per segment, the minimum over the alive columns at each ready instant.
+    """
+    per: list[list[IndexRun]] = [[] for _ in range(X.shape[1])]
+    lowest: list[IndexRun] = []
+    for s, seg in enumerate(segments):
         if seg.sum() < 2:
             continue
         ts = t[seg]
         rec = causal_reliability(ts, X[seg], r_t, sigma_t, names=names, lp_window=lp_window,
                                  sigma_window=sigma_window)
+        ok = rec.ready[None, :] & alive[:, seg]           # (m, n)
+        ks = np.asarray(rec.k) * np.asarray(rec.sigma)     # (n, m)
         for j in range(X.shape[1]):
-            ok = rec.ready & alive[j][seg]
-            if ok.any():
-                runs[j].append((ts[ok], rec.delta[ok, j]))
-    return runs
+            if ok[j].any():
+                per[j].append(IndexRun(segment=s, t=ts[ok[j]], delta=np.asarray(rec.delta[ok[j], j]),
+                                       ksigma=ks[ok[j], j]))
+        anyok = ok.any(axis=0)
+        if anyok.any():
+            d = np.where(ok.T, np.asarray(rec.delta), np.inf)[anyok]
+            lowest.append(IndexRun(segment=s, t=ts[anyok], delta=d.min(axis=1)))
+    return per, lowest
 
 
-def _run_stats(runs: Sequence[tuple[np.ndarray, np.ndarray]], delta_s: float) -> tuple[float, float]:
+def _run_stats(runs: Sequence[IndexRun], delta_s: float) -> tuple[float, float]:
     """(min delta, fraction of the evaluated time with delta < delta_s) of a column's runs."""
-    d_min = float(min(d.min() for _, d in runs))
-    span = sum(float(tt[-1] - tt[0]) for tt, _ in runs)
+    d_min = float(min(r.delta.min() for r in runs))
+    span = sum(float(r.t[-1] - r.t[0]) for r in runs)
     if span > 0:
-        frac = sum(float(np.sum(_hold_weights(tt)[d < delta_s])) for tt, d in runs) / span
+        frac = sum(float(np.sum(_hold_weights(r.t)[r.delta < delta_s])) for r in runs) / span
     else:
-        frac = float(any(bool(np.any(d < delta_s)) for _, d in runs))
+        frac = float(any(bool(np.any(r.delta < delta_s)) for r in runs))
     return d_min, frac
 
 
@@ -292,7 +330,9 @@ def _channel(result: Result, name: str, what: str, mask: np.ndarray) -> np.ndarr
     return x
 
 
-def _break_times(result: Result, line_ids: Sequence[str]) -> dict[str, float]:
+def break_times(result: Any, line_ids: Sequence[str] | None = None) -> dict[str, float]:
+    """``{line id: time [s]}`` of the ``"line <id> broke"`` events of a result (the first per
+    line); with ``line_ids``, an event naming another line is an error."""
     out: dict[str, float] = {}
     for ev in result.meta.get("events", []) or []:
         try:
@@ -303,7 +343,7 @@ def _break_times(result: Result, line_ids: Sequence[str]) -> dict[str, float]:
         if not m:
             continue
         lid = m.group(1)
-        if lid not in line_ids:
+        if line_ids is not None and lid not in line_ids:
             raise KpiError(f"event {text!r} at t = {te:g} s names a line without a channel 'T_fairlead[{lid}]'")
         out[lid] = min(te, out.get(lid, math.inf))
     return out
@@ -388,7 +428,7 @@ def _compute(result: Result, scenario: Any, *, t_start: float, lp_window: float,
         if f"T_fairlead[{lid}]" not in result:
             raise KpiError(f"result has no channel 'T_fairlead[{lid}]' (scenario line {lid!r}); "
                            f"channels are {', '.join(result.channels)}")
-    breaks = _break_times(result, line_ids)
+    breaks = break_times(result, line_ids)
     t_b1 = min(breaks.values(), default=math.inf)
     mbs_all = scenario.line_arrays["MBS"]
     mbs_std_all = scenario.line_arrays["MBS_std"]
@@ -428,9 +468,9 @@ def _compute(result: Result, scenario: Any, *, t_start: float, lp_window: float,
         # causal index of every line at once, restarted at the first break; a line's values count
         # while it is alive
         ids = [line_ids[j] for j in rel_cols]
-        runs = _causal_runs(t, np.column_stack([tensions[lid] for lid in ids]), mbs_all[rel_cols],
-                            mbs_std_all[rel_cols], segments, np.stack([alive_of[lid] for lid in ids]),
-                            names=ids, lp_window=lp_window, sigma_window=sigma_window)
+        runs, _ = causal_runs(t, np.column_stack([tensions[lid] for lid in ids]), mbs_all[rel_cols],
+                              mbs_std_all[rel_cols], segments, np.stack([alive_of[lid] for lid in ids]),
+                              names=ids, lp_window=lp_window, sigma_window=sigma_window)
         for lid, r in zip(ids, runs):
             if r:
                 per["delta_min"][lid], per["delta_frac_below"][lid] = _run_stats(r, delta_s)
@@ -465,14 +505,13 @@ def _compute(result: Result, scenario: Any, *, t_start: float, lp_window: float,
             if not (math.isfinite(v) and math.isfinite(sd) and sd > 0):
                 raise KpiError(f"riser.{fld} = {v!r} rad with riser.{fld}_std = {sd!r} rad: the riser reliability "
                                "index needs a finite angle and a positive standard deviation")
-        runs = _causal_runs(t, np.column_stack([ang[end] for end, _, _ in ends]), r_t, s_t, segments,
-                            np.ones((len(ends), len(t)), bool), names=[end for end, _, _ in ends],
-                            lp_window=lp_window, sigma_window=sigma_window)
+        runs, worst = causal_runs(t, np.column_stack([ang[end] for end, _, _ in ends]), r_t, s_t, segments,
+                                  np.ones((len(ends), len(t)), bool), names=[end for end, _, _ in ends],
+                                  lp_window=lp_window, sigma_window=sigma_window)
         for (end, _, _), r in zip(ends, runs):
             if r:
                 out[f"riser_delta_{end}_min"] = _run_stats(r, delta_s)[0]
-        if all(runs):  # every end has the same ready instants: the worst end at each of them
-            worst = [(seg_runs[0][0], np.min([d for _, d in seg_runs], axis=0)) for seg_runs in zip(*runs)]
+        if all(runs):  # the worst end at each ready instant
             out["riser_delta_min"], out["riser_delta_frac_below"] = _run_stats(worst, delta_s)
 
     # thrust energy and fuel
