@@ -128,6 +128,10 @@ class Estimate:
         The estimator's on-line reliability statistics of the measured tensions and riser angles
         (:class:`tapm_opt.estimation.reliability.ReliabilityState`: ``x_lf``, ``sigma``, ``k``,
         ``delta`` per signal, ``names``, ``ready``), None without a monitor.
+    eta_wf : ndarray, shape (3,), optional
+        The estimator's wave-frequency motion of the body origin in {E} (x [m], y [m], psi [rad]):
+        the part of the measured pose it filtered out of ``eta``; None when it does not say (e.g.
+        the plant's truth). A sea-state supervisor reads its amplitude and period.
     """
 
     t: float
@@ -138,6 +142,7 @@ class Estimate:
     riser_angles: np.ndarray | None = None
     broken_lines: frozenset = frozenset()
     reliability: Any = None
+    eta_wf: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "t", float(self.t))
@@ -145,7 +150,7 @@ class Estimate:
         object.__setattr__(self, "broken_lines", frozenset([bl] if isinstance(bl, str) else (str(b) for b in bl)))
         for name in ("eta", "nu", "tau_env"):
             object.__setattr__(self, name, readonly(getattr(self, name)))
-        for name in ("tensions", "riser_angles"):
+        for name in ("tensions", "riser_angles", "eta_wf"):
             if getattr(self, name) is not None:
                 object.__setattr__(self, name, readonly(getattr(self, name)))
 

@@ -55,9 +55,10 @@ class TensionDropDetector:
         self.broken: frozenset[str] = frozenset()
         self.events: list[dict] = []
 
-    def update(self, t: float, tensions: Any) -> frozenset[str]:
+    def update(self, t: float, tensions: Any, eta: Any = None) -> frozenset[str]:
         """Feed the measured fairlead tensions (n,) [N] at time ``t`` [s]; returns the lines known
-        broken so far."""
+        broken so far. ``eta`` (the estimator's LF pose) is not used: this test needs no model of
+        the motion."""
         T = np.asarray(tensions, float)
         if T.shape != self._since.shape:
             raise DetectionError(f"tensions has shape {T.shape}, expected ({len(self.line_ids)},) for lines "

@@ -54,11 +54,13 @@ class _WithDetectorAndMonitor:
             if part is not None:
                 part.reset()
 
-    def _detect(self, t: float, m: Measurement) -> frozenset:
-        """The lines the detector reports broken so far (empty without a detector or tensions)."""
+    def _detect(self, t: float, m: Measurement, eta: np.ndarray | None = None) -> frozenset:
+        """The lines the detector reports broken so far (empty without a detector or tensions).
+        ``eta`` is the estimator's latest LF pose (None before its first estimate): a model-based
+        detector compares the measured tensions with the line model's at that pose."""
         if self.detector is None or m.tensions is None:
             return frozenset()
-        return self.detector.update(t, m.tensions)
+        return self.detector.update(t, m.tensions, eta)
 
     def _reliability(self, t: float, m: Measurement) -> Any:
         """Feed the monitor the measured tensions and riser-angle magnitudes (when it has both)."""
@@ -104,6 +106,7 @@ class LowPassEstimator(_WithDetectorAndMonitor):
         self._t = None
         self._load = None  # the mooring-load evaluator, built on first use for self.model
         self._load_of = None
+        self._eta = None  # the latest estimate of eta, for a model-based detector
 
     def mooring_load(self, eta: np.ndarray) -> np.ndarray:
         """Mooring load tau_moor (3,) in {B} [N, N, N m] at pose ``eta`` used in the load balance:
@@ -120,12 +123,14 @@ class LowPassEstimator(_WithDetectorAndMonitor):
 
     def reset(self) -> None:
         self._y, self._yd, self._psi_prev, self._b, self._t = None, np.zeros(3), None, None, None
+        self._eta = None
         self.model = self.intact_model
         self._reset_parts()
 
     def _broken(self, t: float, m: Measurement) -> frozenset:
-        """Feed the detector; on a new break, leave the line out of the model."""
-        broken = self._detect(t, m)
+        """Feed the detector (with the previous LF pose); on a new break, leave the line out of
+        the model."""
+        broken = self._detect(t, m, self._eta)
         if broken and set(broken) & set(self.model.line_ids):
             self.model = self.intact_model.without(broken)
         return broken
@@ -139,8 +144,10 @@ class LowPassEstimator(_WithDetectorAndMonitor):
         tau_thr = np.zeros(3) if m.tau_thr is None else m.tau_thr
         broken = self._broken(t, m)
         eta, nu, tau_env = self.filter(t, m.position, m.heading, tau_thr)
+        self._eta = eta
+        eta_wf = np.array([m.position[0] - eta[0], m.position[1] - eta[1], ssa(m.heading - eta[2])])
         return Estimate(t=t, eta=eta, nu=nu, tau_env=tau_env, tensions=m.tensions, riser_angles=m.riser_angles,
-                        broken_lines=broken, reliability=self._reliability(t, m))
+                        broken_lines=broken, reliability=self._reliability(t, m), eta_wf=eta_wf)
 
     def filter(self, t: float, position: np.ndarray, heading: float, tau_thr: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Feed one measurement; returns (eta_hat (3,), nu_hat (3,), tau_env_hat (3,) in {B}).
@@ -207,7 +214,7 @@ class TrueStateEstimator(_WithDetectorAndMonitor):
         if tr is None:
             raise EstimationError("the measurement carries no truth: TrueStateEstimator needs a simulated plant")
         return Estimate(t=t, eta=tr.eta, nu=tr.nu, tau_env=tr.tau_env, tensions=measurement.tensions,
-                        riser_angles=measurement.riser_angles, broken_lines=self._detect(t, measurement),
+                        riser_angles=measurement.riser_angles, broken_lines=self._detect(t, measurement, tr.eta),
                         reliability=self._reliability(t, measurement))
 
     def reset(self) -> None:
