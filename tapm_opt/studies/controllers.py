@@ -11,7 +11,15 @@ zero point — ``periods`` (surge, sway, yaw) [s], ``damping`` (-), ``integral_r
 list of modes), ``tau_limit`` (default: the capacity box of the thrusters,
 ``models.system.ThrusterSet.capacity_box``, the same box the MPC uses), ``fault_tolerance``
 (default true: a line the estimator reports broken has its load fed forward). Its position loop
-acts on the turret offset (the reference point is the centre of turret).
+acts on the turret offset (the reference point is the centre of turret). Sea-state supervision
+(survey §4.5, ``tapm_opt.control.supervisor``): ``supervisor = true`` (or a table of
+``SeaStateSupervisor.from_scenario`` options, e.g. ``{dwell = 600}``) switches this PID's mode set
+with the detected sea state's class; ``gain_table`` (``gains.json`` or its folder, or the table's
+JSON dict; a study file's path is relative to the study file and the table is embedded in the
+case) runs a gain-scheduled PID on that table instead, supervised (the table's gains and mode
+sets: ``periods``, ``damping``, ``integral_ratio``, ``modes``, ``tau_limit`` and
+``fault_tolerance`` are not used); ``initial_sea_state`` is the sea state before the
+supervisor's first decision.
 
 MPC (``tapm_opt.control.mpc.MPCSettings``): every settings field; ``dead_band`` defaults to 0.6 of the
 scenario's safe radius (``MPC_DEAD_BAND``), ``w_thrust``, ``w_rate`` and ``w_velocity`` to ``MPC_DEFAULTS``,
@@ -47,7 +55,8 @@ CONTROLLER_TYPES = ("pid", "mpc", "lmpc")
 _MAX_HORIZON = 500  # prediction steps (horizon x substeps): the default is 20
 
 PID_DEFAULTS = {"periods": (250.0, 250.0, 150.0), "damping": (0.8, 0.8, 0.8), "integral_ratio": 0.1,
-                "modes": "normal_restoring", "tau_limit": None, "fault_tolerance": True}
+                "modes": "normal_restoring", "tau_limit": None, "fault_tolerance": True,
+                "gain_table": None, "supervisor": False, "initial_sea_state": None}
 
 
 #: Study defaults of the MPCs that differ from MPCSettings' (tuned on the fpso design storm, intact
@@ -124,7 +133,22 @@ def build_controller(system: Any, spec: Mapping[str, Any] | str, *, where: str =
                                        thrusters=system.thrusters, line_model=system.lines,
                                        fault_tolerance=o["fault_tolerance"])
             ctrl.design = design
-            return ctrl
+            sup, table = o["supervisor"], o["gain_table"]
+            if not isinstance(sup, (bool, Mapping)):
+                raise ControllerSpecError(f"{where}.supervisor = {sup!r} must be true, false or a table of "
+                                          f"supervisor options")
+            if table is not None and not isinstance(table, (str, Mapping)):
+                raise ControllerSpecError(f"{where}.gain_table = {table!r} must be the path of gains.json")
+            if sup is False and table is None:
+                if o["initial_sea_state"] is not None:
+                    raise ControllerSpecError(f"{where}.initial_sea_state needs supervisor = true or a gain_table")
+                return ctrl
+            from ..control.supervisor import supervised_pid
+
+            opts = dict(sup) if isinstance(sup, Mapping) else {}
+            if table is not None:
+                return supervised_pid(system, gain_table=table, initial_sea_state=o["initial_sea_state"], **opts)
+            return supervised_pid(system, pid=ctrl, initial_sea_state=o["initial_sea_state"], **opts)
         allowed = {f.name for f in fields(MPCSettings)} | {"period"} | ({"qp_solver"} if kind == "lmpc" else set())
         _unknown(set(spec), allowed, where)
         period = spec.pop("period", None)
