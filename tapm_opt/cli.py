@@ -442,7 +442,8 @@ def plant_forced_motion(scenario_name: str, dof: str, amplitude: float, period: 
               help="Weather-optimal heading (bow into the estimated mean environmental force) or fixed north.")
 @click.option("--true-state", is_flag=True, help="Give the controller the true LF state (no estimator).")
 @click.option("--option", "options", multiple=True, metavar="KEY=VALUE",
-              help="Controller option, e.g. --option horizon=30 --option solver=ipopt (repeatable).")
+              help="Controller option, e.g. --option horizon=30 --option solver=ipopt (repeatable); "
+                   "estimator=lowpass|passive|ekf and detector=tension|drop|bank|none choose the estimation.")
 def simulate(scenario_name: str, controller: str, duration: float, out_dir: str, sea_state: str | None, seed: int,
              segments: int | None, dt_control: float, setpoint: str, setpoint_options: tuple[str, ...], heading: str,
              true_state: bool, options: tuple[str, ...]) -> None:
@@ -466,6 +467,14 @@ def simulate(scenario_name: str, controller: str, duration: float, out_dir: str,
                                  f"position-control loop) and --duration = {duration:g} s")
     dt_log = dt_control * max(1, math.ceil(1.0 / dt_control - 1e-9))  # every control step, >= 1 s apart
     spec: dict = {"type": controller, **_key_values(options, "--option")}
+    # estimation is the runner's: --option estimator=... / detector=... choose its default estimator
+    estimation = {k: str(spec.pop(k)) for k in ("estimator", "detector") if k in spec}
+    from .studies.closed_loop import ClosedLoopError
+
+    try:
+        ClosedLoopSettings(true_state=true_state, **estimation)
+    except ClosedLoopError as exc:
+        raise click.BadParameter(str(exc), param_hint="'--option'") from None
     sp_opts = _key_values(setpoint_options, "--setpoint-option")
     if sp_opts and setpoint not in ("quadratic", "reliability", "unified"):
         raise click.BadParameter(f"--setpoint-option is for the optimal setpoints (quadratic, reliability, unified), "
@@ -484,14 +493,15 @@ def simulate(scenario_name: str, controller: str, duration: float, out_dir: str,
     system = System.from_scenario(sc)  # built once: controller, runner and estimator share it
     ctrl = build_controller(system, spec, where="--option")
     settings = ClosedLoopSettings(duration=duration, dt_control=dt_control, dt_log=dt_log, true_state=true_state,
-                                  setpoint=setpoint, heading=heading, setpoint_options=sp_opts or None)
+                                  setpoint=setpoint, heading=heading, setpoint_options=sp_opts or None, **estimation)
     w0 = time.perf_counter()
     plant = Plant(system, sea_state=sea_state, seed=seed, segments=segments)
-    res = run_closed_loop(plant, ctrl, settings, system=system, meta={"controller_spec": spec, "seed": seed})
+    res = run_closed_loop(plant, ctrl, settings, system=system,
+                          meta={"controller_spec": {**spec, **estimation}, "seed": seed})
     out = Path(out_dir)
     res.save(out / "result.npz")
     k = basic_kpis(res, sc)
-    summary = {"scenario": sc.name, "controller": spec, "sea_state": plant.sea_state.id if plant.sea_state else "none",
+    summary = {"scenario": sc.name, "controller": spec, **estimation, "sea_state": plant.sea_state.id if plant.sea_state else "none",
                "seed": seed, "duration": duration, "kpis": k, "diagnostics": res.meta.get("diagnostics", {}),
                "events": plant.events}
     wall = time.perf_counter() - w0

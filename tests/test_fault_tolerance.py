@@ -97,10 +97,13 @@ def test_detection_kpis_from_the_estimators_log():
            {"t": 106.0, "line": "2", "event": "line break detected"}]
     r = _result_with(log, ev)
     k = _detection(r, _break_times(r, ["1", "2"]))
-    assert k == {"false_alarms": 1, "break_isolated": 1.0, "break_detected_at": 106.0, "detection_delay": 6.0}
+    assert k == {"false_alarms": 1, "break_isolated": 1.0, "break_isolated_line": "2", "break_detected_at": 106.0,
+                 "detection_delay": 6.0}
     r = _result_with([{"t": 120.0, "line": "1", "event": "line break detected"}], ev)   # the wrong line
     k = _detection(r, _break_times(r, ["1", "2"]))
-    assert k == {"false_alarms": 1, "break_isolated": 0.0}
+    assert k == {"false_alarms": 1, "break_isolated": 0.0, "break_isolated_line": "1"}
+    assert _detection(_result_with([], ev), {"2": 100.0}) == {"false_alarms": 0, "break_isolated": 0.0,
+                                                               "break_isolated_line": ""}   # missed
     r = _result_with([], [])                                                           # intact, quiet
     assert _detection(r, {}) == {"false_alarms": 0}
     assert _detection(_result_with(None, ev), {"2": 100.0}) == {}                     # no detector

@@ -44,7 +44,8 @@ from ..plant.simulator import Plant
 from ..results import Result, ResultBuilder
 
 __all__ = ["ClosedLoopSettings", "SetpointChasing", "run_closed_loop", "default_setpoint_layer",
-           "optimal_setpoint_layer", "SETPOINT_KINDS", "ClosedLoopError"]
+           "optimal_setpoint_layer", "SETPOINT_KINDS", "ClosedLoopError", "default_estimator", "ESTIMATOR_KINDS",
+           "DETECTOR_KINDS"]
 
 
 class ClosedLoopError(TapmError, ValueError):
@@ -83,6 +84,18 @@ class ClosedLoopSettings:
         estimated mean environmental force in {E}, ``atan2(-b_y, -b_x)``, low-pass filtered with time
         constant ``heading_chase_time`` from ``eta_d[2]``. A turret-moored vessel then weathervanes
         slowly instead of spending thrust on a yaw moment against the weather.
+    estimator : {"lowpass", "passive", "ekf"}
+        The default estimator (:func:`default_estimator`): the low-pass filters
+        (:class:`~tapm_opt.estimation.lowpass.LowPassEstimator`), the nonlinear passive observer
+        or the extended Kalman filter (:mod:`tapm_opt.estimation.observer`). Ignored with
+        ``true_state`` (the plant's truth) and when the runner is given an estimator.
+    detector : {"tension", "drop", "bank", "none"}
+        Line-break detection of the default estimator: the statistical test of the measured
+        tensions against the line model's at the estimated pose
+        (:class:`~tapm_opt.estimation.detection.TensionResidualDetector`), the tension-drop
+        threshold (:class:`~tapm_opt.estimation.detection.TensionDropDetector`), a bank of
+        observers, one per hypothesis (intact, each line broken), that needs no tension cells
+        (:class:`~tapm_opt.estimation.bank.ObserverBank`, of ``estimator``'s kind), or none.
     """
 
     duration: float = 3600.0
@@ -97,6 +110,8 @@ class ClosedLoopSettings:
     chase_time: float = 300.0
     chase_margin: float = 0.8
     heading_chase_time: float = 600.0
+    estimator: Literal["lowpass", "passive", "ekf"] = "lowpass"
+    detector: Literal["tension", "drop", "bank", "none"] = "drop"
 
     def __post_init__(self) -> None:
         for name in ("duration", "dt_control", "dt_log", "chase_time", "chase_margin", "heading_chase_time"):
@@ -109,6 +124,12 @@ class ClosedLoopSettings:
             raise ClosedLoopError(f"setpoint = {self.setpoint!r} is not one of {', '.join(map(repr, SETPOINT_KINDS))}")
         if self.heading not in ("fixed", "chasing"):
             raise ClosedLoopError(f"heading = {self.heading!r} is not one of 'fixed', 'chasing'")
+        for name, kinds in (("estimator", ESTIMATOR_KINDS), ("detector", DETECTOR_KINDS)):
+            if getattr(self, name) not in kinds:
+                raise ClosedLoopError(f"{name} = {getattr(self, name)!r} is not one of {', '.join(map(repr, kinds))}")
+        if self.detector == "bank" and self.estimator == "lowpass" and not self.true_state:
+            raise ClosedLoopError("detector = 'bank' is a bank of model-based observers: give estimator = "
+                                  "'passive' or 'ekf', not 'lowpass'")
         if self.setpoint_options is not None:
             if not isinstance(self.setpoint_options, Mapping):
                 raise ClosedLoopError(f"setpoint_options = {self.setpoint_options!r} must be a table of options")
@@ -123,6 +144,38 @@ class ClosedLoopSettings:
 
 #: Every ``ClosedLoopSettings.setpoint``.
 SETPOINT_KINDS = ("fixed", "chasing", *METHODS)
+#: Every ``ClosedLoopSettings.estimator`` and ``.detector``.
+ESTIMATOR_KINDS = ("lowpass", "passive", "ekf")
+DETECTOR_KINDS = ("tension", "drop", "bank", "none")
+
+
+def default_estimator(system: System, settings: ClosedLoopSettings, sea_state: Any = None) -> Estimator:
+    """The estimator a :class:`ClosedLoopSettings` describes: ``settings.estimator`` on
+    ``system.lines`` (the plant's truth with ``true_state``), with ``settings.detector``'s
+    line-break detection and the reliability monitor of the measured tensions and riser angles
+    (:func:`~tapm_opt.estimation.reliability.monitor_for`). ``sea_state`` gives the observers'
+    wave-frequency model its peak period (None: the observers' default)."""
+    s = settings
+    mon = monitor_for(system.scenario)
+    det: Any = None
+    if s.detector == "drop":
+        det = TensionDropDetector(system.lines)
+    elif s.detector == "tension":
+        from ..estimation.detection import TensionResidualDetector
+
+        det = TensionResidualDetector(system.lines)
+    if s.true_state:
+        return TrueStateEstimator(detector=det, monitor=mon)
+    if s.detector == "bank":
+        from ..estimation.bank import ObserverBank
+
+        return ObserverBank.from_scenario(system, sea_state=sea_state, kind=s.estimator, monitor=mon)
+    if s.estimator == "lowpass":
+        return LowPassEstimator(system.lines, detector=det, monitor=mon)
+    from ..estimation.observer import EKFObserver, PassiveObserver
+
+    cls = PassiveObserver if s.estimator == "passive" else EKFObserver
+    return cls.from_scenario(system, sea_state=sea_state, detector=det, monitor=mon)
 
 
 def optimal_setpoint_layer(system: System, method: str, sea_state: Any = None, *,
@@ -186,9 +239,9 @@ def run_closed_loop(plant: Plant, controller: Controller, settings: ClosedLoopSe
         The system the control side is designed on (default: the plant's ``system``, the one it was
         built from).
     estimator : Estimator, optional
-        Default: the low-pass estimator on ``system.lines`` (``settings.true_state``: the plant's
-        truth), with the tension-drop line-break detector and the reliability monitor of the
-        measured tensions and riser angles (``monitor_for``).
+        Default: :func:`default_estimator` of the settings (the low-pass estimator on
+        ``system.lines`` with the tension-drop line-break detector and the reliability monitor,
+        unless the settings choose otherwise).
     setpoint_layer : SetpointLayer, optional
         Default: :func:`default_setpoint_layer` of the settings.
     allocator : ThrustAllocator, optional
@@ -207,11 +260,10 @@ def run_closed_loop(plant: Plant, controller: Controller, settings: ClosedLoopSe
     owns = isinstance(controller, ThrusterController) and bool(controller.owns_allocation)
     period = s.controller_period or controller.period or s.dt_control
     period = max(period, s.dt_control)
-    if estimator is None:
-        det, mon = TensionDropDetector(system.lines), monitor_for(system.scenario)
-        estimator = (TrueStateEstimator(detector=det, monitor=mon) if s.true_state
-                     else LowPassEstimator(system.lines, detector=det, monitor=mon))
-    layer = setpoint_layer or default_setpoint_layer(system, s, _sea_state(system, plant.metadata().get("sea_state")))
+    sea_state = _sea_state(system, plant.metadata().get("sea_state"))
+    chosen = {} if estimator is not None else {"estimator_kind": s.estimator, "detector": s.detector}
+    estimator = estimator or default_estimator(system, s, sea_state)
+    layer = setpoint_layer or default_setpoint_layer(system, s, sea_state)
     extra = [("tau_cmd[X]", "N"), ("tau_cmd[Y]", "N"), ("tau_cmd[N]", "N m"),
              ("x_d", "m"), ("y_d", "m"), ("psi_d", "rad"),
              ("x_hat", "m"), ("y_hat", "m"), ("psi_hat", "rad"),
@@ -279,7 +331,7 @@ def run_closed_loop(plant: Plant, controller: Controller, settings: ClosedLoopSe
     md = {**plant.metadata(), "controller": type(controller).__name__, "controller_period": period,
           "dt_control": s.dt_control, "true_state": s.true_state, "setpoint": s.setpoint,
           "setpoint_options": dict(s.setpoint_options or {}), "heading": s.heading,
-          "estimator": type(estimator).__name__, "setpoint_layer": type(layer).__name__,
+          "estimator": type(estimator).__name__, **chosen, "setpoint_layer": type(layer).__name__,
           "turret_position_B": [float(v) for v in system.p_cot_B],
           "wall_time": wall, "diagnostics": diag, **(meta or {})}
     for role, comp in (("setpoint", layer), ("controller", controller), ("estimator", estimator)):

@@ -77,7 +77,8 @@ _AGG_ORDER: tuple[tuple[str, str], ...] = (
     ("dnv_uls_max", "-"), ("dnv_uls_pass", "lines"), ("dnv_uls_fail", "lines"),
     ("dnv_als_max", "-"), ("dnv_als_pass", "lines"), ("dnv_als_fail", "lines"),
     ("lines_broken", "lines"),
-    ("break_detected_at", "s"), ("detection_delay", "s"), ("break_isolated", "-"), ("false_alarms", "-"),
+    ("break_detected_at", "s"), ("detection_delay", "s"), ("break_isolated", "-"), ("break_isolated_line", ""),
+    ("false_alarms", "-"), ("mode_switches", "-"),
     ("riser_top_angle_max_deg", "deg"), ("riser_bottom_angle_max_deg", "deg"),
     ("riser_delta_min", "-"), ("riser_delta_top_min", "-"), ("riser_delta_bottom_min", "-"),
     ("riser_delta_frac_below", "-"),
@@ -93,6 +94,7 @@ _UNITS = {**dict(_AGG_ORDER), **{f"{k}[]": u for k, u in _LINE_ORDER}, "utilisat
 _DIAG_KEYS = ("solver_time_median", "solver_time_p95", "solver_time_max", "solver_failures", "solver_fallbacks",
               "allocation_fallbacks")
 _COUNT_KEYS = {"dnv_uls_pass", "dnv_uls_fail", "dnv_als_pass", "dnv_als_fail", "lines_broken", "false_alarms",
+               "mode_switches",
                "solver_failures",
                "solver_fallbacks", "allocation_fallbacks"}
 _LABEL_ORDER = ("scenario", "sea_state", "controller", "condition", "seed")
@@ -349,28 +351,40 @@ def break_times(result: Any, line_ids: Sequence[str] | None = None) -> dict[str,
     return out
 
 
-def _detection(result: Result, breaks: dict[str, float]) -> dict[str, float]:
+def _detection(result: Result, breaks: dict[str, float]) -> dict[str, Any]:
     """Line-break detection KPIs from the estimator's log (``meta["estimator_log"]``: events
     ``{"t", "line", "event": "line break detected"}``), against the breaks the plant reported:
     ``break_detected_at`` [s] — the first detection of a line that broke, after its break (absent
     when no break was detected); ``detection_delay`` [s] — that time less the break's;
-    ``break_isolated`` — 1 when the first line detected after the first break is one that broke,
-    else 0 (absent without a break); ``false_alarms`` — detections of a line that had not broken
-    by then. All absent when the run had no detector (no log)."""
+    ``break_isolated_line`` — the id of the first line detected after the first break (``""``
+    when none was) and ``break_isolated`` — 1 when that line is one that broke, else 0 (both
+    absent without a break); ``false_alarms`` — detections of a line that had not broken by then.
+    All absent when the run had no detector (no log)."""
     log = result.meta.get("estimator_log")
     if log is None:
         return {}
     det = sorted((float(e["t"]), str(e["line"])) for e in log if e.get("event") == "line break detected")
     true = [(t, lid) for t, lid in det if lid in breaks and t >= breaks[lid]]
-    out = {"false_alarms": sum(1 for t, lid in det if not (lid in breaks and t >= breaks[lid]))}
+    out: dict[str, Any] = {"false_alarms": sum(1 for t, lid in det if not (lid in breaks and t >= breaks[lid]))}
     if breaks:
         t_b = min(breaks.values())
         after = [(t, lid) for t, lid in det if t >= t_b]
         out["break_isolated"] = float(bool(after) and after[0][1] in breaks)
+        out["break_isolated_line"] = after[0][1] if after else ""
         if true:
             out["break_detected_at"] = true[0][0]
             out["detection_delay"] = true[0][0] - breaks[true[0][1]]
     return out
+
+
+def _mode_switches(result: Result) -> dict[str, float]:
+    """``mode_switches`` — the controller's switches of mode set or gain-table row (events
+    ``{"event": "mode switch"}`` of ``meta["controller_log"]``), absent when the controller keeps
+    no log."""
+    log = result.meta.get("controller_log")
+    if log is None:
+        return {}
+    return {"mode_switches": sum(1 for e in log if isinstance(e, Mapping) and e.get("event") == "mode switch")}
 
 
 def _compute(result: Result, scenario: Any, *, t_start: float, lp_window: float, delta_s: float,
@@ -490,6 +504,7 @@ def _compute(result: Result, scenario: Any, *, t_start: float, lp_window: float,
         out[f"dnv_{ls}_fail"] = int(sum(v > 1.0 for v in r.values()))
     out["lines_broken"] = len(breaks)
     out.update(_detection(result, breaks))
+    out.update(_mode_switches(result))
 
     # riser end angles and their reliability indices ([G] §2.2)
     riser = getattr(scenario, "riser", None)

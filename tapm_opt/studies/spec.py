@@ -87,7 +87,7 @@ class Study:
 
 _STUDY_KEYS = {"name", "description", "scenario", "duration", "segments", "break_on_overload", "dt_control",
                "dt_log", "heading",
-               "setpoint", "setpoint_options", "true_state", "seeds", "mode"}
+               "setpoint", "setpoint_options", "true_state", "seeds", "mode", "estimator", "detector"}
 _TOP_KEYS = {"study", "sea_states", "controllers", "conditions", "cases"}
 _CONDITION_KEYS = {"name", "line_break", "thruster_failure"}
 _FAULT_KEYS = {"line_break": {"line", "time", "time_fraction"}, "thruster_failure": {"thruster", "time", "time_fraction"}}
@@ -171,6 +171,7 @@ class _Parsed:
     controller_loop: list = field(default_factory=list)  # [closed-loop overrides of each controller]
     conditions: list = field(default_factory=list)    # [_Condition]
     listed: list = field(default_factory=list)        # [(path, i_ss, i_ctrl, i_cond, seed, duration or None, name)]
+    base_dir: Path = Path(".")                        # the study file's folder (relative paths)
 
 
 def _parse_study_table(ck: Checker, data: Mapping, base_dir: Path, out: _Parsed) -> None:
@@ -207,7 +208,8 @@ def _parse_study_table(ck: Checker, data: Mapping, base_dir: Path, out: _Parsed)
         "dt_control": dt_control, "dt_log": dt_log,
         **_setpoint_fields(ck, st, "study", {"setpoint": "fixed"}),
         "heading": ck.choice(st.get("heading", "chasing"), ("chasing", "fixed"), "study.heading"),
-        "true_state": ck.boolean(st.get("true_state", False), "study.true_state")}
+        "true_state": ck.boolean(st.get("true_state", False), "study.true_state"),
+        **_estimation_fields(ck, st, "study")}
     out.mode = ck.choice(st.get("mode", "product"), ("product", "list"), "study.mode")
     seeds = st.get("seeds", [1])
     if not isinstance(seeds, list) or not seeds:
@@ -303,6 +305,15 @@ def _setpoint_fields(ck: Checker, table: Mapping, where: str, default: dict, inh
     return out
 
 
+def _estimation_fields(ck: Checker, table: Mapping, where: str) -> dict:
+    """``estimator`` and ``detector`` of a [study] or [[controllers]] table, checked (only the
+    ones given, so a study that names neither keeps the runner's defaults and its case ids)."""
+    from .closed_loop import DETECTOR_KINDS, ESTIMATOR_KINDS
+
+    return {k: ck.choice(table[k], kinds, f"{where}.{k}")
+            for k, kinds in (("estimator", ESTIMATOR_KINDS), ("detector", DETECTOR_KINDS)) if k in table}
+
+
 def _loop(study: dict, controller: dict) -> dict:
     """The closed-loop settings of one controller's cases: the study's, with the controller's own
     setpoint in place of the study's and its options over the study's (key by key); a controller
@@ -310,13 +321,28 @@ def _loop(study: dict, controller: dict) -> dict:
     from ..control.setpoint_opt import METHODS
 
     out = dict(study)
-    if "setpoint" in controller:
-        out["setpoint"] = controller["setpoint"]
+    for key in ("setpoint", "estimator", "detector"):
+        if key in controller:
+            out[key] = controller[key]
     opts = {**(study.get("setpoint_options") or {}), **(controller.get("setpoint_options") or {})}
     out.pop("setpoint_options", None)
     if opts and out.get("setpoint") in METHODS:
         out["setpoint_options"] = opts
     return out
+
+
+def _embedded_gain_table(ck: Checker, path: str, base_dir: Path, where: str) -> dict | None:
+    """The gain table at ``path`` (relative to the study file) as its JSON dict, so a case carries
+    it in its inputs (a worker needs no file of the client's; a changed table changes the case
+    ids); None, with the issue recorded, when it cannot be read."""
+    from ..control.gain_table import GainTableError, load_gain_table
+
+    p = Path(path)
+    try:
+        return load_gain_table(p if p.is_absolute() else base_dir / p).to_dict()
+    except GainTableError as exc:
+        ck.err(where, f"= {path!r}: {exc}")
+        return None
 
 
 def _parse_controllers(ck: Checker, data: Mapping, out: _Parsed) -> None:
@@ -334,15 +360,24 @@ def _parse_controllers(ck: Checker, data: Mapping, out: _Parsed) -> None:
             ck.err(f"{p}.type", f"missing required field ({', '.join(CONTROLLER_TYPES)})")
         kind = ck.choice(e["type"], CONTROLLER_TYPES, f"{p}.type") if "type" in e else None
         cname = ck.text(e["name"], f"{p}.name") if "name" in e else _NAMES.get(kind or "")
-        opts = {k: v for k, v in e.items() if k not in ("name", "type", "setpoint", "setpoint_options")}
-        loop = _setpoint_fields(ck, e, p, {}, inherited=out.closed_loop.get("setpoint"))
+        opts = {k: v for k, v in e.items()
+                if k not in ("name", "type", "setpoint", "setpoint_options", "estimator", "detector")}
+        loop = {**_setpoint_fields(ck, e, p, {}, inherited=out.closed_loop.get("setpoint")),
+                **_estimation_fields(ck, e, p)}
+        merged = _loop(out.closed_loop, loop)
+        if merged.get("detector") == "bank" and merged.get("estimator", "lowpass") == "lowpass" \
+                and not merged.get("true_state"):
+            ck.err(f"{p}.detector", "= 'bank' is a bank of model-based observers: give estimator = 'passive' or "
+                   "'ekf' (here or in [study]), not 'lowpass'")
         spec = None
         if kind is not None:
             n_issues = len(ck.issues)
             ck.keys(opts, (set(PID_DEFAULTS) if kind == "pid" else mpc_allowed) | {"name", "type"}, p)
             if len(ck.issues) == n_issues:
                 spec = _normalise_spec(kind, opts)
-                if out.sc is not None:
+                if isinstance(spec.get("gain_table"), str):
+                    spec["gain_table"] = _embedded_gain_table(ck, spec["gain_table"], out.base_dir, f"{p}.gain_table")
+                if out.sc is not None and len(ck.issues) == n_issues:
                     try:
                         build_controller(out.sc, spec, where=p)   # dry build: checks every value
                     except ControllerSpecError as exc:
@@ -512,7 +547,7 @@ def expand_cases(data: Mapping[str, Any], *, base_dir: str | Path = ".", source:
         raise StudyError(f"a study must be a table of sections, got {type(data).__name__}", source=source)
     ck = Checker()
     ck.keys(data, _TOP_KEYS, "")
-    parsed = _Parsed()
+    parsed = _Parsed(base_dir=Path(base_dir))
     _parse_study_table(ck, data, Path(base_dir), parsed)
     _parse_sea_states(ck, data, parsed)
     _parse_controllers(ck, data, parsed)
