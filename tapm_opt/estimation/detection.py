@@ -1,14 +1,37 @@
 """Line-break detection from the tension cells.
 
-:class:`TensionDropDetector` is the simplest detector a vessel with tension cells has: a line whose
-measured fairlead tension stays below ``fraction`` of its pretension (the design model's tension at
-the field zero point) for ``hold`` seconds is declared broken, and stays so. It needs no model of
-the vessel's motion: the fairlead tension of an intact catenary line cannot fall below the weight
-of the line hanging between the fairlead and the seabed (on fpso the slack side keeps at least 75 % of
-its pretension quasi-statically anywhere on the alert circle), while a broken line reads its cell's
-noise about zero.
+Two detectors, both fed by the estimators (``update(t, tensions, eta)``, latched, ``events``):
+
+* :class:`TensionDropDetector` is the simplest detector a vessel with tension cells has: a line
+  whose measured fairlead tension stays below ``fraction`` of its pretension (the design model's
+  tension at the field zero point) for ``hold`` seconds is declared broken, and stays so. It needs
+  no model of the vessel's motion: the fairlead tension of an intact catenary line cannot fall
+  below the weight of the line hanging between the fairlead and the seabed (on fpso the slack side
+  keeps at least 75 % of its pretension quasi-statically anywhere on the alert circle), while a
+  broken line reads its cell's noise about zero.
+* :class:`TensionResidualDetector` is the model-based statistical test of the survey's family (a)
+  (§4.2.4, "residuals of the measured line tensions against the line model"): per line, the
+  residual between the measured fairlead tension and the quasi-static catenary's at the
+  estimator's low-frequency pose, standardised by a robust running estimate of its intact mean and
+  standard deviation, and a one-sided CUSUM (Page) test for a downward shift of a design fraction
+  of the predicted tension. It reacts to any loss of more than half that shift (a quarter of the
+  line's tension by default), so also to a break below the fairlead, where the cell keeps reading
+  the weight of the hanging line.
 
 Detected breaks reach the setpoint layer and the controllers through ``Estimate.broken_lines``.
+
+References
+----------
+E. S. Page, Continuous inspection schemes, Biometrika 41 (1954) 100-115.
+G. Lorden, Procedures for reacting to a change in distribution, Ann. Math. Statist. 42 (1971)
+1897-1908 (the CUSUM's mean time between false alarms is at least e^h).
+G. V. Moustakides, Optimal stopping times for detecting changes in distributions, Ann. Statist.
+14 (1986) 1379-1387 (the CUSUM is optimal for a known shift).
+M. Basseville, I. V. Nikiforov, Detection of Abrupt Changes: Theory and Application, Prentice
+Hall, 1993, §2.2 (CUSUM), §2.4 (GLR), §5.2 (mean delay).
+P. J. Huber, Robust Statistics, Wiley, 1981 (the clipped running estimates).
+Z. Ren et al., A survey on modeling and control of thruster-assisted position mooring systems,
+§4.2.4 (fault detection and isolation of line breaks).
 """
 
 from __future__ import annotations
@@ -20,7 +43,7 @@ import numpy as np
 
 from ..errors import TapmError
 
-__all__ = ["TensionDropDetector", "DetectionError"]
+__all__ = ["TensionDropDetector", "TensionResidualDetector", "DetectionError", "FALSE_ALARM_TIME_DEFAULT"]
 
 
 class DetectionError(TapmError, ValueError):
@@ -73,4 +96,499 @@ class TensionDropDetector:
         if new:
             self.broken = self.broken | frozenset(new)
             self.events += [{"t": float(t), "line": lid, "event": "line break detected"} for lid in new]
+        return self.broken
+
+
+# ------------------------------------------------------------------------------------------
+# model-based test: tension residuals against the line model, CUSUM
+# ------------------------------------------------------------------------------------------
+
+#: Default design mean time between false alarms of a whole :class:`TensionResidualDetector`
+#: (all its lines together) [s]: one year.
+FALSE_ALARM_TIME_DEFAULT = 365.25 * 86400.0
+
+
+def _huber_beta(c: float) -> float:
+    """E[min(z^2, c^2)] for z ~ N(0, 1): the consistency factor of a variance estimated from
+    deviations clipped at c standard deviations."""
+    phi = math.exp(-0.5 * c * c) / math.sqrt(2.0 * math.pi)
+    tail = 0.5 * math.erfc(c / math.sqrt(2.0))
+    return (1.0 - 2.0 * tail) - 2.0 * c * phi + 2.0 * c * c * tail
+
+
+def _hermite(T0, T1, k0, k1, t):
+    """Cubic Hermite interpolant through (0, T0, slope k0) and (1, T1, slope k1) at t in [0, 1]
+    (slopes per unit of t)."""
+    d = T1 - T0
+    return T0 + t * (k0 + t * ((3.0 * d - 2.0 * k0 - k1) + t * (k0 + k1 - 2.0 * d)))
+
+
+def _predict_py(eta, par, geo, tab, out):  # pragma: no cover - compiled by numba
+    """Tabulated fairlead tensions of the lines of ``geo`` at pose ``eta`` into ``out`` (n,).
+
+    ``par`` = (x_cot, y_cot, turret angle, free turret 1/0); ``geo`` (n, 8) = anchor x, y, fairlead
+    in {T} x, y, table start distance [m], table spacing [m], first node of the line's table in
+    ``tab``, number of intervals; ``tab`` (m, 2) = TF [N], dTF/dXF [N/m] at the nodes. Same
+    geometry as ``MooringModel.spans`` (eq. 5). Returns 0, or 1 when a line's distance lies outside
+    its table (``out`` undefined).
+    """
+    x, y, psi = eta[0], eta[1], eta[2]
+    c, s = math.cos(psi), math.sin(psi)
+    cx = c * par[0] - s * par[1]
+    cy = s * par[0] + c * par[1]
+    ang = par[2] if par[3] != 0.0 else psi + par[2]
+    ct, st = math.cos(ang), math.sin(ang)
+    for i in range(geo.shape[0]):
+        fx = x + cx + (ct * geo[i, 2] - st * geo[i, 3])
+        fy = y + cy + (st * geo[i, 2] + ct * geo[i, 3])
+        h = geo[i, 5]
+        u = (math.hypot(fx - geo[i, 0], fy - geo[i, 1]) - geo[i, 4]) / h
+        nint = int(geo[i, 7])
+        if not (u >= 0.0 and u <= nint):
+            return 1
+        a = int(u)
+        if a >= nint:
+            a = nint - 1
+        k = int(geo[i, 6]) + a
+        t = u - a
+        T0 = tab[k, 0]
+        d = tab[k + 1, 0] - T0
+        k0 = tab[k, 1] * h
+        k1 = tab[k + 1, 1] * h
+        out[i] = T0 + t * (k0 + t * ((3.0 * d - 2.0 * k0 - k1) + t * (k0 + k1 - 2.0 * d)))
+    return 0
+
+
+def _cusum_py(T, Tp, idx, st, cfg):  # pragma: no cover - compiled by numba
+    """One sample of :class:`TensionResidualDetector`'s test, in place.
+
+    ``T`` (n,) measured tensions [N] of every line; ``Tp`` (m,) predicted tensions of the lines
+    still tested, whose rows in ``st`` are ``idx`` (m,); ``st`` (n, 8) per line: statistic g, bias
+    b [N], scale s [N], scale floor [N], run sum of -z, run length, peak g, deepest drop;
+    ``cfg`` = (shift, largest step, weight of the running estimates, clip, Huber factor, adapt
+    1/0, threshold). Returns the row of the line isolated at this sample, or -1.
+    """
+    shift, step_max, a, clip, beta, adapt, thr = cfg[0], cfg[1], cfg[2], cfg[3], cfg[4], cfg[5], cfg[6]
+    best = -1
+    best_shift = -math.inf
+    for q in range(idx.shape[0]):
+        i = idx[q]
+        tp = Tp[q]
+        dev = T[i] - tp - st[i, 1]
+        s = st[i, 2]
+        D = shift * tp if tp > 0.0 else 0.0
+        d = D / s
+        z = dev / s
+        llr = d * (-z - 0.5 * d)
+        if llr > step_max:
+            llr = step_max
+        g_old = st[i, 0]
+        g = g_old + llr
+        if g < 0.0:
+            g = 0.0
+        st[i, 0] = g
+        if g > st[i, 6]:
+            st[i, 6] = g
+        if D > 0.0 and -dev / D > st[i, 7]:
+            st[i, 7] = -dev / D
+        if g > 0.0:
+            if g_old > 0.0:
+                st[i, 4] -= z
+                st[i, 5] += 1.0
+            else:
+                st[i, 4] = -z
+                st[i, 5] = 1.0
+        else:
+            st[i, 4] = 0.0
+            st[i, 5] = 0.0
+            if adapt != 0.0:  # the running estimates move only while no alarm is building
+                lim = clip * s
+                dc = dev if dev < lim else lim
+                if dc < -lim:
+                    dc = -lim
+                st[i, 1] += a * dc
+                v = (1.0 - a) * s * s + a * min(dev * dev, lim * lim) / beta
+                st[i, 2] = max(math.sqrt(v), st[i, 3])
+        if g >= thr * (1.0 - 1e-12) and st[i, 4] / st[i, 5] > best_shift:
+            best = i
+            best_shift = st[i, 4] / st[i, 5]
+    return best
+
+
+_KERNELS = None
+
+
+def _kernels():
+    """(predict, cusum): :func:`_predict_py` and :func:`_cusum_py` compiled by numba (cached on
+    disk when possible), or the Python functions themselves without numba. Compiled on first use."""
+    global _KERNELS
+    if _KERNELS is None:
+        from .._jit import jit
+
+        _KERNELS = (jit(_predict_py), jit(_cusum_py))
+    return _KERNELS
+
+
+class _TensionTable:
+    """Fairlead tensions ``TF`` [N] of a model's lines at a pose, from tabulated characteristics.
+
+    The same elastic catenary as :meth:`MooringModel.tensions
+    <tapm_opt.models.mooring.MooringModel.tensions>` (:func:`tapm_opt.models.catenary.solve`),
+    tabulated once per distinct line configuration (ZF, L, EA, w, CB, h_A) as ``TF`` against the
+    horizontal anchor–fairlead distance ``XF``: a cubic Hermite interpolant through the exact
+    ``TF`` and ``dTF/dXF = (HF dHF/dXF + VF dVF/dXF) / TF`` on a uniform grid, halved until it
+    matches the catenary within ``rtol * max(TF, T_ref)`` at a quarter, half and three quarters of
+    every interval (``T_ref``: the largest pretension of the configuration's lines). The grid covers
+    every distance a line takes with the body origin up to ``max_offset`` [m] from the field zero
+    point at any heading (default 30 % of the deepest seabed below the fairleads, as
+    :class:`~tapm_opt.models.characteristics.TabulatedMooringLoad`); beyond, the exact
+    ``model.tensions`` answers (:attr:`exact_calls` counts those). The geometry is the model's
+    (eq. 5, the same operations as ``model.spans``), evaluated by a compiled kernel. ``tables`` is a
+    cache of configuration tables shared between models (the reduced models of a detector reuse
+    the intact model's tables: their distances lie within them).
+    """
+
+    def __init__(self, model: Any, *, max_offset: float | None = None, rtol: float = 1e-6,
+                 tables: dict | None = None):
+        from ..models import catenary
+
+        self.model = model
+        self.exact_calls = 0
+        tables = {} if tables is None else tables
+        eta0 = np.zeros(3)
+        _, _, XF0 = model.spans(eta0)
+        T0 = np.asarray(model.tensions(eta0), float)
+        if max_offset is None:
+            max_offset = 0.3 * float(np.max(model.ZF + model.h_A))
+        reach = (float(max_offset) + 2.0 * float(np.hypot(*model.p_cot_B))
+                 + 2.0 * np.hypot(model.p_T[:, 0], model.p_T[:, 1]))
+        cfg = np.stack([model.ZF, model.L, model.EA, model.w, model.CB, model.h_A], axis=1)
+        keys = [tuple(float(v) for v in row) for row in cfg]
+        n = len(keys)
+        geo = np.zeros((n, 8))
+        geo[:, 0:2] = model.anchors
+        geo[:, 2:4] = model.p_T
+        parts, start = [], 0
+        for key in dict.fromkeys(keys):
+            mine = np.array([k == key for k in keys])
+            tkey = (key, rtol)
+            if tkey not in tables:
+                a = max(float(np.min(XF0[mine] - reach[mine])), 0.0)
+                b = float(np.max(XF0[mine] + reach[mine]))
+                ZF, L, EA, w, CB, h_A = key
+                if not math.isfinite(EA):
+                    b = min(b, math.sqrt(max(L * L - ZF * ZF, 0.0)) * (1.0 - 1e-9))
+                T_ref = float(np.max(T0[mine])) or w * L or 1.0
+                tables[tkey] = self._table(lambda x: catenary.solve(x, ZF, L, EA, w, CB=CB, h_A=h_A),
+                                           a, b, rtol, T_ref)
+            x0, dx, T, K = tables[tkey]
+            geo[mine, 4:8] = (x0, dx, start, T.size - 1)
+            parts.append(np.column_stack([T, K]))
+            start += T.size
+        self._geo = np.ascontiguousarray(geo)
+        self._tab = np.ascontiguousarray(np.concatenate(parts))
+        self._par = np.array([model.p_cot_B[0], model.p_cot_B[1], model.turret_angle,
+                              1.0 if model.turret_mode == "free" else 0.0])
+        self._k = _kernels()[0]
+        self._out = np.empty(n)
+
+    @staticmethod
+    def _table(solve, a: float, b: float, rtol: float, T_ref: float, max_nodes: int = 1 << 18):
+        """(x0 [m], dx [m], TF nodes [N], dTF/dXF nodes [N/m]) of a uniform grid over [a, b] fine
+        enough (class docstring); a table that reaches ``max_nodes`` is kept as it is."""
+        def tf(x):
+            s = solve(x)
+            return s.TF, (s.HF * s.dHF_dXF + s.VF * s.dVF_dXF) / np.maximum(s.TF, 1e-300)
+
+        if not b > a:
+            b = a + 1.0
+        m = 256
+        while True:
+            X = np.linspace(a, b, m + 1)
+            dx = (b - a) / m
+            T, K = tf(X)
+            worst = 0.0
+            for q in (0.25, 0.5, 0.75):
+                Tq, _ = tf(X[:-1] + q * dx)
+                est = _hermite(T[:-1], T[1:], K[:-1] * dx, K[1:] * dx, q)
+                worst = max(worst, float(np.max(np.abs(est - Tq) / (rtol * np.maximum(Tq, T_ref)))))
+            if worst <= 1.0 or 2 * m + 1 > max_nodes:
+                return a, dx, T, K
+            m *= 2
+
+    def __call__(self, eta: np.ndarray) -> np.ndarray:
+        """``TF`` (n,) [N] at the pose ``eta`` (a float64 (3,) array of finite numbers, checked
+        by the caller); the array is reused by the next call."""
+        if self._k(eta, self._par, self._geo, self._tab, self._out) != 0:
+            self.exact_calls += 1
+            self._out[:] = self.model.tensions(eta)
+        return self._out
+
+
+class TensionResidualDetector:
+    """Line-break detection and isolation by a CUSUM test of the tension residuals (survey §4.2.4,
+    family (a); module references).
+
+    Residual of line i at each new tension sample k (the cells sample and hold at ``rate``)::
+
+        r_i = T_meas,i - T_model,i(eta_hat)
+
+    with ``T_model`` the quasi-static catenary's fairlead tension of the line at the estimator's
+    latest low-frequency pose ``eta_hat`` (body origin, {E}; from a tabulated characteristic of
+    :meth:`MooringModel.tensions <tapm_opt.models.mooring.MooringModel.tensions>`, within 1e-6 of the
+    line's tension or pretension). While the line is intact ``r_i`` is the cell noise
+    (``noise_rel`` x MBS), the wave-frequency dynamic tension, the error of the low-pass pose (it
+    lags the LF motion by ~13 s) and the mean difference between the dynamic line and the
+    quasi-static catenary (current drag on the line); on fpso in the design storm its mean is
+    within +-36 kN and its standard deviation 36-88 kN per line (3.3 MN pretension). A broken line
+    reads its cell's noise about zero (a break at the fairlead) or the weight of the hanging line
+    (a break further down; on fpso ``w x 982 m`` = 1.3 MN), so the residual falls by 50-100 % of
+    ``T_model``.
+
+    Standardisation: ``z_i = (r_i - b_i) / s_i`` with ``b_i``, ``s_i`` robust running estimates of
+    the intact residual's mean and standard deviation (``adapt=True``): exponentially weighted
+    (time constant ``tau``) means of the residual and of its squared deviation, each deviation
+    clipped at ``clip`` x ``s_i`` (Huber; the squared one divided by E[min(z^2, clip^2)] so that
+    ``s_i`` is unbiased for Gaussian residuals), started at ``b_i = 0`` and the design value
+    ``s_i = sqrt((noise_rel MBS_i)^2 + (dynamic_rel T0_i)^2)`` (``T0_i``: pretension at the field
+    zero point), never below the cell noise ``noise_rel MBS_i``. The estimates of a line are frozen
+    while its test statistic is above zero (an alarm building), so a break is not learnt as the new
+    normal. ``adapt=False``: ``b_i = 0`` and ``s_i`` the design value throughout.
+
+    Test: Page's one-sided CUSUM of the log-likelihood ratio of "the mean residual fell by
+    ``Delta_i = shift x T_model,i``" against "zero mean", Gaussian with standard deviation
+    ``s_i``::
+
+        l_i = d_i (-z_i - d_i / 2),   d_i = Delta_i / s_i
+        g_i <- max(0, g_i + min(l_i, h / min_samples)),   alarm when g_i >= h
+
+    ``l_i`` is positive only when the residual is more than ``Delta_i / 2`` below its mean, so an
+    intact line whose residual stays above ``-Delta_i / 2`` (a quarter of its tension by default)
+    never accumulates, whatever ``s_i``; every loss larger than that is detected. Each sample adds
+    at most ``h / min_samples`` (which only lowers the statistic, so the false-alarm bound below
+    still holds): at least ``min_samples`` samples must confirm a break, and a single spike of a
+    cell cannot declare one.
+
+    Threshold: ``h = ln(n_lines x false_alarm_time x rate)``. For independent residuals that follow
+    the intact model, the CUSUM's mean number of samples between false alarms is at least ``e^h``
+    (Lorden 1971), so the whole detector's mean time between false alarms is at least
+    ``false_alarm_time`` [s] (default one year: h = 19.75 for fpso's 12 lines at 1 Hz, about 3000
+    times the 3 h of a storm). The real residual is not independent (wave groups,
+    the LF pose error) nor exactly Gaussian; what protects against that is the reference level
+    ``Delta_i / 2``, far below any intact residual (:attr:`worst_drop` reports how close they came;
+    docs/estimation.md gives the figures). Expected delay of a loss of ``D_i >= Delta_i / 2``: about
+    ``h / min(d_i (D_i / s_i - d_i / 2), h / min_samples)`` samples (Basseville & Nikiforov §5.2),
+    i.e. ``min_samples`` samples for a break on fpso in any of its sea states.
+
+    Why CUSUM and not a GLR: the post-break level is known within a factor of two (zero or the
+    hanging weight), so the test for the smallest shift of interest is the optimal one
+    (Lorden; Moustakides 1986) and detects larger shifts faster; it is recursive (two numbers per
+    line per sample) where the GLR maximises over a window of change times and shift sizes.
+
+    Isolation: the line whose statistic crosses ``h``; when several cross at the same sample, the
+    one with the largest normalised shift, the mean of ``-z_i`` since its statistic last left zero
+    (the maximum-likelihood shift in units of ``s_i``); the others are declared at the next samples
+    if they are still above ``h``. Latched: a detected line stays broken until :meth:`reset`, leaves
+    the test, and the predictions of the remaining lines come from ``model.without(broken)``.
+
+    Before the estimator's first pose (``eta`` None) there is no test: :meth:`update` only checks
+    the measurement and returns the lines already known broken.
+
+    Parameters
+    ----------
+    model : MooringModel
+        The intact design model (its lines, tensions at a pose, MBS).
+    shift : float
+        Design shift ``Delta_i / T_model,i`` of a break, in (0, 1] [-] (default 0.5: the smallest
+        loss of a break anywhere along an fpso line, 60 % at pretension, with margin).
+    false_alarm_time : float
+        Design mean time between false alarms of the whole detector [s], > 0 (sets ``h``).
+    rate : float
+        Tension-cell sampling rate [Hz], > 0: the statistics advance at most once per ``1 / rate``
+        (a held sample is not counted twice when the control step is shorter).
+    min_samples : int
+        Samples a break must last at least, >= 1.
+    noise_rel : float
+        Tension-cell noise, standard deviation as a fraction of each line's MBS, > 0 (the
+        scenario's ``sensors.tension_std_rel``, default 0.002).
+    dynamic_rel : float
+        Design standard deviation of the rest of the intact residual (dynamic tension, pose error)
+        as a fraction of each line's pretension, >= 0: the start of ``s_i`` (and all of it with
+        ``adapt=False``).
+    adapt : bool
+        Estimate ``b_i`` and ``s_i`` on-line (above), or keep ``b_i = 0`` and the design value.
+    tau : float
+        Time constant of the running estimates [s], > 0.
+    clip : float
+        Clipping of the deviations in the running estimates, in standard deviations, > 0.
+
+    Attributes
+    ----------
+    line_ids : tuple of str
+    threshold : float
+        ``h`` [-] (log-likelihood units).
+    broken : frozenset of str
+        Lines detected broken.
+    events : list of dict
+        ``{"t" [s], "line", "event": "line break detected", "statistic": g_i at the alarm}``.
+    statistic, bias, sigma : ndarray (n,)
+        ``g_i`` [-], ``b_i`` [N], ``s_i`` [N] of every line of ``model`` (the values at its
+        detection for a broken line).
+    peak : ndarray (n,)
+        Largest ``g_i`` so far [-].
+    worst_drop : ndarray (n,)
+        Largest ``-(r_i - b_i) / Delta_i`` so far [-]: the deepest residual of the line relative
+        to the design shift; above 0.5 the statistic grows (NaN before the first test).
+    samples : int
+        Tension samples tested so far.
+    """
+
+    def __init__(self, model: Any, *, shift: float = 0.5, false_alarm_time: float = FALSE_ALARM_TIME_DEFAULT,
+                 rate: float = 1.0, min_samples: int = 3, noise_rel: float = 0.002, dynamic_rel: float = 0.02,
+                 adapt: bool = True, tau: float = 600.0, clip: float = 3.0):
+        def num(name, v, lo, hi=math.inf, *, lo_ok=False, unit=""):
+            ok = isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool) and \
+                math.isfinite(v) and (v >= lo if lo_ok else v > lo) and v <= hi
+            if not ok:
+                rng = f"{'>=' if lo_ok else '>'} {lo:g}" + ("" if hi == math.inf else f" and <= {hi:g}")
+                raise DetectionError(f"{name} = {v!r}{unit} must be a finite number {rng}")
+            return float(v)
+
+        self.shift = num("shift", shift, 0.0, 1.0)
+        self.false_alarm_time = num("false_alarm_time", false_alarm_time, 0.0, unit=" s")
+        self.rate = num("rate", rate, 0.0, unit=" Hz")
+        if not (isinstance(min_samples, (int, np.integer)) and not isinstance(min_samples, bool) and min_samples >= 1):
+            raise DetectionError(f"min_samples = {min_samples!r} must be an integer >= 1")
+        self.min_samples = int(min_samples)
+        self.noise_rel = num("noise_rel", noise_rel, 0.0, 1.0)
+        self.dynamic_rel = num("dynamic_rel", dynamic_rel, 0.0, 1.0, lo_ok=True)
+        if not isinstance(adapt, (bool, np.bool_)):
+            raise DetectionError(f"adapt = {adapt!r} must be True or False")
+        self.adapt = bool(adapt)
+        self.tau = num("tau", tau, 0.0, unit=" s")
+        self.clip = num("clip", clip, 0.0)
+        self.model = model
+        self.line_ids = tuple(model.line_ids)
+        n = len(self.line_ids)
+        h = math.log(n * self.false_alarm_time * self.rate)
+        if not h > 0:
+            raise DetectionError(f"false_alarm_time = {false_alarm_time!r} s gives the threshold h = ln(n_lines x "
+                                 f"false_alarm_time x rate) = {h:.3g} <= 0: it must exceed one sample per line")
+        self.threshold = h
+        self._cfg = np.array([self.shift, h / self.min_samples, min(1.0 / (self.rate * self.tau), 1.0), self.clip,
+                              _huber_beta(self.clip), 1.0 if self.adapt else 0.0, h])
+        self._tables: dict = {}
+        self._intact_table = _TensionTable(model, tables=self._tables)
+        self._cusum = _kernels()[1]
+        T0 = np.asarray(model.tensions(np.zeros(3)), float)
+        #: Smallest scale s_i [N]: the cell noise noise_rel x MBS_i.
+        self.sigma_floor = self.noise_rel * np.asarray(model.MBS, float)
+        #: Start (design) value of s_i [N].
+        self.sigma_design = np.hypot(self.sigma_floor, self.dynamic_rel * T0)
+        self.reset()
+        # compile the kernels (or load them from the disk cache) now, not in the first control step
+        held = T0.copy()
+        held.setflags(write=False)   # the sensors hand on read-only arrays (a second specialisation)
+        for T in (T0, held):
+            self._cusum(T, T0, np.zeros(0, np.intp), self._st.copy(), self._cfg)
+        self._intact_table(np.zeros(3))
+
+    def reset(self) -> None:
+        """Back to the intact model, no line broken, statistics and running estimates at their
+        start values."""
+        n = len(self.line_ids)
+        self.broken: frozenset[str] = frozenset()
+        self.events: list[dict] = []
+        st = np.zeros((n, 8))
+        st[:, 2] = self.sigma_design
+        st[:, 3] = self.sigma_floor
+        st[:, 7] = -np.inf
+        self._st = st
+        self.samples = 0
+        self._active = np.arange(n, dtype=np.intp)
+        self._predict = self._intact_table
+        self._t_prev = -math.inf
+        self._t_next = -math.inf
+
+    # -- state ----------------------------------------------------------------------------
+    @property
+    def statistic(self) -> np.ndarray:
+        """CUSUM statistic g_i (n,) [-] of every line (its value at detection for a broken one)."""
+        return self._st[:, 0].copy()
+
+    @property
+    def bias(self) -> np.ndarray:
+        """Running mean b_i (n,) of the intact residual [N]."""
+        return self._st[:, 1].copy()
+
+    @property
+    def sigma(self) -> np.ndarray:
+        """Running standard deviation s_i (n,) of the intact residual [N]."""
+        return self._st[:, 2].copy()
+
+    @property
+    def peak(self) -> np.ndarray:
+        """Largest g_i (n,) so far [-]."""
+        return self._st[:, 6].copy()
+
+    @property
+    def worst_drop(self) -> np.ndarray:
+        """Largest ``-(r_i - b_i) / Delta_i`` (n,) so far [-] (NaN before the first test): the
+        deepest residual of the line relative to the design shift; above 0.5 the statistic grows."""
+        w = self._st[:, 7].copy()
+        w[np.isneginf(w)] = np.nan
+        return w
+
+    @property
+    def active_model(self) -> Any:
+        """The line model the predictions come from: ``model.without(broken)``."""
+        return self._predict.model
+
+    def predicted(self, eta: Any) -> np.ndarray:
+        """Fairlead tensions [N] of the lines still tested (:attr:`active_model`'s order) at pose
+        ``eta`` (3,) = (x [m], y [m], psi [rad]), from the tabulated line model."""
+        return self._predict(self._check_eta(eta)).copy()
+
+    @staticmethod
+    def _check_eta(eta: Any) -> np.ndarray:
+        e = np.array(eta, dtype=float)
+        if e.shape != (3,) or not (math.isfinite(e[0]) and math.isfinite(e[1]) and math.isfinite(e[2])):
+            raise DetectionError(f"eta = {np.ravel(e).tolist()} must be 3 finite numbers (x [m], y [m], psi [rad])")
+        return e
+
+    # -- test -------------------------------------------------------------------------------
+    def update(self, t: float, tensions: Any, eta: Any = None) -> frozenset[str]:
+        """Feed the measured fairlead tensions (n,) [N] of every line of ``model`` at time ``t``
+        [s] and the estimator's latest LF pose ``eta`` (3,) = (x [m], y [m], psi [rad]) in {E}
+        (None: no test yet); returns the lines known broken so far."""
+        if not (isinstance(t, (int, float, np.integer, np.floating)) and math.isfinite(t)):
+            raise DetectionError(f"t = {t!r} s must be a finite number")
+        if t < self._t_prev:
+            raise DetectionError(f"t = {t!r} s is before the previous update {self._t_prev!r} s")
+        T = np.asarray(tensions, dtype=float)
+        if T.shape != (len(self.line_ids),):
+            raise DetectionError(f"tensions has shape {T.shape}, expected ({len(self.line_ids)},) for lines "
+                                 f"{list(self.line_ids)}")
+        if not math.isfinite(float(T.sum())) and not np.all(np.isfinite(T)):   # (the sum first: faster)
+            i = int(np.flatnonzero(~np.isfinite(T))[0])
+            raise DetectionError(f"tensions[{i}] (line {self.line_ids[i]!r}) = {float(T[i])!r} N must be finite")
+        self._t_prev = t
+        if eta is None:
+            return self.broken
+        e = self._check_eta(eta)
+        if t < self._t_next or not self._active.size:  # the cells hold the sample already tested
+            return self.broken
+        self._t_next = t + (1.0 - 1e-6) / self.rate
+        self.samples += 1
+        if not T.flags.c_contiguous:
+            T = np.ascontiguousarray(T)
+        j = int(self._cusum(T, self._predict(e), self._active, self._st, self._cfg))
+        if j >= 0:
+            lid = self.line_ids[j]
+            self.broken = self.broken | {lid}
+            self.events.append({"t": float(t), "line": lid, "event": "line break detected",
+                                "statistic": float(self._st[j, 0])})
+            self._active = self._active[self._active != j]
+            if self._active.size:
+                self._predict = _TensionTable(self.model.without(self.broken), tables=self._tables)
         return self.broken
