@@ -853,6 +853,11 @@ def _print_headlines(out: Path, ids: list[str]) -> None:
                    f"{k.get('thrust_energy', nan) / 3.6e9:6.2f} MWh")
 
 
+from .cli_capability import capability as _capability_command  # noqa: E402
+
+cli.add_command(_capability_command)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``tapm`` console script.
 

@@ -377,8 +377,11 @@ def _build(study: StudyData, fig_dir_rel: str, kpi_csv_rel: str) -> tuple[list, 
                        f"{len(study.cases)} case{'' if len(study.cases) == 1 else 's'}: {n_ok} finished, {n_fail} failed"
                        + (f", {n_inc} not finished" if n_inc else "") + ". "
                        "Everything below comes from the saved results; nothing was re-simulated."))
+    from .capability import study_capability_section
+
+    capability = study_capability_section(study.path, problems)   # None unless DIR/capability/capability.json
     blocks.append(Para("Contents: 1 Study · 2 Scenario · 3 Controllers compared · 4 Cases · 5 KPIs · 6 Gains · "
-                       "7 Failed cases"))
+                       "7 Failed cases" + (" · 8 Capability" if capability is not None else "")))
 
     # 1. study
     blocks.append(Heading(2, "1 Study", anchor="study"))
@@ -525,6 +528,10 @@ def _build(study: StudyData, fig_dir_rel: str, kpi_csv_rel: str) -> tuple[list, 
     if incomplete:
         blocks.append(Para("Not finished (no result and no error yet): "
                            + ", ".join(f"{c.name} (`{c.id}`)" for c in incomplete), css="note"))
+    # 8. capability envelopes (the study's [capability], or tapm capability SCENARIO --out DIR/capability)
+    if capability is not None:
+        blocks.extend(capability[0])
+        fig_list.extend(capability[1])
     if problems:
         blocks.append(Heading(2, "Problems met while writing this report", anchor="problems"))
         for p in problems:
@@ -568,7 +575,8 @@ def write_report(study_dir: str | Path, *, out_html: str | Path | None = None,
         atomic_write_bytes(fig_dir / f"{f.name}.png", f.png)
         names.add(f"{f.name}.png")
     for old in fig_dir.glob("*.png"):
-        if old.name not in names and old.name.startswith(("case_", "layout", "compare_", "kpi_bars", "reliability_")):
+        if old.name not in names and old.name.startswith(
+                ("case_", "layout", "compare_", "kpi_bars", "reliability_", "capability")):
             old.unlink(missing_ok=True)
     atomic_write_text(out_md, md)
     atomic_write_text(out_html, page)
