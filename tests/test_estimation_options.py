@@ -129,3 +129,11 @@ def test_a_study_embeds_its_gain_table_relative_to_the_study_file(gains_json, tm
     f.write_text(f.read_text().replace("g/gains.json", "missing/gains.json"))
     with pytest.raises(StudyError, match=r"controllers\[0\]\.gain_table = 'missing/gains.json'"):
         load_study(f)
+
+
+def test_a_supervised_controllers_case_carries_every_sea_state_others_only_their_own():
+    cases = _study(controllers=[{"name": "PID", "type": "pid"},
+                                {"name": "sup", "type": "pid", "supervisor": True, "initial_sea_state": "normal"}])
+    ids = {c.labels["controller"]: [s["id"] for s in c.inputs["scenario"]["sea_states"]] for c in cases}
+    assert ids["PID"] == ["storm"]
+    assert ids["sup"] == [s.id for s in load_scenario("fpso").sea_states] and "storm" in ids["sup"]

@@ -201,7 +201,37 @@ def _run_locked(study: Study, out: Path, workers: int | None, client: Any, progr
     finally:
         bar.close()
     write_tables(study, out)
+    if study.capability is not None:
+        write_study_capability(study, out, workers=min(2, workers or os.cpu_count() or 1))
     return outcomes, todo, skipped
+
+
+def write_study_capability(study: Study, out_dir: str | Path, *, workers: int = 1) -> Path | None:
+    """The capability envelopes a study's ``[capability]`` table asks for, of its scenario, into
+    ``DIR/capability`` (``capability.csv``, ``.json``, polar plots; :mod:`tapm_opt.design.capability`),
+    where the report finds them. Not recomputed when ``capability.json`` holds the same options
+    and scenario. Returns the folder (None when the study asks for none)."""
+    import json
+
+    from ..config import scenario_from_dict
+    from ..design.capability import capability
+    from ..report.capability import write_capability
+
+    if study.capability is None or study.scenario is None:
+        return None
+    d = Path(out_dir) / "capability"
+    stamp = {"options": study.capability, "scenario": study.scenario}
+    try:
+        old = json.loads((d / "study_capability.json").read_text())
+    except (OSError, ValueError):
+        old = None
+    if old == json.loads(json.dumps(stamp)) and (d / "capability.json").is_file():
+        return d
+    res = capability(scenario_from_dict(study.scenario, source=f"study {study.name}"),
+                     {**study.capability, "workers": workers})
+    write_capability(res, d)
+    store.write_json(d / "study_capability.json", stamp)
+    return d
 
 
 def write_tables(study: Study, out_dir: str | Path) -> tuple[Path, Path]:

@@ -67,6 +67,12 @@ class Study:
         varying fastest), then the listed cases.
     text : str
         The study file's text as loaded (copied to ``DIR/study.toml``).
+    capability : dict or None
+        The study's ``[capability]`` table (options of
+        :class:`~tapm_opt.design.capability.CapabilityOptions`, checked): the capability envelopes
+        of its scenario are computed into ``DIR/capability`` and shown in the report; None: none.
+    scenario : dict or None
+        The study's scenario (as loaded, without the cases' faults), for the capability envelopes.
     """
 
     name: str
@@ -74,6 +80,8 @@ class Study:
     path: Path | None
     cases: tuple[Case, ...]
     text: str = field(default="", repr=False)
+    capability: dict | None = None
+    scenario: dict | None = field(default=None, repr=False)
 
     def case(self, key: str) -> Case:
         """The case with this id or name."""
@@ -88,7 +96,7 @@ class Study:
 _STUDY_KEYS = {"name", "description", "scenario", "duration", "segments", "break_on_overload", "dt_control",
                "dt_log", "heading",
                "setpoint", "setpoint_options", "true_state", "seeds", "mode", "estimator", "detector"}
-_TOP_KEYS = {"study", "sea_states", "controllers", "conditions", "cases"}
+_TOP_KEYS = {"study", "sea_states", "controllers", "conditions", "cases", "capability"}
 _CONDITION_KEYS = {"name", "line_break", "thruster_failure"}
 _FAULT_KEYS = {"line_break": {"line", "time", "time_fraction"}, "thruster_failure": {"thruster", "time", "time_fraction"}}
 _CASE_KEYS = {"name", "sea_state", "controller", "condition", "seed", "duration"}
@@ -331,6 +339,17 @@ def _loop(study: dict, controller: dict) -> dict:
     return out
 
 
+def _case_sea_states(sc: Any, ss: Any, spec: Mapping) -> list[dict]:
+    """The sea states a case's scenario carries: its own only (so a case's id does not depend on
+    the scenario's other sea states), or, for a sea-state supervised controller (``supervisor``
+    or ``gain_table``), every sea state of the scenario, in its order, with the case's in its
+    place (or appended when the study defines it): the supervisor's candidates."""
+    if not (spec.get("supervisor") or spec.get("gain_table") is not None):
+        return [scenario_to_dict(ss)]
+    out = [scenario_to_dict(ss if s.id == ss.id else s) for s in sc.sea_states]
+    return out if any(s.id == ss.id for s in sc.sea_states) else out + [scenario_to_dict(ss)]
+
+
 def _embedded_gain_table(ck: Checker, path: str, base_dir: Path, where: str) -> dict | None:
     """The gain table at ``path`` (relative to the study file) as its JSON dict, so a case carries
     it in its inputs (a worker needs no file of the client's; a changed table changes the case
@@ -493,7 +512,7 @@ def _expand(ck: Checker, P: _Parsed) -> list[Case]:
             continue
         faults = [Fault(kind=f.kind, time=f.at(dur), **{"line" if f.kind == "line_break" else "thruster": f.target})
                   for f in cond.faults]
-        sc_dict = {**base, "sea_states": [scenario_to_dict(ss)],
+        sc_dict = {**base, "sea_states": _case_sea_states(sc, ss, spec),
                    "faults": list(base.get("faults", [])) + [scenario_to_dict(f) for f in faults]}
         inputs = {"scenario": sc_dict, "scenario_name": sc.name, "sea_state": sid, "controller": spec,
                   "seed": int(seed), "duration": float(dur), "segments": P.segments,
@@ -565,8 +584,32 @@ def study_from_dict(data: Mapping[str, Any], *, base_dir: str | Path = ".", sour
     """A validated :class:`Study` from a parsed study file (see :func:`expand_cases`)."""
     cases = expand_cases(data, base_dir=base_dir, source=source)
     st = data["study"]
+    cap = _capability_table(data, base_dir, source)
+    sc_dict = None
+    if cap is not None:   # the study's scenario as loaded: every sea state, no fault
+        sc_dict = {**scenario_to_dict(load_scenario(_resolve_scenario(st["scenario"], Path(base_dir)))), "faults": []}
     return Study(name=st["name"], description=st.get("description", ""), path=None if path is None else Path(path),
-                 cases=cases, text=text or _to_toml(data))
+                 cases=cases, text=text or _to_toml(data), capability=cap, scenario=sc_dict)
+
+
+def _capability_table(data: Mapping[str, Any], base_dir: str | Path, source: str) -> dict | None:
+    """The ``[capability]`` table, its options checked by building them (None without one)."""
+    if "capability" not in data:
+        return None
+    from ..design.capability import STUDY_OPTIONS, CapabilityError, CapabilityOptions
+
+    tab = data["capability"]
+    if not isinstance(tab, Mapping):
+        raise StudyError(f"capability must be a table of options ({', '.join(STUDY_OPTIONS)}), got {tab!r}",
+                         source=source)
+    bad = sorted(set(tab) - set(STUDY_OPTIONS))
+    if bad:
+        raise StudyError(f"capability.{bad[0]}: unknown option; allowed: {', '.join(STUDY_OPTIONS)}", source=source)
+    try:
+        CapabilityOptions(**dict(tab))
+    except (CapabilityError, TypeError, ValueError) as exc:
+        raise StudyError(f"capability: {exc}", source=source) from None
+    return dict(tab)
 
 
 # -- TOML text of a study built in code -------------------------------------------------------
