@@ -7,7 +7,8 @@ from __future__ import annotations
 import pytest
 from tapm_opt.cli import main
 from tapm_opt.config import load_scenario
-from tapm_opt.estimation.detection import TensionDropDetector
+from tapm_opt.estimation.detection import TensionDropDetector, TensionResidualDetector
+from tapm_opt.estimation.observer import EKFObserver, PassiveObserver
 from tapm_opt.estimation.lowpass import LowPassEstimator, TrueStateEstimator
 from tapm_opt.models.system import System
 from tapm_opt.studies.closed_loop import ClosedLoopError, ClosedLoopSettings, default_estimator
@@ -68,7 +69,11 @@ def test_settings_validate_and_the_default_estimator_is_what_they_name(system):
         with pytest.raises(ClosedLoopError):
             ClosedLoopSettings(**bad)
     e = default_estimator(system, ClosedLoopSettings())
-    assert type(e) is LowPassEstimator and type(e.detector) is TensionDropDetector and e.monitor is not None
+    assert type(e) is LowPassEstimator and type(e.detector) is TensionResidualDetector and e.monitor is not None
+    assert type(default_estimator(system, ClosedLoopSettings(detector="drop")).detector) is TensionDropDetector
+    for kind, cls in (("passive", PassiveObserver), ("ekf", EKFObserver)):
+        o = default_estimator(system, ClosedLoopSettings(estimator=kind), system.scenario.sea_state("storm"))
+        assert type(o) is cls and type(o.detector) is TensionResidualDetector
     assert default_estimator(system, ClosedLoopSettings(detector="none")).detector is None
     t = default_estimator(system, ClosedLoopSettings(true_state=True, detector="drop"))
     assert type(t) is TrueStateEstimator and type(t.detector) is TensionDropDetector

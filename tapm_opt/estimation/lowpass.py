@@ -80,8 +80,8 @@ class LowPassEstimator(_WithDetectorAndMonitor):
         Cut-off of the position/heading filters [rad/s] (default 2 pi / 40 s).
     T_env : float
         Time constant of the environmental-load filter [s].
-    detector : TensionDropDetector, optional
-        Line-break detector fed with the measured tensions: the lines it reports broken are left
+    detector : TensionResidualDetector or TensionDropDetector, optional
+        Line-break detector fed with the measured tensions (and the previous LF pose): the lines it reports broken are left
         out of the load balance's model from then on and reported in ``Estimate.broken_lines``.
     monitor : ReliabilityMonitor, optional
         On-line reliability statistics of the measured tensions and riser angles

@@ -16,8 +16,9 @@ Positions of setpoints are turret offsets (``geometry.turret_offset``).
 
 Faults: a thruster failure reaches the allocator (and a :class:`~tapm_opt.interfaces.FaultAware`
 controller) through the thruster feedback of the measurement; a line break reaches the setpoint
-layer and the controller through the default estimator's tension-drop detector
-(``Estimate.broken_lines``), which also drops the line from the estimator's load balance.
+layer and the controller through the default estimator's line-break detector (the statistical
+tension test, ``Estimate.broken_lines``), which also drops the line from the estimator's load
+balance.
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ from ..control.allocation import ThrustAllocator
 from ..control.setpoint import FixedSetpoint, HeadingChasing, SetpointChasing
 from ..control.setpoint_opt import METHODS, OptimalSetpoint, SetpointOptions
 from ..errors import TapmError
-from ..estimation.detection import TensionDropDetector
+from ..estimation.detection import TensionDropDetector, TensionResidualDetector
 from ..estimation.lowpass import LowPassEstimator, TrueStateEstimator
 from ..estimation.reliability import monitor_for
 from ..interfaces import (Controller, ControllerStep, Estimate, Estimator, FaultAware, Logged, Setpoint, SetpointLayer,
@@ -111,7 +112,7 @@ class ClosedLoopSettings:
     chase_margin: float = 0.8
     heading_chase_time: float = 600.0
     estimator: Literal["lowpass", "passive", "ekf"] = "lowpass"
-    detector: Literal["tension", "drop", "bank", "none"] = "drop"
+    detector: Literal["tension", "drop", "bank", "none"] = "tension"
 
     def __post_init__(self) -> None:
         for name in ("duration", "dt_control", "dt_log", "chase_time", "chase_margin", "heading_chase_time"):
@@ -161,8 +162,6 @@ def default_estimator(system: System, settings: ClosedLoopSettings, sea_state: A
     if s.detector == "drop":
         det = TensionDropDetector(system.lines)
     elif s.detector == "tension":
-        from ..estimation.detection import TensionResidualDetector
-
         det = TensionResidualDetector(system.lines)
     if s.true_state:
         return TrueStateEstimator(detector=det, monitor=mon)
@@ -240,8 +239,8 @@ def run_closed_loop(plant: Plant, controller: Controller, settings: ClosedLoopSe
         built from).
     estimator : Estimator, optional
         Default: :func:`default_estimator` of the settings (the low-pass estimator on
-        ``system.lines`` with the tension-drop line-break detector and the reliability monitor,
-        unless the settings choose otherwise).
+        ``system.lines`` with the statistical tension test for line breaks and the reliability
+        monitor, unless the settings choose otherwise).
     setpoint_layer : SetpointLayer, optional
         Default: :func:`default_setpoint_layer` of the settings.
     allocator : ThrustAllocator, optional
