@@ -1,4 +1,5 @@
-"""A simple state estimate from measurements: low-pass filters (until an observer exists).
+"""A simple state estimate from measurements: low-pass filters (the runner's default; the DP
+observers are in :mod:`tapm_opt.estimation.observer`).
 
 Position and heading: each of x, y and the unwrapped heading passes through a critically damped
 second-order low-pass filter (cut-off ``omega_c``), a state-variable filter whose second state is
