@@ -2,6 +2,12 @@
 
 * :mod:`tapm_opt.estimation.lowpass` -- low-pass state and environmental-load estimate
   (``LowPassEstimator``, ``TrueStateEstimator``).
+* :mod:`tapm_opt.estimation.observer` -- DP observers on the anchor-SLAM seed's eq. (1): the
+  nonlinear passive observer and an EKF (``PassiveObserver``, ``EKFObserver``).
+* :mod:`tapm_opt.estimation.detection` -- line-break detection with tension cells
+  (``TensionResidualDetector``, ``TensionDropDetector``).
+* :mod:`tapm_opt.estimation.bank` -- a bank of observers that detects and isolates a line break
+  from the position/heading innovations (``ObserverBank``), without tension cells.
 * :mod:`tapm_opt.estimation.reliability` -- the causal (on-line) structural reliability index of
   line tensions and riser angles (survey eq. 32; reliability seed §2.2), re-exported here.
 """
