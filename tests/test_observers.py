@@ -502,3 +502,27 @@ def test_detected_break_swaps_the_line_model(system):
     assert np.linalg.norm(blind[:2]) > 0.8 * lost, blind / lost                # measured 1.19
     obs["ekf"].reset()
     assert obs["ekf"].model is obs["ekf"].intact_model
+
+
+def test_state_handed_to_another_observer_gives_its_estimate():
+    """``state``/``set_state``/``estimate_now``: a fresh observer given another's state reports the
+    same estimate, and then evolves as it does."""
+    from tapm_opt.config import load_scenario
+    from tapm_opt.estimation.observer import EKFObserver, PassiveObserver
+    from tapm_opt.interfaces import Measurement
+    from tapm_opt.models.system import System
+
+    system = System.from_scenario(load_scenario("fpso"))
+    rng = np.random.default_rng(0)
+    for cls in (PassiveObserver, EKFObserver):
+        a, b = cls.from_scenario(system), cls.from_scenario(system)
+        ms = [Measurement(t=float(k), position=rng.normal(0, 1, 2), heading=0.01 * rng.normal(), tensions=np.zeros(12),
+                          t_position=float(k), t_heading=float(k), t_tensions=float(k)) for k in range(40)]
+        for m in ms[:30]:
+            a.update(m.t, m)
+        b.set_state(a.state())
+        ea, eb = a.estimate_now(29.0, ms[29]), b.estimate_now(29.0, ms[29])
+        assert np.array_equal(ea.eta, eb.eta) and np.array_equal(ea.tau_env, eb.tau_env)
+        for m in ms[30:]:
+            ea, eb = a.update(m.t, m), b.update(m.t, m)
+        assert np.allclose(ea.eta, eb.eta, rtol=0, atol=1e-9) and np.allclose(ea.nu, eb.nu, rtol=0, atol=1e-12)

@@ -433,13 +433,7 @@ class ObserverBank(_WithDetectorAndMonitor):
             a.intact_model = a.model = hk.intact_model
             _copy_state(hk, a, covariance=False)
             self._after = a
-        a = self._after
-        if isinstance(a, EKFObserver):
-            x = a.x
-            parts = (x[6:9], x[9:12].copy(), x[12:], x[3:6].copy())
-        else:
-            parts = (a._z[2], a._nu.copy(), a._b, a._z[1].copy())
-        return a._estimate(t, m, *parts, frozenset())
+        return self._after.estimate_now(t, m)
 
     def _decide(self, t: float, i: int, score: dict) -> None:
         self.active = i
@@ -450,15 +444,7 @@ class ObserverBank(_WithDetectorAndMonitor):
 def _copy_state(src: Any, dst: Any, covariance: bool = True) -> None:
     """Set ``dst``'s state (EKF: ``x``, and ``P`` if ``covariance``; passive: ``z``, ``nu``, ``b``)
     to ``src``'s; the time stamps are the same (both were fed the same measurements)."""
-    if isinstance(src, EKFObserver):
-        dst.x = src.x.copy()
-        if covariance:
-            dst.P = src.P.copy()
-        dst._t_pos, dst._t_hdg = src._t_pos, src._t_hdg
-    else:
-        dst._z, dst._nu, dst._b = src._z.copy(), src._nu.copy(), src._b.copy()
-    dst._t = src._t
-    dst.innovation = np.array(src.innovation, float)
+    dst.set_state(src.state(covariance=covariance))
 
 
 def _logsumexp(a: np.ndarray) -> float:

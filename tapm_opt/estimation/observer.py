@@ -408,6 +408,26 @@ class PassiveObserver(_ModelObserver):
         self.model = self.intact_model
         self._reset_parts()
 
+    def state(self, covariance: bool = True) -> dict:
+        """The observer's state, to hand to another observer (:meth:`set_state`): ``z`` (3, 3)
+        (rows xi_1, xi_2, eta with psi unwrapped), ``nu`` (3,), ``b`` (3,), the time ``t`` [s] and
+        the latest ``innovation``; copies. ``covariance`` is ignored (the passive observer has
+        none)."""
+        return {"z": None if self._z is None else self._z.copy(), "nu": self._nu.copy(), "b": self._b.copy(),
+                "t": self._t, "innovation": np.array(self.innovation, float)}
+
+    def set_state(self, state: dict) -> None:
+        """Take a :meth:`state` (of an observer fed the same measurements)."""
+        self._z = None if state["z"] is None else np.array(state["z"], float)
+        self._nu, self._b = np.array(state["nu"], float), np.array(state["b"], float)
+        self._t = state["t"]
+        self.innovation = np.array(state["innovation"], float)
+
+    def estimate_now(self, t: float, m: Measurement) -> Estimate:
+        """The estimate of the present state at ``t`` (measurement ``m`` for the pass-through
+        fields), without an update; no broken line reported."""
+        return self._estimate(t, m, self._z[2], self._nu.copy(), self._b, self._z[1].copy(), frozenset())
+
     def _discretise(self, dt: float) -> None:
         """Exact ZOH discretisation of the fast subsystem over ``dt`` [s] (cached), and the implicit
         damping of the slow one."""
@@ -574,6 +594,35 @@ class EKFObserver(_ModelObserver):
         self.innovation_mask = np.zeros(3, dtype=bool)
         self.model = self.intact_model
         self._reset_parts()
+
+    def state(self, covariance: bool = True) -> dict:
+        """The filter's state, to hand to another filter (:meth:`set_state`): ``x`` (15,), ``P``
+        (15, 15) if ``covariance``, the sample times ``t_position``, ``t_heading``, the time ``t``
+        [s], the latest ``innovation`` and the mooring Jacobian with the pose it was taken at
+        (``J``, ``J_at``: reused within 1 m / 0.01 rad, so a filter given the state continues
+        exactly as the one it came from, on the same model); copies."""
+        return {"x": None if self.x is None else self.x.copy(),
+                "P": None if (self.P is None or not covariance) else self.P.copy(),
+                "t_position": self._t_pos, "t_heading": self._t_hdg, "t": self._t,
+                "innovation": np.array(self.innovation, float),
+                "J": self._J.copy(), "J_at": None if self._J_at is None else self._J_at.copy()}
+
+    def set_state(self, state: dict) -> None:
+        """Take a :meth:`state` (of a filter fed the same measurements, on the same line model:
+        its mooring Jacobian is taken over); without ``P`` the covariance is kept."""
+        self.x = None if state["x"] is None else np.array(state["x"], float)
+        if state.get("P") is not None:
+            self.P = np.array(state["P"], float)
+        self._t_pos, self._t_hdg, self._t = state["t_position"], state["t_heading"], state["t"]
+        self.innovation = np.array(state["innovation"], float)
+        if state.get("J_at") is not None:   # the Jacobian of this observer's model at that pose
+            self._J, self._J_at, self._J_of = np.array(state["J"], float), np.array(state["J_at"], float), self.model
+
+    def estimate_now(self, t: float, m: Measurement) -> Estimate:
+        """The estimate of the present state at ``t`` (measurement ``m`` for the pass-through
+        fields), without an update; no broken line reported."""
+        x = self.x
+        return self._estimate(t, m, x[6:9], x[9:12].copy(), x[12:], x[3:6].copy(), frozenset())
 
     def _discretise(self, dt: float) -> None:
         """Exact WF transition and process noise (Van Loan) over ``dt`` [s], the bias decay and its
