@@ -526,3 +526,37 @@ def test_state_handed_to_another_observer_gives_its_estimate():
         for m in ms[30:]:
             ea, eb = a.update(m.t, m), b.update(m.t, m)
         assert np.allclose(ea.eta, eb.eta, rtol=0, atol=1e-9) and np.allclose(ea.nu, eb.nu, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("psi", [0.0, 0.7, math.pi / 2, -2.5])
+def test_ekf_transition_jacobian_against_central_differences(psi):
+    """The EKF's F (the Jacobian of its discrete prediction, every block incl. the bias's
+    d(R^T b)/db = R^T) against central differences of the same prediction at a heading off 0."""
+    import copy
+
+    from tapm_opt.config import load_scenario
+    from tapm_opt.estimation.observer import EKFObserver
+    from tapm_opt.models.system import System
+
+    ekf = EKFObserver.from_scenario(System.from_scenario(load_scenario("fpso")))
+    rng = np.random.default_rng(3)
+    x0 = np.concatenate([rng.normal(0, 0.5, 6), [12.0, -8.0, psi], rng.normal(0, 0.3, 2), [1e-3],
+                         [1.5e6, -0.8e6, 2e7]])
+    tau_c = np.array([3e5, -2e5, 1e6])
+
+    def step(x):
+        f = copy.deepcopy(ekf)
+        f.x, f.P = x.copy(), np.eye(15)
+        f._predict(1.0, tau_c)
+        return f.x, f._Phi.copy()
+
+    _, F = step(x0)
+    h = np.array([1e-4] * 6 + [1e-3, 1e-3, 1e-6, 1e-5, 1e-5, 1e-7, 10.0, 10.0, 100.0])
+    num = np.empty((15, 15))
+    for j in range(15):
+        e = np.zeros(15)
+        e[j] = h[j]
+        num[:, j] = (step(x0 + e)[0] - step(x0 - e)[0]) / (2 * h[j])
+    big = np.abs(num) > 1e-15            # entry by entry: the bias's entries are ~1e-9 beside 1's
+    assert np.max(np.abs(F - num)[big] / np.abs(num)[big]) < 5e-3   # the mooring block: J by differences
+    assert np.max(np.abs(F[~big])) < 1e-15

@@ -735,7 +735,7 @@ class EKFObserver(_ModelObserver):
         X[:, 0:3] = J
         X[0, 2] += -s * b0 + c * b1           # d(R^T b)/d psi
         X[1, 2] += -c * b0 - s * b1
-        X[:, 6:9] = ((c, -s, 0.0), (s, c, 0.0), (0.0, 0.0, 1.0))   # R^T
+        X[:, 6:9] = ((c, s, 0.0), (-s, c, 0.0), (0.0, 0.0, 1.0))   # d(R^T b)/db = R(psi)^T
         Fnu = self._G @ X
         Fnu[:, 3:6] = self._A_nu
         dtR = np.array([[dt * c, -dt * s, 0.0], [dt * s, dt * c, 0.0], [0.0, 0.0, dt]])
