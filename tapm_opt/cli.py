@@ -444,9 +444,16 @@ def plant_forced_motion(scenario_name: str, dof: str, amplitude: float, period: 
 @click.option("--option", "options", multiple=True, metavar="KEY=VALUE",
               help="Controller option, e.g. --option horizon=30 --option solver=ipopt (repeatable); "
                    "estimator=lowpass|passive|ekf and detector=tension|drop|bank|none choose the estimation.")
+@click.option("--winch", type=click.Choice(["none", "tension"]), default="none", show_default=True,
+              help="Line-tension control: none, or the passivity-based tension controller (the winches drive the "
+                   "mooring force toward the DP command, the thrusters supply the rest; docs/controllers.md). "
+                   "'tension' sets detector=none unless --option detector=... is given.")
+@click.option("--winch-option", "winch_options", multiple=True, metavar="KEY=VALUE",
+              help="Option of the tension controller, e.g. --winch-option kc=2.5e-7 --winch-option ki=1e-9 "
+                   "(kc, ki, T_max_fraction, T_min_fraction, geometry; repeatable).")
 def simulate(scenario_name: str, controller: str, duration: float, out_dir: str, sea_state: str | None, seed: int,
              segments: int | None, dt_control: float, setpoint: str, setpoint_options: tuple[str, ...], heading: str,
-             true_state: bool, options: tuple[str, ...]) -> None:
+             true_state: bool, options: tuple[str, ...], winch: str, winch_options: tuple[str, ...]) -> None:
     """Run CONTROLLER in closed loop against the FEM plant of SCENARIO and save the run.
 
     Writes OUT/result.npz (all channels, labelled; numpy.load reads it) and OUT/summary.json
@@ -471,10 +478,20 @@ def simulate(scenario_name: str, controller: str, duration: float, out_dir: str,
     estimation = {k: str(spec.pop(k)) for k in ("estimator", "detector") if k in spec}
     from .studies.closed_loop import ClosedLoopError
 
+    w_opts = _key_values(winch_options, "--winch-option")
+    if w_opts and winch != "tension":
+        raise click.BadParameter("--winch-option is for --winch tension", param_hint="'--winch-option'")
+    if winch == "tension":
+        estimation.setdefault("detector", "none")  # the detectors assume the nominal line lengths
+    winching = {"winch": winch, "winch_options": w_opts or None} if winch != "none" else {}
     try:
         ClosedLoopSettings(true_state=true_state, **estimation)
     except ClosedLoopError as exc:
         raise click.BadParameter(str(exc), param_hint="'--option'") from None
+    try:
+        ClosedLoopSettings(true_state=true_state, **estimation, **winching)
+    except ClosedLoopError as exc:
+        raise click.BadParameter(str(exc), param_hint="'--winch-option'") from None
     sp_opts = _key_values(setpoint_options, "--setpoint-option")
     if sp_opts and setpoint not in ("quadratic", "reliability", "unified"):
         raise click.BadParameter(f"--setpoint-option is for the optimal setpoints (quadratic, reliability, unified), "
@@ -493,15 +510,21 @@ def simulate(scenario_name: str, controller: str, duration: float, out_dir: str,
     system = System.from_scenario(sc)  # built once: controller, runner and estimator share it
     ctrl = build_controller(system, spec, where="--option")
     settings = ClosedLoopSettings(duration=duration, dt_control=dt_control, dt_log=dt_log, true_state=true_state,
-                                  setpoint=setpoint, heading=heading, setpoint_options=sp_opts or None, **estimation)
+                                  setpoint=setpoint, heading=heading, setpoint_options=sp_opts or None, **estimation,
+                                  **winching)
     w0 = time.perf_counter()
     plant = Plant(system, sea_state=sea_state, seed=seed, segments=segments)
-    res = run_closed_loop(plant, ctrl, settings, system=system,
-                          meta={"controller_spec": {**spec, **estimation}, "seed": seed})
+    try:
+        res = run_closed_loop(plant, ctrl, settings, system=system,
+                              meta={"controller_spec": {**spec, **estimation}, "seed": seed})
+    except ClosedLoopError as exc:   # e.g. --winch tension on a scenario without winches
+        raise click.BadParameter(str(exc), param_hint="'--winch'") from None
     out = Path(out_dir)
     res.save(out / "result.npz")
     k = basic_kpis(res, sc)
-    summary = {"scenario": sc.name, "controller": spec, **estimation, "sea_state": plant.sea_state.id if plant.sea_state else "none",
+    summary = {"scenario": sc.name, "controller": spec, **estimation,
+               **({"winch": winch, "winch_options": w_opts} if winch != "none" else {}),
+               "sea_state": plant.sea_state.id if plant.sea_state else "none",
                "seed": seed, "duration": duration, "kpis": k, "diagnostics": res.meta.get("diagnostics", {}),
                "events": plant.events}
     wall = time.perf_counter() - w0
@@ -513,6 +536,13 @@ def simulate(scenario_name: str, controller: str, duration: float, out_dir: str,
                f"{k['time_outside_safe']:.0f} s; heading error max {k['heading_error_max']:.1f} deg")
     click.echo(f"  max tension {k['T_max'] / 1e3:.0f} kN ({100 * k['utilisation_max']:.1f} % MBS); "
                f"thrust energy {k['thrust_energy'] / 3.6e9:.3f} MWh")
+    if winch != "none":
+        from .studies.kpis import case_kpis
+
+        kw = case_kpis(res, sc)
+        k.update({n: kw[n] for n in ("thrust_to_command_ratio", "winch_energy") if n in kw})
+        click.echo(f"  winch control: thrust/command {k.get('thrust_to_command_ratio', float('nan')):.3f}, "
+                   f"winch energy {k.get('winch_energy', 0.0) / 3.6e9:.4f} MWh")
     if "solver_time_median" in k:
         click.echo(f"  solver: median {1e3 * k['solver_time_median']:.1f} ms, max {1e3 * k['solver_time_max']:.1f} ms, "
                    f"{int(k['solver_failures'])} failures")

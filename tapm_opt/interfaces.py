@@ -26,7 +26,8 @@ import numpy as np
 from ._io import readonly
 
 __all__ = ["Measurement", "Truth", "Estimate", "Setpoint", "ThrusterCommand", "ControllerStep",
-           "Controller", "ThrusterController", "FaultAware", "Logged", "Estimator", "SetpointLayer"]
+           "Controller", "ThrusterController", "FaultAware", "Logged", "Estimator", "SetpointLayer",
+           "WinchController"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -283,6 +284,25 @@ class SetpointLayer(Protocol):
     """A setpoint generator: the :class:`Setpoint` for the current estimate."""
 
     def update(self, t: float, estimate: Estimate) -> Setpoint:
+        ...
+
+    def reset(self) -> None:
+        ...
+
+
+@runtime_checkable
+class WinchController(Protocol):
+    """A line-tension (winch) controller ([AF] = seed line-tension-control-fem, §III): winch
+    speeds that drive the mooring's horizontal force toward the DP command; the thrusters then
+    supply the DP command minus :meth:`mooring_load` (``tau_thr = tau_c - tau_m``)."""
+
+    def update(self, t: float, estimate: Estimate, tau_cmd: np.ndarray) -> np.ndarray:
+        """Winch speed of each line (n_lines,) [m/s], + pays out, from the estimate (pose,
+        measured tensions) and the DP controller's ``tau_cmd`` (3,) in {B} [N, N, N m]."""
+        ...
+
+    def mooring_load(self) -> np.ndarray:
+        """The measured mooring load ``tau_m`` (3,) in {B} [N, N, N m] of the latest update."""
         ...
 
     def reset(self) -> None:

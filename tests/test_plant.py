@@ -300,7 +300,13 @@ def calm_fpso():
 
 @pytest.fixture(scope="module")
 def calm_aamo4():
-    return Plant(scenario("aamo4"), sea_state="none", segments=4)
+    """aamo4 with the winches of lines 1 and 3 taken off (line 1 then has none to command)."""
+    import dataclasses
+
+    sc = scenario("aamo4")
+    lines = tuple(dataclasses.replace(ln, winch_max_rate=0.0, min_length=None, max_length=None)
+                  if ln.id in ("1", "3") else ln for ln in sc.lines)
+    return Plant(dataclasses.replace(sc, lines=lines), sea_state="none", segments=4)
 
 
 @pytest.mark.parametrize("cmd,match", [

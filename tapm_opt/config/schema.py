@@ -363,6 +363,11 @@ class SeaState:
     current_speed: float = spec("Surface current speed V_c.", "m/s", default=0.0,
                                  check=bounded(0.0, 10.0, "the strongest tidal races run at about 5 m/s"))
     current_direction: float = spec("Current direction beta_c (going to, eq. 7).", "deg", default=0.0, check=_ANGLE)
+    current_turn_rate: float = spec(
+        "Rate of turn of the current direction: beta_c(t) = current_direction + rate t (a tidal current "
+        "that rotates; 0: steady).", "deg/s", default=0.0,
+        check=bounded(-1.0, 1.0, "a tidal current turns once in about 12 h, 0.008 deg/s"),
+    )
     current_profile: Literal["uniform", "linear", "piecewise"] = spec(
         "Current speed over depth: 'uniform'; 'linear' from 1 at the surface to "
         "current_profile_factors[0] at the seabed; 'piecewise' linear through (depths, factors).",

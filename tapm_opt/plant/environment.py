@@ -341,6 +341,29 @@ class Environment:
         self.wind = Wind(sea_state, ves, env, s_wind, params=wind_params)
         self.eta_wf, self.eta_wf_dot = self.waves.eta_wf, self.waves.eta_wf_dot
         self.current_at = self.current.velocity
+        #: Rate of turn of the current direction [rad/s] (``sea_state.current_turn_rate``; 0: steady).
+        self.current_turn_rate = float(getattr(sea_state, "current_turn_rate", 0.0) or 0.0)
+        if not math.isfinite(self.current_turn_rate):
+            raise PlantError(f"sea_state.current_turn_rate = {self.current_turn_rate!r} rad/s must be finite")
+
+    def current_surface(self, t: float) -> np.ndarray:
+        """Surface current (3,) in {E} [m/s] at time t [s]: speed V_c in the direction
+        beta_c(t) = beta_c + current_turn_rate t (the rotating tidal current of the line-tension
+        seed's Table I, v_c(t) = (-cos(t/6875), sin(t/6875), 0) m/s, is beta_c = 180 deg and a
+        rate of -1/6875 rad/s)."""
+        if self.current_turn_rate == 0.0:
+            return np.asarray(self.current.surface, dtype=float).copy()
+        V = float(np.hypot(self.current.surface[0], self.current.surface[1]))
+        beta = self.sea_state.current_direction + self.current_turn_rate * float(t)
+        return np.array([V * math.cos(beta), V * math.sin(beta), 0.0])
+
+    def current_velocity(self, z: Any, t: float = 0.0) -> np.ndarray:
+        """Current velocity in {E} at depths ``z`` [m] and time t [s], shape ``z.shape + (3,)``
+        [m/s]: the profile factor phi(z) times :meth:`current_surface` (the direction turns with
+        depth-independent rate, as the profile's does not change with depth)."""
+        if self.current_turn_rate == 0.0:
+            return self.current.velocity(z)
+        return np.multiply.outer(self.current.factor(np.asarray(z, dtype=float)), self.current_surface(t))
 
     def loads(self, t: float, eta: Any, nu: Any = None) -> dict[str, np.ndarray]:
         """Environmental loads in {B} (survey eq. 9) at time t [s], LF pose eta (3,) [m, m, rad]

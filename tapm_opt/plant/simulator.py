@@ -22,6 +22,7 @@ The controller sees the plant only through :meth:`Plant.measure` (sensors), as a
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import replace
 from typing import Any, Callable, Sequence
@@ -98,6 +99,9 @@ class Plant:
         self.riser = RiserModel.from_scenario(scenario, ss) if scenario.riser is not None else None
         self.vessel = self.system.vessel
         self._v_c = np.zeros(2) if current is None else np.asarray(self.env.current.surface[:2], dtype=float)
+        #: True when the current direction turns in time (``sea_state.current_turn_rate``): vessel and
+        #: lines then see the current of the start of each outer step.
+        self._current_turns = current is not None and self.env.current_turn_rate != 0.0
         self.line_ids = tuple(ln.id for ln in scenario.lines)
         self._winch_rate_max = np.array([ln.winch_max_rate for ln in scenario.lines])
         self._L_limits = np.array([ln.length_limits for ln in scenario.lines])
@@ -269,6 +273,9 @@ class Plant:
     def _outer_step(self, h: float) -> None:
         self._apply_faults()
         t0 = self.t
+        if self._current_turns:   # a turning current, held over the outer step
+            self._v_c = self.env.current_surface(t0)[:2]
+            self.mooring.current = functools.partial(self.env.current_velocity, t=t0)
         self.thrusters.step(h, self._cmd.f, self._cmd.alpha)
         tau_thr = self.thrusters.tau()
         if self.env is not None:

@@ -39,14 +39,14 @@ from ..estimation.detection import TensionDropDetector, TensionResidualDetector
 from ..estimation.lowpass import LowPassEstimator, TrueStateEstimator
 from ..estimation.reliability import monitor_for
 from ..interfaces import (Controller, ControllerStep, Estimate, Estimator, FaultAware, Logged, Setpoint, SetpointLayer,
-                          ThrusterCommand, ThrusterController)
+                          ThrusterCommand, ThrusterController, WinchController)
 from ..models.system import System
 from ..plant.simulator import Plant
 from ..results import Result, ResultBuilder
 
 __all__ = ["ClosedLoopSettings", "SetpointChasing", "run_closed_loop", "default_setpoint_layer",
            "optimal_setpoint_layer", "SETPOINT_KINDS", "ClosedLoopError", "default_estimator", "ESTIMATOR_KINDS",
-           "DETECTOR_KINDS"]
+           "DETECTOR_KINDS", "WINCH_KINDS", "default_winch_controller"]
 
 
 class ClosedLoopError(TapmError, ValueError):
@@ -97,6 +97,17 @@ class ClosedLoopSettings:
         threshold (:class:`~tapm_opt.estimation.detection.TensionDropDetector`), a bank of
         observers, one per hypothesis (intact, each line broken), that needs no tension cells
         (:class:`~tapm_opt.estimation.bank.ObserverBank`, of ``estimator``'s kind), or none.
+    winch : {"none", "tension"}
+        Line-tension control ([AF] = seed line-tension-control-fem, §III-IV): none (the lines keep
+        their lengths), or the passivity-based tension controller
+        (:class:`~tapm_opt.control.winch.WinchTensionController`): the winches drive the measured
+        mooring force toward the DP command ``tau_cmd`` and the thrusters get
+        ``tau_cmd - tau_m`` (the measured mooring load). Needs lines with winches and
+        ``detector = "none"`` (the line-break detectors compare the tensions with the lines at
+        their nominal lengths, which the winches change).
+    winch_options : mapping or None
+        Options of the tension controller (:class:`~tapm_opt.control.winch.WinchSettings`: ``kc``,
+        ``ki``, ``T_max_fraction``, ``T_min_fraction``, ``geometry``).
     """
 
     duration: float = 3600.0
@@ -113,6 +124,8 @@ class ClosedLoopSettings:
     heading_chase_time: float = 600.0
     estimator: Literal["lowpass", "passive", "ekf"] = "lowpass"
     detector: Literal["tension", "drop", "bank", "none"] = "tension"
+    winch: Literal["none", "tension"] = "none"
+    winch_options: Mapping[str, Any] | None = None
 
     def __post_init__(self) -> None:
         for name in ("duration", "dt_control", "dt_log", "chase_time", "chase_margin", "heading_chase_time"):
@@ -131,6 +144,21 @@ class ClosedLoopSettings:
         if self.detector == "bank" and self.estimator == "lowpass" and not self.true_state:
             raise ClosedLoopError("detector = 'bank' is a bank of model-based observers: give estimator = "
                                   "'passive' or 'ekf', not 'lowpass'")
+        if self.winch not in WINCH_KINDS:
+            raise ClosedLoopError(f"winch = {self.winch!r} is not one of {', '.join(map(repr, WINCH_KINDS))}")
+        if self.winch_options is not None:
+            if self.winch != "tension" and self.winch_options:
+                raise ClosedLoopError(f"winch_options are for winch = 'tension', not winch = {self.winch!r}")
+            from ..control.winch import WinchError, WinchSettings
+
+            try:
+                WinchSettings.from_mapping(self.winch_options)
+            except WinchError as exc:
+                raise ClosedLoopError(str(exc)) from None
+        if self.winch == "tension" and self.detector != "none":
+            raise ClosedLoopError(f"winch = 'tension' with detector = {self.detector!r}: the line-break detectors "
+                                  "compare the tensions with the lines at their nominal lengths, which the winches "
+                                  "change; give detector = 'none'")
         if self.setpoint_options is not None:
             if not isinstance(self.setpoint_options, Mapping):
                 raise ClosedLoopError(f"setpoint_options = {self.setpoint_options!r} must be a table of options")
@@ -148,6 +176,8 @@ SETPOINT_KINDS = ("fixed", "chasing", *METHODS)
 #: Every ``ClosedLoopSettings.estimator`` and ``.detector``.
 ESTIMATOR_KINDS = ("lowpass", "passive", "ekf")
 DETECTOR_KINDS = ("tension", "drop", "bank", "none")
+#: Every ``ClosedLoopSettings.winch``.
+WINCH_KINDS = ("none", "tension")
 
 
 def default_estimator(system: System, settings: ClosedLoopSettings, sea_state: Any = None) -> Estimator:
@@ -175,6 +205,20 @@ def default_estimator(system: System, settings: ClosedLoopSettings, sea_state: A
 
     cls = PassiveObserver if s.estimator == "passive" else EKFObserver
     return cls.from_scenario(system, sea_state=sea_state, detector=det, monitor=mon)
+
+
+def default_winch_controller(system: System, settings: ClosedLoopSettings) -> Any:
+    """The winch controller a :class:`ClosedLoopSettings` describes: None for ``winch = "none"``,
+    else the tension controller of ``winch_options`` on ``system``
+    (:class:`~tapm_opt.control.winch.WinchTensionController`)."""
+    if settings.winch == "none":
+        return None
+    from ..control.winch import WinchError, WinchTensionController
+
+    try:
+        return WinchTensionController(system, settings.winch_options)
+    except WinchError as exc:
+        raise ClosedLoopError(str(exc)) from None
 
 
 def optimal_setpoint_layer(system: System, method: str, sea_state: Any = None, *,
@@ -221,7 +265,7 @@ def default_setpoint_layer(system: System, settings: ClosedLoopSettings, sea_sta
 def run_closed_loop(plant: Plant, controller: Controller, settings: ClosedLoopSettings = ClosedLoopSettings(), *,
                     system: System | None = None, estimator: Estimator | None = None,
                     setpoint_layer: SetpointLayer | None = None, allocator: ThrustAllocator | None = None,
-                    meta: dict | None = None) -> Result:
+                    winch: WinchController | None = None, meta: dict | None = None) -> Result:
     """Run ``controller`` against ``plant`` and return the labelled result.
 
     The runner owns time, rates and logging and talks to the components only through the
@@ -245,14 +289,21 @@ def run_closed_loop(plant: Plant, controller: Controller, settings: ClosedLoopSe
         Default: :func:`default_setpoint_layer` of the settings.
     allocator : ThrustAllocator, optional
         Default: built from the system's thrusters.
+    winch : WinchController, optional
+        Line-tension controller, called every control period after the motion controller with its
+        ``tau_cmd``; its speeds go to ``plant.step`` and the thrusters are allocated
+        ``tau_cmd - winch.mooring_load()`` ([AF] §III). Default: :func:`default_winch_controller`
+        of the settings (none unless ``winch = "tension"``). Adds the channels
+        ``tau_moor_hat[X|Y|N]`` (the measured mooring load, {B}) and ``u_winch[<line>]`` [m/s].
     """
     s = settings
     for name, obj, proto in (("controller", controller, Controller), ("estimator", estimator, Estimator),
-                             ("setpoint_layer", setpoint_layer, SetpointLayer)):
+                             ("setpoint_layer", setpoint_layer, SetpointLayer), ("winch", winch, WinchController)):
         if obj is not None and not isinstance(obj, proto):
             need = {"controller": "period, update(t, estimate, setpoint), reset() and last_step()",
                     "estimator": "update(t, measurement) and reset()",
-                    "setpoint_layer": "update(t, estimate) and reset()"}[name]
+                    "setpoint_layer": "update(t, estimate) and reset()",
+                    "winch": "update(t, estimate, tau_cmd), mooring_load() and reset()"}[name]
             raise ClosedLoopError(f"{name} {type(obj).__name__} is not a {proto.__name__}: it needs {need}")
     system = system or plant.system
     alloc = allocator or ThrustAllocator(system.thrusters.specs, dt=s.dt_control)
@@ -263,11 +314,18 @@ def run_closed_loop(plant: Plant, controller: Controller, settings: ClosedLoopSe
     chosen = {} if estimator is not None else {"estimator_kind": s.estimator, "detector": s.detector}
     estimator = estimator or default_estimator(system, s, sea_state)
     layer = setpoint_layer or default_setpoint_layer(system, s, sea_state)
+    winch = winch if winch is not None else default_winch_controller(system, s)
     extra = [("tau_cmd[X]", "N"), ("tau_cmd[Y]", "N"), ("tau_cmd[N]", "N m"),
              ("x_d", "m"), ("y_d", "m"), ("psi_d", "rad"),
              ("x_hat", "m"), ("y_hat", "m"), ("psi_hat", "rad"),
              ("tau_env_hat[X]", "N"), ("tau_env_hat[Y]", "N"), ("tau_env_hat[N]", "N m"),
              ("alloc_fallback", "-"), ("alloc_slack", "-")]
+    line_ids = plant.line_ids
+    if winch is not None:
+        extra += [("tau_moor_hat[X]", "N"), ("tau_moor_hat[Y]", "N"), ("tau_moor_hat[N]", "N m")]
+        extra += [(f"u_winch[{i}]", "m/s") for i in line_ids]
+    u_winch = np.zeros(len(line_ids))
+    tau_m_hat = np.zeros(3)
     rb = ResultBuilder(plant.channels() + extra, capacity=int(s.duration / s.dt_log) + 2)
     n_steps = int(round(s.duration / s.dt_control))
     log_every = int(round(s.dt_log / s.dt_control))
@@ -298,8 +356,10 @@ def run_closed_loop(plant: Plant, controller: Controller, settings: ClosedLoopSe
                 failed_known = failed
         est = estimator.update(t, m)
         if step % log_every == 0:
-            rb.append(t, np.concatenate([plant.sample_row(), tau_cmd, sp.eta_d, est.eta, est.tau_env,
-                                               [last["fallback"], last["slack"]]]))
+            row = [plant.sample_row(), tau_cmd, sp.eta_d, est.eta, est.tau_env, [last["fallback"], last["slack"]]]
+            if winch is not None:
+                row += [tau_m_hat, u_winch]
+            rb.append(t, np.concatenate(row))
         if step == n_steps:
             break
         sp = layer.update(t, est)
@@ -312,25 +372,33 @@ def run_closed_loop(plant: Plant, controller: Controller, settings: ClosedLoopSe
             if info is not None:
                 steps.append(info)
             next_ctrl += period
+        # winches ([AF] §III): the mooring is driven toward tau_cmd, the thrusters get the rest
+        tau_thr_cmd = tau_cmd
+        if winch is not None:
+            u_winch = np.asarray(winch.update(t, est, tau_cmd), float)
+            tau_m_hat = np.asarray(winch.mooring_load(), float)
+            tau_thr_cmd = tau_cmd - tau_m_hat
         # allocation
         if owns:
             cmd = controller.thruster_command()
             last["fallback"], last["slack"] = 0.0, 0.0
         else:
             w0 = time.perf_counter()
-            ar = alloc.allocate(tau_cmd)
+            ar = alloc.allocate(tau_thr_cmd)
             alloc_times.append(time.perf_counter() - w0)
             alloc_fallbacks += int(ar.fallback)
             last["fallback"] = float(ar.fallback)
-            last["slack"] = float(np.linalg.norm(ar.slack) / max(np.linalg.norm(tau_cmd), 1.0))
+            last["slack"] = float(np.linalg.norm(ar.slack) / max(np.linalg.norm(tau_thr_cmd), 1.0))
             cmd = ThrusterCommand(f=np.asarray(ar.f, float), alpha=np.asarray(ar.alpha, float))
-        plant.step(s.dt_control, cmd)
+        plant.step(s.dt_control, cmd, u_winch if winch is not None else None)
     wall = time.perf_counter() - t_wall0
     diag = _diagnostics(steps, ctrl_times, alloc_times, alloc_fallbacks)
     md = {**plant.metadata(), "controller": type(controller).__name__, "controller_period": period,
           "dt_control": s.dt_control, "true_state": s.true_state, "setpoint": s.setpoint,
           "setpoint_options": dict(s.setpoint_options or {}), "heading": s.heading,
           "estimator": type(estimator).__name__, **chosen, "setpoint_layer": type(layer).__name__,
+          **({"winch": s.winch, "winch_options": dict(s.winch_options or {}),
+              "winch_controller": type(winch).__name__} if winch is not None else {}),
           "turret_position_B": [float(v) for v in system.p_cot_B],
           "wall_time": wall, "diagnostics": diag, **(meta or {})}
     for role, comp in (("setpoint", layer), ("controller", controller), ("estimator", estimator)):

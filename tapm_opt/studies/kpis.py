@@ -83,6 +83,7 @@ _AGG_ORDER: tuple[tuple[str, str], ...] = (
     ("riser_delta_min", "-"), ("riser_delta_top_min", "-"), ("riser_delta_bottom_min", "-"),
     ("riser_delta_frac_below", "-"),
     ("thrust_energy", "J"), ("thrust_power_mean", "W"), ("fuel", "kg"),
+    ("thrust_to_command_ratio", "-"), ("winch_energy", "J"),
     ("solver_time_median", "s"), ("solver_time_p95", "s"), ("solver_time_max", "s"),
     ("solver_failures", "-"), ("solver_fallbacks", "-"), ("allocation_fallbacks", "-"),
 )
@@ -540,6 +541,14 @@ def _compute(result: Result, scenario: Any, *, t_start: float, lp_window: float,
     out["thrust_power_mean"] = energy / out["duration"] if out["duration"] > 0 else 0.0
     out["fuel"] = energy / 3.6e6 * sfc
 
+    # line-tension control ([AF] = seed line-tension-control-fem, Fig. 3): the thrusters' share of
+    # the DP command, and the work the winches deliver hauling in
+    ratio = _thrust_to_command(result, win, t)
+    if ratio is not None:
+        out["thrust_to_command_ratio"] = ratio
+    if any(ln.winch_max_rate > 0 for ln in scenario.lines) and all(f"L[{ln.id}]" in result for ln in scenario.lines):
+        out["winch_energy"] = _winch_energy(result, scenario, win, t)
+
     # controller diagnostics (whole run)
     diag = result.meta.get("diagnostics", {}) or {}
     for k in _DIAG_KEYS:
@@ -551,6 +560,32 @@ def _compute(result: Result, scenario: Any, *, t_start: float, lp_window: float,
         for lid, v in per[k].items():
             out[f"{k}[{lid}]"] = v
     return out
+
+
+def _thrust_to_command(result: Result, win: np.ndarray, t: np.ndarray) -> float | None:
+    """``∫ |tau_thr,xy| dt / ∫ |tau_c,xy| dt`` (trapezoid) of the delivered thrust and the DP
+    command in {B}; None without the ``tau_cmd`` channels or with a zero command."""
+    names = ("tau_cmd[X]", "tau_cmd[Y]", "tau_thr[X]", "tau_thr[Y]")
+    if not all(n in result.channels for n in names):
+        return None
+    cx, cy, hx, hy = (_channel(result, n, "thrust_to_command_ratio", win) for n in names)
+    den = float(np.trapezoid(np.hypot(cx, cy), t))
+    if not den > 0:
+        return None
+    return float(np.trapezoid(np.hypot(hx, hy), t)) / den
+
+
+def _winch_energy(result: Result, scenario: Any, win: np.ndarray, t: np.ndarray) -> float:
+    """Work [J] the winches deliver hauling in, ``Σ_j ∫ max(-dL_j/dt, 0) T_j dt`` from the logged
+    lengths ``L[<line>]`` and fairlead tensions (interval means); paying out costs nothing."""
+    total = 0.0
+    for ln in scenario.lines:
+        if ln.winch_max_rate <= 0:
+            continue
+        L = _channel(result, f"L[{ln.id}]", "winch_energy", win)
+        T = _channel(result, f"T_fairlead[{ln.id}]", "winch_energy", win)
+        total += float(np.sum(np.maximum(-np.diff(L), 0.0) * 0.5 * (T[1:] + T[:-1])))
+    return total
 
 
 def case_kpis(result: Result, scenario: Any, *, t_start: float = 0.0, lp_window: float = LP_WINDOW_DEFAULT,

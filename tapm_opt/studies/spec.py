@@ -95,7 +95,8 @@ class Study:
 
 _STUDY_KEYS = {"name", "description", "scenario", "duration", "segments", "break_on_overload", "dt_control",
                "dt_log", "heading",
-               "setpoint", "setpoint_options", "true_state", "seeds", "mode", "estimator", "detector"}
+               "setpoint", "setpoint_options", "true_state", "seeds", "mode", "estimator", "detector", "winch",
+               "winch_options"}
 _TOP_KEYS = {"study", "sea_states", "controllers", "conditions", "cases", "capability"}
 _CONDITION_KEYS = {"name", "line_break", "thruster_failure"}
 _FAULT_KEYS = {"line_break": {"line", "time", "time_fraction"}, "thruster_failure": {"thruster", "time", "time_fraction"}}
@@ -217,7 +218,7 @@ def _parse_study_table(ck: Checker, data: Mapping, base_dir: Path, out: _Parsed)
         **_setpoint_fields(ck, st, "study", {"setpoint": "fixed"}),
         "heading": ck.choice(st.get("heading", "chasing"), ("chasing", "fixed"), "study.heading"),
         "true_state": ck.boolean(st.get("true_state", False), "study.true_state"),
-        **_estimation_fields(ck, st, "study")}
+        **_estimation_fields(ck, st, "study"), **_winch_fields(ck, st, "study")}
     out.mode = ck.choice(st.get("mode", "product"), ("product", "list"), "study.mode")
     seeds = st.get("seeds", [1])
     if not isinstance(seeds, list) or not seeds:
@@ -322,6 +323,29 @@ def _estimation_fields(ck: Checker, table: Mapping, where: str) -> dict:
             for k, kinds in (("estimator", ESTIMATOR_KINDS), ("detector", DETECTOR_KINDS)) if k in table}
 
 
+def _winch_fields(ck: Checker, table: Mapping, where: str) -> dict:
+    """``winch`` and ``winch_options`` of a [study] or [[controllers]] table, checked (only the
+    ones given, so a study that names neither keeps the runner's default, no winch control, and its
+    case ids)."""
+    from ..control.winch import WinchError, WinchSettings
+    from .closed_loop import WINCH_KINDS
+
+    out: dict = {}
+    if "winch" in table:
+        out["winch"] = ck.choice(table["winch"], WINCH_KINDS, f"{where}.winch")
+    if "winch_options" in table:
+        opts = table["winch_options"]
+        if not isinstance(opts, Mapping):
+            ck.err(f"{where}.winch_options", f"must be a table of options, got {_fmt(opts)}")
+        else:
+            try:
+                WinchSettings.from_mapping(opts)
+                out["winch_options"] = dict(opts)
+            except WinchError as exc:
+                ck.err(f"{where}.winch_options", str(exc))
+    return out
+
+
 def _loop(study: dict, controller: dict) -> dict:
     """The closed-loop settings of one controller's cases: the study's, with the controller's own
     setpoint in place of the study's and its options over the study's (key by key); a controller
@@ -329,7 +353,7 @@ def _loop(study: dict, controller: dict) -> dict:
     from ..control.setpoint_opt import METHODS
 
     out = dict(study)
-    for key in ("setpoint", "estimator", "detector"):
+    for key in ("setpoint", "estimator", "detector", "winch", "winch_options"):
         if key in controller:
             out[key] = controller[key]
     opts = {**(study.get("setpoint_options") or {}), **(controller.get("setpoint_options") or {})}
@@ -380,14 +404,21 @@ def _parse_controllers(ck: Checker, data: Mapping, out: _Parsed) -> None:
         kind = ck.choice(e["type"], CONTROLLER_TYPES, f"{p}.type") if "type" in e else None
         cname = ck.text(e["name"], f"{p}.name") if "name" in e else _NAMES.get(kind or "")
         opts = {k: v for k, v in e.items()
-                if k not in ("name", "type", "setpoint", "setpoint_options", "estimator", "detector")}
+                if k not in ("name", "type", "setpoint", "setpoint_options", "estimator", "detector", "winch",
+                             "winch_options")}
         loop = {**_setpoint_fields(ck, e, p, {}, inherited=out.closed_loop.get("setpoint")),
-                **_estimation_fields(ck, e, p)}
+                **_estimation_fields(ck, e, p), **_winch_fields(ck, e, p)}
         merged = _loop(out.closed_loop, loop)
         if merged.get("detector") == "bank" and merged.get("estimator", "lowpass") == "lowpass" \
                 and not merged.get("true_state"):
             ck.err(f"{p}.detector", "= 'bank' is a bank of model-based observers: give estimator = 'passive' or "
                    "'ekf' (here or in [study]), not 'lowpass'")
+        if merged.get("winch") == "tension" and merged.get("detector", "tension") != "none":
+            ck.err(f"{p}.winch", f"= 'tension' with detector = {merged.get('detector', 'tension')!r}: the line-break "
+                   "detectors compare the tensions with the lines at their nominal lengths, which the winches "
+                   "change; give detector = 'none' (here or in [study])")
+        if merged.get("winch_options") and merged.get("winch", "none") != "tension":
+            ck.err(f"{p}.winch_options", "are for winch = 'tension' (here or in [study])")
         spec = None
         if kind is not None:
             n_issues = len(ck.issues)
