@@ -887,6 +887,10 @@ from .cli_capability import capability as _capability_command  # noqa: E402
 
 cli.add_command(_capability_command)
 
+from .cli_estimate import estimate as _estimate_group  # noqa: E402
+
+cli.add_command(_estimate_group)
+
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``tapm`` console script.
