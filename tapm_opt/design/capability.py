@@ -20,7 +20,7 @@ equilibrium when
 * ``|p| <= safe_radius`` (the offset of the centre of turret from its field-zero-point position,
   :func:`~tapm_opt.geometry.turret_offset`);
 * every remaining line's fairlead tension ``T_i <= S_C / gamma`` with the characteristic capacity
-  ``S_C = 0.95 MBS`` (:data:`~tapm_opt.studies.kpis.DNV_CAPACITY_FACTOR`, as the KPIs' DNV check)
+  ``S_C = 0.95 MBS`` (:data:`~tapm_opt.standards.DNV_CAPACITY_FACTOR`, as the KPIs' DNV check)
   and the DNV-OS-E301 (2008) quasi-static factor ``gamma`` (:data:`QUASI_STATIC_FACTORS`): ULS with
   the mooring intact, ALS with a line broken;
 * the riser's top and bottom angles (:meth:`~tapm_opt.models.riser.RiserModel.angles`, in the
@@ -81,6 +81,7 @@ import numpy as np
 from .._io import csv_text
 from ..errors import TapmError
 from ..geometry import body_from_turret, ssa, turret_offset
+from ..standards import DNV_CAPACITY_FACTOR, DNV_E301_QUASI_STATIC_FACTORS
 
 __all__ = [
     "BEAUFORT_TABLE", "BeaufortRow", "CapabilityError", "CapabilityOptions", "CapabilityResult", "CaseEnvelope",
@@ -154,11 +155,8 @@ DIRECTIONS_DEG: tuple[float, ...] = tuple(float(d) for d in range(0, 360, 10))
 #: Half-width of the sector about the design direction of the capability numbers A and C [deg].
 DESIGN_SECTOR_DEG = 30.0
 #: DNV-OS-E301 (October 2008) quasi-static safety factors on the line tension, by limit state and
-#: consequence class (the project's standards notes; the dynamic factors are
-#: :data:`~tapm_opt.studies.kpis.DNV_E301_2008_FACTORS`).
-QUASI_STATIC_FACTORS: dict[tuple[str, int], float] = {
-    ("ULS", 1): 1.70, ("ULS", 2): 2.50, ("ALS", 1): 1.10, ("ALS", 2): 1.35,
-}
+#: consequence class (:data:`tapm_opt.standards.DNV_E301_QUASI_STATIC_FACTORS`).
+QUASI_STATIC_FACTORS = DNV_E301_QUASI_STATIC_FACTORS
 #: Largest allocation slack counted as "attained", as a fraction of the allocator's force scale
 #: F_ref (X, Y) and moment scale F_ref L_ref (N).
 SLACK_TOL = 1e-3
@@ -171,8 +169,6 @@ CSV_COLUMNS = ("direction_deg", "case", "beaufort", "wind_speed", "limit")
 
 
 def _capacity_factor_default() -> float:
-    from ..studies.kpis import DNV_CAPACITY_FACTOR
-
     return float(DNV_CAPACITY_FACTOR)
 
 
@@ -213,7 +209,7 @@ class CapabilityOptions:
         DNV-OS-E301 consequence class of :data:`QUASI_STATIC_FACTORS`.
     capacity_factor : float, optional
         Characteristic capacity S_C / MBS [-] in (0, 1] (default
-        :data:`~tapm_opt.studies.kpis.DNV_CAPACITY_FACTOR`, 0.95; 1: the limit MBS / gamma).
+        :data:`~tapm_opt.standards.DNV_CAPACITY_FACTOR`, 0.95; 1: the limit MBS / gamma).
     grid_spacing : float, optional
         Spacing of the offset grid [m] (default safe_radius / 25).
     wind_tol : float

@@ -28,6 +28,7 @@ from ..errors import TapmError
 from ..estimation.reliability import LP_WINDOW_DEFAULT, SIGMA_WINDOW_DEFAULT, causal_reliability, gumbel_k
 from ..geometry import ssa, turret_offset
 from ..results import Result
+from ..standards import DNV_CAPACITY_FACTOR, DNV_CLASS1_COMMON_FACTOR, DNV_E301_2008_FACTORS
 
 __all__ = [
     "KpiError", "case_kpis", "basic_kpis", "kpi_table", "kpi_unit", "kpi_order",
@@ -42,20 +43,8 @@ class KpiError(TapmError, ValueError):
     option is out of range."""
 
 
-#: Partial safety factors (gamma_mean, gamma_dyn) of DNV-OS-E301, October 2008 edition, dynamic
-#: analysis, by limit state and consequence class. Read from secondary transcriptions
-#: (the project's standards notes); to be checked against the standard itself.
-DNV_E301_2008_FACTORS: dict[tuple[str, int], tuple[float, float]] = {
-    ("ULS", 1): (1.10, 1.50),
-    ("ULS", 2): (1.40, 2.10),
-    ("ALS", 1): (1.00, 1.10),
-    ("ALS", 2): (1.00, 1.25),
-}
-#: Characteristic capacity S_C = 0.95 * MBS (DNV-OS-E301 definition for chain; applied to every line).
-DNV_CAPACITY_FACTOR = 0.95
-#: Common factor on T_C,mean + T_C,dyn in consequence class 1 when T_C,mean > 2/3 T_C,dyn
-#: (as transcribed in STANDARDS.md; applied by default, ``dnv_class1_common_factor=False`` disables it).
-DNV_CLASS1_COMMON_FACTOR = 1.3
+# DNV-OS-E301 factors (DNV_E301_2008_FACTORS, DNV_CAPACITY_FACTOR, DNV_CLASS1_COMMON_FACTOR): one
+# definition in tapm_opt.standards, shared with the capability envelopes.
 #: Specific fuel consumption of the fuel proxy [kg/kWh] (diesel-electric, ~200 g/kWh).
 SFC_DEFAULT = 0.2
 # LP_WINDOW_DEFAULT (100 s): width of the moving average that defines the low-frequency tension,
