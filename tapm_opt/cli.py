@@ -508,7 +508,8 @@ def simulate(scenario_name: str, controller: str, duration: float, out_dir: str,
     _check_issues(fem_size_issues(sc, segments, where="--segments"))
     _check_issues(log_size_issues(sc, duration, dt_log, where="--duration", dt_name="every control step, >= 1 s apart"))
     system = System.from_scenario(sc)  # built once: controller, runner and estimator share it
-    ctrl = build_controller(system, spec, where="--option")
+    ctrl = build_controller(system, spec, where="--option", dt_control=dt_control,
+                            estimator=estimation.get("estimator", "lowpass"))
     settings = ClosedLoopSettings(duration=duration, dt_control=dt_control, dt_log=dt_log, true_state=true_state,
                                   setpoint=setpoint, heading=heading, setpoint_options=sp_opts or None, **estimation,
                                   **winching)

@@ -342,6 +342,9 @@ def test_a_study_that_asks_for_capability_gets_it_in_its_folder_and_report(tmp_p
     f.write_text(f.read_text().replace('condition = "intact"', 'condition = "everything"'))
     with pytest.raises(StudyError, match="capability"):
         load_study(f)
-    f.write_text(f.read_text().replace('condition = "everything"', 'workerz = 2'))
+    f.write_text(f.read_text().replace('condition = "everything"', 'sea_state = "stormy"'))
+    with pytest.raises(StudyError, match="capability.sea_state = 'stormy' is not a sea state"):
+        load_study(f)
+    f.write_text(f.read_text().replace('sea_state = "stormy"', 'workerz = 2'))
     with pytest.raises(StudyError, match="capability.workerz: unknown option"):
         load_study(f)

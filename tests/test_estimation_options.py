@@ -32,11 +32,16 @@ def _study(study=None, controllers=None):
     return expand_cases(d, base_dir=".", source="s.toml")
 
 
-def test_a_study_that_names_no_estimation_keeps_the_runners_defaults_and_its_case_ids():
+def test_every_case_names_its_estimation_so_a_new_default_cannot_reuse_old_results():
+    from tapm_opt.studies.closed_loop import ClosedLoopSettings
+
     (c,) = _study()
-    assert "estimator" not in c.inputs["closed_loop"] and "detector" not in c.inputs["closed_loop"]
+    d = ClosedLoopSettings()
+    assert (c.inputs["closed_loop"]["estimator"], c.inputs["closed_loop"]["detector"]) == (d.estimator, d.detector)
     (c2,) = _study({"detector": "drop"})
     assert c2.inputs["closed_loop"]["detector"] == "drop" and c2.id != c.id
+    (c3,) = _study({"detector": d.detector})    # naming the default is the same case
+    assert c3.id == c.id
 
 
 def test_controller_tables_override_the_studys_estimation_key_by_key():
@@ -142,3 +147,29 @@ def test_a_supervised_controllers_case_carries_every_sea_state_others_only_their
     ids = {c.labels["controller"]: [s["id"] for s in c.inputs["scenario"]["sea_states"]] for c in cases}
     assert ids["PID"] == ["storm"]
     assert ids["sup"] == [s.id for s in load_scenario("fpso").sea_states] and "storm" in ids["sup"]
+
+
+def test_an_empty_supervisor_table_is_supervised_and_the_study_sea_states_are_candidates():
+    cases = _study(controllers=[{"name": "sup", "type": "pid", "supervisor": {}, "initial_sea_state": "normal"}])
+    assert [s["id"] for s in cases[0].inputs["scenario"]["sea_states"]] == \
+        [s.id for s in load_scenario("fpso").sea_states]
+    d = {k: (dict(v) if isinstance(v, dict) else [dict(x) for x in v]) for k, v in BASE.items()}
+    d["sea_states"] = [{"id": "storm"}, {"id": "mine", "Hs": 3.0, "Tp": 8.0}]
+    d["controllers"] = [{"name": "sup", "type": "pid", "supervisor": True, "initial_sea_state": "normal"}]
+    cand = {c.inputs["sea_state"]: [s["id"] for s in c.inputs["scenario"]["sea_states"]]
+            for c in expand_cases(d, base_dir=".", source="s.toml")}
+    assert cand["storm"] == cand["mine"] and cand["mine"][-1] == "mine"   # the same candidates for every case
+
+
+def test_the_bank_with_the_true_state_is_refused(system):
+    with pytest.raises(ClosedLoopError, match="true_state"):
+        ClosedLoopSettings(true_state=True, detector="bank", estimator="ekf")
+    with pytest.raises(StudyError, match=r"controllers\[0\]\.detector = 'bank' needs the observers"):
+        _study({"true_state": True}, [{"name": "PID", "type": "pid", "detector": "bank", "estimator": "ekf"}])
+
+
+def test_a_supervisor_samples_at_the_loops_control_period(system):
+    from tapm_opt.studies.controllers import build_controller
+
+    c = build_controller(system, {"type": "pid", "supervisor": True}, dt_control=0.5, estimator="ekf")
+    assert c.supervisor.dt == 0.5

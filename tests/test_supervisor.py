@@ -24,6 +24,7 @@ from tapm_opt.control.supervisor import (DEFAULT_BAND, SeaStateFeatures, SeaStat
                                          _estimator_complement, spectral_features, supervised_pid, wave_band_sos)
 from tapm_opt.interfaces import Controller, Estimate, FaultAware, Logged, Setpoint
 from tapm_opt.models.system import System
+from tapm_opt.studies.controllers import build_controller
 
 DURATION = 1200.0  # [s] per closed-loop run: first decision at 680 s, then 520 s of hysteresis
 
@@ -353,11 +354,11 @@ def test_missing_sea_state_row_falls_back_to_the_nearest(system, table):
 
 
 def test_protocols_and_plain_form(system):
-    ctrl = supervised_pid(system)
+    ctrl = supervised_pid(system, pid=build_controller(system, "pid"))
     assert isinstance(ctrl, Controller) and isinstance(ctrl, Logged) and isinstance(ctrl, FaultAware)
     assert ctrl.modes == MODE_SETS["normal_restoring"] and ctrl.sea_state == "normal"
     assert ctrl.period is None and ctrl.last_step() is None
-    calm = supervised_pid(system, initial_sea_state="calm", modes={"calm": ("heading", "damping")})
+    calm = supervised_pid(system, pid=build_controller(system, "pid"), initial_sea_state="calm", modes={"calm": ("heading", "damping")})
     assert calm.modes == ("heading", "damping")
 
 
@@ -439,11 +440,11 @@ def test_bad_controller_arguments_raise(system, table):
     with pytest.raises(SupervisorError, match="modes is for a TAPMPID"):
         SupervisedController(GainScheduledPID(table), sup, modes={"calm": "calm"})
     with pytest.raises(SupervisorError, match="unknown class 'stormy'"):
-        supervised_pid(system, modes={"stormy": "calm"})
+        supervised_pid(system, pid=build_controller(system, "pid"), modes={"stormy": "calm"})
     with pytest.raises(SupervisorError, match=r"modes\['calm'\] = 'sideways'"):
-        supervised_pid(system, modes={"calm": "sideways"})
+        supervised_pid(system, pid=build_controller(system, "pid"), modes={"calm": "sideways"})
     with pytest.raises(SupervisorError, match="initial_sea_state = 'hurricane'"):
-        supervised_pid(system, initial_sea_state="hurricane")
+        supervised_pid(system, pid=build_controller(system, "pid"), initial_sea_state="hurricane")
     with pytest.raises(SupervisorError, match="initial_sea_state = 'normal' is not a sea state of the gain table"):
         supervised_pid(system, gain_table=table, initial_sea_state="normal")
     with pytest.raises(SupervisorError, match="gain_table = 3"):
@@ -451,7 +452,7 @@ def test_bad_controller_arguments_raise(system, table):
     with pytest.raises(SupervisorError, match="modes is for the plain PID"):
         supervised_pid(system, gain_table=table, modes={"calm": "calm"})
     with pytest.raises(SupervisorError, match="sea_states is set by supervised_pid"):
-        supervised_pid(system, sea_states=["calm"])
+        supervised_pid(system, pid=build_controller(system, "pid"), sea_states=["calm"])
     with pytest.raises(SupervisorError, match="pid must be a TAPMPID, got str"):
         supervised_pid(system, pid="pid")
     feats = SeaStateFeatures(1.0, 8.0, 1e6)

@@ -1031,8 +1031,10 @@ class SupervisedController:
             break
         self._request = request
         exact = (sea_state, broken[0] if len(broken) == 1 else "intact" if not broken else None, heading)
-        if used != exact and request not in self._missing:
-            self._missing.add(request)
+        # once per (sea state, broken lines, row used): a chased heading changes every update
+        key = (sea_state, broken, None if used is None else used[:2])
+        if used != exact and key not in self._missing:
+            self._missing.add(key)
             self._events.append({"t": t, "event": "missing row",
                                  "requested": {"sea_state": sea_state, "broken": list(broken) or ["intact"],
                                                "heading": heading},
@@ -1087,7 +1089,7 @@ def supervised_pid(system: Any, *, gain_table: Any = None, modes: Mapping[str, A
         Sea state before the first decision (default the table's first row, else the scenario's
         first sea state).
     pid : TAPMPID, optional
-        Without a table: the PID to switch (default the study PID,
+        Without a table: the PID to switch (required; e.g. the study PID,
         ``studies.controllers.build_controller(system, "pid")``).
     heading : "auto", "setpoint" or "weathervane"
         See :class:`SupervisedController`.
@@ -1137,8 +1139,7 @@ def supervised_pid(system: Any, *, gain_table: Any = None, modes: Mapping[str, A
         raise SupervisorError(f"initial_sea_state = {initial!r} is not a sea state of scenario "
                               f"{system.scenario.name!r} ({ids})")
     if pid is None:
-        from ..studies.controllers import build_controller  # the study PID (one set of defaults)
-
-        pid = build_controller(system, "pid")
+        raise SupervisorError("pid is missing: give the TAPMPID to switch (e.g. "
+                              "tapm_opt.studies.controllers.build_controller(system, 'pid')) or a gain_table")
     sup = SeaStateSupervisor.from_scenario(system, initial=initial, **supervisor_options)
     return SupervisedController(pid, sup, modes=modes, heading=heading)

@@ -141,7 +141,10 @@ class ClosedLoopSettings:
         for name, kinds in (("estimator", ESTIMATOR_KINDS), ("detector", DETECTOR_KINDS)):
             if getattr(self, name) not in kinds:
                 raise ClosedLoopError(f"{name} = {getattr(self, name)!r} is not one of {', '.join(map(repr, kinds))}")
-        if self.detector == "bank" and self.estimator == "lowpass" and not self.true_state:
+        if self.detector == "bank" and self.true_state:
+            raise ClosedLoopError("detector = 'bank' needs the observers' estimates; with true_state the plant's "
+                                  "truth replaces them: give detector = 'tension', 'drop' or 'none'")
+        if self.detector == "bank" and self.estimator == "lowpass":
             raise ClosedLoopError("detector = 'bank' is a bank of model-based observers: give estimator = "
                                   "'passive' or 'ekf', not 'lowpass'")
         if self.winch not in WINCH_KINDS:
@@ -191,8 +194,10 @@ def default_estimator(system: System, settings: ClosedLoopSettings, sea_state: A
     det: Any = None
     if s.detector == "drop":
         det = TensionDropDetector(system.lines)
-    elif s.detector == "tension":
-        det = TensionResidualDetector(system.lines)
+    elif s.detector == "tension":   # at the cells' rate, with their noise as the floor of the scale
+        sens = system.scenario.sensors
+        noise = {"noise_rel": float(sens.tension_std_rel)} if sens.tension_std_rel > 0 else {}
+        det = TensionResidualDetector(system.lines, rate=float(sens.tension_rate), **noise)
     if s.true_state:
         return TrueStateEstimator(detector=det, monitor=mon)
     if s.detector == "bank":

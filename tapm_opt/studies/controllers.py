@@ -77,7 +77,8 @@ def _unknown(keys: set[str], allowed: set[str], where: str) -> None:
                                                                     f"; allowed: {', '.join(sorted(allowed))}"))
 
 
-def build_controller(system: Any, spec: Mapping[str, Any] | str, *, where: str = "controller") -> Any:
+def build_controller(system: Any, spec: Mapping[str, Any] | str, *, where: str = "controller",
+                     dt_control: float = 1.0, estimator: str = "lowpass") -> Any:
     """A :class:`~tapm_opt.interfaces.Controller` from a specification.
 
     Parameters
@@ -86,6 +87,12 @@ def build_controller(system: Any, spec: Mapping[str, Any] | str, *, where: str =
         The system the controller is designed on (a scenario is built into its System).
     spec : mapping or str
         ``{"type": ..., option: value, ...}`` (module docstring) or just the type.
+    dt_control : float
+        The loop's control period [s]: a sea-state supervisor samples the estimate at it.
+    estimator : {"lowpass", "passive", "ekf"}
+        The loop's estimator: a supervisor's expected wave-frequency features are those of its
+        ``eta_wf`` (the low-pass estimator's measured-minus-filtered pose, or an observer's wave
+        state: the WF motion itself, ``estimator_cutoff=None``).
 
     Raises
     ------
@@ -146,6 +153,9 @@ def build_controller(system: Any, spec: Mapping[str, Any] | str, *, where: str =
             from ..control.supervisor import supervised_pid
 
             opts = dict(sup) if isinstance(sup, Mapping) else {}
+            opts.setdefault("dt", float(dt_control))
+            if estimator != "lowpass":
+                opts.setdefault("estimator_cutoff", None)
             if table is not None:
                 return supervised_pid(system, gain_table=table, initial_sea_state=o["initial_sea_state"], **opts)
             return supervised_pid(system, pid=ctrl, initial_sea_state=o["initial_sea_state"], **opts)

@@ -82,11 +82,12 @@ def run_case(inputs: Mapping[str, Any]) -> tuple[Any, dict[str, float]]:
     sc = scenario_from_dict(inputs["scenario"], source=f"case {cid}")
     system = System.from_scenario(sc)  # built once; plant, controller and runner share it
     spec = dict(inputs["controller"])
-    ctrl = build_controller(system, spec, where="controller")
-    plant = Plant(system, sea_state=sc.sea_state(inputs["sea_state"]), seed=int(inputs["seed"]),
-                  segments=inputs.get("segments"))
     cl = dict(inputs.get("closed_loop") or {})
     settings = ClosedLoopSettings(duration=float(inputs["duration"]), **cl)
+    ctrl = build_controller(system, spec, where="controller", dt_control=settings.dt_control,
+                            estimator=settings.estimator)
+    plant = Plant(system, sea_state=sc.sea_state(inputs["sea_state"]), seed=int(inputs["seed"]),
+                  segments=inputs.get("segments"))
     result = run_closed_loop(plant, ctrl, settings, system=system,
                              meta={"case_id": cid, "controller_spec": spec, "seed": int(inputs["seed"])})
     return result, compute_kpis(result, sc)

@@ -210,7 +210,7 @@ def write_study_capability(study: Study, out_dir: str | Path, *, workers: int = 
     """The capability envelopes a study's ``[capability]`` table asks for, of its scenario, into
     ``DIR/capability`` (``capability.csv``, ``.json``, polar plots; :mod:`tapm_opt.design.capability`),
     where the report finds them. Not recomputed when ``capability.json`` holds the same options
-    and scenario. Returns the folder (None when the study asks for none)."""
+    and scenario, computed by the same version. Returns the folder (None when the study asks for none)."""
     import json
 
     from ..config import scenario_from_dict
@@ -219,8 +219,10 @@ def write_study_capability(study: Study, out_dir: str | Path, *, workers: int = 
 
     if study.capability is None or study.scenario is None:
         return None
+    from .. import __version__
+
     d = Path(out_dir) / "capability"
-    stamp = {"options": study.capability, "scenario": study.scenario}
+    stamp = {"options": study.capability, "scenario": study.scenario, "tapm_opt_version": __version__}
     try:
         old = json.loads((d / "study_capability.json").read_text())
     except (OSError, ValueError):

@@ -218,7 +218,7 @@ def _parse_study_table(ck: Checker, data: Mapping, base_dir: Path, out: _Parsed)
         **_setpoint_fields(ck, st, "study", {"setpoint": "fixed"}),
         "heading": ck.choice(st.get("heading", "chasing"), ("chasing", "fixed"), "study.heading"),
         "true_state": ck.boolean(st.get("true_state", False), "study.true_state"),
-        **_estimation_fields(ck, st, "study"), **_winch_fields(ck, st, "study")}
+        **_ESTIMATION_DEFAULTS, **_estimation_fields(ck, st, "study"), **_winch_fields(ck, st, "study")}
     out.mode = ck.choice(st.get("mode", "product"), ("product", "list"), "study.mode")
     seeds = st.get("seeds", [1])
     if not isinstance(seeds, list) or not seeds:
@@ -314,9 +314,15 @@ def _setpoint_fields(ck: Checker, table: Mapping, where: str, default: dict, inh
     return out
 
 
+#: The estimation every case's inputs name explicitly (the runner's defaults when the study names
+#: none), so that a change of the runner's default changes the case ids instead of reusing results
+#: computed with the old one.
+_ESTIMATION_DEFAULTS = {"estimator": "lowpass", "detector": "tension"}
+
+
 def _estimation_fields(ck: Checker, table: Mapping, where: str) -> dict:
     """``estimator`` and ``detector`` of a [study] or [[controllers]] table, checked (only the
-    ones given, so a study that names neither keeps the runner's defaults and its case ids)."""
+    ones given; the study's defaults are :data:`_ESTIMATION_DEFAULTS`)."""
     from .closed_loop import DETECTOR_KINDS, ESTIMATOR_KINDS
 
     return {k: ck.choice(table[k], kinds, f"{where}.{k}")
@@ -363,15 +369,16 @@ def _loop(study: dict, controller: dict) -> dict:
     return out
 
 
-def _case_sea_states(sc: Any, ss: Any, spec: Mapping) -> list[dict]:
+def _case_sea_states(candidates: list, ss: Any, spec: Mapping) -> list[dict]:
     """The sea states a case's scenario carries: its own only (so a case's id does not depend on
-    the scenario's other sea states), or, for a sea-state supervised controller (``supervisor``
-    or ``gain_table``), every sea state of the scenario, in its order, with the case's in its
-    place (or appended when the study defines it): the supervisor's candidates."""
-    if not (spec.get("supervisor") or spec.get("gain_table") is not None):
+    the other sea states), or, for a sea-state supervised controller (``supervisor`` not false,
+    or a ``gain_table``), the supervisor's ``candidates`` — every sea state of the scenario, in its
+    order, with the study's versions in their place and the study's own appended — the same for
+    every case of the controller."""
+    if spec.get("supervisor", False) is False and spec.get("gain_table") is None:
         return [scenario_to_dict(ss)]
-    out = [scenario_to_dict(ss if s.id == ss.id else s) for s in sc.sea_states]
-    return out if any(s.id == ss.id for s in sc.sea_states) else out + [scenario_to_dict(ss)]
+    out = [scenario_to_dict(s) for s in candidates]
+    return out if any(s.id == ss.id for s in candidates) else out + [scenario_to_dict(ss)]
 
 
 def _embedded_gain_table(ck: Checker, path: str, base_dir: Path, where: str) -> dict | None:
@@ -409,8 +416,10 @@ def _parse_controllers(ck: Checker, data: Mapping, out: _Parsed) -> None:
         loop = {**_setpoint_fields(ck, e, p, {}, inherited=out.closed_loop.get("setpoint")),
                 **_estimation_fields(ck, e, p), **_winch_fields(ck, e, p)}
         merged = _loop(out.closed_loop, loop)
-        if merged.get("detector") == "bank" and merged.get("estimator", "lowpass") == "lowpass" \
-                and not merged.get("true_state"):
+        if merged.get("detector") == "bank" and merged.get("true_state"):
+            ck.err(f"{p}.detector", "= 'bank' needs the observers' estimates, which true_state replaces by the "
+                   "plant's truth: give detector = 'tension', 'drop' or 'none'")
+        elif merged.get("detector") == "bank" and merged.get("estimator", "lowpass") == "lowpass":
             ck.err(f"{p}.detector", "= 'bank' is a bank of model-based observers: give estimator = 'passive' or "
                    "'ekf' (here or in [study]), not 'lowpass'")
         if merged.get("winch") == "tension" and merged.get("detector", "tension") != "none":
@@ -429,7 +438,9 @@ def _parse_controllers(ck: Checker, data: Mapping, out: _Parsed) -> None:
                     spec["gain_table"] = _embedded_gain_table(ck, spec["gain_table"], out.base_dir, f"{p}.gain_table")
                 if out.sc is not None and len(ck.issues) == n_issues:
                     try:
-                        build_controller(out.sc, spec, where=p)   # dry build: checks every value
+                        build_controller(out.sc, spec, where=p,   # dry build: checks every value
+                                         dt_control=out.closed_loop.get("dt_control") or 1.0,
+                                         estimator=merged.get("estimator") or "lowpass")
                     except ControllerSpecError as exc:
                         ck.err("", str(exc))
                         spec = None
@@ -529,6 +540,11 @@ def _expand(ck: Checker, P: _Parsed) -> list[Case]:
     base = scenario_to_dict(sc)
     if P.break_on_overload is not None:
         base["plant"] = {**base.get("plant", {}), "break_on_overload": P.break_on_overload}
+    # a supervisor's candidates: the scenario's sea states (the study's versions in their place),
+    # then the ones the study defines
+    study_ss = {sid: ss for sid, ss in P.sea_states if ss is not None}
+    candidates = [study_ss.get(s.id, s) for s in sc.sea_states]
+    candidates += [ss for sid, ss in study_ss.items() if sid not in {s.id for s in sc.sea_states}]
     cases: list[Case] = []
     where: dict[str, str] = {}
     for p, i_ss, i_ctrl, i_cond, seed, dur, cname in wanted:
@@ -543,7 +559,7 @@ def _expand(ck: Checker, P: _Parsed) -> list[Case]:
             continue
         faults = [Fault(kind=f.kind, time=f.at(dur), **{"line" if f.kind == "line_break" else "thruster": f.target})
                   for f in cond.faults]
-        sc_dict = {**base, "sea_states": _case_sea_states(sc, ss, spec),
+        sc_dict = {**base, "sea_states": _case_sea_states(candidates, ss, spec),
                    "faults": list(base.get("faults", [])) + [scenario_to_dict(f) for f in faults]}
         inputs = {"scenario": sc_dict, "scenario_name": sc.name, "sea_state": sid, "controller": spec,
                   "seed": int(seed), "duration": float(dur), "segments": P.segments,
@@ -640,6 +656,11 @@ def _capability_table(data: Mapping[str, Any], base_dir: str | Path, source: str
         CapabilityOptions(**dict(tab))
     except (CapabilityError, TypeError, ValueError) as exc:
         raise StudyError(f"capability: {exc}", source=source) from None
+    if "sea_state" in tab:   # the envelopes are of the study's scenario: one of its sea states
+        ids = [ss.id for ss in load_scenario(_resolve_scenario(data["study"]["scenario"], Path(base_dir))).sea_states]
+        if tab["sea_state"] not in ids:
+            raise StudyError(f"capability.sea_state = {tab['sea_state']!r} is not a sea state of the scenario "
+                             f"({', '.join(ids)})", source=source)
     return dict(tab)
 
 
