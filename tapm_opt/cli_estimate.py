@@ -98,7 +98,7 @@ def anchors(scenario_name: str, n_virtual: int, duration: float, out_dir: str, i
     """
     from ._io import atomic_write_text, csv_text
     from .cli import _load
-    from .estimation.anchor_slam import (AnchorSlamError, VirtualVesselNetwork, generate_network, run_anchor_slam,
+    from .estimation.anchor_slam import (AnchorSlamError, VirtualVesselNetwork, run_anchor_slam,
                                          table4_initial_anchors)
     from .models.mooring import MooringModel
 
@@ -125,6 +125,8 @@ def anchors(scenario_name: str, n_virtual: int, duration: float, out_dir: str, i
             raise AnchorSlamError(f"--network {network!r} holds {net.n} virtual vessels; --virtual-vessels = "
                                   f"{n_virtual} needs at least as many")
     else:
+        from .studies.anchor_network import generate_network
+
         net = generate_network(sc, n_virtual, duration=duration, seed=seed, settle=settle,
                                workers=workers or min(2, os.cpu_count() or 1))
     res = run_anchor_slam(sc, net, n_virtual=n_virtual, duration=duration, anchors0=a0)

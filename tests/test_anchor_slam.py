@@ -19,7 +19,8 @@ from tapm_opt.config import load_scenario
 from tapm_opt.errors import TapmError
 from tapm_opt.estimation.anchor_slam import (TABLE4_INITIAL, TABLE4_TRUE, AnchorSLAM, AnchorSlamError, SlamSettings,
                                              TensionPositionEstimator, TensionRangeMap, VirtualVesselNetwork,
-                                             generate_network, run_anchor_slam, table4_initial_anchors)
+                                             run_anchor_slam, table4_initial_anchors)
+from tapm_opt.studies.anchor_network import generate_network
 from tapm_opt.interfaces import Measurement
 from tapm_opt.models import catenary
 from tapm_opt.models.system import System

@@ -431,50 +431,6 @@ def _estimator_complement(dt: float, omega_c: float) -> tuple[np.ndarray, np.nda
     return np.atleast_1d(np.squeeze(b)), np.asarray(a, float)
 
 
-def _wave_reference(scenario: Any, sea_state: Any, *, dt: float, band: Any, settle: float,
-                    estimator_cutoff: float | None, gnss_std: float, seed: int,
-                    duration: float) -> dict:
-    """The WF moments of one sea state (module docstring): m0, m2 of the head-on and abeam hull
-    responses and of the GNSS noise through the estimator complement and the wave band."""
-    import scipy.signal
-
-    from ..plant.environment import Environment
-
-    sos = wave_band_sos(dt, band)
-    comp = _estimator_complement(dt, estimator_cutoff) if estimator_cutoff is not None else None
-
-    def chain(x: np.ndarray) -> np.ndarray:
-        if comp is not None:
-            x = scipy.signal.lfilter(comp[0], comp[1], x)
-        return scipy.signal.sosfilt(sos, x) if len(sos) else x
-
-    def moments(xf: np.ndarray) -> tuple[float, float]:
-        return float(np.mean(xf[1:] ** 2)), float(np.mean(np.diff(xf) ** 2) / dt**2)
-
-    n_skip = int(math.ceil(settle / dt))
-    out: dict = {"wave_direction": 0.0, "m0": [0.0, 0.0], "m2": [0.0, 0.0]}
-    if sea_state.Hs > 0:
-        env = Environment(scenario, sea_state, seed=seed)
-        d = float(env.waves.direction)
-        out["wave_direction"] = d
-        t = np.arange(int(round(duration / dt)) + n_skip) * dt
-        e0 = np.asarray(env.eta_wf(t, d))  # beta = 0: surge response along the wave direction
-        S0 = e0[:, 0] * math.cos(d) + e0[:, 1] * math.sin(d)
-        p1 = d - 0.5 * math.pi
-        e1 = np.asarray(env.eta_wf(t, p1))  # beta = pi/2: sway response
-        S1 = -e1[:, 0] * math.sin(p1) + e1[:, 1] * math.cos(p1)
-        for i, S in enumerate((S0, S1)):
-            out["m0"][i], out["m2"][i] = moments(chain(S)[n_skip:])
-    # white noise of std gnss_std on each axis: m0 = 2 sigma^2 sum h^2 (impulse response h)
-    n_h = max(20 * n_skip, 4096)
-    imp = np.zeros(n_h)
-    imp[0] = 1.0
-    h = chain(imp)
-    out["noise_m0"] = float(2.0 * gnss_std**2 * np.sum(h**2))
-    out["noise_m2"] = float(2.0 * gnss_std**2 * np.sum(np.diff(np.r_[0.0, h]) ** 2) / dt**2)
-    return out
-
-
 class _ModelReference:
     """``expected(psi)`` of a scenario sea state from the wave and load models."""
 
@@ -658,15 +614,17 @@ class SeaStateSupervisor:
         duration = _pos("reference_duration", reference_duration)
         settle = 0.0 if band is None else 2.0 * float(band[1])
         wave_band_sos(dt, band)  # checks the band before the models run
+        from ..design.wave_reference import wave_reference  # runs the plant's wave model (design layer)
+
         refs = []
         for ss in chosen:
             try:
                 cls_ = sea_state_class(ss, classes)
             except ControlError as exc:
                 raise SupervisorError(f"classes: {exc}") from None
-            wave = _wave_reference(scenario, ss, dt=dt, band=band, settle=settle,
-                                   estimator_cutoff=estimator_cutoff, gnss_std=gnss, seed=int(seed),
-                                   duration=duration)
+            wave = wave_reference(scenario, ss, dt=dt, band=band, settle=settle,
+                                  estimator_cutoff=estimator_cutoff, gnss_std=gnss, seed=int(seed),
+                                  duration=duration)
             info = {"kind": "model", "Hs_m": float(ss.Hs), "Tp_s": float(ss.Tp), "seed": int(seed),
                     "estimator_cutoff_rad_s": estimator_cutoff, "gnss_std_m": gnss, **wave}
             refs.append(SeaStateReference(sea_state=ss.id, sea_class=cls_,

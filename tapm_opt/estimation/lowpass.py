@@ -40,11 +40,15 @@ class EstimationError(TapmError, ValueError):
 
 
 class _WithDetectorAndMonitor:
-    """The parts both estimators carry: an optional line-break detector and reliability monitor,
-    fed the measured tensions (and riser angles), reset with the estimator, their log shared."""
+    """The parts every estimator here carries: an optional line-break detector and reliability
+    monitor, fed the measured tensions (and riser angles), reset with the estimator, their log
+    shared; and, for the model-based ones, the mooring load of the model and the switch to the
+    model without a detected line."""
 
     detector: Any = None
     monitor: Any = None
+    _load_of: Any = None
+    _eta_det: Any = None
 
     def log(self) -> list[dict]:
         """The detector's events (``{"t", "line", "event"}``), if there is a detector."""
@@ -62,6 +66,27 @@ class _WithDetectorAndMonitor:
         if self.detector is None or m.tensions is None:
             return frozenset()
         return self.detector.update(t, m.tensions, eta)
+
+    def mooring_load(self, eta: Any) -> np.ndarray:
+        """Mooring load (3,) in {B} [N, N, N m] at pose ``eta`` of the estimator's model: its
+        tabulated evaluator (each line's horizontal tension within 1e-9 of ``MooringModel.force``'s),
+        or ``self.model.force`` for a model without one; rebuilt when the model is replaced."""
+        if self._load_of is not self.model:  # first call, or the model was replaced
+            make = getattr(self.model, "load_evaluator", None)
+            try:
+                self._load = make() if make is not None else self.model.force
+            except TapmError:  # no table for this model: the exact load
+                self._load = self.model.force
+            self._load_of = self.model
+        return self._load(eta)
+
+    def _broken(self, t: float, m: Measurement) -> frozenset:
+        """Feed the detector (with the previous LF pose ``self._eta_det``); on a new break, leave
+        the line out of the model (``self.model = self.intact_model.without(broken)``)."""
+        broken = self._detect(t, m, self._eta_det)
+        if broken and set(broken) & set(self.model.line_ids):
+            self.model = self.intact_model.without(broken)
+        return broken
 
     def _reliability(self, t: float, m: Measurement) -> Any:
         """Feed the monitor the measured tensions and riser-angle magnitudes (when it has both)."""
@@ -107,34 +132,13 @@ class LowPassEstimator(_WithDetectorAndMonitor):
         self._t = None
         self._load = None  # the mooring-load evaluator, built on first use for self.model
         self._load_of = None
-        self._eta = None  # the latest estimate of eta, for a model-based detector
-
-    def mooring_load(self, eta: np.ndarray) -> np.ndarray:
-        """Mooring load tau_moor (3,) in {B} [N, N, N m] at pose ``eta`` used in the load balance:
-        ``self.model``'s tabulated evaluator (module docstring), or ``self.model.force`` for a model
-        without one."""
-        if self._load_of is not self.model:  # first call, or the model was replaced
-            make = getattr(self.model, "load_evaluator", None)
-            try:
-                self._load = make() if make is not None else self.model.force
-            except TapmError:  # no table for this model: the exact load
-                self._load = self.model.force
-            self._load_of = self.model
-        return self._load(eta)
+        self._eta_det = None  # the latest estimate of eta, for a model-based detector
 
     def reset(self) -> None:
         self._y, self._yd, self._psi_prev, self._b, self._t = None, np.zeros(3), None, None, None
-        self._eta = None
+        self._eta_det = None
         self.model = self.intact_model
         self._reset_parts()
-
-    def _broken(self, t: float, m: Measurement) -> frozenset:
-        """Feed the detector (with the previous LF pose); on a new break, leave the line out of
-        the model."""
-        broken = self._detect(t, m, self._eta)
-        if broken and set(broken) & set(self.model.line_ids):
-            self.model = self.intact_model.without(broken)
-        return broken
 
     def update(self, t: float, measurement: Measurement) -> Estimate:
         """The :class:`~tapm_opt.interfaces.Estimator` step: filter the measured position and
@@ -145,7 +149,7 @@ class LowPassEstimator(_WithDetectorAndMonitor):
         tau_thr = np.zeros(3) if m.tau_thr is None else m.tau_thr
         broken = self._broken(t, m)
         eta, nu, tau_env = self.filter(t, m.position, m.heading, tau_thr)
-        self._eta = eta
+        self._eta_det = eta
         eta_wf = np.array([m.position[0] - eta[0], m.position[1] - eta[1], ssa(m.heading - eta[2])])
         return Estimate(t=t, eta=eta, nu=nu, tau_env=tau_env, tensions=m.tensions, riser_angles=m.riser_angles,
                         broken_lines=broken, reliability=self._reliability(t, m), eta_wf=eta_wf)

@@ -254,26 +254,6 @@ class _ModelObserver(_WithDetectorAndMonitor):
     def _scenario_kw(cls, sc: Any, sea_state: Any) -> dict:
         return {}
 
-    def mooring_load(self, eta: Any) -> np.ndarray:
-        """Mooring load ``tau_m`` (3,) in {B} [N, N, N m] at pose ``eta`` of eq. (1c): ``self.model``'s
-        tabulated evaluator, or ``self.model.force`` for a model without one."""
-        if self._load_of is not self.model:  # first call, or the model was replaced
-            make = getattr(self.model, "load_evaluator", None)
-            try:
-                self._load = make() if make is not None else self.model.force
-            except TapmError:  # no table for this model: the exact load
-                self._load = self.model.force
-            self._load_of = self.model
-        return self._load(eta)
-
-    def _broken(self, t: float, m: Measurement) -> frozenset:
-        """Feed the detector (with the previous LF pose); on a new break, leave the line out of
-        the model."""
-        broken = self._detect(t, m, self._eta_det)
-        if broken and set(broken) & set(self.model.line_ids):
-            self.model = self.intact_model.without(broken)
-        return broken
-
     def _read(self, t: Any, m: Measurement) -> tuple[float, np.ndarray, np.ndarray]:
         """Check the time and the measurement; (t, y = (x, y, psi) raw, tau_c (3,) {B})."""
         if not isinstance(m, Measurement):

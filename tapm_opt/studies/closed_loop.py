@@ -325,7 +325,7 @@ def run_closed_loop(plant: Plant, controller: Controller, settings: ClosedLoopSe
              ("x_hat", "m"), ("y_hat", "m"), ("psi_hat", "rad"),
              ("tau_env_hat[X]", "N"), ("tau_env_hat[Y]", "N"), ("tau_env_hat[N]", "N m"),
              ("alloc_fallback", "-"), ("alloc_slack", "-")]
-    line_ids = plant.line_ids
+    line_ids = tuple(ln.id for ln in system.scenario.lines)
     if winch is not None:
         extra += [("tau_moor_hat[X]", "N"), ("tau_moor_hat[Y]", "N"), ("tau_moor_hat[N]", "N m")]
         extra += [(f"u_winch[{i}]", "m/s") for i in line_ids]

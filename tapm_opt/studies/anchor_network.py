@@ -1,0 +1,191 @@
+"""Virtual-vessel networks for the tension-based anchor EKF-SLAM, generated on the plant
+(anchor-SLAM seed §4, §6.1): each virtual vessel is a closed loop of the plant with heading-only
+control settled in a random environment, its LF position and tensions recorded. The filter and
+the network's records are in :mod:`tapm_opt.estimation.anchor_slam`; this module runs the plant,
+so it belongs to the studies layer.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+
+from ..errors import TapmError
+from ..estimation.anchor_slam import AnchorSlamError, VirtualVessel, VirtualVesselNetwork, _finite
+from ..models.mooring import MooringModel
+
+__all__ = ["random_sea_states", "generate_network"]
+
+
+def _sea_state_dict(ss: Any) -> dict:
+    return {"Hs": float(ss.Hs), "Tp": float(ss.Tp), "wave_direction_deg": math.degrees(ss.wave_direction),
+            "wind_speed": float(ss.wind_speed), "wind_direction_deg": math.degrees(ss.wind_direction),
+            "current_speed": float(ss.current_speed), "current_direction_deg": math.degrees(ss.current_direction)}
+
+
+def random_sea_states(scenario: Any, n: int, *, seed: int = 0, min_offset: float = 25.0, max_offset: float = 60.0,
+                      Hs_range: tuple[float, float] = (1.0, 4.0), wind_max: float = 15.0,
+                      current_max: float = 0.2, current_spread_deg: float = 35.0,
+                      heading: float = 0.0, stratify: bool = True) -> list[tuple[Any, np.ndarray]]:
+    """``n`` random environments as in §6.1 and the quasi-static equilibrium of each.
+
+    Wind speed ``U(0, wind_max)`` [m/s] and direction ``U(0, 360)`` deg; ``Hs ~ U(Hs_range)`` [m],
+    ``Tp = clip(4.5 sqrt(Hs), 5, 14)`` [s], main wave direction ``U(0, 360)`` deg; current speed
+    ``U(0, current_max)`` [m/s], its direction within ``±current_spread_deg`` of the waves (§6.1).
+    Directions are "going to" (the scenario's convention). The draws are stratified by where they
+    put the vessel: environment j is drawn again until its quasi-static equilibrium at the held
+    ``heading`` [rad] lies ``min_offset``..``max_offset`` [m] from the field zero point with its
+    bearing within ``180 / n`` deg of ``j`` times the golden angle (137.5 deg), so the landmarks --
+    and those of every prefix, the first 4 of 10 as well -- surround the field zero point and every
+    anchor sees a tangential baseline; no line above 0.6 MBS. ``stratify=False``: any bearing.
+
+    Returns a list of ``(SeaState, eta_eq (3,))``.
+    """
+    from ..design.loads import mean_environmental_load
+    from ..models.statics import EquilibriumError
+
+    if not scenario.sea_states:
+        raise AnchorSlamError(f"scenario {scenario.name!r} defines no sea state (the template of the random ones)")
+    n = int(n)
+    rng = np.random.default_rng(seed)
+    base = scenario.sea_states[0]
+    model = MooringModel.from_scenario(scenario)
+    out = []
+    for j in range(n):
+        for attempt in range(2000):
+            Hs = float(rng.uniform(*Hs_range))
+            wave = float(rng.uniform(0.0, 2 * math.pi))
+            ss = replace(base, id=f"random_{seed}_{j}", Hs=Hs, Tp=float(np.clip(4.5 * math.sqrt(Hs), 5.0, 14.0)),
+                         wave_direction=wave, wind_speed=float(rng.uniform(0.0, wind_max)),
+                         wind_direction=float(rng.uniform(0.0, 2 * math.pi)),
+                         current_speed=float(rng.uniform(0.0, current_max)),
+                         current_direction=wave + math.radians(float(rng.uniform(-1, 1)) * current_spread_deg),
+                         current_profile="uniform", current_profile_depths=(), current_profile_factors=())
+            try:
+                tau = mean_environmental_load(scenario, ss, heading, seed=seed * 1000 + j).total
+                eta = model.equilibrium(tau, psi=heading)
+            except (EquilibriumError, TapmError):
+                continue
+            centre = j * math.pi * (3.0 - math.sqrt(5.0))          # the golden angle, 137.5 deg
+            off = math.remainder(math.atan2(eta[1], eta[0]) - centre, 2 * math.pi)
+            in_sector = (not stratify) or abs(off) <= math.pi / max(n, 1)
+            if (in_sector and min_offset <= math.hypot(eta[0], eta[1]) <= max_offset
+                    and np.all(model.tensions(eta) < 0.6 * model.MBS)):
+                out.append((ss, eta))
+                break
+        else:  # pragma: no cover - the lower Hs of each sector always fits
+            raise AnchorSlamError(f"no environment with an equilibrium {min_offset:g}..{max_offset:g} m away "
+                                  f"in sector {j} of {n} after 2000 draws")
+    return out
+
+
+class _Recorder:
+    """An Estimator that passes through the inner one and keeps what a stored record needs."""
+
+    def __init__(self, inner: Any, plant: Any):
+        self.inner, self.plant = inner, plant
+        self.rows: list[tuple] = []
+
+    def update(self, t: float, measurement: Any) -> Any:
+        est = self.inner.update(t, measurement)
+        m = measurement
+        tau = np.zeros(3) if m.tau_thr is None else np.asarray(m.tau_thr, float)
+        self.rows.append((t, est.eta[:2].copy(), m.heading, np.asarray(m.tensions, float).copy(), tau,
+                          self.plant.eta.copy(), est.eta.copy()))
+        return est
+
+    def reset(self) -> None:
+        self.inner.reset()
+
+
+def _record(args: tuple) -> VirtualVessel:
+    """Run one environment on the plant (worker of :func:`generate_network`)."""
+    from ..estimation.observer import EKFObserver
+    from ..geometry import rot_z
+    from ..models.system import System
+    from ..plant.simulator import Plant
+    from .closed_loop import ClosedLoopSettings, run_closed_loop
+    from .controllers import build_controller
+
+    scenario, ss, eta0, seed, settle, settle_max, settle_tol, duration, segments, dt = args
+    system = System.from_scenario(scenario)
+    plant = Plant(system, sea_state=ss, seed=seed, eta0=eta0, segments=segments)
+    ctrl = build_controller(system, {"type": "pid", "modes": "calm"})  # heading only (§6.1)
+    obs = EKFObserver.from_scenario(system, sea_state=ss)
+    rec = _Recorder(obs, plant)
+    cfg = dict(heading="fixed", eta_d=(0.0, 0.0, float(eta0[2])), detector="none", dt_control=dt, dt_log=dt)
+    # settle: in chunks until the observer's mean LF position moves less than settle_tol between chunks
+    t_settle, prev = 0.0, None
+    while True:
+        run_closed_loop(plant, ctrl, ClosedLoopSettings(duration=settle, **cfg), estimator=rec)
+        t_settle += settle
+        mean = np.mean([r[1] for r in rec.rows[-int(settle / dt):]], axis=0)
+        rec.rows.clear()
+        if (prev is not None and float(np.hypot(*(mean - prev))) < settle_tol) or t_settle >= settle_max:
+            break
+        prev = mean
+    run_closed_loop(plant, ctrl, ClosedLoopSettings(duration=duration, **cfg), estimator=rec)
+    rows = rec.rows
+    t = np.array([r[0] for r in rows])
+    cot = np.array([r[6][:2] + rot_z(r[6][2])[:2, :2] @ system.p_cot_B for r in rows])
+    return VirtualVessel(t=t - t[0], position=np.array([r[1] for r in rows]), heading=np.array([r[2] for r in rows]),
+                         tensions=np.array([r[3] for r in rows]), tau_thr=np.array([r[4] for r in rows]),
+                         truth=np.array([r[5] for r in rows]), cot=cot, sea_state=_sea_state_dict(ss),
+                         settle_time=t_settle)
+
+
+def generate_network(scenario: Any, n: int, *, duration: float, seed: int = 0, settle: float = 200.0,
+                     settle_max: float = 1200.0, settle_tol: float = 1.0, workers: int = 2,
+                     segments: int | None = None, dt: float = 1.0, live_sea_state: Any = None,
+                     env_kw: dict | None = None) -> VirtualVesselNetwork:
+    """Generate ``n`` virtual vessels and the live vessel's record on the plant (§4, §6.1).
+
+    Each of ``n`` random environments (:func:`random_sea_states`) and the live vessel's (one more
+    draw, any bearing, unless ``live_sea_state`` gives one of the scenario's) is run in closed loop with the
+    heading-only PID (``{"type": "pid", "modes": "calm"}``, heading held at 0) from the quasi-static
+    equilibrium of its mean load, in chunks of ``settle`` [s] until the observer's mean LF position
+    moves less than ``settle_tol`` [m] from one chunk to the next (at most ``settle_max`` [s]); then
+    the observer's LF position, the measured tensions, heading and thrust are recorded every ``dt``
+    [s] for ``duration`` [s]. ``workers`` (<= 2 recommended) processes share the runs.
+    """
+    from ..plant.environment import PlantError
+
+    n = int(n)
+    if n < 1:
+        raise AnchorSlamError(f"virtual vessels = {n!r} must be >= 1")
+    duration = _finite("duration", duration, lo=0.0, unit="s")
+    for name, v in (("settle", settle), ("settle_max", settle_max), ("settle_tol", settle_tol), ("dt", dt)):
+        _finite(name, v, lo=0.0)
+    envs = random_sea_states(scenario, n, seed=seed, **(env_kw or {}))
+    envs += random_sea_states(scenario, 1, seed=seed + 7919, stratify=False,
+                              **{"min_offset": 0.0, **(env_kw or {})})      # the live vessel
+    if live_sea_state is not None:
+        from ..design.loads import mean_environmental_load
+
+        ss = scenario.sea_state(live_sea_state) if isinstance(live_sea_state, str) else live_sea_state
+        model = MooringModel.from_scenario(scenario)
+        envs[-1] = (ss, model.equilibrium(mean_environmental_load(scenario, ss, 0.0, seed=seed).total, psi=0.0))
+    jobs = [(scenario, ss, eta, seed * 1000 + j + 1, settle, settle_max, settle_tol, duration, segments, dt)
+            for j, (ss, eta) in enumerate(envs)]
+    workers = max(1, min(int(workers), len(jobs), os.cpu_count() or 1))
+    try:
+        if workers == 1:
+            recs = [_record(a) for a in jobs]
+        else:
+            with ProcessPoolExecutor(max_workers=workers) as ex:
+                recs = list(ex.map(_record, jobs))
+    except PlantError as exc:
+        raise AnchorSlamError(f"a virtual-vessel run failed on the plant: {exc}") from None
+    meta = {"seed": seed, "duration": duration, "dt": dt, "settle": settle, "settle_tol": settle_tol,
+            "segments": segments, "env": env_kw or {}}
+    return VirtualVesselNetwork(scenario=scenario.name, vessels=tuple(recs[:-1]), live=recs[-1], meta=meta)
+
+
+# ------------------------------------------------------------------------------------------
+# the EKF-SLAM (§5, eq. 15-16)
+# ------------------------------------------------------------------------------------------
