@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 import time
 from collections import Counter
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any, Literal, Mapping
 
 import numpy as np
@@ -46,7 +46,7 @@ from ..results import Result, ResultBuilder
 
 __all__ = ["ClosedLoopSettings", "SetpointChasing", "run_closed_loop", "default_setpoint_layer",
            "optimal_setpoint_layer", "SETPOINT_KINDS", "ClosedLoopError", "default_estimator", "ESTIMATOR_KINDS",
-           "DETECTOR_KINDS", "WINCH_KINDS", "default_winch_controller"]
+           "DETECTOR_KINDS", "WINCH_KINDS", "default_winch_controller", "combination_issues"]
 
 
 class ClosedLoopError(TapmError, ValueError):
@@ -141,27 +141,18 @@ class ClosedLoopSettings:
         for name, kinds in (("estimator", ESTIMATOR_KINDS), ("detector", DETECTOR_KINDS)):
             if getattr(self, name) not in kinds:
                 raise ClosedLoopError(f"{name} = {getattr(self, name)!r} is not one of {', '.join(map(repr, kinds))}")
-        if self.detector == "bank" and self.true_state:
-            raise ClosedLoopError("detector = 'bank' needs the observers' estimates; with true_state the plant's "
-                                  "truth replaces them: give detector = 'tension', 'drop' or 'none'")
-        if self.detector == "bank" and self.estimator == "lowpass":
-            raise ClosedLoopError("detector = 'bank' is a bank of model-based observers: give estimator = "
-                                  "'passive' or 'ekf', not 'lowpass'")
         if self.winch not in WINCH_KINDS:
             raise ClosedLoopError(f"winch = {self.winch!r} is not one of {', '.join(map(repr, WINCH_KINDS))}")
+        issues = combination_issues(vars(self))
+        if issues:
+            raise ClosedLoopError(f"{issues[0][0]} {issues[0][1]}")
         if self.winch_options is not None:
-            if self.winch != "tension" and self.winch_options:
-                raise ClosedLoopError(f"winch_options are for winch = 'tension', not winch = {self.winch!r}")
             from ..control.winch import WinchError, WinchSettings
 
             try:
                 WinchSettings.from_mapping(self.winch_options)
             except WinchError as exc:
                 raise ClosedLoopError(str(exc)) from None
-        if self.winch == "tension" and self.detector != "none":
-            raise ClosedLoopError(f"winch = 'tension' with detector = {self.detector!r}: the line-break detectors "
-                                  "compare the tensions with the lines at their nominal lengths, which the winches "
-                                  "change; give detector = 'none'")
         if self.setpoint_options is not None:
             if not isinstance(self.setpoint_options, Mapping):
                 raise ClosedLoopError(f"setpoint_options = {self.setpoint_options!r} must be a table of options")
@@ -181,6 +172,29 @@ ESTIMATOR_KINDS = ("lowpass", "passive", "ekf")
 DETECTOR_KINDS = ("tension", "drop", "bank", "none")
 #: Every ``ClosedLoopSettings.winch``.
 WINCH_KINDS = ("none", "tension")
+
+
+def combination_issues(settings: Mapping[str, Any]) -> list[tuple[str, str]]:
+    """The settings that do not go together, as ``(field, message)`` (the message follows the
+    field name: ``"detector = 'bank' needs ..."``): the one statement of these rules, for
+    :class:`ClosedLoopSettings` and for study files (``settings`` may name only some fields; the
+    others take the defaults)."""
+    g = {f.name: f.default for f in fields(ClosedLoopSettings)}
+    g.update({k: v for k, v in settings.items() if k in g and v is not None})
+    out = []
+    if g["detector"] == "bank" and g["true_state"]:
+        out.append(("detector", "= 'bank' needs the observers' estimates; with true_state the plant's truth "
+                                "replaces them: give detector = 'tension', 'drop' or 'none'"))
+    elif g["detector"] == "bank" and g["estimator"] == "lowpass":
+        out.append(("detector", "= 'bank' is a bank of model-based observers: give estimator = 'passive' or "
+                                "'ekf', not 'lowpass'"))
+    if g["winch"] == "tension" and g["detector"] != "none":
+        out.append(("winch", f"= 'tension' with detector = {g['detector']!r}: the line-break detectors compare "
+                             "the tensions with the lines at their nominal lengths, which the winches change; give "
+                             "detector = 'none'"))
+    if g["winch_options"] and g["winch"] != "tension":
+        out.append(("winch_options", f"are for winch = 'tension', not winch = {g['winch']!r}"))
+    return out
 
 
 def default_estimator(system: System, settings: ClosedLoopSettings, sea_state: Any = None) -> Estimator:

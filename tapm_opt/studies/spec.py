@@ -397,6 +397,7 @@ def _embedded_gain_table(ck: Checker, path: str, base_dir: Path, where: str) -> 
 
 def _parse_controllers(ck: Checker, data: Mapping, out: _Parsed) -> None:
     from ..control.mpc import MPCSettings
+    from .closed_loop import combination_issues
 
     if "controllers" not in data:
         ck.err("controllers", "missing: give at least one [[controllers]] (name, type, options)")
@@ -416,18 +417,8 @@ def _parse_controllers(ck: Checker, data: Mapping, out: _Parsed) -> None:
         loop = {**_setpoint_fields(ck, e, p, {}, inherited=out.closed_loop.get("setpoint")),
                 **_estimation_fields(ck, e, p), **_winch_fields(ck, e, p)}
         merged = _loop(out.closed_loop, loop)
-        if merged.get("detector") == "bank" and merged.get("true_state"):
-            ck.err(f"{p}.detector", "= 'bank' needs the observers' estimates, which true_state replaces by the "
-                   "plant's truth: give detector = 'tension', 'drop' or 'none'")
-        elif merged.get("detector") == "bank" and merged.get("estimator", "lowpass") == "lowpass":
-            ck.err(f"{p}.detector", "= 'bank' is a bank of model-based observers: give estimator = 'passive' or "
-                   "'ekf' (here or in [study]), not 'lowpass'")
-        if merged.get("winch") == "tension" and merged.get("detector", "tension") != "none":
-            ck.err(f"{p}.winch", f"= 'tension' with detector = {merged.get('detector', 'tension')!r}: the line-break "
-                   "detectors compare the tensions with the lines at their nominal lengths, which the winches "
-                   "change; give detector = 'none' (here or in [study])")
-        if merged.get("winch_options") and merged.get("winch", "none") != "tension":
-            ck.err(f"{p}.winch_options", "are for winch = 'tension' (here or in [study])")
+        for name, message in combination_issues(merged):   # the runner's rules, once
+            ck.err(f"{p}.{name}", f"{message} (here or in [study])")
         spec = None
         if kind is not None:
             n_issues = len(ck.issues)
