@@ -272,11 +272,6 @@ class _Window:
     def __len__(self) -> int:
         return len(self._q)
 
-    @property
-    def span(self) -> float:
-        """Time from the oldest to the newest sample [s] (0 with fewer than two)."""
-        return self._q[-1][0] - self._q[0][0] if len(self._q) > 1 else 0.0
-
     def mean(self) -> list[float]:
         k = len(self._q)
         return [s / k for s in self._sum] if k else [math.nan] * self.n
@@ -365,16 +360,21 @@ class WaveMotionStatistics:
         return m0, m2
 
     @property
+    def features(self) -> tuple[float, float]:
+        """(significant amplitude 2 sqrt(m0) [m], mean zero-up-crossing period [s]) of the window,
+        from one evaluation of its moments (nan before the first usable sample)."""
+        m0, m2 = self.moments
+        return (math.nan, math.nan) if math.isnan(m0) else spectral_features(m0, m2, self.dt)
+
+    @property
     def amplitude(self) -> float:
         """Significant amplitude 2 sqrt(m0) [m] (nan before the first usable sample)."""
-        m0, m2 = self.moments
-        return math.nan if math.isnan(m0) else spectral_features(m0, m2, self.dt)[0]
+        return self.features[0]
 
     @property
     def period(self) -> float:
         """Mean zero-up-crossing period [s] (nan before the first usable sample)."""
-        m0, m2 = self.moments
-        return math.nan if math.isnan(m0) else spectral_features(m0, m2, self.dt)[1]
+        return self.features[1]
 
 
 # --- references: the expected features of each sea state ------------------------------------
@@ -416,12 +416,10 @@ def _estimator_complement(dt: float, omega_c: float) -> tuple[np.ndarray, np.nda
     ``eta_wf``. The state-space matrices are read off the estimator's recursion itself."""
     import scipy.signal
 
-    w, ex = omega_c, math.exp(-omega_c * dt)
+    from ..estimation.lowpass import critically_damped_step
 
-    def step(y: float, yd: float, z: float) -> tuple[float, float]:  # LowPassEstimator._filter
-        e = y - z
-        c1 = yd + w * e
-        return z + (e + c1 * dt) * ex, (c1 - w * (e + c1 * dt)) * ex
+    def step(y: float, yd: float, z: float) -> tuple[float, float]:  # the estimator's own recursion
+        return critically_damped_step(y, yd, z, omega_c, dt)
 
     A = np.array([step(1.0, 0.0, 0.0), step(0.0, 1.0, 0.0)]).T
     B = np.array(step(0.0, 0.0, 1.0)).reshape(2, 1)
@@ -519,6 +517,7 @@ class SeaStateSupervisor:
         if bad or not feats:
             raise SupervisorError(f"features = {list(feats)!r} must be a non-empty subset of {list(FEATURES)}")
         self.used_features = tuple(f for f in FEATURES if f in feats)
+        self._use_wf = "amplitude" in self.used_features or "period" in self.used_features
         sc = dict(DEFAULT_SCALES)
         if scales is not None:
             if not isinstance(scales, Mapping):
@@ -602,10 +601,9 @@ class SeaStateSupervisor:
             if estimator_cutoff != "default":
                 raise SupervisorError(f"estimator_cutoff = {estimator_cutoff!r} must be a cut-off [rad/s], None "
                                       f"or 'default'")
-            import inspect
+            from ..design.margins import ESTIMATOR_CUTOFF   # the low-pass estimator's default cut-off
 
-            from ..estimation.lowpass import LowPassEstimator
-            estimator_cutoff = float(inspect.signature(LowPassEstimator).parameters["omega_c"].default)
+            estimator_cutoff = ESTIMATOR_CUTOFF
         elif estimator_cutoff is not None:
             estimator_cutoff = _pos("estimator_cutoff", estimator_cutoff)
         gnss = scenario.sensors.gnss_std if gnss_std is None else gnss_std
@@ -684,11 +682,6 @@ class SeaStateSupervisor:
         return dict(self._dist)
 
     @property
-    def decided(self) -> bool:
-        """True once the warm-up is over and the first decision was made."""
-        return self._decided
-
-    @property
     def switches(self) -> int:
         """Number of sea-state switches so far."""
         return len(self.events)
@@ -753,7 +746,7 @@ class SeaStateSupervisor:
             return self._active
         tau = _finite_vec("estimate.tau_env", getattr(estimate, "tau_env", None), 3)
         eta = _finite_vec("estimate.eta", getattr(estimate, "eta", None), 3)
-        use_wf = "amplitude" in self.used_features or "period" in self.used_features
+        use_wf = self._use_wf
         if use_wf:
             wf = getattr(estimate, "eta_wf", None)
             if wf is None:
@@ -772,7 +765,7 @@ class SeaStateSupervisor:
         self._load.push(t, (math.hypot(tau[0], tau[1]), math.cos(psi), math.sin(psi)))
         L, c, s = self._load.mean()
         self._psi = math.atan2(s, c)
-        A, T = (self.wave.amplitude, self.wave.period) if use_wf else (math.nan, math.nan)
+        A, T = self.wave.features if use_wf else (math.nan, math.nan)
         self._features = SeaStateFeatures(A, T, L)
         if t - self._t0 < self.warm_up:
             return self._active
@@ -888,6 +881,8 @@ class SupervisedController:
         self.controller = controller
         self.supervisor = supervisor
         self.heading = heading
+        # the table never changes: whether it holds only weathervane rows is decided once
+        self._all_weathervane = self._scheduled and all(c.weathervane for c in controller.conditions)
         self._modes = None if self._scheduled else _class_modes(modes)
         self.period = controller.period
         self._events: list[dict] = []
@@ -945,8 +940,7 @@ class SupervisedController:
     def _heading_request(self, setpoint: Setpoint) -> float | str:
         if self.heading == "weathervane":
             return "weathervane"
-        conds = self.controller.conditions
-        if self.heading == "auto" and all(c.weathervane for c in conds):
+        if self.heading == "auto" and self._all_weathervane:
             return "weathervane"
         eta_d = getattr(setpoint, "eta_d", None)
         psi = _finite_vec("setpoint.eta_d", eta_d, 3)[2]

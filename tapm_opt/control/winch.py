@@ -208,6 +208,7 @@ class WinchTensionController:
             raise WinchError(f"the system's line model has lines {list(model.line_ids)}, the scenario "
                              f"{list(self.line_ids)}: build the winch controller on an intact system")
         self.rate_max = readonly(np.array([ln.winch_max_rate for ln in sc.lines], dtype=float))
+        self._no_rate = self.rate_max == 0   # lines without a winch
         if not np.any(self.rate_max > 0):
             raise WinchError(f"scenario {sc.name!r} has no winch: every lines[].winch_max_rate is 0; give the lines "
                              "winches (winch_max_rate, min_length, max_length) to use winch control")
@@ -235,7 +236,7 @@ class WinchTensionController:
         self._tau_m_E = np.zeros(3)
         self._limited = np.zeros(n, dtype=bool)
         self._cut = np.zeros(n)        # sign(u_raw - u): +1 where a limit cut the command from above
-        self._B = np.array(self._B_fixed)
+        self._B = self._B_fixed
 
     @property
     def lengths(self) -> np.ndarray:
@@ -304,7 +305,7 @@ class WinchTensionController:
         broken = frozenset(getattr(estimate, "broken_lines", frozenset()) or ())
         tensions = getattr(estimate, "tensions", None)
         H, T = self.measured_horizontal_tensions(eta, tensions, broken)
-        self._B = configuration_matrix(self.model, eta) if s.geometry == "pose" else np.array(self._B_fixed)
+        self._B = configuration_matrix(self.model, eta) if s.geometry == "pose" else self._B_fixed  # read only
         self._tau_m_E = horizontal_force(self._B, H)
         self._tau_m_B = np.asarray(self.model.tau_from_H(eta, H), dtype=float)
         tau_c_E = np.zeros(3)
@@ -327,7 +328,7 @@ class WinchTensionController:
         # 3. length after one period (the last one, else 1 s)
         h = dt if dt > 0 else 1.0
         u = np.clip(u, (self.L_limits[:, 0] - self._L) / h, (self.L_limits[:, 1] - self._L) / h)
-        no_winch = (self.rate_max == 0) | np.array([lid in broken for lid in self.line_ids])
+        no_winch = self._no_rate | np.array([lid in broken for lid in self.line_ids])
         u = np.where(no_winch, 0.0, u)
         self._limited = np.abs(u - u_raw) > 1e-12 * np.maximum(1.0, np.abs(u_raw))
         self._cut = np.sign(u_raw - u)

@@ -35,8 +35,10 @@ equilibrium when
 Search (TAPM practice: the mooring takes what it can inside the safe region, the thrusters the
 rest): the mooring load and the fairlead tensions are tabulated once per mooring case on a polar
 grid of turret offsets (rings ``grid_spacing`` apart out to ``(1 + relax) safe_radius``, points
-about ``grid_spacing`` apart on each ring) by one vectorised catenary solve
-(:func:`~tapm_opt.models.catenary.solve`) and :meth:`~tapm_opt.models.mooring.MooringModel.tau_from_H`.
+about ``grid_spacing`` apart on each ring): the tensions by one vectorised catenary solve
+(:func:`~tapm_opt.models.catenary.solve`), the load by
+:meth:`~tapm_opt.models.mooring.MooringModel.force_fast` at each point (the tabulated catenary,
+within 1e-9 of it).
 For an environment, the thrust each grid point needs is measured by the gauge of the attainable
 polytope (:meth:`~tapm_opt.models.system.ThrusterSet.attainable_polytope`: ``max_k A_k tau / b_k``,
 1 on its boundary); the ``candidates`` grid points that satisfy every mooring-side constraint with
@@ -166,10 +168,6 @@ HEADINGS = ("weathervane", "fixed")
 CONDITIONS = ("all", "intact", "all-single-line", "thruster-failure")
 #: Columns of ``capability.csv``.
 CSV_COLUMNS = ("direction_deg", "case", "beaufort", "wind_speed", "limit")
-
-
-def _capacity_factor_default() -> float:
-    return float(DNV_CAPACITY_FACTOR)
 
 
 # -- options ----------------------------------------------------------------------------------------
@@ -520,7 +518,7 @@ class _Engine:
         self.p_cot = np.asarray(sc.turret.position, float)
         self.free = sc.turret.mode == "free"
         self.a = float(opt.dynamic_allowance)
-        cf = _capacity_factor_default() if opt.capacity_factor is None else float(opt.capacity_factor)
+        cf = DNV_CAPACITY_FACTOR if opt.capacity_factor is None else float(opt.capacity_factor)
         self.capacity_factor = cf
         cc = int(opt.consequence_class)
         self.gamma = {"ULS": QUASI_STATIC_FACTORS[("ULS", cc)], "ALS": QUASI_STATIC_FACTORS[("ALS", cc)]}
@@ -1036,7 +1034,7 @@ def capability(scenario: Any, options: CapabilityOptions | Mapping[str, Any] | N
         opt = CapabilityOptions(**{**given, **kw})
     specs = case_names(scenario, opt.condition)
     engine = _Engine(scenario, opt)          # checks the scenario before any work (and serves workers=1)
-    if any(k != "mooring" for k, _ in specs) and not scenario.thrusters:
+    if not scenario.thrusters:   # every condition has the case "intact" (thrusters + mooring)
         raise CapabilityError(f"scenario {scenario.name!r} has no thrusters: only the case 'mooring' can be computed")
     results: dict[tuple[str, str | None], CaseEnvelope] = {}
     first = [s for s in specs if s[0] in ("intact", "mooring")]

@@ -404,8 +404,8 @@ class ObserverBank(_WithDetectorAndMonitor):
             dt = 0.0 if self._t_evidence is None else t - self._t_evidence
             a = math.exp(-self.forgetting * dt)
             J = self.residuals
+            Wi = self._W[np.ix_(mask, mask)]   # the same components for every hypothesis
             for i, (v, S) in enumerate(vs):
-                Wi = self._W[np.ix_(mask, mask)]
                 J[i] = a * J[i] + dt * float(v @ Wi @ v)
             best = int(np.argmin(J))
             ok = best != self.active and J[best] < (1.0 - self.hysteresis) * J[self.active]
@@ -431,7 +431,7 @@ class ObserverBank(_WithDetectorAndMonitor):
         else:
             a = copy.deepcopy(self.main, memo=dict(self._memo))
             a.intact_model = a.model = hk.intact_model
-            _copy_state(hk, a, covariance=False)
+            a.set_state(hk.state(covariance=False))   # fed the same measurements: same time stamps
             self._after = a
         return self._after.estimate_now(t, m)
 
@@ -439,12 +439,6 @@ class ObserverBank(_WithDetectorAndMonitor):
         self.active = i
         self.broken = self.hypotheses[i]
         self.events.append({"t": float(t), "line": self.broken, "event": "line break detected", **score})
-
-
-def _copy_state(src: Any, dst: Any, covariance: bool = True) -> None:
-    """Set ``dst``'s state (EKF: ``x``, and ``P`` if ``covariance``; passive: ``z``, ``nu``, ``b``)
-    to ``src``'s; the time stamps are the same (both were fed the same measurements)."""
-    dst.set_state(src.state(covariance=covariance))
 
 
 def _logsumexp(a: np.ndarray) -> float:

@@ -32,7 +32,7 @@ from ..interfaces import Estimate, Measurement
 from ..models.mooring import MooringModel
 from .reliability import monitor_signals
 
-__all__ = ["LowPassEstimator", "TrueStateEstimator", "EstimationError"]
+__all__ = ["LowPassEstimator", "TrueStateEstimator", "EstimationError", "critically_damped_step"]
 
 
 class EstimationError(TapmError, ValueError):
@@ -195,14 +195,18 @@ class LowPassEstimator(_WithDetectorAndMonitor):
         """Exact discretisation of y'' = w^2 (z - y) - 2 w y' over dt with z held."""
         if dt == 0:
             return
-        w = self.omega_c
-        e = self._y - z
-        ed = self._yd
-        ex = math.exp(-w * dt)
-        # critically damped: e(t) = (e0 + (ed0 + w e0) t) exp(-w t)
-        c1 = ed + w * e
-        self._y = z + (e + c1 * dt) * ex
-        self._yd = (c1 - w * (e + c1 * dt)) * ex
+        self._y, self._yd = critically_damped_step(self._y, self._yd, z, self.omega_c, dt)
+
+
+def critically_damped_step(y: Any, yd: Any, z: Any, w: float, dt: float) -> tuple[Any, Any]:
+    """One exact step of ``y'' = w^2 (z - y) - 2 w y'`` over ``dt`` [s] with the input ``z`` held
+    (cut-off ``w`` [rad/s]; floats or arrays): the new ``(y, y')``. The filter of
+    :class:`LowPassEstimator`, also what a sea-state supervisor models its ``eta_wf`` with."""
+    e = y - z
+    ex = math.exp(-w * dt)
+    # critically damped: e(t) = (e0 + (ed0 + w e0) t) exp(-w t)
+    c1 = yd + w * e
+    return z + (e + c1 * dt) * ex, (c1 - w * (e + c1 * dt)) * ex
 
 
 class TrueStateEstimator(_WithDetectorAndMonitor):

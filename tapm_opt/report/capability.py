@@ -27,7 +27,7 @@ from typing import Any, Sequence
 import numpy as np
 from matplotlib.figure import Figure
 
-from .._io import atomic_write_bytes, atomic_write_text
+from .._io import atomic_write_bytes
 from .document import Cell, Fig, Heading, Para, Table
 from .figures import png_bytes
 
@@ -170,10 +170,7 @@ def write_capability(result: Any, out_dir: str | Path) -> list[Path]:
     paths = []
     for name, blob in files.items():
         p = out / name
-        if name.endswith((".csv", ".json")):
-            atomic_write_text(p, blob.decode("utf-8"))
-        else:
-            atomic_write_bytes(p, blob)
+        atomic_write_bytes(p, blob)
         paths.append(p)
     return paths
 
