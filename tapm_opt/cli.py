@@ -447,7 +447,7 @@ def plant_forced_motion(scenario_name: str, dof: str, amplitude: float, period: 
 @click.option("--winch", type=click.Choice(["none", "tension"]), default="none", show_default=True,
               help="Line-tension control: none, or the passivity-based tension controller (the winches drive the "
                    "mooring force toward the DP command, the thrusters supply the rest; docs/controllers.md). "
-                   "'tension' sets detector=none unless --option detector=... is given.")
+                   "'tension' needs detector=none (set unless --option detector=... is given).")
 @click.option("--winch-option", "winch_options", multiple=True, metavar="KEY=VALUE",
               help="Option of the tension controller, e.g. --winch-option kc=2.5e-7 --winch-option ki=1e-9 "
                    "(kc, ki, T_max_fraction, T_min_fraction, geometry; repeatable).")
@@ -491,7 +491,7 @@ def simulate(scenario_name: str, controller: str, duration: float, out_dir: str,
     try:
         ClosedLoopSettings(true_state=true_state, **estimation, **winching)
     except ClosedLoopError as exc:
-        raise click.BadParameter(str(exc), param_hint="'--winch-option'") from None
+        raise click.BadParameter(str(exc), param_hint="'--winch-option'" if w_opts else "'--winch'") from None
     sp_opts = _key_values(setpoint_options, "--setpoint-option")
     if sp_opts and setpoint not in ("quadratic", "reliability", "unified"):
         raise click.BadParameter(f"--setpoint-option is for the optimal setpoints (quadratic, reliability, unified), "

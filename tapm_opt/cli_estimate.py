@@ -67,7 +67,7 @@ def estimate() -> None:
 
 @estimate.command("anchors")
 @click.argument("scenario_name", metavar="SCENARIO")
-@click.option("--virtual-vessels", "n_virtual", type=int, default=4, show_default=True,
+@click.option("--virtual-vessels", "n_virtual", type=click.IntRange(1, 50), default=4, show_default=True,
               help="Number N of virtual vessels (stored equilibria) in the sensor network.")
 @click.option("--duration", type=float, default=1200.0, show_default=True,
               help="Length of the stored records and of the estimation run [s].")
@@ -79,7 +79,8 @@ def estimate() -> None:
 @click.option("--network", "network", type=click.Path(dir_okay=False), default=None,
               help="A network.npz written by an earlier run: reuse its stored records (its first N vessels) "
                    "instead of simulating.")
-@click.option("--seed", type=int, default=0, show_default=True, help="Seed of the random environments and the plant.")
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
+              help="Seed of the random environments and the plant (not used with --network).")
 @click.option("--settle", type=float, default=200.0, show_default=True,
               help="Settling chunk before each record [s] (repeated until the LF position moves < 1 m, "
                    "at most 1200 s).")
@@ -103,8 +104,6 @@ def anchors(scenario_name: str, n_virtual: int, duration: float, out_dir: str, i
     from .models.mooring import MooringModel
 
     sc = _load(scenario_name)
-    if n_virtual < 1 or n_virtual > 50:
-        raise click.BadParameter(f"{n_virtual!r} must be an integer in 1..50", param_hint="'--virtual-vessels'")
     if not (math.isfinite(duration) and 10.0 <= duration <= 86400.0):
         raise click.BadParameter(f"{duration!r} s must be a finite number in [10, 86400] s", param_hint="'--duration'")
     if not (math.isfinite(settle) and settle > 0):
