@@ -443,7 +443,8 @@ def plant_forced_motion(scenario_name: str, dof: str, amplitude: float, period: 
 @click.option("--true-state", is_flag=True, help="Give the controller the true LF state (no estimator).")
 @click.option("--option", "options", multiple=True, metavar="KEY=VALUE",
               help="Controller option, e.g. --option horizon=30 --option solver=ipopt (repeatable); "
-                   "estimator=lowpass|passive|ekf and detector=tension|drop|bank|none choose the estimation.")
+                   "estimator=ekf|passive|lowpass (default ekf) and detector=tension|drop|bank|none (default tension) "
+                   "choose the estimation.")
 @click.option("--winch", type=click.Choice(["none", "tension"]), default="none", show_default=True,
               help="Line-tension control: none, or the passivity-based tension controller (the winches drive the "
                    "mooring force toward the DP command, the thrusters supply the rest; docs/controllers.md). "
@@ -463,7 +464,7 @@ def simulate(scenario_name: str, controller: str, duration: float, out_dir: str,
 
     from .models.system import System
     from .plant.simulator import Plant
-    from .studies.closed_loop import ClosedLoopSettings, run_closed_loop
+    from .studies.closed_loop import DEFAULT_ESTIMATOR, ClosedLoopSettings, run_closed_loop
     from .studies.controllers import build_controller
     from .studies.kpis import basic_kpis
 
@@ -509,7 +510,7 @@ def simulate(scenario_name: str, controller: str, duration: float, out_dir: str,
     _check_issues(log_size_issues(sc, duration, dt_log, where="--duration", dt_name="every control step, >= 1 s apart"))
     system = System.from_scenario(sc)  # built once: controller, runner and estimator share it
     ctrl = build_controller(system, spec, where="--option", dt_control=dt_control,
-                            estimator=estimation.get("estimator", "lowpass"))
+                            estimator=estimation.get("estimator", DEFAULT_ESTIMATOR))
     settings = ClosedLoopSettings(duration=duration, dt_control=dt_control, dt_log=dt_log, true_state=true_state,
                                   setpoint=setpoint, heading=heading, setpoint_options=sp_opts or None, **estimation,
                                   **winching)

@@ -11,7 +11,7 @@ from tapm_opt.estimation.detection import TensionDropDetector, TensionResidualDe
 from tapm_opt.estimation.observer import EKFObserver, PassiveObserver
 from tapm_opt.estimation.lowpass import LowPassEstimator, TrueStateEstimator
 from tapm_opt.models.system import System
-from tapm_opt.studies.closed_loop import ClosedLoopError, ClosedLoopSettings, default_estimator
+from tapm_opt.studies.closed_loop import DEFAULT_ESTIMATOR, ClosedLoopError, ClosedLoopSettings, default_estimator
 from tapm_opt.studies.spec import expand_cases
 from tapm_opt.studies.store import StudyError
 
@@ -58,7 +58,7 @@ def test_controller_tables_override_the_studys_estimation_key_by_key():
 @pytest.mark.parametrize("where, table, message", [
     ("study", {"estimator": "kalman"}, "study.estimator = 'kalman' is not one of lowpass, passive, ekf"),
     ("controller", {"detector": "banks"}, "controllers[0].detector = 'banks' is not one of tension, drop, bank, none"),
-    ("controller", {"detector": "bank"}, "controllers[0].detector"),
+    ("controller", {"detector": "bank", "estimator": "lowpass"}, "controllers[0].detector"),
 ])
 def test_bad_estimation_keys_are_named(where, table, message):
     with pytest.raises(StudyError) as exc:
@@ -70,11 +70,14 @@ def test_bad_estimation_keys_are_named(where, table, message):
 
 
 def test_settings_validate_and_the_default_estimator_is_what_they_name(system):
-    for bad in ({"estimator": "kalman"}, {"detector": "cusum"}, {"detector": "bank"}):
+    for bad in ({"estimator": "kalman"}, {"detector": "cusum"}, {"detector": "bank", "estimator": "lowpass"}):
         with pytest.raises(ClosedLoopError):
             ClosedLoopSettings(**bad)
     e = default_estimator(system, ClosedLoopSettings())
-    assert type(e) is LowPassEstimator and type(e.detector) is TensionResidualDetector and e.monitor is not None
+    assert ClosedLoopSettings().estimator == DEFAULT_ESTIMATOR == "ekf"
+    assert type(e) is EKFObserver and type(e.detector) is TensionResidualDetector and e.monitor is not None
+    lp = default_estimator(system, ClosedLoopSettings(estimator="lowpass"))
+    assert type(lp) is LowPassEstimator and type(lp.detector) is TensionResidualDetector
     assert type(default_estimator(system, ClosedLoopSettings(detector="drop")).detector) is TensionDropDetector
     for kind, cls in (("passive", PassiveObserver), ("ekf", EKFObserver)):
         o = default_estimator(system, ClosedLoopSettings(estimator=kind), system.scenario.sea_state("storm"))
@@ -89,7 +92,8 @@ def test_simulate_takes_the_estimation_as_options_and_rejects_bad_ones(tmp_path,
     err = capsys.readouterr().err
     assert code == 2 and "estimator = 'kalman'" in err
     assert not (tmp_path / "o").exists()
-    code = main(["simulate", "fpso", "--duration", "5", "--out", str(tmp_path / "o"), "--option", "detector=bank"])
+    code = main(["simulate", "fpso", "--duration", "5", "--out", str(tmp_path / "o"), "--option", "detector=bank",
+                 "--option", "estimator=lowpass"])
     assert code == 2 and "passive" in capsys.readouterr().err
 
 

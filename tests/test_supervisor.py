@@ -79,7 +79,7 @@ class _Recorder:
         self.inner.set_failed_thrusters(failed)
 
 
-def _run(system, base, sea_state):
+def _run(system, base, sea_state, estimator="lowpass"):
     from tapm_opt.plant.simulator import Plant
     from tapm_opt.studies.closed_loop import ClosedLoopSettings, run_closed_loop
     from tapm_opt.studies.controllers import build_controller
@@ -88,7 +88,7 @@ def _run(system, base, sea_state):
     ctrl = SupervisedController(build_controller(system, "pid"), sup)
     rec = _Recorder(ctrl)
     plant = Plant(system, sea_state=sea_state, seed=1)
-    res = run_closed_loop(plant, rec, ClosedLoopSettings(duration=DURATION), estimator=None)
+    res = run_closed_loop(plant, rec, ClosedLoopSettings(duration=DURATION, estimator=estimator), estimator=None)
     return ctrl, res, rec.estimates
 
 
@@ -232,6 +232,23 @@ def test_supervisor_finds_the_sea_state_of_the_run(runs, base, sid):
     assert f.period == pytest.approx(e.period, rel=0.10)
     assert f.load == pytest.approx(e.load, rel=0.15)
     assert res.meta["controller_log"] == ctrl.log()
+
+
+@pytest.mark.parametrize("sid", ["calm", "storm"])
+def test_supervisor_behind_the_ekf_finds_the_sea_state(fpso, system, sid):
+    """Behind the EKF (the loop's default estimator) ``eta_wf`` is the observer's WF estimate,
+    without the GNSS noise: the references of ``estimator_cutoff=None`` (noise term 0) match it,
+    those with the noise term would expect 1.6x the storm's amplitude."""
+    obs = SeaStateSupervisor.from_scenario(system, estimator_cutoff=None)
+    noisy = SeaStateSupervisor.from_scenario(system, estimator_cutoff=None, gnss_std=fpso.sensors.gnss_std)
+    ctrl, _, _ = _run(system, obs, fpso.sea_state(sid), estimator="ekf")
+    sup = ctrl.supervisor
+    assert sup.sea_state == sid and sup.switches <= 1
+    f, e = sup.features, obs.expected(sid, sup.heading)
+    assert f.load == pytest.approx(e.load, rel=0.15)
+    if sid == "storm":   # the WF motion stands out of the noise from the storm up
+        assert f.amplitude == pytest.approx(e.amplitude, rel=0.15)
+        assert noisy.expected(sid, sup.heading).amplitude > 1.4 * f.amplitude
 
 
 def test_switched_tapmpid_changes_its_mode_set(runs):

@@ -46,11 +46,16 @@ from ..results import Result, ResultBuilder
 
 __all__ = ["ClosedLoopSettings", "SetpointChasing", "run_closed_loop", "default_setpoint_layer",
            "optimal_setpoint_layer", "SETPOINT_KINDS", "ClosedLoopError", "default_estimator", "ESTIMATOR_KINDS",
-           "DETECTOR_KINDS", "WINCH_KINDS", "default_winch_controller", "combination_issues"]
+           "DEFAULT_ESTIMATOR", "DETECTOR_KINDS", "WINCH_KINDS", "default_winch_controller", "combination_issues"]
 
 
 class ClosedLoopError(TapmError, ValueError):
     """Bad closed-loop settings."""
+
+
+#: The estimator of :class:`ClosedLoopSettings`, study files and ``tapm simulate`` unless one is
+#: chosen: the EKF, which left the least wave-frequency motion in its LF estimate (docs/estimation.md).
+DEFAULT_ESTIMATOR = "ekf"
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -86,7 +91,8 @@ class ClosedLoopSettings:
         constant ``heading_chase_time`` from ``eta_d[2]``. A turret-moored vessel then weathervanes
         slowly instead of spending thrust on a yaw moment against the weather.
     estimator : {"lowpass", "passive", "ekf"}
-        The default estimator (:func:`default_estimator`): the low-pass filters
+        The loop's estimator (:func:`default_estimator`; default :data:`DEFAULT_ESTIMATOR`, the
+        EKF): the low-pass filters
         (:class:`~tapm_opt.estimation.lowpass.LowPassEstimator`), the nonlinear passive observer
         or the extended Kalman filter (:mod:`tapm_opt.estimation.observer`). Ignored with
         ``true_state`` (the plant's truth) and when the runner is given an estimator.
@@ -122,7 +128,7 @@ class ClosedLoopSettings:
     chase_time: float = 300.0
     chase_margin: float = 0.8
     heading_chase_time: float = 600.0
-    estimator: Literal["lowpass", "passive", "ekf"] = "lowpass"
+    estimator: Literal["lowpass", "passive", "ekf"] = DEFAULT_ESTIMATOR
     detector: Literal["tension", "drop", "bank", "none"] = "tension"
     winch: Literal["none", "tension"] = "none"
     winch_options: Mapping[str, Any] | None = None

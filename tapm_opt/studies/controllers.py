@@ -78,7 +78,7 @@ def _unknown(keys: set[str], allowed: set[str], where: str) -> None:
 
 
 def build_controller(system: Any, spec: Mapping[str, Any] | str, *, where: str = "controller",
-                     dt_control: float = 1.0, estimator: str = "lowpass") -> Any:
+                     dt_control: float = 1.0, estimator: str = "ekf") -> Any:
     """A :class:`~tapm_opt.interfaces.Controller` from a specification.
 
     Parameters

@@ -317,7 +317,13 @@ def _setpoint_fields(ck: Checker, table: Mapping, where: str, default: dict, inh
 #: The estimation every case's inputs name explicitly (the runner's defaults when the study names
 #: none), so that a change of the runner's default changes the case ids instead of reusing results
 #: computed with the old one.
-_ESTIMATION_DEFAULTS = {"estimator": "lowpass", "detector": "tension"}
+def _estimation_defaults() -> dict:
+    from .closed_loop import DEFAULT_ESTIMATOR
+
+    return {"estimator": DEFAULT_ESTIMATOR, "detector": "tension"}
+
+
+_ESTIMATION_DEFAULTS = _estimation_defaults()
 
 
 def _estimation_fields(ck: Checker, table: Mapping, where: str) -> dict:
@@ -431,7 +437,7 @@ def _parse_controllers(ck: Checker, data: Mapping, out: _Parsed) -> None:
                     try:
                         build_controller(out.sc, spec, where=p,   # dry build: checks every value
                                          dt_control=out.closed_loop.get("dt_control") or 1.0,
-                                         estimator=merged.get("estimator") or "lowpass")
+                                         estimator=merged.get("estimator") or _ESTIMATION_DEFAULTS["estimator"])
                     except ControllerSpecError as exc:
                         ck.err("", str(exc))
                         spec = None
