@@ -48,7 +48,12 @@ Gains (Fossen 2011 eq. 11.123–11.124, per DOF): ``K1 = [diag(-2 (zeta_n - lamb
 omega_0); diag(2 omega_0 (zeta_n - lambda))]``, ``K2 = diag(omega_c)``. Without the LF kinetics
 they make the measurement-to-``eta_hat`` transfer a notch at ``omega_0`` times a first-order
 low-pass at ``omega_c``: ``(s^2 + 2 lambda omega_0 s + omega_0^2) omega_c / ((s^2 + 2 zeta_n omega_0 s
-+ omega_0^2)(s + omega_c))``. Defaults ``zeta_n = 1``, ``omega_c = 1.2 omega_0``. ``K3`` and ``K4``
++ omega_0^2)(s + omega_c))``. Defaults ``zeta_n = 1.1``, ``omega_c = 1.05 omega_0``: a moored ship's
+WF surge motion has its energy below the wave peak (the surge RAO rises towards long periods; on
+fpso 80 % of it lies in about 0.75–1.05 omega_0), on the notch's lower flank; the wider notch and
+the cut-off just above ``omega_0`` (passivity needs only ``omega_c > omega_0``) attenuate that
+flank (``|y -> eta_hat|`` at 0.8 omega_0: 0.17, against 0.20 with ``zeta_n = 1``, ``omega_c = 1.2
+omega_0``) for 0.3 / omega_0 more low-frequency delay (docs/estimation.md). ``K3`` and ``K4``
 must satisfy the passivity ordering ``1/T_b << K3/K4 < omega_0 < omega_c`` (Fossen 2011 eq. 11.137);
 the defaults place the linearised LF error dynamics per DOF, ``m s^3 + (d + m omega_c) s^2 + (d
 omega_c + k + K4) s + K3 = 0`` (``m = M_ii``, ``d = D_ii``, ``k`` the mooring stiffness ``K_ii`` at the
@@ -103,10 +108,16 @@ from ..models.vessel import VesselParams
 from .lowpass import EstimationError, _WithDetectorAndMonitor
 
 __all__ = ["PassiveObserver", "EKFObserver", "wave_filter_matrices", "passive_gains", "DEFAULT_TP",
-           "EstimationError"]
+           "PASSIVE_ZETA_N", "PASSIVE_OMEGA_C_RATIO", "EstimationError"]
 
 #: Peak period [s] of the WF model when neither ``omega_0`` nor a sea state is given.
 DEFAULT_TP = 10.0
+
+#: Default relative damping of the passive observer's notch [-] (module docstring: why 1.1).
+PASSIVE_ZETA_N = 1.1
+
+#: Default cut-off of the passive observer's wave filter, ``omega_c / omega_0`` [-] (> 1: passivity).
+PASSIVE_OMEGA_C_RATIO = 1.05
 
 _TWO_PI = 2.0 * math.pi
 
@@ -165,11 +176,12 @@ def wave_filter_matrices(omega_0: float, lam: float = 0.1) -> tuple[np.ndarray, 
     return A, C
 
 
-def passive_gains(omega_0: float, lam: float = 0.1, zeta_n: float = 1.0,
+def passive_gains(omega_0: float, lam: float = 0.1, zeta_n: float = PASSIVE_ZETA_N,
                   omega_c: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Wave-filter gains ``K1`` (6, 3) and ``K2`` (3, 3) of the passive observer (Fossen 2011
     eq. 11.123–11.124): ``K1 = [diag(-2 (zeta_n - lam) omega_c / omega_0); diag(2 omega_0 (zeta_n -
-    lam))]`` [-, rad/s], ``K2 = diag(omega_c)`` [rad/s]; ``omega_c`` default ``1.2 omega_0``.
+    lam))]`` [-, rad/s], ``K2 = diag(omega_c)`` [rad/s]; ``zeta_n`` default :data:`PASSIVE_ZETA_N`
+    (1.1), ``omega_c`` default :data:`PASSIVE_OMEGA_C_RATIO` ``omega_0`` (1.05 omega_0).
 
     Raises EstimationError unless ``0 < lam < zeta_n <= 1.5`` and ``omega_c > omega_0`` (the
     notch needs ``zeta_n > lam``; passivity ``omega_0 < omega_c``, Fossen 2011 eq. 11.137).
@@ -180,7 +192,7 @@ def passive_gains(omega_0: float, lam: float = 0.1, zeta_n: float = 1.0,
     if zeta_n <= lam:
         raise EstimationError(f"zeta_n = {zeta_n!r} must exceed lam = {lam!r} (the notch's damping above the "
                               "wave resonator's)")
-    wc = 1.2 * w if omega_c is None else _number("omega_c", omega_c, lo=0.0, unit="rad/s")
+    wc = PASSIVE_OMEGA_C_RATIO * w if omega_c is None else _number("omega_c", omega_c, lo=0.0, unit="rad/s")
     if wc <= w:
         raise EstimationError(f"omega_c = {wc!r} rad/s must exceed omega_0 = {w!r} rad/s (passivity: "
                               "omega_0 < omega_c)")
@@ -310,9 +322,10 @@ class PassiveObserver(_ModelObserver):
     lam : float
         Relative damping of the WF resonator (1d) [-], in (0, 1.5]; default 0.1.
     zeta_n : float
-        Relative damping of the notch [-], in (lam, 1.5]; default 1.0.
+        Relative damping of the notch [-], in (lam, 1.5]; default :data:`PASSIVE_ZETA_N` = 1.1.
     omega_c : float, optional
-        Cut-off of the wave filter [rad/s], > omega_0; default 1.2 omega_0.
+        Cut-off of the wave filter [rad/s], > omega_0; default :data:`PASSIVE_OMEGA_C_RATIO`
+        omega_0 = 1.05 omega_0.
     T_b : float or (3,)
         Bias time constants of (1b) [s], > 0; default 1e4 s. A constant load ``b`` is estimated as
         ``b / (1 + K4 / (T_b K3))`` in steady state (``b_hat' = 0`` needs ``y~ = b_hat / (T_b K3)``),
@@ -335,7 +348,8 @@ class PassiveObserver(_ModelObserver):
     """
 
     def __init__(self, model: MooringModel, vessel: VesselParams, *, omega_0: float | None = None,
-                 sea_state: Any = None, lam: float = 0.1, zeta_n: float = 1.0, omega_c: float | None = None,
+                 sea_state: Any = None, lam: float = 0.1, zeta_n: float = PASSIVE_ZETA_N,
+                 omega_c: float | None = None,
                  T_b: Any = 1.0e4, omega_b: float = _TWO_PI / 200.0, K3: Any = None, K4: Any = None,
                  detector: Any = None, monitor: Any = None):
         self._init_common(model, vessel, detector, monitor)
