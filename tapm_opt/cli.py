@@ -438,8 +438,10 @@ def plant_forced_motion(scenario_name: str, dof: str, amplitude: float, period: 
                    "the optimum of the quadratic (eq. 34), reliability-index (eq. 36) or unified riser + mooring cost.")
 @click.option("--setpoint-option", "setpoint_options", multiple=True, metavar="KEY=VALUE",
               help="Option of the optimal setpoints, e.g. --setpoint-option period=60 (repeatable).")
-@click.option("--heading", type=click.Choice(["chasing", "fixed"]), default="chasing", show_default=True,
-              help="Weather-optimal heading (bow into the estimated mean environmental force) or fixed north.")
+@click.option("--heading", type=click.Choice(["chasing", "fixed"]), default=None,
+              help="Weather-optimal heading (bow into the estimated mean environmental force) or fixed north "
+                   "[default: chasing; fixed with --winch tension, whose changing line lengths the estimated "
+                   "environmental force does not know].")
 @click.option("--true-state", is_flag=True, help="Give the controller the true LF state (no estimator).")
 @click.option("--option", "options", multiple=True, metavar="KEY=VALUE",
               help="Controller option, e.g. --option horizon=30 --option solver=ipopt (repeatable); "
@@ -484,6 +486,8 @@ def simulate(scenario_name: str, controller: str, duration: float, out_dir: str,
         raise click.BadParameter("--winch-option is for --winch tension", param_hint="'--winch-option'")
     if winch == "tension":
         estimation.setdefault("detector", "none")  # the detectors assume the nominal line lengths
+    if heading is None:   # chasing reads tau_env, which assumes the nominal line lengths too
+        heading = "fixed" if winch == "tension" else "chasing"
     winching = {"winch": winch, "winch_options": w_opts or None} if winch != "none" else {}
     try:
         ClosedLoopSettings(true_state=true_state, **estimation)
@@ -510,7 +514,8 @@ def simulate(scenario_name: str, controller: str, duration: float, out_dir: str,
     _check_issues(log_size_issues(sc, duration, dt_log, where="--duration", dt_name="every control step, >= 1 s apart"))
     system = System.from_scenario(sc)  # built once: controller, runner and estimator share it
     ctrl = build_controller(system, spec, where="--option", dt_control=dt_control,
-                            estimator=estimation.get("estimator", DEFAULT_ESTIMATOR))
+                            estimator=estimation.get("estimator", DEFAULT_ESTIMATOR),
+                            winch=(w_opts or {}) if winch == "tension" else None)
     settings = ClosedLoopSettings(duration=duration, dt_control=dt_control, dt_log=dt_log, true_state=true_state,
                                   setpoint=setpoint, heading=heading, setpoint_options=sp_opts or None, **estimation,
                                   **winching)

@@ -18,7 +18,7 @@ from tapm_opt.models.system import System
 from tapm_opt.plant.environment import Environment
 from tapm_opt.plant.mooring_fem import MooringFEM
 from tapm_opt.studies.closed_loop import ClosedLoopError, ClosedLoopSettings, run_closed_loop
-from tapm_opt.studies.controllers import build_controller
+from tapm_opt.studies.controllers import ControllerSpecError, build_controller
 from tapm_opt.studies.kpis import case_kpis, kpi_unit
 
 
@@ -184,6 +184,35 @@ def _run(system, winch, duration=900.0):
     return run_closed_loop(plant, ctrl, st, system=system)
 
 
+def test_force_capacity_is_the_tension_range_of_an_opposed_pair_on_aamo4(aamo4):
+    """Four lines at 90 deg: along an axis one line hauls to its ceiling, the opposite one pays out
+    to its floor, the two across give nothing, so the weakest direction gives
+    (T_max - w ZF) - (T_min - w ZF) = T_max - T_min; the diagonal gives sqrt(2) times that. The
+    relation H = T - w ZF (the inextensible catenary's) holds for aamo4's elastic lines at the
+    pretension within 2 % (1.9 %)."""
+    w = WinchTensionController(aamo4)
+    np.testing.assert_allclose(w.T_max, 0.95 * aamo4.scenario.limits.tension_utilisation * np.asarray(aamo4.lines.MBS))
+    r = w.force_capacity()
+    assert r == pytest.approx(w.T_max[0] - w.T_min[0], rel=1e-9)
+    assert w.force_capacity(directions=8) == pytest.approx(r, rel=1e-9)   # the axes are among the 8
+    sol = aamo4.lines.solve_lines(np.zeros(3))
+    hang = np.asarray(aamo4.lines.w) * np.asarray(aamo4.lines.ZF)
+    np.testing.assert_allclose(np.asarray(sol.TF) - hang, sol.HF, rtol=0.02)
+
+
+def test_with_winch_control_the_pids_command_box_adds_the_mooring_capacity(aamo4):
+    box = aamo4.thrusters.capacity_box()
+    r = WinchTensionController(aamo4, {"T_max_fraction": 0.5}).force_capacity()
+    plain = build_controller(aamo4, {"type": "pid"})
+    winched = build_controller(aamo4, {"type": "pid"}, winch={"T_max_fraction": 0.5})
+    np.testing.assert_allclose(plain.tau_limit, box)
+    np.testing.assert_allclose(winched.tau_limit, box + np.array([r, r, 0.0]))
+    given = build_controller(aamo4, {"type": "pid", "tau_limit": [1e6, 1e6, 1e8]}, winch={})
+    np.testing.assert_allclose(given.tau_limit, [1e6, 1e6, 1e8])   # an explicit limit is kept
+    with pytest.raises(ControllerSpecError, match="winch_options.kc"):
+        build_controller(aamo4, {"type": "pid"}, winch={"kc": -1.0})
+
+
 def test_closed_loop_aamo4_mooring_carries_the_command(aamo4):
     """Shortened (900 s, 8 segments) [AF] Fig. 3: the thrusters deliver <= 20 % of the commanded
     horizontal force, the tensions stay below limits.tension_utilisation x MBS."""
@@ -259,11 +288,15 @@ def test_cli_simulate_winch_tension(tmp_path):
 
     out = tmp_path / "run"
     r = CliRunner().invoke(cli, ["simulate", "aamo4", "--sea-state", "tidal_rotating", "--duration", "120",
-                                 "--segments", "6", "--heading", "fixed", "--winch", "tension",
+                                 "--segments", "6", "--winch", "tension",
                                  "--winch-option", "kc=2.5e-7", "--out", str(out)])
     assert r.exit_code == 0, r.output
     summary = json.loads((out / "summary.json").read_text())
     assert summary["winch"] == "tension" and summary["detector"] == "none"
+    from tapm_opt.results import Result
+
+    res = Result.load(out / "result.npz")
+    assert res.meta["heading"] == "fixed"   # the default with winch control: chasing reads tau_env
     assert "thrust_to_command_ratio" in summary["kpis"]
     bad = CliRunner().invoke(cli, ["simulate", "aamo4", "--duration", "10", "--winch", "tension",
                                    "--winch-option", "kc=-1", "--out", str(tmp_path / "bad")])

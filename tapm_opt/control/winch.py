@@ -56,10 +56,13 @@ from ..geometry import rot_z
 from ..models import catenary
 
 __all__ = ["WinchError", "WinchSettings", "WinchTensionController", "configuration_matrix", "horizontal_force",
-           "AF_KC"]
+           "AF_KC", "CEILING_MARGIN"]
 
 #: Gain k_c of [AF] Table I [(m/s)/N].
 AF_KC = 2.5e-7
+
+#: Default tension ceiling of the winch guard as a fraction of ``limits.tension_utilisation`` [-].
+CEILING_MARGIN = 0.95
 
 
 class WinchError(TapmError, ValueError):
@@ -135,7 +138,9 @@ class WinchSettings:
     ki : float
         Integral gain k_i [(m/s)/(N s)], >= 0 (default 0: the P controller of [AF]).
     T_max_fraction : float or None
-        Tension ceiling as a fraction of MBS (default: the scenario's ``limits.tension_utilisation``).
+        Tension ceiling as a fraction of MBS (default: :data:`CEILING_MARGIN` = 0.95 of the
+        scenario's ``limits.tension_utilisation``: the guard holds a line at its ceiling, with the
+        dynamic tension about it; at the limit itself aamo4's beam line overshot by 1 %).
     T_min_fraction : float
         Tension floor: ``T_min = w ZF + T_min_fraction (T_0 - w ZF)``, with ``w ZF`` the weight of a
         line hanging straight down the fairlead height (no horizontal pull left) and ``T_0`` the
@@ -215,7 +220,7 @@ class WinchTensionController:
         self.L_limits = readonly(np.array([ln.length_limits for ln in sc.lines], dtype=float))
         self.L0 = readonly(np.array([ln.length for ln in sc.lines], dtype=float))
         mbs = np.asarray(model.MBS, dtype=float)
-        frac = sc.limits.tension_utilisation if s.T_max_fraction is None else s.T_max_fraction
+        frac = CEILING_MARGIN * sc.limits.tension_utilisation if s.T_max_fraction is None else s.T_max_fraction
         #: Tension ceiling of each line [N].
         self.T_max = readonly(frac * mbs)
         T0 = np.asarray(model.solve_lines(np.zeros(3)).TF, dtype=float)
@@ -253,6 +258,25 @@ class WinchTensionController:
     def limited(self) -> np.ndarray:
         """Lines whose command the latest update limited (tension, rate or length), bool (m,)."""
         return readonly(self._limited)
+
+    def force_capacity(self, directions: int = 72) -> float:
+        """Horizontal force [N] the winches can make the mooring deliver in every direction at the
+        field zero point: ``min_d sum_j max(H_max,j p_j.d, H_min,j p_j.d)`` over ``directions``
+        horizontal unit vectors d, with each line's horizontal tension between its floor and
+        ceiling, ``H = T - w ZF`` (the catenary with a grounded part: top tension = horizontal
+        tension + the weight of the fairlead height, exact for the inextensible line; 1.9 % above the
+        elastic catenary's H on aamo4 at the pretension) and lines
+        without a winch at their pretension. The DP command with winch control may ask this much
+        more than the thrusters can give (:func:`tapm_opt.studies.controllers.build_controller`):
+        the mooring carries it ([AF] §III)."""
+        m = self.model
+        hang = np.asarray(m.w, dtype=float) * np.asarray(m.ZF, dtype=float)
+        H0 = np.asarray(m.solve_lines(np.zeros(3)).HF, dtype=float)
+        hi = np.where(self._no_rate, H0, np.maximum(self.T_max - hang, 0.0))
+        lo = np.where(self._no_rate, H0, np.maximum(self.T_min - hang, 0.0))
+        ang = np.linspace(0.0, 2.0 * math.pi, int(directions), endpoint=False)
+        proj = self._B_fixed[:, :2] @ np.vstack([np.cos(ang), np.sin(ang)])   # (m, n) p_j . d
+        return float(np.min(np.sum(np.maximum(hi[:, None] * proj, lo[:, None] * proj), axis=0)))
 
     def mooring_load(self) -> np.ndarray:
         """Measured mooring load ``tau_m`` (3,) in {B} [N, N, N m] of the latest update."""

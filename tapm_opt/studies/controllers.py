@@ -77,8 +77,24 @@ def _unknown(keys: set[str], allowed: set[str], where: str) -> None:
                                                                     f"; allowed: {', '.join(sorted(allowed))}"))
 
 
+def _dp_force_limit(system: Any, winch: Mapping[str, Any] | None, where: str) -> np.ndarray:
+    """The PID's default command box (X [N], Y [N], N [N m]): the thrusters' capacity box, plus
+    in X and Y the force the winches can make the mooring deliver when ``winch`` (the winch
+    control options) is given."""
+    box = np.array(system.thrusters.capacity_box(), dtype=float)
+    if winch is None:
+        return box
+    from ..control.winch import WinchError, WinchTensionController
+
+    try:
+        r = WinchTensionController(system, winch).force_capacity()
+    except WinchError as exc:
+        raise ControllerSpecError(f"{where}: winch control: {exc}") from None
+    return box + np.array([r, r, 0.0])
+
+
 def build_controller(system: Any, spec: Mapping[str, Any] | str, *, where: str = "controller",
-                     dt_control: float = 1.0, estimator: str = "ekf") -> Any:
+                     dt_control: float = 1.0, estimator: str = "ekf", winch: Mapping[str, Any] | None = None) -> Any:
     """A :class:`~tapm_opt.interfaces.Controller` from a specification.
 
     Parameters
@@ -93,6 +109,12 @@ def build_controller(system: Any, spec: Mapping[str, Any] | str, *, where: str =
         The loop's estimator: a supervisor's expected wave-frequency features are those of its
         ``eta_wf`` (the low-pass estimator's measured-minus-filtered pose, or an observer's wave
         state: the WF motion itself, ``estimator_cutoff=None``).
+    winch : mapping or None
+        The loop's winch (line-tension) control options (``ClosedLoopSettings.winch_options``,
+        ``{}`` for the defaults) when ``winch = "tension"``, else None. With winch control the
+        mooring carries the DP command ([AF] §III), so a PID without an explicit ``tau_limit`` may
+        command the thrust capacity plus the force the winches can make the mooring deliver
+        (:meth:`~tapm_opt.control.winch.WinchTensionController.force_capacity`, added to X and Y).
 
     Raises
     ------
@@ -127,7 +149,7 @@ def build_controller(system: Any, spec: Mapping[str, Any] | str, *, where: str =
                 warnings.simplefilter("ignore")  # clamped gains are reported in the design
                 design = design_from_scenario(system, periods=tuple(o["periods"]), damping=tuple(o["damping"]),
                                               integral_ratio=float(o["integral_ratio"]))
-            tau_limit = o["tau_limit"] if o["tau_limit"] is not None else system.thrusters.capacity_box()
+            tau_limit = o["tau_limit"] if o["tau_limit"] is not None else _dp_force_limit(system, winch, where)
             try:
                 tau_limit = np.broadcast_to(np.asarray(tau_limit, dtype=float), (3,))
             except (TypeError, ValueError):

@@ -85,7 +85,8 @@ def run_case(inputs: Mapping[str, Any]) -> tuple[Any, dict[str, float]]:
     cl = dict(inputs.get("closed_loop") or {})
     settings = ClosedLoopSettings(duration=float(inputs["duration"]), **cl)
     ctrl = build_controller(system, spec, where="controller", dt_control=settings.dt_control,
-                            estimator=settings.estimator)
+                            estimator=settings.estimator,
+                            winch=(settings.winch_options or {}) if settings.winch == "tension" else None)
     plant = Plant(system, sea_state=sc.sea_state(inputs["sea_state"]), seed=int(inputs["seed"]),
                   segments=inputs.get("segments"))
     result = run_closed_loop(plant, ctrl, settings, system=system,

@@ -437,7 +437,9 @@ def _parse_controllers(ck: Checker, data: Mapping, out: _Parsed) -> None:
                     try:
                         build_controller(out.sc, spec, where=p,   # dry build: checks every value
                                          dt_control=out.closed_loop.get("dt_control") or 1.0,
-                                         estimator=merged.get("estimator") or _ESTIMATION_DEFAULTS["estimator"])
+                                         estimator=merged.get("estimator") or _ESTIMATION_DEFAULTS["estimator"],
+                                         winch=(merged.get("winch_options") or {})
+                                         if merged.get("winch") == "tension" else None)
                     except ControllerSpecError as exc:
                         ck.err("", str(exc))
                         spec = None
