@@ -2,11 +2,11 @@
 
 Printed figures, not a timed test. Run from the repository root::
 
-    python benchmarks/bench_detection.py [--quick] [--seed 1] [--workers 2]
+    python benchmarks/bench_detection.py [--quick] [--seed 1] [--workers 2] [--estimator ekf|lowpass|passive]
 
 Closed loop of ``run_closed_loop`` with the PID (``build_controller(scenario, "pid")``, default
-settings: fixed setpoint and heading, 1 s control step) and ``LowPassEstimator(system.lines,
-detector=...)``; the FEM plant with fpso's 20 segments per line and seed ``--seed``.
+settings: fixed setpoint and heading, 1 s control step) and the loop's estimator (``--estimator``,
+default the loop's: the EKF) with ``detector=...``; the FEM plant with fpso's 20 segments per line and seed ``--seed``.
 
 * Intact runs, 3 simulated hours (``--quick``: 30 min) in each of the sea states calm, normal and
   storm, with :class:`~tapm_opt.estimation.detection.TensionResidualDetector` as the estimator's
@@ -38,9 +38,10 @@ import tapm_opt
 from tapm_opt.config.schema import Fault
 from tapm_opt.estimation.detection import TensionDropDetector, TensionResidualDetector
 from tapm_opt.estimation.lowpass import LowPassEstimator
+from tapm_opt.estimation.observer import EKFObserver, PassiveObserver
 from tapm_opt.models.system import System
 from tapm_opt.plant.simulator import Plant
-from tapm_opt.studies.closed_loop import ClosedLoopSettings, run_closed_loop
+from tapm_opt.studies.closed_loop import DEFAULT_ESTIMATOR, ESTIMATOR_KINDS, ClosedLoopSettings, run_closed_loop
 from tapm_opt.studies.controllers import build_controller
 from tapm_opt.studies.kpis import break_times
 from _machine import machine_info  # noqa: E402  (benchmarks/ is on sys.path when run)
@@ -85,11 +86,19 @@ class Alongside:
         return out
 
 
-def _run(sea_state: str, duration: float, seed: int, detector: Any, faults=()) -> Any:
+def _estimator(kind: str, system: System, sea_state: str, detector: Any) -> Any:
+    """The loop's estimator of ``kind`` (ClosedLoopSettings.estimator) with ``detector``."""
+    if kind == "lowpass":
+        return LowPassEstimator(system.lines, detector=detector)
+    cls = EKFObserver if kind == "ekf" else PassiveObserver
+    return cls.from_scenario(system, sea_state=system.scenario.sea_state(sea_state), detector=detector)
+
+
+def _run(sea_state: str, duration: float, seed: int, detector: Any, faults=(), estimator: str = DEFAULT_ESTIMATOR) -> Any:
     sc = tapm_opt.load_scenario(SCENARIO)
     system = System.from_scenario(sc)
     plant = Plant(sc, sea_state=sea_state, seed=seed, faults=list(faults))
-    est = LowPassEstimator(system.lines, detector=detector)
+    est = _estimator(estimator, system, sea_state, detector)
     return run_closed_loop(plant, build_controller(sc, {"type": "pid"}), ClosedLoopSettings(duration=duration),
                            system=system, estimator=est)
 
@@ -99,12 +108,12 @@ def _false_alarms(events: list[dict], breaks: dict[str, float]) -> int:
 
 
 def intact_job(args: tuple[str, float, int]) -> dict:
-    sea_state, duration, seed = args
+    sea_state, duration, seed, estimator = args
     lines = System.from_scenario(tapm_opt.load_scenario(SCENARIO)).lines
     res_det, drop_det = TensionResidualDetector(lines), TensionDropDetector(lines)
     both = Alongside(res_det, drop_det)
     w0 = time.perf_counter()
-    r = _run(sea_state, duration, seed, both)
+    r = _run(sea_state, duration, seed, both, estimator=estimator)
     brk = break_times(r)
     T = r.group("T_fairlead")
     return {"sea_state": sea_state, "duration": duration, "wall": time.perf_counter() - w0, "plant_breaks": brk,
@@ -120,10 +129,10 @@ def intact_job(args: tuple[str, float, int]) -> dict:
 
 
 def break_job(args: tuple[str, str, int]) -> dict:
-    line, kind, seed = args
+    line, kind, seed, estimator = args
     lines = System.from_scenario(tapm_opt.load_scenario(SCENARIO)).lines
     det = TensionResidualDetector(lines) if kind == "residual" else TensionDropDetector(lines)
-    r = _run("storm", T_END, seed, det, [Fault(kind="line_break", line=line, time=T_BREAK)])
+    r = _run("storm", T_END, seed, det, [Fault(kind="line_break", line=line, time=T_BREAK)], estimator=estimator)
     brk = break_times(r)
     log = r.meta["estimator_log"]
     after = [e for e in log if e["t"] >= T_BREAK]
@@ -141,14 +150,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--sea-states", default="calm,normal,storm", help="comma-separated sea states of the intact runs")
+    ap.add_argument("--estimator", choices=ESTIMATOR_KINDS, default=DEFAULT_ESTIMATOR,
+                    help="the loop's estimator that carries the detectors (default: the loop's default)")
     a = ap.parse_args(argv)
     print(machine_info())
     lines = System.from_scenario(tapm_opt.load_scenario(SCENARIO)).lines
     ids = list(lines.line_ids)
     duration = 1800.0 if a.quick else 3 * 3600.0
     breaks = ["1", "4", "9", "12"] if a.quick else ids
-    intact = [(ss, duration, a.seed) for ss in a.sea_states.split(",")]
-    brk = [(lid, kind, a.seed) for lid in breaks for kind in ("residual", "drop")]
+    intact = [(ss, duration, a.seed, a.estimator) for ss in a.sea_states.split(",")]
+    brk = [(lid, kind, a.seed, a.estimator) for lid in breaks for kind in ("residual", "drop")]
     w0 = time.perf_counter()
     with ProcessPoolExecutor(max(1, min(a.workers, 2))) as ex:
         fi = [ex.submit(intact_job, j) for j in intact]
@@ -157,7 +168,7 @@ def main(argv: list[str] | None = None) -> int:
         rb = [f.result() for f in fb]
     wall = time.perf_counter() - w0
 
-    print(f"\nscenario {SCENARIO}, PID, LowPassEstimator, seed {a.seed}; TensionResidualDetector defaults "
+    print(f"\nscenario {SCENARIO}, PID, estimator {a.estimator}, seed {a.seed}; TensionResidualDetector defaults "
           f"(h = {ri[0]['h']:.2f}), TensionDropDetector defaults (20 % of pretension for 5 s)")
     print(f"\nintact runs, {duration / 3600:g} h each")
     print(f"{'sea state':<10}{'false alarms res/drop':>23}{'max g':>8}{'h - max g':>11}{'worst drop/shift':>18}"
