@@ -24,8 +24,13 @@ ROOT = Path(__file__).resolve().parents[1]
 TINY = ROOT / "studies" / "tiny.toml"
 WAIT = 180.0   # generous bound [s] on waiting for a child process to reach a state (shared machine)
 
+# The runner stands for a run started from a terminal: Ctrl-C raises KeyboardInterrupt. A process
+# started in the background by a non-interactive shell (as a CI job may be) inherits SIGINT
+# ignored, and Python then leaves it ignored; so the runner sets the terminal's disposition itself.
 _RUNNER = """
+import signal
 import sys
+signal.signal(signal.SIGINT, signal.default_int_handler)
 from tapm_opt.studies import executors
 from tapm_opt.studies.study import load_study, run_study
 executors.USE_PDEATHSIG = sys.argv[4] == "1"
