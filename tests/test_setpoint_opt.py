@@ -249,6 +249,73 @@ def test_layer_warms_up_rate_limits_and_resolves_on_a_break(normal):
     np.testing.assert_allclose(wp.ksigma_riser, [1e-3, 2e-3])
 
 
+class _FakeSolver:
+    """An IPOPT stand-in: from start x0 it 'ends' at x0 + 1 with the cost and status it is given."""
+
+    def __init__(self, outcomes):
+        self.outcomes, self._last = outcomes, None
+
+    def __call__(self, x0, p, lbg, ubg):
+        f, ok = self.outcomes[tuple(np.round(np.asarray(x0, float), 6))]
+        self._last = ok
+        return {"f": f, "x": np.asarray(x0, float) + 1.0}
+
+    def stats(self):
+        return {"success": self._last, "return_status": "Solve_Succeeded" if self._last else "Maximum_Iterations_Exceeded"}
+
+
+def test_multistart_takes_a_converged_start_over_a_cheaper_one_that_stopped_early(normal, problems):
+    _, _, wp = normal
+    fake = _FakeSolver({(3.0, 0.0): (0.1, False), (5.0, 0.0): (0.5, True), (7.0, 0.0): (0.3, True)})
+    p, info = problems["quadratic"]._multistart(fake, wp, [(3.0, 0.0), (5.0, 0.0), (7.0, 0.0)], warm=True)
+    np.testing.assert_array_equal(p, [8.0, 1.0])        # the cheapest converged one
+    assert info["success"] and info["J"] == 0.3
+    fake = _FakeSolver({(3.0, 0.0): (0.1, False), (5.0, 0.0): (0.5, False)})
+    p, info = problems["quadratic"]._multistart(fake, wp, [(3.0, 0.0), (5.0, 0.0)], warm=True)
+    np.testing.assert_array_equal(p, [4.0, 1.0])        # none converged: the cheapest, reported as failed
+    assert not info["success"] and info["status"] == "Maximum_Iterations_Exceeded"
+
+
+def test_layer_keeps_its_target_when_no_start_converges_to_a_better_point(normal, monkeypatch):
+    system, riser, wp = normal
+    layer = OptimalSetpoint(system, "quadratic", riser=riser, options=SetpointOptions(K_F=0.0, warmup=0.0, period=10.0))
+    layer.update(0.0, _estimate(0.0, wp.tau_env))
+    first = layer.target.copy()
+    assert layer.history[0]["success"]
+    prob = layer.problem(frozenset())
+    calls = []
+
+    def stopped_early(wp_, starts=(), *, warm=False):
+        calls.append(warm)
+        return np.array([60.0, 60.0]), {"success": False, "status": "Maximum_Iterations_Exceeded", "J": 1e9, "starts": 1}
+
+    monkeypatch.setattr(prob, "solve", stopped_early)
+    layer.update(10.0, _estimate(10.0, wp.tau_env))
+    assert calls == [True, False]                       # the warm re-solve, then every start
+    np.testing.assert_array_equal(layer.target, first)  # the worse, unconverged point is not taken
+    last = layer.history[-1]
+    assert last["kept"] and not last["success"] and last["J"] < 1e9
+
+
+def test_layer_excursion_is_about_the_setpoint_not_its_own_moves(normal):
+    """A vessel that follows the moving setpoint exactly has no low-frequency excursion; one that
+    swings about a fixed setpoint has r_lf = lf_factor x its RMS swing."""
+    system, riser, wp = normal
+    layer = OptimalSetpoint(system, "quadratic", riser=riser,
+                            options=SetpointOptions(K_F=0.0, warmup=20.0, period=1000.0, max_rate=0.5, lf_window=100.0))
+    for t in np.arange(0.0, 300.0, 1.0):
+        est = _estimate(t, wp.tau_env)
+        layer.update(t, dataclasses.replace(est, eta=np.array([layer.p[0], layer.p[1], 0.0])))
+    assert np.hypot(*layer.p) > 10.0                    # the setpoint moved far
+    assert layer.r_lf == pytest.approx(0.0, abs=1e-9)
+    fixed = OptimalSetpoint(system, "quadratic", riser=riser,
+                            options=SetpointOptions(warmup=1e9, lf_window=2000.0, lf_factor=3.0))
+    for t in np.arange(0.0, 20000.0, 1.0):             # a 5 m swing of period 200 s about the setpoint
+        est = _estimate(t, wp.tau_env)
+        fixed.update(t, dataclasses.replace(est, eta=np.array([5.0 * math.sin(2 * math.pi * t / 200.0), 0.0, 0.0])))
+    assert fixed.r_lf == pytest.approx(3.0 * 5.0 / math.sqrt(2.0), rel=0.1)
+
+
 def test_options_are_checked_and_named():
     with pytest.raises(SetpointOptError, match="setpoint_options.max_rate"):
         SetpointOptions(max_rate=0.0)
@@ -374,16 +441,17 @@ def test_simulate_with_an_optimal_setpoint_and_the_reliability_mpc(tmp_path, cap
     out = tmp_path / "run"
     code = main(["simulate", "fpso", "--controller", "lmpc", "--sea-state", "normal", "--duration", "300",
                  "--segments", "4", "--setpoint", "reliability", "--setpoint-option", "warmup=60",
-                 "--setpoint-option", "period=60", "--option", "reliability=true",
-                 # behind the EKF (the default) the 240 s re-optimisation stops at its iteration
-                 # limit on this 4-segment run: a known defect of the setpoint layer behind the EKF
-                 "--option", "estimator=lowpass", "--out", str(out)])
+                 "--setpoint-option", "period=60", "--option", "reliability=true", "--out", str(out)])
     assert code == 0, capsys.readouterr().err
     r = Result.load(out / "result.npz")
     log = r.meta["setpoint_log"]
     assert [e["t"] for e in log] == [60.0, 120.0, 180.0, 240.0]
     assert all(e["success"] for e in log)
-    np.testing.assert_allclose(r["x_d"][-1], log[-1]["target"][0], atol=0.05 * 60 + 1e-9)
+    # the setpoint heads for the last target at the rate limit (0.05 m/s) over the last 60 s
+    target = np.array(log[-1]["target"])
+    k = int(np.searchsorted(r.time, 240.0))
+    d = [float(np.hypot(r["x_d"][i] - target[0], r["y_d"][i] - target[1])) for i in (k, -1)]
+    np.testing.assert_allclose(d[1], max(0.0, d[0] - 0.05 * (r.time[-1] - r.time[k])), atol=0.05 * 1.0 + 1e-6)
     assert r.meta["setpoint"] == "reliability"
 
 

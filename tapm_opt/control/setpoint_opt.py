@@ -145,7 +145,8 @@ class SetpointOptions:
         [-]; a stiff penalty beyond it. A setpoint the thrusters cannot hold is no setpoint.
     lf_factor : float
         The layer takes the low-frequency excursion about the setpoint as ``lf_factor`` times the
-        RMS distance of the estimated (LF) turret offset from its running mean (the ``r_lf`` of
+        RMS distance of the estimated (LF) turret offset from the setpoint in use, about its
+        running mean (so the layer's own moves of the setpoint do not count; the ``r_lf`` of
         :class:`WorkingPoint`) [-]; 0: indices at the setpoint only. The default 3 is about the
         Gumbel factor of the few dozen LF maxima of a few hours (periods of a few hundred seconds).
     lf_window : float
@@ -422,10 +423,11 @@ class SetpointProblem:
             f = float(sol["f"])
             if not math.isfinite(f):
                 continue
-            if best is None or f < best[1] - 1e-12:
-                best = (np.asarray(sol["x"]).ravel(), f)
-                info = {"success": bool(st.get("success", False)), "status": str(st.get("return_status", "")),
-                        "J": f, "starts": len(uniq)}
+            ok = bool(st.get("success", False))
+            # a converged start beats any that stopped early (iteration limit, ...); then the cost
+            if best is None or (ok and not best[2]) or (ok == best[2] and f < best[1] - 1e-12):
+                best = (np.asarray(sol["x"]).ravel(), f, ok)
+                info = {"success": ok, "status": str(st.get("return_status", "")), "J": f, "starts": len(uniq)}
         if best is None:
             return np.asarray(wp.p, float), info
         return best[0], info
@@ -616,7 +618,7 @@ class OptimalSetpoint:
         self._t: float | None = None
         self._t_solve: float | None = None
         self._broken: frozenset = frozenset()
-        self._p_mean: np.ndarray | None = None   # running mean of the estimated turret offset [m]
+        self._p_mean: np.ndarray | None = None   # running mean of the estimated turret offset from the setpoint [m]
         self._solved_for: frozenset | None = None  # broken lines of the latest optimisation
         self._ms_lf = 0.0      # running mean square of its distance from that mean [m^2]
         self.history = []
@@ -654,13 +656,15 @@ class OptimalSetpoint:
         broken = frozenset(estimate.broken_lines)
         dt = 0.0 if self._t is None else max(t - self._t, 0.0)
         self._t = float(t)
-        p_now = np.array(turret_offset(estimate.eta, self.system0.p_cot_B), float)
+        # the LF excursion is that of the offset from the setpoint in use: the layer's own moves of
+        # the setpoint (which the vessel follows) are not excursion
+        e_now = np.array(turret_offset(estimate.eta, self.system0.p_cot_B), float) - self.p
         if self._p_mean is None:
-            self._p_mean = p_now
+            self._p_mean = e_now
         elif dt > 0:
             a = math.exp(-dt / self.options.lf_window)
-            self._p_mean = a * self._p_mean + (1 - a) * p_now
-            self._ms_lf = a * self._ms_lf + (1 - a) * float(np.sum((p_now - self._p_mean) ** 2))
+            self._p_mean = a * self._p_mean + (1 - a) * e_now
+            self._ms_lf = a * self._ms_lf + (1 - a) * float(np.sum((e_now - self._p_mean) ** 2))
         due = (self._t_solve is None and t >= self.options.warmup) or (
             self._t_solve is not None and t - self._t_solve >= self.options.period - 1e-9) or (
             broken != self._broken and t >= 0)
@@ -674,6 +678,13 @@ class OptimalSetpoint:
             else:
                 warm = self._solved_for == broken
                 target, info = prob.solve(wp, starts=(self.target,) if warm else (self.target, self.p), warm=warm)
+                if warm and not info["success"]:   # the re-solve stopped early: every start
+                    target, info = prob.solve(wp, starts=(self.target, self.p))
+                if not info["success"] and self._solved_for == broken:
+                    # no start converged: move only to a point better than the present target
+                    J_keep = prob.evaluate(self.target, wp)["J_total"]
+                    if not info.get("J", math.inf) < J_keep:
+                        target, info = self.target, {**info, "J": J_keep, "kept": True}
             self.target = np.asarray(target, float)
             self._t_solve = float(t)
             self._solved_for = broken
