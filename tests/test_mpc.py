@@ -549,6 +549,27 @@ def test_warm_start_reduces_iterations(fpso, plant_fn, make):
     assert max(its[2:]) < its[0], its
 
 
+def test_load_enters_the_prediction_through_its_low_pass_filter(fpso):
+    """The load parameter is the first-order low-pass (time constant T) of the estimate in {E}:
+    a step of the estimate at t = 0 reaches 1 - exp(-t/T) of itself; T = 0 passes it through."""
+    T = 100.0
+    ctrl = LinearMPC(fpso, MPCSettings(horizon=5, load_time_constant=T, **QUADRATIC))
+    pi = ctrl._prob.p_idx
+    x = X0.copy()
+    x[2] = math.radians(30.0)
+    step_B = np.array([1.0e6, -4.0e5, 2.0e7])
+    step_E = rot_z(x[2]) @ step_B
+    assert np.all(ctrl._params(est(x, (0.0, 0.0, 0.0), t=0.0), SP0)[pi["b"]] == 0.0)
+    for t in (0.0, 50.0, 100.0, 300.0):   # the step is held from t = 0 on
+        b = ctrl._params(est(x, step_B, t=t), SP0)[pi["b"]]
+        np.testing.assert_allclose(b, (1.0 - math.exp(-t / T)) * step_E, rtol=1e-12, atol=1e-6)
+    ctrl.reset()                           # a reset starts the filter at the next estimate
+    np.testing.assert_allclose(ctrl._params(est(x, step_B, t=400.0), SP0)[pi["b"]], step_E, rtol=1e-12)
+    raw = LinearMPC(fpso, MPCSettings(horizon=5, load_time_constant=0.0, **QUADRATIC))
+    raw._params(est(x, (0.0, 0.0, 0.0), t=0.0), SP0)
+    np.testing.assert_allclose(raw._params(est(x, step_B, t=1.0), SP0)[pi["b"]], step_E, rtol=1e-12)
+
+
 # --- bad input -------------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("field,value", [
@@ -556,6 +577,7 @@ def test_warm_start_reduces_iterations(fpso, plant_fn, make):
     ("solver", "qpoases"), ("mooring", "spring"), ("decision", "forces"), ("w_thrust", -1.0),
     ("safe_radius", -5.0), ("safe_radius", "far"), ("tension_utilisation", 0.0), ("tension_utilisation", 1.5),
     ("tension_utilisation", math.nan), ("polygon_sides", 2), ("max_iter", 0), ("capacity_fraction", 0.0),
+    ("load_time_constant", -1.0), ("load_time_constant", math.inf),
 ])
 def test_bad_settings_raise_naming_the_field(field, value):
     with pytest.raises(MPCError, match=rf"MPCSettings\.{field} ="):

@@ -82,6 +82,8 @@ class _MPCBase:
             self.riser = RiserModel.from_scenario(self.system.scenario, None)
         self._theta_lf: np.ndarray | None = None   # low-passed measured riser angles (4,) [rad]
         self._t_theta: float | None = None
+        self._b_lf: np.ndarray | None = None       # low-passed estimated load in {E} (3,) [N, N, N m]
+        self._t_b: float | None = None
 
     @property
     def owns_allocation(self) -> bool:
@@ -100,7 +102,7 @@ class _MPCBase:
             if v.shape != (3,) or not np.all(np.isfinite(v)):
                 raise MPCError(f"{name} = {v.tolist()} must be a finite 3-vector")
         eta_d[2] = eta[2] + ssa(eta_d[2] - eta[2])  # heading setpoint unwrapped next to the heading
-        b_E = rot_z(eta[2]) @ tau_env
+        b_E = self._load_in_prediction(float(est.t), rot_z(eta[2]) @ tau_env)
         pi = self._prob.p_idx
         p = np.zeros(self._prob.p.numel())
         if self._prob.n_poly:
@@ -121,6 +123,16 @@ class _MPCBase:
         if pi["riser"].stop > pi["riser"].start:
             p[pi["riser"]] = self._riser_parameters(est)
         return p
+
+    def _load_in_prediction(self, t: float, b_E: np.ndarray) -> np.ndarray:
+        """The estimated load in {E} through the first-order low-pass filter of time constant
+        ``settings.load_time_constant`` [s] (started at the first estimate; 0: unfiltered)."""
+        T = self.settings.load_time_constant
+        if T <= 0:
+            return b_E
+        self._b_lf = _low_pass_step(self._b_lf, self._t_b, b_E, t, T)
+        self._t_b = t
+        return self._b_lf.copy()
 
     def _without_broken(self, moor: np.ndarray, broken: frozenset) -> np.ndarray:
         """Line characteristics (5 n,) with the lines ``broken`` dropped: their H0, dH/dXF, T0 and
@@ -165,12 +177,7 @@ class _MPCBase:
                    - self.settings.delta_s * rs.critical_bottom_angle_std, floor)]
         share = np.zeros(4)
         if est.riser_angles is not None:
-            th = np.asarray(est.riser_angles, float)
-            if self._theta_lf is None or self._t_theta is None:
-                self._theta_lf = th.copy()
-            else:
-                a = math.exp(-max(est.t - self._t_theta, 0.0) / self.RISER_LF_TIME)
-                self._theta_lf = a * self._theta_lf + (1 - a) * th
+            self._theta_lf = _low_pass_step(self._theta_lf, self._t_theta, est.riser_angles, est.t, self.RISER_LF_TIME)
             self._t_theta = est.t
             c = R.coefficients
             d = R.hangoff_E(np.asarray(est.eta, float)) - np.asarray(R.wellhead, float)
@@ -347,6 +354,7 @@ class _MPCBase:
         self._u_prev = None
         self.diagnostics = []
         self._theta_lf = self._t_theta = None
+        self._b_lf = self._t_b = None
 
 
 class NonlinearMPC(_MPCBase):
@@ -554,6 +562,17 @@ class LinearMPC(_MPCBase):
         dt = time.perf_counter() - t0
         ok = bool(ok and np.all(np.isfinite(z)))
         return self._finish(t, z, ok, status, dt, it, cost if ok else math.nan)
+
+
+def _low_pass_step(x_lf: np.ndarray | None, t_lf: float | None, x: Any, t: float, T: float) -> np.ndarray:
+    """First-order low-pass filter of time constant ``T`` [s], exact for ``x`` held since ``t_lf``:
+    the filtered value at ``t`` from the one at ``t_lf``; it starts (and restarts, should time go
+    back) at ``x``."""
+    x = np.array(x, float)
+    if x_lf is None or t_lf is None or t < t_lf:
+        return x
+    a = math.exp(-(t - t_lf) / T)
+    return a * x_lf + (1.0 - a) * x
 
 
 def _nonzeros(M: Any) -> Any:

@@ -119,6 +119,15 @@ class MPCSettings:
         prediction: their characteristics (``mooring="characteristic"``, the only kind whose lines
         are parameters) are zeroed, so the predicted mooring load and tensions are those of the
         lines left, with no new problem.
+    load_time_constant : float
+        Time constant [s] of the first-order low-pass filter through which the estimated
+        environmental load (``Estimate.tau_env``, taken into {E}) enters the prediction, which
+        holds it constant over the horizon; 0: the estimate as it comes. What the estimate does
+        faster than this (gusts, the observer's bias wandering) cannot be predicted over the
+        horizon, and an MPC that re-plans on it trades position for thrust at the wrong moments:
+        on the main job the linear MPC behind the EKF reached 50.7 m and 21 s outside the safe
+        circle with the unfiltered estimate, 54.1 m and 213 s with the plant's true instantaneous
+        load, 49.9 m and 0 s with 200 s of filtering (docs/controllers.md).
     """
 
     horizon: int = 20
@@ -154,11 +163,12 @@ class MPCSettings:
     reliability: bool = False
     delta_s: float = 2.0
     fault_tolerance: bool = False
+    load_time_constant: float = 200.0
 
     def __post_init__(self) -> None:
         pos = ("dt", "r_ref", "psi_ref", "nu_ref", "r_rate_ref", "capacity_fraction", "max_time")
         nonneg = ("w_thrust", "w_rate", "w_position", "w_position_in", "w_heading", "w_velocity", "w_terminal",
-                  "dead_band", "soft_l1", "soft_l2")
+                  "dead_band", "soft_l1", "soft_l2", "load_time_constant")
         for name in pos:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
