@@ -2,7 +2,7 @@
 
 Printed figures, not a timed test. Run from the repository root::
 
-    python benchmarks/bench_plant.py [--repeats 3] [--plant-duration 600]
+    python benchmarks/bench_plant.py [--repeats 3] [--plant-duration 600] [--closed-loop]
 
 Real-time factor (RTF) = simulated seconds per wall-clock second, one process, one thread of
 Python (numpy may use more for large arrays; these arrays are small). Reported:
@@ -17,7 +17,14 @@ Python (numpy may use more for large arrays; these arrays are small). Reported:
 * scaling of the forced-motion loop with segments (10, 20, 40 on aamo4) and with lines (aamo4 4,
   ren8 8, fpso 12 lines at 20 segments), with the cost per node and FEM step.
 
-Targets: aamo4 forced motion >= 250x real time, fpso full plant >= 100x.
+With ``--closed-loop`` only: the PID closed loop of ``tapm simulate fpso --controller pid
+--sea-state normal --duration 600`` (the same plant, controller and settings, in this process) at 20
+and 10 segments per line, as the CLI's figure (plant construction with settling + run) and the run
+alone, with the compiled outer step (``Plant.compiled``, the default) and with the numpy outer step
+alternated in each repeat, and their ratio (the numpy step's time over the compiled one's, per
+repeat, then the median: the ratio is steadier than either time on a shared machine).
+
+Targets: aamo4 forced motion >= 250x real time, fpso full plant >= 100x, PID closed loop >= 400x.
 """
 
 from __future__ import annotations
@@ -42,6 +49,46 @@ from tapm_opt.plant.simulator import Plant, run_open_loop  # noqa: E402
 SURGE = dict(dof="surge", amplitude=20.0, period=100.0, duration=300.0, dt_out=1.0)
 TARGET_FORCED = 250.0
 TARGET_PLANT = 100.0
+TARGET_CLOSED = 400.0
+
+
+def closed_loop_times(segments: int, duration: float, compiled: bool) -> tuple[float, float]:
+    """(construction + run, run) wall times [s] of the fpso PID closed loop in the normal sea state."""
+    from tapm_opt.models.system import System
+    from tapm_opt.studies.closed_loop import DEFAULT_ESTIMATOR, ClosedLoopSettings, run_closed_loop
+    from tapm_opt.studies.controllers import build_controller
+
+    system = System.from_scenario(tapm_opt.load_scenario("fpso"))
+    ctrl = build_controller(system, {"type": "pid"}, where="--option", dt_control=1.0,
+                            estimator=DEFAULT_ESTIMATOR, winch=None)
+    settings = ClosedLoopSettings(duration=duration, dt_control=1.0, dt_log=1.0)
+    t0 = time.perf_counter()
+    plant = Plant(system, sea_state="normal", seed=0, segments=segments)
+    plant.compiled = compiled
+    t1 = time.perf_counter()
+    run_closed_loop(plant, ctrl, settings, system=system)
+    t2 = time.perf_counter()
+    return t2 - t0, t2 - t1
+
+
+def closed_loop_section(duration: float, repeats: int) -> None:
+    """Print the PID closed-loop real-time factors, compiled and numpy outer step (module docstring)."""
+    closed_loop_times(10, 20.0, True)  # warm-up: compile or load the kernels
+    print(f"fpso PID closed loop, normal sea, {duration:g} s simulated, median of {repeats} "
+          f"(alternating compiled / numpy outer step):")
+    print(f"  {'segments':>8} {'outer step':>10} {'CLI wall RTF':>13} {'run RTF':>8} {'numpy/compiled':>15}")
+    for seg in (20, 10):
+        times = {True: [], False: []}
+        for _ in range(repeats):
+            for compiled in (True, False):
+                times[compiled].append(closed_loop_times(seg, duration, compiled))
+        ratio = float(np.median([n[1] / c[1] for c, n in zip(times[True], times[False])]))
+        for compiled in (True, False):
+            wall = float(np.median([t[0] for t in times[compiled]]))
+            run = float(np.median([t[1] for t in times[compiled]]))
+            mark = f"[target >= {TARGET_CLOSED:.0f}x]" if compiled else ""
+            print(f"  {seg:>8} {'compiled' if compiled else 'numpy':>10} {duration / wall:>12.0f}x "
+                  f"{duration / run:>7.0f}x {ratio if compiled else 1.0:>14.2f}x {mark}")
 
 
 def median_time(fn, repeats: int):
@@ -75,6 +122,8 @@ def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=3, help="repeats of each forced-motion timing (median)")
     ap.add_argument("--plant-duration", type=float, default=600.0, help="simulated time of the fpso plant run [s]")
+    ap.add_argument("--closed-loop", action="store_true",
+                    help="time only the PID closed loop (20 and 10 segments, compiled and numpy outer step)")
     args = ap.parse_args(argv)
     reps = max(1, args.repeats)
     print(machine_info())
@@ -82,6 +131,9 @@ def main(argv=None) -> None:
         print("load average (1, 5, 15 min): " + ", ".join(f"{v:.2f}" for v in os.getloadavg())
               + "  (figures scale with it on a shared machine)")
     print()
+    if args.closed_loop:
+        closed_loop_section(args.plant_duration, reps)
+        return None
 
     aamo4 = tapm_opt.load_scenario("aamo4")
     forced_motion(aamo4, segments=10, dof="surge", amplitude=1.0, period=10.0, duration=10.0)  # warm-up

@@ -299,7 +299,7 @@ class Wind:
         if nu is None:
             return self.hull.tau(V, self.direction, psi)
         nu = np.asarray(nu, dtype=float)
-        if nu.shape != (3,) or not np.all(np.isfinite(nu)):
+        if nu.shape != (3,) or not np.isfinite(nu).all():
             raise PlantError(f"nu={nu.tolist()} must be 3 finite numbers (u, v, r) in {{B}}")
         return self.hull.tau(V, self.direction, psi, float(nu[0]), float(nu[1]))
 

@@ -428,16 +428,20 @@ class FEMLines:
                 force_out = self._no_force_out = np.zeros((0, self.n_lines, 3))
         self.r, self.v, T = self._kernel_fn(
             _as_f64(self.r, shape, "r"), _as_f64(self.v, shape, "v"), _as_f64(v_current, shape, "v_current"),
-            float(dt), float(extra_damping), r_seq, v_seq,
-            self.l0, self._EA, self._c_int, self.bond_ok, self.node_weight, self.node_mass,
-            self._cdn_node, self._cdt_node, self._can_half, self._cat_half, self._kb, self._cb, self._mu,
-            float(self.depth), bool(self._has_int_damping), bool(self._has_friction),
-            self.anchor_idx, self.anchors, self.fairlead_idx, self._attached, force_out)
+            float(dt), float(extra_damping), r_seq, v_seq, *self._kernel_constants(), force_out)
         if force_out.shape[0]:
             force_out[:, ~self.active] = 0.0
         for _ in range(n):  # the same sum as n single steps
             self.t += dt
         return T
+
+    def _kernel_constants(self) -> tuple:
+        """The line constants, in the order the compiled kernels take them
+        (:func:`tapm_opt.plant.fem_kernel.advance`, from ``l0`` to ``attached``)."""
+        return (self.l0, self._EA, self._c_int, self.bond_ok, self.node_weight, self.node_mass,
+                self._cdn_node, self._cdt_node, self._can_half, self._cat_half, self._kb, self._cb, self._mu,
+                float(self.depth), bool(self._has_int_damping), bool(self._has_friction),
+                self.anchor_idx, self.anchors, self.fairlead_idx, self._attached)
 
     def _friction(self, v_new: np.ndarray, dt: float) -> None:
         """Coulomb seabed friction on the new velocities ``v_new`` (in place), applied implicitly.

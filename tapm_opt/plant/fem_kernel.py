@@ -10,6 +10,13 @@ the node mass + added-mass matrix, the same update (with the implicit Coulomb se
 floating-point order as the numpy reference path, so the two agree to round-off (checked in
 ``tests/test_fem_kernel.py``).
 
+The plant's outer step (:meth:`Plant._outer_step <tapm_opt.plant.simulator.Plant._outer_step>`)
+has three more kernels, each the compiled counterpart of a numpy path it must match bit for bit
+(``tests/test_plant_speed_equivalence.py``): :func:`thruster_step` (``ThrusterBank.step`` and
+``tau``), :func:`vessel_step` (the rich ``vessel_rhs`` and the semi-implicit Euler update) and
+:func:`mooring_step` (the fairlead path, :func:`advance`, the fairlead accelerations, the
+overload and health flags and the load on the vessel).
+
 The per-line constants are passed as the arrays :class:`~tapm_opt.plant.fem.FEMLines` holds (no
 copies): a winch that changes the unstretched lengths (``FEMLines._update_lengths``) is seen by
 the next call. The kernel keeps no state: positions and velocities come in and go out as arrays.
@@ -29,7 +36,7 @@ import warnings
 
 import numpy as np
 
-__all__ = ["AVAILABLE", "advance"]
+__all__ = ["AVAILABLE", "advance", "thruster_step", "vessel_step", "mooring_step"]
 
 from .._jit import jit as _jit, numba_available
 
@@ -38,6 +45,29 @@ if not AVAILABLE:
     warnings.warn("numba is not available; the FEM mooring lines use the numpy path, which is "
                   "several times slower per step (install numba to restore the compiled kernel)",
                   RuntimeWarning, stacklevel=2)
+
+
+@_jit
+def _bond(r, v, i, l0, EA, c_int, has_int_damping):  # pragma: no cover - compiled
+    """Bond i (node i to node i + 1): vector (lx, ly, lz) [m], stretched length e [m] and tension
+    t [N] (tension only, with internal damping), as :meth:`FEMLines.segment_state
+    <tapm_opt.plant.fem.FEMLines.segment_state>` (the 3-term sums in numpy's order)."""
+    lx = r[i + 1, 0] - r[i, 0]
+    ly = r[i + 1, 1] - r[i, 1]
+    lz = r[i + 1, 2] - r[i, 2]
+    e = math.sqrt(0.0 + lx * lx + ly * ly + lz * lz)
+    strain = e / l0[i] - 1.0
+    t = EA[i] * strain
+    if has_int_damping:
+        dx = v[i + 1, 0] - v[i, 0]
+        dy = v[i + 1, 1] - v[i, 1]
+        dz = v[i + 1, 2] - v[i, 2]
+        t += c_int[i] * (0.0 + dx * lx + dy * ly + dz * lz) / (e * l0[i])
+    if strain <= 0.0:
+        t = 0.0
+    elif t < 0.0:  # NaN and -0.0 kept, as np.maximum(t, 0.0)
+        t = 0.0
+    return lx, ly, lz, e, t
 
 
 @_jit
@@ -55,21 +85,7 @@ def _step(r, v, vc, dt, extra_damping, fl_r, fl_v,
     n = r.shape[0]
     # bonds: tangent, tension vector and stretched length (0 on the non-segment bonds)
     for i in range(n - 1):
-        lx = r[i + 1, 0] - r[i, 0]
-        ly = r[i + 1, 1] - r[i, 1]
-        lz = r[i + 1, 2] - r[i, 2]
-        e = math.sqrt(lx * lx + ly * ly + lz * lz)
-        strain = e / l0[i] - 1.0
-        t = EA[i] * strain
-        if has_int_damping:
-            dx = v[i + 1, 0] - v[i, 0]
-            dy = v[i + 1, 1] - v[i, 1]
-            dz = v[i + 1, 2] - v[i, 2]
-            t += c_int[i] * (dx * lx + dy * ly + dz * lz) / (e * l0[i])
-        if strain <= 0.0:
-            t = 0.0
-        elif t < 0.0:
-            t = 0.0
+        lx, ly, lz, e, t = _bond(r, v, i, l0, EA, c_int, has_int_damping)
         T[i] = t
         ok = 1.0 if bond_ok[i] else 0.0
         inv = ok / e
@@ -228,3 +244,345 @@ def advance(r, v, vc, dt, extra_damping, fl_r_seq, fl_v_seq,
                     F_fl_seq[s, j, c] = F_node[f, c]
         r_in, v_in = r_out, v_out
     return r_in, v_in, T
+
+
+# -- the plant's outer step ------------------------------------------------------------------
+# Compiled pieces of :meth:`tapm_opt.plant.simulator.Plant._outer_step`, each evaluated in the
+# floating-point order of its numpy counterpart (the fallback when numba is absent), so that the
+# two paths give the same bits (``tests/test_plant_speed_equivalence.py``): elementwise
+# operations left to right as numpy applies them, ``sum(axis=1)`` of 3-vectors as numpy's
+# sequential reduction from 0.0, ``np.sum`` of a vector as numpy's pairwise sum
+# (:func:`_pairwise_sum`), matrix-vector products with ``np.dot`` (the BLAS call numpy's ``@``
+# makes), ``np.clip``/``np.maximum`` with numpy's NaN and signed-zero rules.
+
+
+@_jit
+def _pairwise_sum(a):  # pragma: no cover - compiled
+    """``np.sum`` of the 1-D array ``a`` in numpy's order (pairwise summation, 8 accumulators,
+    blocks of 128)."""
+    n = a.shape[0]
+    if n < 8:
+        res = 0.0
+        for i in range(n):
+            res += a[i]
+        return res
+    if n <= 128:
+        r0, r1, r2, r3 = a[0], a[1], a[2], a[3]
+        r4, r5, r6, r7 = a[4], a[5], a[6], a[7]
+        i = 8
+        while i < n - (n % 8):
+            r0 += a[i]
+            r1 += a[i + 1]
+            r2 += a[i + 2]
+            r3 += a[i + 3]
+            r4 += a[i + 4]
+            r5 += a[i + 5]
+            r6 += a[i + 6]
+            r7 += a[i + 7]
+            i += 8
+        res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+        while i < n:
+            res += a[i]
+            i += 1
+        return res
+    n2 = n // 2
+    n2 -= n2 % 8
+    return _pairwise_sum(a[:n2]) + _pairwise_sum(a[n2:])
+
+
+@_jit
+def _clip(x, lo, hi):  # pragma: no cover - compiled
+    """``np.clip(x, lo, hi)`` of one value (numpy's max-then-min, NaN kept)."""
+    if not (math.isnan(x) or x > lo):
+        x = lo
+    if not (math.isnan(x) or x < hi):
+        x = hi
+    return x
+
+
+@_jit
+def _ssa(a):  # pragma: no cover - compiled
+    """:func:`tapm_opt.geometry.ssa` of one angle [rad]."""
+    return a - 2.0 * np.pi * math.floor((a + np.pi) / (2.0 * np.pi))
+
+
+@_jit
+def thruster_step(f, alpha, failed, f_cmd, alpha_cmd, has_alpha_cmd, f_min, f_max, decay, rate_dt,
+                  alpha_rate_dt, azimuth, x, y):  # pragma: no cover - compiled
+    """:meth:`ThrusterBank.step <tapm_opt.plant.thrusters.ThrusterBank.step>` on checked
+    commands, in place on ``f`` [N] and ``alpha`` [rad], and the new generalised thrust
+    :meth:`~tapm_opt.plant.thrusters.ThrusterBank.tau` (3,) [N, N, N m] in {B}.
+
+    ``decay = exp(-dt / T)``, ``rate_dt = max_thrust_rate dt`` [N] and ``alpha_rate_dt =
+    max_azimuth_rate dt`` [rad] per thruster.
+    """
+    n = f.shape[0]
+    for i in range(n):
+        f_sat = _clip(f_cmd[i], f_min[i], f_max[i])
+        f_lag = f_sat + (f[i] - f_sat) * decay[i]
+        fi = f[i] + _clip(f_lag - f[i], -rate_dt[i], rate_dt[i])
+        f[i] = 0.0 if failed[i] else fi
+        if has_alpha_cmd and azimuth[i]:
+            da = _clip(_ssa(alpha_cmd[i] - alpha[i]), -alpha_rate_dt[i], alpha_rate_dt[i])
+            alpha[i] = _ssa(alpha[i] + da)
+    T = np.empty((3, n))
+    for i in range(n):
+        c = math.cos(alpha[i])
+        s = math.sin(alpha[i])
+        T[0, i] = c
+        T[1, i] = s
+        T[2, i] = x[i] * s - y[i] * c
+    return np.dot(T, f)
+
+
+@_jit
+def _rot_z(psi):  # pragma: no cover - compiled
+    """:func:`tapm_opt.geometry.rot_z` (3, 3)."""
+    c = math.cos(psi)
+    s = math.sin(psi)
+    R = np.zeros((3, 3))
+    R[0, 0] = c
+    R[0, 1] = -s
+    R[1, 0] = s
+    R[1, 1] = c
+    R[2, 2] = 1.0
+    return R
+
+
+@_jit
+def _coriolis(M, nu):  # pragma: no cover - compiled
+    """:func:`tapm_opt.models.vessel.coriolis` (3, 3)."""
+    p = np.dot(M, nu)
+    C = np.zeros((3, 3))
+    C[0, 2] = -p[1]
+    C[1, 2] = p[0]
+    C[2, 0] = p[1]
+    C[2, 1] = -p[0]
+    return C
+
+
+@_jit
+def vessel_step(eta, nu, tau, v_c, M, M_A, M_inv, D_lin, d_quad, h):  # pragma: no cover - compiled
+    """One semi-implicit Euler step of the rich LF vessel (:func:`tapm_opt.models.vessel.vessel_rhs`,
+    ``form="rich"``): ``nu + h nu_dot`` then ``eta + h R(psi) nu`` with the new ``nu``.
+
+    The equation is defined once, symbolically, in :func:`~tapm_opt.models.vessel.vessel_rhs` (the
+    CasADi function the design models and the MPC use); this is its numeric evaluation in the same
+    floating-point order, for the plant's inner loop. ``tests/test_plant_speed_equivalence.py``
+    holds the two to the bit (``Plant.compiled`` against the CasADi path): a change to one that is
+    not made to the other fails there.
+
+    Parameters
+    ----------
+    eta, nu, tau : ndarray (3,)
+        Pose [m, m, rad] in {E}, velocity [m/s, m/s, rad/s] in {B}, total load [N, N, N m] in {B}.
+    v_c : ndarray (2,)
+        Current (V_x, V_y) in {E} [m/s].
+    M, M_A, M_inv, D_lin : ndarray (3, 3); d_quad : ndarray (3,)
+        The vessel's :class:`~tapm_opt.models.vessel.VesselParams`.
+    h : float
+        Step [s].
+
+    Returns
+    -------
+    eta, nu : ndarray (3,)
+        The new pose and velocity.
+    finite : bool
+        Both are finite.
+    """
+    c = math.cos(-eta[2])
+    s = math.sin(-eta[2])
+    u_c = c * v_c[0] - s * v_c[1]
+    v_cb = s * v_c[0] + c * v_c[1]
+    nu_r = np.empty(3)
+    nu_r[0] = nu[0] - u_c
+    nu_r[1] = nu[1] - v_cb
+    nu_r[2] = nu[2] - 0.0
+    damping = np.dot(D_lin, nu_r)
+    for i in range(3):
+        damping[i] = damping[i] + d_quad[i] * abs(nu_r[i]) * nu_r[i]
+    cor = np.dot(_coriolis(M - M_A, nu_r) + _coriolis(M_A, nu_r), nu_r)
+    rhs = np.empty(3)
+    for i in range(3):
+        rhs[i] = tau[i] - cor[i] - damping[i]
+    nu_r_dot = np.dot(M_inv, rhs)
+    r = nu[2]
+    nu_new = np.empty(3)
+    nu_new[0] = nu[0] + h * (nu_r_dot[0] + r * v_cb)
+    nu_new[1] = nu[1] + h * (nu_r_dot[1] + -r * u_c)
+    nu_new[2] = nu[2] + h * (nu_r_dot[2] + 0.0)
+    e_dot = np.dot(_rot_z(eta[2]), nu_new)
+    eta_new = np.empty(3)
+    finite = True
+    for i in range(3):
+        eta_new[i] = eta[i] + h * e_dot[i]
+        finite = finite and math.isfinite(eta_new[i]) and math.isfinite(nu_new[i])
+    return eta_new, nu_new, finite
+
+
+@_jit
+def _fairleads(eta, p_cot, p_T, turret_angle, locked, fx, fy, rx, ry):  # pragma: no cover - compiled
+    """Fairlead positions (fx, fy) in {E} [m] at pose ``eta`` (eq. 5,
+    :meth:`MooringModel.fairleads <tapm_opt.models.mooring.MooringModel.fairleads>`) and the
+    lever arms (rx, ry) of :meth:`MooringFEM._levers <tapm_opt.plant.mooring_fem.MooringFEM._levers>`."""
+    psi = eta[2]
+    alpha_t = turret_angle if locked else turret_angle - psi
+    c = math.cos(psi)
+    s = math.sin(psi)
+    cx = c * p_cot[0] - s * p_cot[1]
+    cy = s * p_cot[0] + c * p_cot[1]
+    ang = psi + alpha_t
+    ct = math.cos(ang)
+    st = math.sin(ang)
+    for j in range(p_T.shape[0]):
+        fx[j] = eta[0] + cx + (ct * p_T[j, 0] - st * p_T[j, 1])
+        fy[j] = eta[1] + cy + (st * p_T[j, 0] + ct * p_T[j, 1])
+        if locked:
+            rx[j] = fx[j] - eta[0]
+            ry[j] = fy[j] - eta[1]
+        else:
+            rx[j] = cx
+            ry[j] = cy
+
+
+@_jit
+def mooring_step(pose0, pose1, rate_prev, h, n_sub, p_cot, p_T, turret_angle, locked, z_fl,
+                 r, v, vc, l0, EA, c_int, bond_ok, node_weight, node_mass, cdn, cdt, can_half, cat_half,
+                 kb, cb, mu, depth, has_int_damping, has_friction,
+                 anchor_idx, anchors, fairlead_idx, attached, fairlead_seg, anchor_seg, active,
+                 strength):  # pragma: no cover - compiled
+    """The mooring part of the plant's outer step of ``h`` seconds in ``n_sub`` FEM substeps.
+
+    The fairleads follow the total pose interpolated linearly from ``pose0`` to ``pose1`` (each
+    (3,) [m, m, rad]) at the constant rate ``(pose1 - pose0) / h`` (:meth:`MooringFEM.advance
+    <tapm_opt.plant.mooring_fem.MooringFEM.advance>`); then, at ``pose1``, the fairlead
+    accelerations from the change of rate since ``rate_prev`` (:meth:`MooringFEM.fairlead_acceleration
+    <tapm_opt.plant.mooring_fem.MooringFEM.fairlead_acceleration>`) and the load of the lines on
+    the vessel (:meth:`MooringFEM.tau <tapm_opt.plant.mooring_fem.MooringFEM.tau>`).
+
+    Returns
+    -------
+    r, v : ndarray (n_nodes, 3)
+        Node positions [m] and velocities [m/s] after the substeps (new arrays).
+    T : ndarray (n_nodes - 1,)
+        Bond tensions at the start of the last substep [N].
+    r_fl : ndarray (n_lines, 3)
+        Fairlead positions of the last substep [m].
+    rate : ndarray (3,)
+        The pose rate over the step [m/s, m/s, rad/s].
+    a_fl : ndarray (n_lines, 3)
+        Fairlead accelerations [m/s^2].
+    tau : ndarray (3,)
+        Load of the lines on the vessel in {B} [N, N, N m].
+    near : bool
+        Some intact line's fairlead or anchor tension bound is within 2 % of its ``strength`` [N]
+        (``Plant._check_overload`` must look).
+    suspect : bool
+        Some node state is non-finite or faster than 99 m/s (``FEMLines.check_health`` must look).
+    """
+    nl = p_T.shape[0]
+    rate = np.empty(3)
+    d = np.empty(3)
+    for c in range(3):
+        d[c] = pose1[c] - pose0[c]
+        rate[c] = d[c] / h
+    fl_r = np.empty((n_sub, nl, 3))
+    fl_v = np.empty((n_sub, nl, 3))
+    fx = np.empty(nl)
+    fy = np.empty(nl)
+    rx = np.empty(nl)
+    ry = np.empty(nl)
+    e = np.empty(3)
+    for s in range(n_sub):
+        frac = (s + 1) / n_sub
+        for c in range(3):
+            e[c] = pose0[c] + frac * d[c]
+        _fairleads(e, p_cot, p_T, turret_angle, locked, fx, fy, rx, ry)
+        for j in range(nl):
+            fl_r[s, j, 0] = fx[j]
+            fl_r[s, j, 1] = fy[j]
+            fl_r[s, j, 2] = z_fl
+            fl_v[s, j, 0] = rate[0] - rate[2] * ry[j]
+            fl_v[s, j, 1] = rate[1] + rate[2] * rx[j]
+            fl_v[s, j, 2] = 0.0
+    r, v, T = advance(r, v, vc, h / n_sub, 0.0, fl_r, fl_v,
+                      l0, EA, c_int, bond_ok, node_weight, node_mass, cdn, cdt, can_half, cat_half,
+                      kb, cb, mu, depth, has_int_damping, has_friction,
+                      anchor_idx, anchors, fairlead_idx, attached, np.zeros((0, nl, 3)))
+    # fairlead accelerations at pose1 (rigid body)
+    _fairleads(pose1, p_cot, p_T, turret_angle, locked, fx, fy, rx, ry)
+    rd = rate[2]
+    rdd = (rate[2] - rate_prev[2]) / h
+    a0 = (rate[0] - rate_prev[0]) / h
+    a1 = (rate[1] - rate_prev[1]) / h
+    a_fl = np.zeros((nl, 3))
+    for j in range(nl):
+        a_fl[j, 0] = a0 - rdd * ry[j] - rd * rd * rx[j]
+        a_fl[j, 1] = a1 + rdd * rx[j] - rd * rd * ry[j]
+    # overload bound (Plant._check_overload) and health (FEMLines.check_health) flags
+    near = False
+    for j in range(nl):
+        b_fl = T[fairlead_seg[j]] + node_weight[fairlead_idx[j]]
+        b_an = T[anchor_seg[j]]
+        if active[j] and not (math.isnan(b_fl) or math.isnan(b_an)):
+            if max(b_fl, b_an) >= 0.98 * strength[j]:
+                near = True
+    suspect = False
+    for k in range(r.shape[0]):
+        sp = v[k, 0] * v[k, 0] + v[k, 1] * v[k, 1] + v[k, 2] * v[k, 2]
+        if not (sp <= 99.0 * 99.0) or not (math.isfinite(r[k, 0]) and math.isfinite(r[k, 1])
+                                           and math.isfinite(r[k, 2])):
+            suspect = True
+    # fairlead forces (FEMLines.fairlead_forces with the current and the accelerations)
+    f_x = np.zeros(nl)
+    f_y = np.zeros(nl)
+    for j in range(nl):
+        if not active[j]:
+            continue
+        fl = fairlead_idx[j]
+        lx, ly, lz, eps, t = _bond(r, v, fairlead_seg[j], l0, EA, c_int, has_int_damping)
+        qx = lx / eps
+        qy = ly / eps
+        qz = lz / eps
+        Fx = -t * qx  # the vertical component (weight, drag) does not load the vessel's 3 DOF
+        Fy = -t * qy
+        vrx = v[fl, 0] - vc[fl, 0]
+        vry = v[fl, 1] - vc[fl, 1]
+        vrz = v[fl, 2] - vc[fl, 2]
+        vt = 0.0 + vrx * qx + vry * qy + vrz * qz
+        vnx = vrx - vt * qx
+        vny = vry - vt * qy
+        vnz = vrz - vt * qz
+        cn = cdn[fl] * eps * math.sqrt(0.0 + vnx * vnx + vny * vny + vnz * vnz)
+        Fx -= cn * vnx
+        Fy -= cn * vny
+        ct = cdt[fl] * eps * abs(vt) * vt
+        Fx -= ct * qx
+        Fy -= ct * qy
+        at = 0.0 + a_fl[j, 0] * qx + a_fl[j, 1] * qy + a_fl[j, 2] * qz
+        mn = node_mass[fl] + can_half[fl] * eps
+        Fx -= mn * (a_fl[j, 0] - at * qx)
+        Fy -= mn * (a_fl[j, 1] - at * qy)
+        mt = (node_mass[fl] + cat_half[fl] * eps) * at
+        f_x[j] = Fx - mt * qx
+        f_y[j] = Fy - mt * qy
+    # load on the vessel (MooringModel.tau_from_forces) at pose1, the fairleads of the last substep
+    psi = pose1[2]
+    Fxs = _pairwise_sum(f_x)
+    Fys = _pairwise_sum(f_y)
+    r_fl = fl_r[n_sub - 1].copy()
+    if locked:
+        m = np.empty(nl)
+        for j in range(nl):
+            m[j] = (r_fl[j, 0] - pose1[0]) * f_y[j] - (r_fl[j, 1] - pose1[1]) * f_x[j]
+        Nz = _pairwise_sum(m)
+    else:
+        c = math.cos(psi)
+        s = math.sin(psi)
+        Nz = (c * p_cot[0] - s * p_cot[1]) * Fys - (s * p_cot[0] + c * p_cot[1]) * Fxs
+    F = np.empty(3)
+    F[0] = Fxs
+    F[1] = Fys
+    F[2] = Nz
+    tau = np.dot(_rot_z(psi).T, F)
+    return r, v, T, r_fl, rate, a_fl, tau, near, suspect

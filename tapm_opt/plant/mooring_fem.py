@@ -18,7 +18,7 @@ from ..errors import ModelError, TapmError
 from ..geometry import rot2_apply
 from ..models import catenary
 from ..models.mooring import MooringModel
-from .fem import FEMLines, LineSet
+from .fem import FEMLines, LineSet, _as_f64
 
 __all__ = ["MooringFEM", "SettleInfo", "SettlingNotConverged", "line_set_from_scenario"]
 
@@ -96,6 +96,8 @@ class MooringFEM:
             raise ModelError(f"geometry has {geometry.n_lines} lines, the scenario {len(scenario.lines)}: the "
                              f"FEM plant needs the intact line system")
         self.geometry = geometry if geometry is not None else MooringModel.from_scenario(scenario)
+        self._p_cot = np.array(self.geometry.p_cot_B, dtype=float)  # the compiled step's geometry arrays
+        self._p_T = np.array(self.geometry.p_T, dtype=float, order="C")
         env = scenario.environment
         self.fem = FEMLines(line_set_from_scenario(scenario, segments=segments), np.array(scenario.anchors),
                             water_depth=env.water_depth, rho_w=env.water_density)
@@ -270,6 +272,35 @@ class MooringFEM:
         T = self.fem.advance(self.dt, r_seq, v_seq, self._update_current(), fairlead_force_out=fairlead_force_out)
         self._r_fl = r_seq[-1]
         return T
+
+    def outer_step_compiled(self, pose0: np.ndarray, pose1: np.ndarray, rate_prev: np.ndarray, h: float,
+                            n_sub: int, strength: np.ndarray):
+        """A plant outer step of the lines in one compiled call (:func:`tapm_opt.plant.fem_kernel.mooring_step`;
+        the FEM kernel must be "numba"): the same as :meth:`advance` over ``n_sub`` steps of
+        ``self.dt = h / n_sub`` along the poses from ``pose0`` to ``pose1`` [m, m, rad] at the
+        rate ``(pose1 - pose0) / h``, then :meth:`fairlead_acceleration` at ``pose1`` from the
+        change of rate since ``rate_prev`` over ``h`` [s], and :meth:`tau` at ``pose1``.
+
+        Returns the bond tensions at the start of the last step [N], the rate (3,), the fairlead
+        accelerations (n_lines, 3) [m/s^2], the load on the vessel (3,) [N, N, N m] in {B} and the
+        flags ``near`` (a line's tension bound within 2 % of ``strength`` [N]) and ``suspect``
+        (a node state for :meth:`FEMLines.check_health` to look at).
+        """
+        from . import fem_kernel
+
+        fem, g = self.fem, self.geometry
+        self.dt = h / n_sub
+        shape = (fem.n_nodes, 3)
+        r, v, T, self._r_fl, rate, a_fl, tau, near, suspect = fem_kernel.mooring_step(
+            pose0, pose1, rate_prev, float(h), int(n_sub), self._p_cot, self._p_T, float(g.turret_angle),
+            g.turret_mode == "locked", self.fairlead_z,
+            _as_f64(fem.r, shape, "r"), _as_f64(fem.v, shape, "v"), _as_f64(self._update_current(), shape, "v_current"),
+            *fem._kernel_constants(), fem.fairlead_seg, fem.anchor_seg, fem.active, strength)
+        fem.r, fem.v = r, v
+        dt = self.dt
+        for _ in range(n_sub):  # the same sum as n single steps (FEMLines._advance_compiled)
+            fem.t += dt
+        return T, rate, a_fl, tau, near, suspect
 
     def fairlead_acceleration(self, eta: np.ndarray, eta_dot: np.ndarray, eta_ddot: np.ndarray) -> np.ndarray:
         """Fairlead accelerations in {E} (n_lines, 3) [m/s^2] for the vessel pose, rate and

@@ -17,6 +17,11 @@ A scenario with a riser also gets its quasi-static end angles
 instantaneous hang-off (LF + wave-frequency pose) and the sea state's current, at the end of
 every outer step; the riser does not load the vessel ([R] §2.1).
 
+With numba, the thrusters, the vessel and the lines of the outer step run as compiled kernels
+(:mod:`tapm_opt.plant.fem_kernel`, :attr:`Plant.compiled`) that repeat the numpy path's operations
+in its order, so both give the same numbers; the environment (wind, waves, current) and the riser
+stay in numpy.
+
 The controller sees the plant only through :meth:`Plant.measure` (sensors), as a real one would.
 """
 
@@ -35,6 +40,7 @@ from ..models.riser import RiserModel
 from ..models.system import System
 from ..models.vessel import vessel_rhs
 from ..results import Result, ResultBuilder
+from . import fem_kernel
 from .environment import Environment, PlantError
 from .fem import SimulationDiverged
 from .mooring_fem import MooringFEM, SettleInfo
@@ -71,7 +77,18 @@ class Plant:
         a line whose fairlead or anchor tension reaches its strength breaks at its fairlead and
         the break is logged as an event. The strength is the MBS ('mbs'), a draw from
         N(MBS, MBS_std) per line with this plant's seed ('sampled'), or infinite ('never').
+
+    Attributes
+    ----------
+    compiled : bool
+        Run the outer step's thrusters, vessel and lines as compiled kernels
+        (:mod:`tapm_opt.plant.fem_kernel`: :func:`~tapm_opt.plant.fem_kernel.thruster_step`,
+        :func:`~tapm_opt.plant.fem_kernel.vessel_step`, :func:`~tapm_opt.plant.fem_kernel.mooring_step`)
+        when numba is available and the FEM kernel is "numba" (default True); False: the numpy
+        path. Both give the same numbers (``tests/test_plant_speed_equivalence.py``).
     """
+
+    compiled: bool = True
 
     def __init__(self, scenario: Any, *, sea_state: Any = None, seed: int = 0, segments: int | None = None,
                  wave_frequency: bool = True, faults: Sequence[Any] | None = None, outer_dt: float = 0.1,
@@ -143,6 +160,7 @@ class Plant:
         self.loads = {"tau_wind": np.zeros(3), "tau_drift": np.zeros(3), "tau_moor": self._tau_moor.copy(),
                       "tau_thr": np.zeros(3)}
         self._steps = 0
+        self._tension_cache: tuple | None = None
         self._dt_stable: float | None = None
         self._h_last = -1.0
         self._n_sub = 1
@@ -152,6 +170,16 @@ class Plant:
         if not self.wave_frequency:
             return np.zeros(3)
         return np.asarray(self.env.eta_wf(t, self.eta[2]), dtype=float)
+
+    def _fairlead_tension(self) -> np.ndarray:
+        """:meth:`MooringFEM.fairlead_tension` [N], evaluated once per outer step (``measure`` and
+        ``sample_row`` at the same instant share it); a copy."""
+        fem = self.mooring.fem
+        key = (fem.r, fem.v, fem._attached)  # replaced, not changed in place, by a step or a break
+        c = self._tension_cache
+        if c is None or c[0] != self._steps or any(a is not b for a, b in zip(key, c[1])):
+            c = self._tension_cache = (self._steps, key, self.mooring.fairlead_tension())
+        return c[2].copy()
 
     @property
     def eta_total(self) -> np.ndarray:
@@ -193,7 +221,7 @@ class Plant:
         if the scenario has a riser) and the thruster feedback (delivered thrust and azimuth,
         failure flags, the generalised thrust they give); with ``truth=True`` also the true LF
         state (:class:`~tapm_opt.interfaces.Truth`), for validation estimators only."""
-        m = self.sensors.sample(self.t, self.eta_total, self.mooring.fairlead_tension(), self._riser_angles)
+        m = self.sensors.sample(self.t, self.eta_total, self._fairlead_tension(), self._riser_angles)
         th = self.thrusters
         tr = Truth(eta=self.eta, nu=self.nu, tau_env=self.loads["tau_wind"] + self.loads["tau_drift"]) if truth else None
         return replace(m, thruster_f=th.f, thruster_alpha=th.alpha, thruster_failed=th.failed, tau_thr=th.tau(),
@@ -276,24 +304,34 @@ class Plant:
         if self._current_turns:   # a turning current, held over the outer step
             self._v_c = self.env.current_surface(t0)[:2]
             self.mooring.current = functools.partial(self.env.current_velocity, t=t0)
-        self.thrusters.step(h, self._cmd.f, self._cmd.alpha)
-        tau_thr = self.thrusters.tau()
+        m = self.mooring
+        compiled = self.compiled and m.fem._kernel_fn is not None  # numba is there and the FEM uses it
+        tau_thr = self.thrusters._advance(h, self._cmd.f, self._cmd.alpha, compiled=compiled)
+        if tau_thr is None:
+            tau_thr = self.thrusters.tau()
         if self.env is not None:
             loads = self.env.loads(t0, self.eta, self.nu)
             tau_wind, tau_drift = loads["tau_wind"], loads["tau_drift"]
         else:
             tau_wind = tau_drift = np.zeros(3)
         tau = tau_thr + tau_wind + tau_drift + self._tau_moor
-        _, nu_dot = vessel_rhs(self.eta, self.nu, tau, self._v_c, self.vessel, form="rich")
-        nu = self.nu + h * np.asarray(nu_dot, dtype=float).ravel()
-        eta = self.eta + h * (rot_z(self.eta[2]) @ nu)
-        if not (np.all(np.isfinite(nu)) and np.all(np.isfinite(eta)) and np.hypot(eta[0], eta[1]) < 1e5):
+        if compiled:
+            ves = self.vessel
+            eta, nu, finite = fem_kernel.vessel_step(self.eta, self.nu, tau, self._v_c, ves.M, ves.M_A, ves.M_inv,
+                                                     ves.D_lin, ves.d_quad, float(h))
+        else:
+            _, nu_dot = vessel_rhs(self.eta, self.nu, tau, self._v_c, self.vessel, form="rich")
+            nu = self.nu + h * np.asarray(nu_dot, dtype=float).ravel()
+            eta = self.eta + h * (rot_z(self.eta[2]) @ nu)
+            finite = np.isfinite(nu).all() and np.isfinite(eta).all()
+        if not (finite and np.hypot(eta[0], eta[1]) < 1e5):
             raise SimulationDiverged(
                 f"vessel state became unphysical at t = {t0:.2f} s (eta = {eta.tolist()}, nu = {nu.tolist()}); "
                 "check the vessel mass and damping, the thruster commands and the environmental loads",
                 time=t0)
         # winches
-        if np.any(self._winch):
+        winching = bool(self._winch.any())  # new lengths change the stable step
+        if winching:
             fem = self.mooring.fem
             fem.L = np.clip(fem.L + h * self._winch, self._L_limits[:, 0], self._L_limits[:, 1])
             fem._update_lengths()
@@ -303,26 +341,35 @@ class Plant:
         self.eta, self.nu = eta, nu
         self._eta_wf = self._wf(self.t)
         pose1 = self.eta + self._eta_wf
-        m = self.mooring
-        winching = bool(np.any(self._winch))  # new lengths change the stable step
         if winching or self._dt_stable is None:
             self._dt_stable = m.fem.stable_dt(m.safety)
         if winching or h != self._h_last:
             self._n_sub = max(1, int(math.ceil(h / self._dt_stable - 1e-9)))
             self._h_last = h
         n_sub = self._n_sub
-        m.dt = h / n_sub
-        rate = (pose1 - pose0) / h
-        # all substeps in one call (the current, if any, held over the outer step: MooringFEM.advance)
-        frac = np.arange(1, n_sub + 1) / n_sub
-        T_bonds = m.advance(pose0 + frac[:, None] * (pose1 - pose0), np.broadcast_to(rate, (n_sub, 3)))
         self._steps += 1
-        if self._steps % 20 == 0:
-            m.fem.check_health()
-        a_fl = m.fairlead_acceleration(pose1, rate, (rate - self._rate) / h)
-        self._rate = rate
-        self._check_overload(T_bonds)
-        self._tau_moor = m.tau(pose1, a_fl)
+        if compiled:  # substeps, fairlead accelerations and the load in one call, the same numbers
+            T_bonds, rate, a_fl, tau_moor, near, suspect = m.outer_step_compiled(pose0, pose1, self._rate, h, n_sub,
+                                                                                 self.strength)
+            if suspect and self._steps % 20 == 0:
+                m.fem.check_health()
+            self._rate = rate
+            if near:  # a line may break: the load without it
+                self._check_overload(T_bonds)
+                tau_moor = m.tau(pose1, a_fl)
+            self._tau_moor = tau_moor
+        else:
+            m.dt = h / n_sub
+            rate = (pose1 - pose0) / h
+            # all substeps in one call (the current, if any, held over the outer step: MooringFEM.advance)
+            frac = np.arange(1, n_sub + 1) / n_sub
+            T_bonds = m.advance(pose0 + frac[:, None] * (pose1 - pose0), np.broadcast_to(rate, (n_sub, 3)))
+            if self._steps % 20 == 0:
+                m.fem.check_health()
+            a_fl = m.fairlead_acceleration(pose1, rate, (rate - self._rate) / h)
+            self._rate = rate
+            self._check_overload(T_bonds)
+            self._tau_moor = m.tau(pose1, a_fl)
         if self.riser is not None:
             self._riser_angles = self.riser.angles_at(pose1)
         self.loads = {"tau_wind": tau_wind, "tau_drift": tau_drift, "tau_moor": self._tau_moor, "tau_thr": tau_thr}
@@ -349,7 +396,7 @@ class Plant:
         """Current values of all :meth:`channels` (true states, not measurements)."""
         m = self.mooring
         parts = [
-            self.eta, self.nu, self._eta_wf, m.fairlead_tension(), m.anchor_tension(), m.fem.L,
+            self.eta, self.nu, self._eta_wf, self._fairlead_tension(), m.anchor_tension(), m.fem.L,
             self.thrusters.f, self.thrusters.alpha, self.thrusters.power(),
             self.loads["tau_thr"], self.loads["tau_moor"], self.loads["tau_wind"], self.loads["tau_drift"],
         ]

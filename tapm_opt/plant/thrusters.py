@@ -118,6 +118,7 @@ class ThrusterBank:
         self._f = np.zeros(n)
         self._alpha = self._alpha0.copy()
         self._failed = np.zeros(n, dtype=bool)
+        self._dt_decay = math.nan  # step of the cached lag factors (_advance)
 
     @classmethod
     def from_scenario(cls, scenario: schema.Scenario, **kw: Any) -> ThrusterBank:
@@ -195,15 +196,38 @@ class ThrusterBank:
             Commanded azimuths [rad] (used by azimuth thrusters only; None: keep). Each azimuth
             turns the shortest way (ssa) at most ``max_azimuth_rate dt``.
         """
-        dt, lim = _pos("dt", dt), self.limits
-        f_sat = np.clip(self._vector("f_cmd", f_cmd), lim.f_min, lim.f_max)
+        dt = _pos("dt", dt)
+        f_cmd = self._vector("f_cmd", f_cmd)
         a_cmd = None if alpha_cmd is None else self._vector("alpha_cmd", alpha_cmd)  # all checked first
-        f_lag = f_sat + (self._f - f_sat) * np.exp(-dt / lim.T)
-        f = self._f + np.clip(f_lag - self._f, -lim.rate * dt, lim.rate * dt)
+        self._advance(dt, f_cmd, a_cmd)
+
+    def _advance(self, dt: float, f_cmd: np.ndarray, alpha_cmd: np.ndarray | None, *,
+                 compiled: bool = False) -> np.ndarray | None:
+        """:meth:`step` on checked commands (dt [s] > 0, float arrays (n,) [N], [rad]).
+
+        ``compiled``: run the compiled kernel (:func:`tapm_opt.plant.fem_kernel.thruster_step`,
+        the same operations in the same order) and return the new :meth:`tau` (3,) [N, N, N m];
+        otherwise the numpy path, returning None. The caller checks that numba is available.
+        """
+        lim = self.limits
+        if self._dt_decay != dt:  # exp(-dt / T) of the first-order lag, once per step length
+            self._dt_decay, self._decay = dt, np.exp(-dt / lim.T)
+            self._rate_dt, self._alpha_rate_dt = lim.rate * dt, lim.alpha_rate * dt
+        if compiled:
+            from . import fem_kernel
+
+            return fem_kernel.thruster_step(self._f, self._alpha, self._failed, f_cmd,
+                                            self._f if alpha_cmd is None else alpha_cmd, alpha_cmd is not None,
+                                            lim.f_min, lim.f_max, self._decay, self._rate_dt, self._alpha_rate_dt,
+                                            lim.azimuth, lim.x, lim.y)
+        f_sat = np.clip(f_cmd, lim.f_min, lim.f_max)
+        f_lag = f_sat + (self._f - f_sat) * self._decay
+        f = self._f + np.clip(f_lag - self._f, -self._rate_dt, self._rate_dt)
         self._f = np.where(self._failed, 0.0, f)
-        if a_cmd is not None:
-            da = np.clip(ssa(a_cmd - self._alpha), -lim.alpha_rate * dt, lim.alpha_rate * dt)
+        if alpha_cmd is not None:
+            da = np.clip(ssa(alpha_cmd - self._alpha), -self._alpha_rate_dt, self._alpha_rate_dt)
             self._alpha = np.where(lim.azimuth, ssa(self._alpha + da), self._alpha)
+        return None
 
     # -- outputs -----------------------------------------------------------------------------
     def T_alloc(self, alpha: Any = None) -> np.ndarray:

@@ -1,0 +1,159 @@
+"""The compiled outer step of the plant (``Plant.compiled``: thrusters, vessel and lines as numba
+kernels, :mod:`tapm_opt.plant.fem_kernel`) against the numpy path of the same plant in the same
+process: every logged channel and every event must be bit-identical (np.array_equal), over short
+runs that cover the intact sea state with its riser, a line break, an overload break, winches, a
+thruster failure, a turning current, a locked turret and a closed PID loop. Independent path: the
+numpy reference (``vessel_rhs``, ``ThrusterBank`` numpy step, ``MooringFEM.advance`` /
+``fairlead_acceleration`` / ``tau``), which the compiled path does not call."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+import tapm_opt
+from tapm_opt.config import schema
+from tapm_opt.interfaces import ThrusterCommand
+from tapm_opt.plant import fem_kernel
+from tapm_opt.plant.simulator import Plant, run_open_loop
+
+pytestmark = pytest.mark.skipif(not fem_kernel.AVAILABLE, reason="numba is not installed")
+
+
+@pytest.fixture(scope="module")
+def fpso():
+    return tapm_opt.load_scenario("fpso")
+
+
+@pytest.fixture(scope="module")
+def aamo4():
+    return tapm_opt.load_scenario("aamo4")
+
+
+def _pair(scenario, duration, *, post=None, **kw):
+    """The same open-loop run (10 segments per line unless given) with the compiled and with the
+    numpy outer step: (compiled result, numpy result, compiled plant, numpy plant)."""
+    run_kw = {k: kw.pop(k) for k in ("thruster_cmd", "winch_cmd", "dt_log") if k in kw}
+    kw.setdefault("segments", 10)
+    out = []
+    for compiled in (True, False):
+        p = Plant(scenario, **kw)
+        p.compiled = compiled
+        if post is not None:
+            post(p)
+        out.append((run_open_loop(p, duration, **run_kw), p))
+    (rc, pc), (rn, pn) = out
+    return rc, rn, pc, pn
+
+
+def _cmd(n, f=2.0e5):
+    return ThrusterCommand(np.full(n, f), np.linspace(-2.5, 2.5, n))
+
+
+@pytest.fixture
+def count_kernel(monkeypatch):
+    """Counts the calls of the compiled mooring step (to check the compiled path did run)."""
+    calls = []
+    real = fem_kernel.mooring_step
+
+    def counted(*args):
+        calls.append(1)
+        return real(*args)
+
+    monkeypatch.setattr(fem_kernel, "mooring_step", counted)
+    return calls
+
+
+def test_intact_sea_state_with_riser_is_bit_identical(fpso, count_kernel):
+    rc, rn, pc, pn = _pair(fpso, 30.0, sea_state="normal", seed=1, thruster_cmd=_cmd(len(fpso.thrusters)))
+    assert pc.riser is not None and "riser_top_angle" in rc.channels
+    assert len(count_kernel) == 300  # every outer step of the compiled plant, none of the numpy one
+    assert rc.channels == rn.channels and np.array_equal(rc.time, rn.time)
+    assert np.array_equal(rc.data, rn.data)
+
+
+def test_line_break_is_bit_identical(fpso):
+    brk = [schema.Fault(kind="line_break", time=10.0, line=fpso.lines[0].id)]
+    rc, rn, pc, pn = _pair(fpso, 30.0, sea_state="storm", seed=3, faults=brk, thruster_cmd=_cmd(len(fpso.thrusters)))
+    assert pc.events == pn.events == [(10.0, f"line {fpso.lines[0].id} broke")]
+    assert np.array_equal(rc.data, rn.data)
+    assert np.all(rc.data[rc.time > 10.0, rc.channels.index(f"T_fairlead[{fpso.lines[0].id}]")] == 0.0)
+
+
+def test_overload_break_is_bit_identical(fpso):
+    def weaken(p):  # the most loaded line just above its tension: it breaks from overload
+        T = np.maximum(p.mooring.fairlead_tension(), p.mooring.anchor_tension())
+        j = int(np.argmax(T))
+        p.strength = p.strength.copy()
+        p.strength[j] = 1.01 * T[j]
+
+    rc, rn, pc, pn = _pair(fpso, 20.0, sea_state="storm", seed=5, post=weaken)
+    assert any("overload" in e for _, e in pc.events)
+    assert pc.events == pn.events
+    assert np.array_equal(rc.data, rn.data)
+
+
+def test_winches_are_bit_identical(aamo4):
+    w = np.array([0.2, -0.2, 0.1, 0.0])
+    rc, rn, pc, pn = _pair(aamo4, 30.0, seed=7, winch_cmd=w,
+                           thruster_cmd=lambda t: ThrusterCommand(np.full(len(aamo4.thrusters),
+                                                                          1e5 * (1 + math.sin(t / 5))), None))
+    L = rc.data[:, rc.channels.index(f"L[{aamo4.lines[0].id}]")]
+    assert L[-1] > L[0]  # the winch paid out
+    assert np.array_equal(rc.data, rn.data)
+
+
+def test_thruster_failure_is_bit_identical(fpso):
+    fail = [schema.Fault(kind="thruster_failure", time=5.0, thruster=fpso.thrusters[1].id)]
+    turn = lambda t: ThrusterCommand(np.full(len(fpso.thrusters), 3e5), np.full(len(fpso.thrusters), 0.1 * t))
+    rc, rn, pc, pn = _pair(fpso, 20.0, sea_state="normal", seed=4, faults=fail, thruster_cmd=turn)
+    f = rc.data[:, rc.channels.index(f"f[{fpso.thrusters[1].id}]")]
+    assert np.all(f[rc.time > 5.0] == 0.0) and f[3] > 0.0
+    assert np.array_equal(rc.data, rn.data)
+
+
+def test_turning_current_is_bit_identical(aamo4):
+    rc, rn, pc, pn = _pair(aamo4, 30.0, sea_state="tidal_rotating", seed=6)
+    assert pc._current_turns
+    assert np.array_equal(rc.data, rn.data)
+
+
+def test_locked_turret_and_other_outer_step_are_bit_identical(aamo4):
+    sc = dataclasses.replace(aamo4, turret=dataclasses.replace(aamo4.turret, position=(20.0, 3.0), mode="locked"))
+    rc, rn, pc, pn = _pair(sc, 15.0, seed=8, outer_dt=0.07, dt_log=0.5, thruster_cmd=_cmd(len(sc.thrusters), 1e5))
+    assert pc.mooring.geometry.turret_mode == "locked"
+    assert np.array_equal(rc.data, rn.data)
+
+
+def test_closed_pid_loop_is_bit_identical(fpso):
+    from tapm_opt.models.system import System
+    from tapm_opt.studies.closed_loop import DEFAULT_ESTIMATOR, ClosedLoopSettings, run_closed_loop
+    from tapm_opt.studies.controllers import build_controller
+
+    system = System.from_scenario(fpso)
+    out = []
+    for compiled in (True, False):
+        ctrl = build_controller(system, {"type": "pid"}, where="--option", dt_control=1.0,
+                                estimator=DEFAULT_ESTIMATOR, winch=None)
+        plant = Plant(system, sea_state="normal", seed=0, segments=10)
+        plant.compiled = compiled
+        out.append(run_closed_loop(plant, ctrl, ClosedLoopSettings(duration=20.0, dt_control=1.0, dt_log=1.0),
+                                   system=system))
+    assert out[0].channels == out[1].channels
+    assert np.array_equal(out[0].data, out[1].data)
+
+
+def test_without_numba_the_numpy_path_runs(fpso, monkeypatch):
+    """numba absent (``fem_kernel.AVAILABLE`` False): the FEM falls back to numpy and the plant to
+    its numpy outer step; the run agrees with the compiled one to round-off (the numpy FEM step
+    is not bit-identical to the compiled FEM kernel, tests/test_fem_kernel.py)."""
+    ref = run_open_loop(Plant(fpso, sea_state="normal", seed=1, segments=10), 5.0)
+    monkeypatch.setattr(fem_kernel, "AVAILABLE", False)
+    p = Plant(fpso, sea_state="normal", seed=1, segments=10)
+    assert p.mooring.fem.kernel == "numpy"
+    res = run_open_loop(p, 5.0)
+    assert np.all(np.isfinite(res.data))
+    assert np.allclose(res.data, ref.data, rtol=1e-6, atol=1e-6)
