@@ -94,7 +94,8 @@ def _dp_force_limit(system: Any, winch: Mapping[str, Any] | None, where: str) ->
 
 
 def build_controller(system: Any, spec: Mapping[str, Any] | str, *, where: str = "controller",
-                     dt_control: float = 1.0, estimator: str = "ekf", winch: Mapping[str, Any] | None = None) -> Any:
+                     dt_control: float = 1.0, estimator: str | None = None,
+                     winch: Mapping[str, Any] | None = None) -> Any:
     """A :class:`~tapm_opt.interfaces.Controller` from a specification.
 
     Parameters
@@ -105,8 +106,9 @@ def build_controller(system: Any, spec: Mapping[str, Any] | str, *, where: str =
         ``{"type": ..., option: value, ...}`` (module docstring) or just the type.
     dt_control : float
         The loop's control period [s]: a sea-state supervisor samples the estimate at it.
-    estimator : {"lowpass", "passive", "ekf"}
-        The loop's estimator: a supervisor's expected wave-frequency features are those of its
+    estimator : {"lowpass", "passive", "ekf"}, optional
+        The loop's estimator (default :data:`~tapm_opt.studies.closed_loop.DEFAULT_ESTIMATOR`):
+        a supervisor's expected wave-frequency features are those of its
         ``eta_wf`` (the low-pass estimator's measured-minus-filtered pose, or an observer's wave
         state: the WF motion itself, ``estimator_cutoff=None``).
     winch : mapping or None
@@ -121,6 +123,8 @@ def build_controller(system: Any, spec: Mapping[str, Any] | str, *, where: str =
     ControllerSpecError
         Unknown type or option, or an invalid value (the message names ``where.option``).
     """
+    if estimator is None:
+        from .closed_loop import DEFAULT_ESTIMATOR as estimator
     if isinstance(spec, str):
         spec = {"type": spec}
     spec = dict(spec)
