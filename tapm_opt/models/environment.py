@@ -113,6 +113,9 @@ class CurrentProfile:
             raise ModelError(f"sea_state.current_profile={kind!r}, depths {d.tolist()}, factors {fac.tolist()}: "
                              "need 'uniform', 'linear' (1 factor) or 'piecewise' (increasing depths, 1 factor each)")
         self._depths, self._factors = d, fac
+        # np.interp holds the end factors beyond the end depths: with every depth in [0,
+        # water_depth] (depths are >= 0) it clamps z as phi does, and the clamp can be skipped
+        self._interp_clamps = kind == "piecewise" and bool(d[-1] <= self.water_depth)
         self.surface = np.array([V * math.cos(beta), V * math.sin(beta), 0.0])
         self.surface.flags.writeable = False
 
@@ -127,6 +130,8 @@ class CurrentProfile:
 
     def factor(self, z: Any) -> np.ndarray:
         """Speed factor phi(z) [-] at depths z [m] (positive down), shape of ``z``."""
+        if self.kind == "piecewise" and self._interp_clamps:
+            return np.interp(z, self._depths, self._factors)
         z = np.minimum(np.maximum(z, 0.0), self.water_depth)
         if self.kind == "uniform":
             return np.ones_like(z)
@@ -194,9 +199,15 @@ class HullWindLoad:
         ndarray, shape broadcast + (3,)
             (X [N], Y [N], N [N m]) in {B}.
         """
-        b = np.subtract(beta_w, psi)
-        u_rw = u - V * np.cos(b)
-        v_rw = v - V * np.sin(b)
+        if type(V) is type(beta_w) is type(psi) is type(u) is type(v) is float:
+            # one load of floats (the plant's per-step call): math.cos/sin give numpy's bits, faster
+            b = beta_w - psi
+            cb, sb = math.cos(b), math.sin(b)
+        else:
+            b = np.subtract(beta_w, psi)
+            cb, sb = np.cos(b), np.sin(b)
+        u_rw = u - V * cb
+        v_rw = v - V * sb
         V_rw = np.hypot(u_rw, v_rw)
         parts = (V_rw * u_rw, V_rw * v_rw, u_rw * v_rw)
         # np.array for one load: a control-loop call, several times faster than np.stack

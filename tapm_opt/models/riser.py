@@ -384,7 +384,8 @@ class RiserModel:
         hang-off of :meth:`hangoff_E`) as one vector (top_x, top_y, bottom_x, bottom_y), shape (4,)
         [rad] in {E}: the layout of ``Measurement.riser_angles``. The plant's per-step path."""
         try:
-            x, y, psi = (float(v) for v in eta)
+            x, y, psi = (eta.tolist() if type(eta) is np.ndarray and eta.shape == (3,) and eta.dtype == float
+                         else (float(v) for v in eta))
         except (TypeError, ValueError):
             raise ModelError(f"eta={eta!r} must be 3 numbers (x [m], y [m], psi [rad])") from None
         if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(psi)):

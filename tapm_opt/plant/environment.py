@@ -171,16 +171,19 @@ class WaveField:
         self._drift_c = 0.5 * rho * g * np.array([B, L, p.drift_yaw * L**2])
         self._cache: tuple[float, np.ndarray, np.ndarray] | None = None
         self._dir_cache: tuple[float, Any] | None = None
+        # work arrays of the scalar-time sums (theta, sin theta, cos theta), shape (N,)
+        self._th, self._sin, self._cos = np.empty(N), np.empty(N), np.empty(N)
 
     def _sums(self, t: Any) -> tuple[np.ndarray, np.ndarray]:
         """(W_sin @ sin theta, W_cos @ cos theta), shapes (3, ...) and (4, ...); last t cached."""
-        t = _time(t)
+        if type(t) is not float or not math.isfinite(t):  # a finite float needs no check
+            t = _time(t)
         if isinstance(t, float):
             if self._cache is not None and self._cache[0] == t:
                 return self._cache[1], self._cache[2]
-            th = t * self.omega
+            th = np.multiply(t, self.omega, out=self._th)
             th += self.phase
-            S, C = self._Ws @ np.sin(th), self._Wc @ np.cos(th)
+            S, C = self._Ws @ np.sin(th, out=self._sin), self._Wc @ np.cos(th, out=self._cos)
             self._cache = (t, S, C)
             return S, C
         th = t[..., None] * self.omega + self.phase
@@ -224,6 +227,8 @@ class WaveField:
     def tau_drift(self, t: Any, psi: float) -> np.ndarray:
         """Mean + slowly varying drift load in {B} [N, N, N m] (Newman), shape t.shape + (3,)."""
         q = self._sums(t)[1][1]
+        if np.ndim(q) == 0:
+            return 2.0 * q * q * self._dirs(psi)[3]
         return np.multiply.outer(2.0 * q * q, self._dirs(psi)[3])
 
 
@@ -281,14 +286,16 @@ class Wind:
         self._w = 2.0 * math.pi * self.freq
         self.mean_speed = self.U10 * (1.0 + 0.0573 * math.sqrt(1.0 + 0.148 * self.U10) * math.log(p.height / 10))
         self.hull = HullWindLoad(c_x=p.c_x, c_y=p.c_y, c_n=p.c_n, A_F=A_F, A_L=A_L, L_pp=L, rho_a=rho_a)
+        self._th = np.empty(df.size)  # work array of the scalar-time speed (phase, then its cosine)
 
     def speed(self, t: Any) -> Any:
         """Wind speed V(t) at the reference height [m/s], float or shape of ``t``."""
-        t = _time(t)
+        if type(t) is not float or not math.isfinite(t):  # a finite float needs no check
+            t = _time(t)
         if isinstance(t, float):
-            th = t * self._w
+            th = np.multiply(t, self._w, out=self._th)
             th += self.phase
-            return max(self.mean_speed + float(self.amplitude @ np.cos(th)), 0.0)
+            return max(self.mean_speed + float(self.amplitude @ np.cos(th, out=th)), 0.0)
         return np.maximum(self.mean_speed + np.cos(t[..., None] * self._w + self.phase) @ self.amplitude, 0.0)
 
     def tau_wind(self, t: float, psi: float, nu: Any = None) -> np.ndarray:
@@ -299,9 +306,10 @@ class Wind:
         if nu is None:
             return self.hull.tau(V, self.direction, psi)
         nu = np.asarray(nu, dtype=float)
-        if nu.shape != (3,) or not np.isfinite(nu).all():
+        u_v_r = nu.tolist() if nu.shape == (3,) else None  # floats: the scalar path of HullWindLoad.tau
+        if u_v_r is None or not all(map(math.isfinite, u_v_r)):
             raise PlantError(f"nu={nu.tolist()} must be 3 finite numbers (u, v, r) in {{B}}")
-        return self.hull.tau(V, self.direction, psi, float(nu[0]), float(nu[1]))
+        return self.hull.tau(V, self.direction, psi, u_v_r[0], u_v_r[1])
 
 
 class Environment:
