@@ -32,9 +32,11 @@ def _blas_agrees() -> bool:
         return np.dot(M, v)
 
     rng = np.random.default_rng(1)
-    for _ in range(200):
+    for _ in range(200):   # the kernels' shapes: (3, 3) @ (3,), its transpose (Fortran order), (3, n) @ (n,)
         M, v = rng.normal(size=(3, 3)) * 1e6, rng.normal(size=3)
-        if not np.array_equal(dot(M, v), M @ v):
+        T, f = rng.normal(size=(3, 6)), rng.normal(size=6) * 1e5
+        if not (np.array_equal(dot(M, v), M @ v) and np.array_equal(dot(M.T, v), M.T @ v)
+                and np.array_equal(dot(T, f), T @ f)):
             return False
     return True
 

@@ -96,6 +96,8 @@ class _MPCBase:
         eta, nu = np.asarray(est.eta, float), np.asarray(est.nu, float)
         if eta.shape != (3,) or nu.shape != (3,) or not (np.all(np.isfinite(eta)) and np.all(np.isfinite(nu))):
             raise MPCError(f"estimate eta = {eta.tolist()}, nu = {nu.tolist()} must be finite 3-vectors")
+        if not (isinstance(est.t, (int, float, np.floating)) and math.isfinite(est.t)):
+            raise MPCError(f"estimate t = {est.t!r} must be a finite time [s]")
         eta_d = np.asarray(sp.eta_d, float).copy()
         tau_env = np.asarray(est.tau_env, float)
         for name, v in (("estimate tau_env", tau_env), ("setpoint eta_d", eta_d)):
@@ -566,12 +568,12 @@ class LinearMPC(_MPCBase):
 
 def _low_pass_step(x_lf: np.ndarray | None, t_lf: float | None, x: Any, t: float, T: float) -> np.ndarray:
     """First-order low-pass filter of time constant ``T`` [s], exact for ``x`` held since ``t_lf``:
-    the filtered value at ``t`` from the one at ``t_lf``; it starts (and restarts, should time go
-    back) at ``x``."""
+    the filtered value at ``t`` from the one at ``t_lf``; it starts at ``x`` and holds its value
+    should time go back."""
     x = np.array(x, float)
-    if x_lf is None or t_lf is None or t < t_lf:
+    if x_lf is None or t_lf is None:
         return x
-    a = math.exp(-(t - t_lf) / T)
+    a = math.exp(-max(t - t_lf, 0.0) / T)   # time going back holds the value
     return a * x_lf + (1.0 - a) * x
 
 

@@ -125,7 +125,7 @@ class MPCSettings:
         holds it constant over the horizon; 0 (default): the estimate as it comes. Filtering moves
         the MPC along its offset-energy trade-off: measured behind the EKF, 200 s gave the main
         job 50.0 m / 5 s outside the safe circle / 18.13 MWh against 50.7 m / 21 s / 19.43 MWh,
-        but in the sweep's collinear storm 5-20 % less energy for up to 7 m more offset and more
+        but in the sweep's collinear storm 5-19 % less energy for up to 7.4 m more offset and more
         time outside (docs/estimation.md).
     """
 

@@ -680,10 +680,14 @@ class OptimalSetpoint:
                 target, info = prob.solve(wp, starts=(self.target,) if warm else (self.target, self.p), warm=warm)
                 if warm and not info["success"]:   # the re-solve stopped early: every start
                     target, info = prob.solve(wp, starts=(self.target, self.p))
-                if not info["success"] and self._solved_for == broken:
-                    # no start converged: move only to a point better than the present target
+                if not info["success"]:
+                    # no start converged: move only to a point inside the offset limit that costs
+                    # less than the present target (on this problem: after a break, the reduced one)
                     J_keep = prob.evaluate(self.target, wp)["J_total"]
-                    if not info.get("J", math.inf) < J_keep:
+                    J_new = float(info.get("J", math.nan))
+                    ok = (math.isfinite(J_new) and float(np.hypot(*np.asarray(target, float))) <= prob.R_max + 1e-9
+                          and (J_new < J_keep or not math.isfinite(J_keep)))
+                    if not ok:
                         target, info = self.target, {**info, "J": J_keep, "kept": True}
             self.target = np.asarray(target, float)
             self._t_solve = float(t)

@@ -200,7 +200,7 @@ class HullWindLoad:
             (X [N], Y [N], N [N m]) in {B}.
         """
         if type(V) is type(beta_w) is type(psi) is type(u) is type(v) is float:
-            # one load of floats (the plant's per-step call): math.cos/sin give numpy's bits, faster
+            # one load of floats (the plant's per-step call): math.cos/sin, the C library's (numpy's own bits except where it has AVX-512 sin/cos), faster
             b = beta_w - psi
             cb, sb = math.cos(b), math.sin(b)
         else:

@@ -369,8 +369,9 @@ def vessel_step(eta, nu, tau, v_c, M, M_A, M_inv, D_lin, d_quad, h):  # pragma: 
     The equation is defined once, symbolically, in :func:`~tapm_opt.models.vessel.vessel_rhs` (the
     CasADi function the design models and the MPC use); this is its numeric evaluation in the same
     floating-point order, for the plant's inner loop. ``tests/test_plant_speed_equivalence.py``
-    holds the two to the bit (``Plant.compiled`` against the CasADi path): a change to one that is
-    not made to the other fails there.
+    holds the plant's two paths to the bit (``Plant.compiled`` against the numeric evaluation of
+    ``vessel_rhs``; to round-off on a machine whose numpy has its own float64 sin/cos): a change to
+    one that is not made to the other fails there.
 
     Parameters
     ----------

@@ -40,7 +40,6 @@ from ..models.riser import RiserModel
 from ..models.system import System
 from ..models.vessel import vessel_rhs
 from ..results import Result, ResultBuilder
-from . import fem_kernel
 from .environment import Environment, PlantError
 from .fem import SimulationDiverged
 from .mooring_fem import MooringFEM, SettleInfo
@@ -304,8 +303,11 @@ class Plant:
         if self._current_turns:   # a turning current, held over the outer step
             self._v_c = self.env.current_surface(t0)[:2]
             self.mooring.current = functools.partial(self.env.current_velocity, t=t0)
+        self._tension_cache = None   # the state changes below: no tension of the last instant holds
         m = self.mooring
         compiled = self.compiled and m.fem._kernel_fn is not None  # numba is there and the FEM uses it
+        if compiled:
+            from . import fem_kernel   # loaded with the compiled FEM (numba) already
         tau_thr = self.thrusters._advance(h, self._cmd.f, self._cmd.alpha, compiled=compiled)
         if tau_thr is None:
             tau_thr = self.thrusters.tau()
