@@ -174,7 +174,7 @@ class Plant:
         """:meth:`MooringFEM.fairlead_tension` [N], evaluated once per outer step (``measure`` and
         ``sample_row`` at the same instant share it); a copy."""
         fem = self.mooring.fem
-        key = (fem.r, fem.v, fem._attached)  # replaced, not changed in place, by a step or a break
+        key = (fem.r, fem.v, fem._attached)  # a break between steps replaces _attached
         c = self._tension_cache
         if c is None or c[0] != self._steps or any(a is not b for a, b in zip(key, c[1])):
             c = self._tension_cache = (self._steps, key, self.mooring.fairlead_tension())
@@ -309,8 +309,6 @@ class Plant:
         if compiled:
             from . import fem_kernel   # loaded with the compiled FEM (numba) already
         tau_thr = self.thrusters._advance(h, self._cmd.f, self._cmd.alpha, compiled=compiled)
-        if tau_thr is None:
-            tau_thr = self.thrusters.tau()
         if self.env is not None:
             loads = self.env.loads(t0, self.eta, self.nu)
             tau_wind, tau_drift = loads["tau_wind"], loads["tau_drift"]

@@ -202,12 +202,12 @@ class ThrusterBank:
         self._advance(dt, f_cmd, a_cmd)
 
     def _advance(self, dt: float, f_cmd: np.ndarray, alpha_cmd: np.ndarray | None, *,
-                 compiled: bool = False) -> np.ndarray | None:
+                 compiled: bool = False) -> np.ndarray:
         """:meth:`step` on checked commands (dt [s] > 0, float arrays (n,) [N], [rad]).
 
         ``compiled``: run the compiled kernel (:func:`tapm_opt.plant.fem_kernel.thruster_step`,
-        the same operations in the same order) and return the new :meth:`tau` (3,) [N, N, N m];
-        otherwise the numpy path, returning None. The caller checks that numba is available.
+        the same operations in the same order), else the numpy path; either way returns the new
+        :meth:`tau` (3,) [N, N, N m]. The caller checks that numba is available.
         """
         lim = self.limits
         if self._dt_decay != dt:  # exp(-dt / T) of the first-order lag, once per step length
@@ -227,7 +227,7 @@ class ThrusterBank:
         if alpha_cmd is not None:
             da = np.clip(ssa(alpha_cmd - self._alpha), -self._alpha_rate_dt, self._alpha_rate_dt)
             self._alpha = np.where(lim.azimuth, ssa(self._alpha + da), self._alpha)
-        return None
+        return self.tau()
 
     # -- outputs -----------------------------------------------------------------------------
     def T_alloc(self, alpha: Any = None) -> np.ndarray:
