@@ -499,6 +499,10 @@ class LinearMPC(_MPCBase):
         # cost f(0) at p (the QP solvers report f(z) - f(0))
         f_all = ca.Function("qp_data", [z, p], [_nonzeros(H), _nonzeros(Aq), ca.gradient(prob.f, z), prob.g, prob.f])
         self._qp_data = lambda pv: f_all(zero, pv)
+        # piqp: H and A as the sparse matrices the conic takes, straight from CasADi (no round trip
+        # through numpy: 7 of 48 ms per step at N = 50)
+        self._qp_mats = ca.Function("qp_mats", [z, p], [H, Aq, ca.gradient(prob.f, z), prob.g, prob.f])
+        self._lbg, self._ubg = ca.DM(prob.lbg), ca.DM(prob.ubg)
         self._qp = None
 
     def _csc(self, spy: ca.Sparsity, data: np.ndarray) -> sp.csc_matrix:
@@ -516,10 +520,12 @@ class LinearMPC(_MPCBase):
             x_op = np.concatenate([self._centre(eta, eta_d), np.zeros(3)])
             u_op = np.zeros(self._n_u)
         p[pi["x_op"]], p[pi["u_op"]], p[pi["b_op"]] = x_op, u_op, p[pi["b"]]
+        if self.qp_solver == "piqp":
+            H, A, q, g0, f0 = self._qp_mats(0.0, p)
+            self._f0 = float(f0)
+            return self._solve_conic(t, H, A, q, g0)
         Hx, Ax, q, g0, f0 = (np.asarray(v, float).ravel() for v in self._qp_data(p))
         self._f0 = float(f0[0])
-        if self.qp_solver == "piqp":
-            return self._solve_conic(t, Hx, Ax, q, g0)
         big = 1e20
         lbz = np.where(np.isfinite(prob.lbz), prob.lbz, -big)
         ubz = np.where(np.isfinite(prob.ubz), prob.ubz, big)
@@ -544,15 +550,14 @@ class LinearMPC(_MPCBase):
         cost = float(res.info.obj_val) + self._f0 if ok else math.nan
         return self._finish(t, z, ok, str(res.info.status), dt, int(res.info.iter), cost)
 
-    def _solve_conic(self, t: float, Hx: np.ndarray, Ax: np.ndarray, q: np.ndarray, g0: np.ndarray) -> np.ndarray:
+    def _solve_conic(self, t: float, H: ca.DM, A: ca.DM, q: ca.DM, g0: ca.DM) -> np.ndarray:
+        """piqp through CasADi's conic on the QP data as CasADi matrices (``_qp_mats``)."""
         prob = self._prob
         if self._qp is None:
             self._qp = self._conic
-        H = ca.DM(self._H_sp, Hx)
-        A = ca.DM(self._A_sp, Ax)
         t0 = time.perf_counter()
         try:
-            sol = self._qp(h=H, g=q, a=A, lba=prob.lbg - g0, uba=prob.ubg - g0, lbx=prob.lbz, ubx=prob.ubz)
+            sol = self._qp(h=H, g=q, a=A, lba=self._lbg - g0, uba=self._ubg - g0, lbx=prob.lbz, ubx=prob.ubz)
             st = self._qp.stats()
             ok = bool(st.get("success", False))
             status = str(st.get("return_status", "unknown"))
