@@ -15,6 +15,7 @@ from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
+import piqp
 import pytest
 import scipy.linalg
 
@@ -489,8 +490,9 @@ def test_ipopt_iteration_limit_falls_back_without_a_plan(fpso):
     assert np.array_equal(tau, np.zeros(3))
 
 
-@pytest.mark.parametrize("qp_solver", ["piqp", "osqp"])
-def test_failed_qp_applies_shifted_previous_plan(fpso, monkeypatch, qp_solver):
+@pytest.mark.parametrize("qp_solver, failure", [("piqp", "status"), ("piqp", "error"), ("osqp", "status")])
+def test_failed_qp_applies_shifted_previous_plan(fpso, monkeypatch, qp_solver, failure):
+    """A QP that stops unsolved (or raises) is reported and the shifted previous plan applied."""
     s = MPCSettings(**QUADRATIC)
     cap, _ = capacity(fpso)
     ctrl = LinearMPC(fpso, s, qp_solver=qp_solver)
@@ -501,12 +503,13 @@ def test_failed_qp_applies_shifted_previous_plan(fpso, monkeypatch, qp_solver):
                                                               obj_val=math.nan, iter=20000))
         monkeypatch.setattr(ctrl._qp, "solve", lambda *args, **kwargs: failed)
         expect = "maximum iterations reached"
-    else:
-        def broken(**kwargs):
-            raise RuntimeError("Error in Function::call for 'lmpc': maximum iterations reached")
+    else:   # the solver stops at its iteration limit, or raises on bad data
+        def broken():
+            raise ValueError("P must be square\nmore")
 
-        monkeypatch.setattr(ctrl, "_qp", broken)
-        expect = "error: Error in Function::call for 'lmpc': maximum iterations reached"
+        stop = (lambda: piqp.Status.PIQP_MAX_ITER_REACHED) if failure == "status" else broken
+        monkeypatch.setattr(ctrl, "_qp", SimpleNamespace(update=lambda **kw: None, solve=stop, result=ctrl._qp.result))
+        expect = "PIQP_MAX_ITER_REACHED" if failure == "status" else "error: P must be square"
     tau = ctrl.update(s.dt, est(X0), SP0)
     d = ctrl.diagnostics[-1]
     assert d.fallback and not d.success and d.status == expect
@@ -732,8 +735,8 @@ def test_linear_mpc_qp_moves_with_the_operating_point_on_one_sparsity(fpso):
     for x in (X0, X0 + np.array([30.0, 0.0, 0.0, 0.0, 0.0, 0.0])):
         p = ctrl._params(est(x), SP0)
         p[pi["x_op"]], p[pi["u_op"]], p[pi["b_op"]] = p[pi["x0"]], p[pi["u_prev"]], p[pi["b"]]
-        data.append([np.asarray(v).ravel() for v in ctrl._qp_data(p)])
-    assert data[0][1].shape == data[1][1].shape == (ctrl._A_sp.nnz(),)
+        data.append([v.copy() for v in ctrl._qp_arrays(p)])
+    assert data[0][1].shape == data[1][1].shape == (ctrl._mats[1][0].nnz(),)
     assert np.max(np.abs(data[0][1] - data[1][1])) > 1e-3
     x = 0.1 * X0
     a, b = LinearMPC(fpso, MPCSettings(**QUADRATIC)), NonlinearMPC(fpso, MPCSettings(**QUADRATIC))

@@ -44,7 +44,10 @@ from ..models.system import as_system
 from .mpc_problem import (MPCError, MPCSettings, MPCStep, _Problem, build_problem, mooring_parameters,
                           polytope_parameters)
 
-__all__ = ["MPCSettings", "MPCError", "NonlinearMPC", "LinearMPC", "build_problem", "MPCStep"]
+__all__ = ["MPCSettings", "MPCError", "NonlinearMPC", "LinearMPC", "build_problem", "MPCStep", "LINEAR_QP_SOLVERS"]
+
+#: QP solvers of :class:`LinearMPC`.
+LINEAR_QP_SOLVERS = ("piqp", "osqp")
 
 
 # ------------------------------------------------------------------------------------------
@@ -464,18 +467,20 @@ class LinearMPC(_MPCBase):
     and solves (no problem construction in the loop). ``linearise_about="setpoint"`` linearises
     about the setpoint at rest with the present heading instead.
 
-    ``qp_solver="piqp"`` (default) solves it with the sparse proximal interior-point piqp through
-    CasADi's ``conic``; ``"osqp"`` with OSQP (set up once, values updated, warm-started from the
-    shifted plan). In the fpso storm closed loop OSQP stopped at its iteration limit or "solved
-    inaccurate" on 2–7 of 720 steps with the thrust polytope in the problem; piqp on none, at a
-    similar time per step. ``eps_abs``, ``eps_rel``: OSQP's tolerances (piqp keeps its defaults).
+    ``qp_solver="piqp"`` (default) solves it with the sparse proximal interior-point solver piqp
+    (its own package, set up once, the values updated each step; the dynamics as equality rows, the
+    rest as two-sided rows and bounds); ``"osqp"`` with OSQP (set up once, values updated,
+    warm-started from the shifted plan). In the fpso storm closed loop OSQP stopped at its
+    iteration limit or "solved inaccurate" on 2–7 of 720 steps with the thrust polytope in the
+    problem; piqp on none. The QP data are evaluated by CasADi straight into numpy arrays (no
+    per-step conversion). ``eps_abs``, ``eps_rel``: OSQP's tolerances (piqp keeps its defaults).
     """
 
     def __init__(self, system: Any, settings: MPCSettings = MPCSettings(), *, qp_solver: str = "piqp",
                  eps_abs: float = 1e-5, eps_rel: float = 1e-5, period: float | None = None):
         super().__init__(system, settings, period=period)
-        if qp_solver not in ("piqp", "osqp"):
-            raise MPCError(f"qp_solver = {qp_solver!r} is not one of piqp, osqp")
+        if qp_solver not in LINEAR_QP_SOLVERS:
+            raise MPCError(f"qp_solver = {qp_solver!r} is not one of {', '.join(LINEAR_QP_SOLVERS)}")
         self.qp_solver = qp_solver
         self._eps = (eps_abs, eps_rel)
         prob = build_problem(self.system, settings, linear=True, model=self.model, riser=self.riser)
@@ -483,30 +488,45 @@ class LinearMPC(_MPCBase):
         z, p = prob.z, prob.p
         nz = z.numel()
         self._nz = nz
-        Hfull = ca.hessian(prob.f, z)[0]
-        zero = ca.DM.zeros(nz)
+        H = ca.triu(ca.hessian(prob.f, z)[0])   # both solvers read the upper triangle
         if qp_solver == "osqp":
             import osqp
 
             self._osqp_mod = osqp
-            H = ca.triu(Hfull)
-            Aq = ca.jacobian(ca.vertcat(prob.g, z), z)  # the constraints, then the bounds as rows
+            blocks = [ca.jacobian(ca.vertcat(prob.g, z), z)]  # the constraints, then the bounds as rows
         else:
-            H, Aq = Hfull, ca.jacobian(prob.g, z)
-            self._conic = ca.conic("lmpc", "piqp", {"h": H.sparsity(), "a": Aq.sparsity()}, {"error_on_fail": False})
-        self._H_sp, self._A_sp = H.sparsity(), Aq.sparsity()
-        # the QP in the step from z = 0: H, A (nonzeros in CSC order), the gradient q, g(0) and the
-        # cost f(0) at p (the QP solvers report f(z) - f(0))
-        f_all = ca.Function("qp_data", [z, p], [_nonzeros(H), _nonzeros(Aq), ca.gradient(prob.f, z), prob.g, prob.f])
-        self._qp_data = lambda pv: f_all(zero, pv)
-        # piqp: H and A as the sparse matrices the conic takes, straight from CasADi (no round trip
-        # through numpy: 7 of 48 ms per step at N = 50)
-        self._qp_mats = ca.Function("qp_mats", [z, p], [H, Aq, ca.gradient(prob.f, z), prob.g, prob.f])
-        self._lbg, self._ubg = ca.DM(prob.lbg), ca.DM(prob.ubg)
+            import piqp
+
+            self._piqp_mod = piqp
+            self._eq = np.isfinite(prob.lbg) & (prob.lbg == prob.ubg)   # the dynamics and the initial state
+            rows = np.arange(len(prob.lbg))
+            blocks = [ca.jacobian(prob.g[rows[self._eq].tolist()], z), ca.jacobian(prob.g[rows[~self._eq].tolist()], z)]
+        # the QP in the step from z = 0 at the parameters p: the nonzeros (CSC order) of H and of each
+        # constraint block, the gradient q, g(0) and the cost f(0) (the solvers report f(z) - f(0)),
+        # evaluated into numpy buffers set up once
+        outs = [_nonzeros(H), *(_nonzeros(B) for B in blocks), ca.gradient(prob.f, z), prob.g, prob.f]
+        fun = ca.Function("qp_data", [z, p], outs)
+        fun = ca.Function("qp_data_p", [p], fun(ca.DM.zeros(nz), p))
+        self._p_buf = np.zeros(p.numel())
+        self._data = [np.zeros(o.numel()) for o in outs]
+        self._buf, self._eval = fun.buffer()
+        self._buf.set_arg(0, memoryview(self._p_buf))
+        for i, arr in enumerate(self._data):
+            self._buf.set_res(i, memoryview(arr))
+        self._mats = [(M.sparsity(), np.array(M.sparsity().row()), np.array(M.sparsity().colind())) for M in (H, *blocks)]
         self._qp = None
 
-    def _csc(self, spy: ca.Sparsity, data: np.ndarray) -> sp.csc_matrix:
-        return sp.csc_matrix((data, np.array(spy.row()), np.array(spy.colind())), shape=spy.shape)
+    def _qp_arrays(self, p: np.ndarray) -> list[np.ndarray]:
+        """The QP data at the parameters ``p`` (with the operating point set): the nonzeros of H and
+        of each constraint block, q, g(0), f(0), in buffers the next evaluation overwrites."""
+        self._p_buf[:] = p
+        self._eval()
+        return self._data
+
+    def _csc(self, i: int, data: np.ndarray) -> sp.csc_matrix:
+        """The i-th matrix of the QP data (0: H, then the constraint blocks) with the nonzeros ``data``."""
+        spy, row, colind = self._mats[i]
+        return sp.csc_matrix((data, row, colind), shape=spy.shape)
 
     def _solve(self, t: float, p: np.ndarray) -> np.ndarray:
         prob = self._prob
@@ -520,12 +540,10 @@ class LinearMPC(_MPCBase):
             x_op = np.concatenate([self._centre(eta, eta_d), np.zeros(3)])
             u_op = np.zeros(self._n_u)
         p[pi["x_op"]], p[pi["u_op"]], p[pi["b_op"]] = x_op, u_op, p[pi["b"]]
+        self._f0 = float(self._qp_arrays(p)[-1][0])
         if self.qp_solver == "piqp":
-            H, A, q, g0, f0 = self._qp_mats(0.0, p)
-            self._f0 = float(f0)
-            return self._solve_conic(t, H, A, q, g0)
-        Hx, Ax, q, g0, f0 = (np.asarray(v, float).ravel() for v in self._qp_data(p))
-        self._f0 = float(f0[0])
+            return self._solve_piqp(t)
+        Hx, Ax, q, g0 = self._data[:4]
         big = 1e20
         lbz = np.where(np.isfinite(prob.lbz), prob.lbz, -big)
         ubz = np.where(np.isfinite(prob.ubz), prob.ubz, big)
@@ -533,7 +551,7 @@ class LinearMPC(_MPCBase):
         u = np.concatenate([np.where(np.isfinite(prob.ubg), prob.ubg, big) - g0, ubz])
         if self._qp is None:
             self._qp = self._osqp_mod.OSQP()
-            self._qp.setup(P=self._csc(self._H_sp, Hx), q=q, A=self._csc(self._A_sp, Ax), l=l, u=u, verbose=False,
+            self._qp.setup(P=self._csc(0, Hx), q=q, A=self._csc(1, Ax), l=l, u=u, verbose=False,
                            warm_starting=True, eps_abs=self._eps[0], eps_rel=self._eps[1], max_iter=20000,
                            polishing=True)
         else:
@@ -550,24 +568,32 @@ class LinearMPC(_MPCBase):
         cost = float(res.info.obj_val) + self._f0 if ok else math.nan
         return self._finish(t, z, ok, str(res.info.status), dt, int(res.info.iter), cost)
 
-    def _solve_conic(self, t: float, H: ca.DM, A: ca.DM, q: ca.DM, g0: ca.DM) -> np.ndarray:
-        """piqp through CasADi's conic on the QP data as CasADi matrices (``_qp_mats``)."""
-        prob = self._prob
-        if self._qp is None:
-            self._qp = self._conic
+    def _solve_piqp(self, t: float) -> np.ndarray:
+        """piqp on the QP data of this step: min 1/2 z'Hz + q'z, the equality rows A z = b, the rest
+        h_l <= G z <= h_u, the bounds of z (infinite ones as they are)."""
+        prob, piqp = self._prob, self._piqp_mod
+        Hx, Ax, Gx, q, g0 = self._data[:5]
+        eq = self._eq
+        P, A, G = self._csc(0, Hx), self._csc(1, Ax), self._csc(2, Gx)
+        b = prob.lbg[eq] - g0[eq]
+        h_l, h_u = prob.lbg[~eq] - g0[~eq], prob.ubg[~eq] - g0[~eq]
         t0 = time.perf_counter()
         try:
-            sol = self._qp(h=H, g=q, a=A, lba=self._lbg - g0, uba=self._ubg - g0, lbx=prob.lbz, ubx=prob.ubz)
-            st = self._qp.stats()
-            ok = bool(st.get("success", False))
-            status = str(st.get("return_status", "unknown"))
-            it = int(st.get("iter_count", -1)) if "iter_count" in st else -1
-            z = np.array(sol["x"], float).ravel()
-            cost = float(sol["cost"]) + self._f0
-        except RuntimeError as exc:  # a failure inside the QP solver
+            if self._qp is None:
+                self._qp = piqp.SparseSolver()
+                self._qp.settings.verbose = False
+                self._qp.setup(P, q, A, b, G, h_l, h_u, prob.lbz, prob.ubz)
+            else:
+                self._qp.update(P=P, c=q, A=A, b=b, G=G, h_l=h_l, h_u=h_u, x_l=prob.lbz, x_u=prob.ubz)
+            status = self._qp.solve()
+            res = self._qp.result
+            z = np.array(res.x, float)
+            ok = bool(status == piqp.Status.PIQP_SOLVED and np.all(np.isfinite(z)))
+            it, cost, status = int(res.info.iter), float(res.info.primal_obj) + self._f0, status.name
+        except (ValueError, RuntimeError) as exc:  # bad data inside the QP solver
             ok, status, it, z, cost = False, f"error: {str(exc).splitlines()[0][:120]}", -1, np.full(self._nz, np.nan), math.nan
+            self._qp = None   # set up afresh at the next step
         dt = time.perf_counter() - t0
-        ok = bool(ok and np.all(np.isfinite(z)))
         return self._finish(t, z, ok, status, dt, it, cost if ok else math.nan)
 
 
