@@ -393,6 +393,16 @@ def test_sensitivities_equal_finite_differences(case):
     assert exact[0, 0] > 0 and exact[1, 1] > 0  # a line gets tighter when pulled away
 
 
+@pytest.mark.parametrize("case", list(SENS_CASES))
+def test_tension_magnitude_sensitivity_equals_finite_difference(case):
+    """dTF/dXF of the solution (from HF, VF and their sensitivities) against a central difference
+    of TF itself."""
+    XF, ZF, L, EA, w, CB, _ = SENS_CASES[case]
+    sol = cat.solve(XF, ZF, L, EA, w, CB=CB)
+    fd = central_difference(lambda x: scalar(cat.solve(x, ZF, L, EA, w, CB=CB, tol=1e-12), "TF"), XF, 1e-3)
+    assert scalar(sol, "dTF_dXF") == pytest.approx(fd, rel=1e-5, abs=1e-5 * abs(scalar(sol, "dHF_dXF")))
+
+
 @pytest.mark.parametrize("case", ["touchdown", "touchdown-soft", "touchdown-near-slack", "suspended",
                                   "suspended-taut", "weightless"])
 def test_line_stiffness_is_symmetric(case):

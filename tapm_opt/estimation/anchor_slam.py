@@ -195,19 +195,22 @@ class TensionRangeMap:
     def tension(self, X: Any, *, lines: Any = None) -> np.ndarray:
         """``f_i(X)`` (eq. 9): fairlead tension ``TF`` [N] at horizontal anchor-fairlead distance
         ``X`` [m]; last axis = lines (or ``lines`` gives the line index of each entry)."""
+        return self._at(X, lines).TF
+
+    def _at(self, X: Any, lines: Any) -> catenary.CatenarySolution:
         X = np.asarray(X, dtype=float)
         return self._solve(X, self._line_index(X, lines))
 
     def slope(self, X: Any, *, lines: Any = None) -> np.ndarray:
         """``k_i = dTF/dX`` [N/m] at ``X`` [m] (eq. 12's generalised stiffness), exact from the
         catenary's sensitivities: ``(HF dHF/dX + VF dVF/dX) / TF``."""
-        s = self.tension(X, lines=lines)
-        return (s.HF * s.dHF_dXF + s.VF * s.dVF_dXF) / s.TF
+        s = self._at(X, lines)
+        return s.dTF_dXF
 
     def heave_sensitivity(self, X: Any, *, lines: Any = None) -> np.ndarray:
         """``k_T = dTF/dz`` [N/m] (eq. 10) at ``X`` [m]: the tension change per metre the fairlead
         sinks (z down, so ``ZF`` shrinks): ``-(HF dHF/dZF + VF dVF/dZF) / TF``."""
-        s = self.tension(X, lines=lines)
+        s = self._at(X, lines)
         return -(s.HF * s.dHF_dZF + s.VF * s.dVF_dZF) / s.TF
 
     # -- inverse ---------------------------------------------------------------------------
@@ -246,7 +249,7 @@ class TensionRangeMap:
         Xlo, Xhi = self.X_lo[flat_i], self.X_hi[flat_i]
         for _ in range(30):
             s = self._solve(X, flat_i)
-            k = (s.HF * s.dHF_dXF + s.VF * s.dVF_dXF) / s.TF
+            k = s.dTF_dXF
             dX = (s.TF - flat_T) / k
             X = np.clip(X - dX, Xlo, Xhi)
             if np.max(np.abs(dX)) < tol:

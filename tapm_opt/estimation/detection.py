@@ -298,7 +298,7 @@ class _TensionTable:
         enough (class docstring); a table that reaches ``max_nodes`` is kept as it is."""
         def tf(x):
             s = solve(x)
-            return s.TF, (s.HF * s.dHF_dXF + s.VF * s.dVF_dXF) / np.maximum(s.TF, 1e-300)
+            return s.TF, s.dTF_dXF
 
         if not b > a:
             b = a + 1.0

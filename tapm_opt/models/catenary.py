@@ -280,6 +280,12 @@ class CatenarySolution:
     dVF_dZF: np.ndarray
     iterations: int
 
+    @property
+    def dTF_dXF(self) -> np.ndarray:
+        """Sensitivity of the fairlead tension magnitude to the horizontal span [N/m]:
+        ``(HF dHF/dXF + VF dVF/dXF) / TF`` (0 where ``TF`` is 0)."""
+        return (self.HF * self.dHF_dXF + self.VF * self.dVF_dXF) / np.maximum(self.TF, 1e-300)
+
     def regime_names(self) -> np.ndarray:
         """Regime names as a string array of the same shape."""
         return np.asarray(REGIMES, dtype=object)[self.regime]

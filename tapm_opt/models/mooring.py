@@ -394,8 +394,7 @@ class MooringModel:
         eta0 = self._check_eta(eta0)
         sol = self.solve_lines(eta0)
         _, _, XF0 = self.spans(eta0)
-        dT = (sol.HF * sol.dHF_dXF + sol.VF * sol.dVF_dXF) / np.maximum(sol.TF, 1e-300)
-        return np.stack([sol.HF, sol.dHF_dXF, XF0, sol.TF, dT])
+        return np.stack([sol.HF, sol.dHF_dXF, XF0, sol.TF, sol.dTF_dXF])
 
     def characteristic_load(self, eta, coeffs):
         """Mooring load in {B} and fairlead tensions of the characteristics ``coeffs`` (the rows of
