@@ -18,7 +18,7 @@ from scipy.signal import butter, sosfiltfilt
 
 from tapm_opt.config import Fault, load_scenario
 from tapm_opt.estimation.detection import TensionDropDetector
-from tapm_opt.estimation.lowpass import EstimationError, LowPassEstimator
+from tapm_opt.estimation.lowpass import EstimationError, LowPassEstimator, first_order_step
 from tapm_opt.estimation.observer import (DEFAULT_TP, PASSIVE_OMEGA_C_RATIO, PASSIVE_ZETA_N, EKFObserver,
                                           PassiveObserver, passive_gains, wave_filter_matrices)
 from tapm_opt.geometry import rot_z, ssa
@@ -570,3 +570,14 @@ def test_ekf_transition_jacobian_against_central_differences(psi):
     big = np.abs(num) > 1e-15            # entry by entry: the bias's entries are ~1e-9 beside 1's
     assert np.max(np.abs(F - num)[big] / np.abs(num)[big]) < 5e-3   # the mooring block: J by differences
     assert np.max(np.abs(F[~big])) < 1e-15
+
+
+def test_first_order_step_is_the_exact_solution_and_composes():
+    """T y' = u - y with u held: y(dt) = u + (y0 - u) exp(-dt / T); two half steps are one step;
+    a step back in time holds y; arrays work element-wise."""
+    T, y0, u = 40.0, np.array([3.0, -2.0]), np.array([1.0, 5.0])
+    y = first_order_step(y0, u, 25.0, T)
+    np.testing.assert_allclose(y, u + (y0 - u) * math.exp(-25.0 / T), rtol=1e-15)
+    np.testing.assert_allclose(first_order_step(first_order_step(y0, u, 12.5, T), u, 12.5, T), y, rtol=1e-14)
+    np.testing.assert_array_equal(first_order_step(y0, u, -5.0, T), y0)
+    assert first_order_step(2.0, 2.0, 1e6, T) == pytest.approx(2.0) and first_order_step(0.0, 1.0, 1e9, T) == 1.0

@@ -37,6 +37,7 @@ import casadi as ca
 import numpy as np
 import scipy.sparse as sp
 
+from ..estimation.lowpass import first_order_step
 from ..estimation.reliability import RISER_BOTTOM, RISER_TOP, line_signal
 from ..geometry import body_from_turret, rot_z, ssa
 from ..interfaces import Estimate, Setpoint, ThrusterCommand
@@ -604,8 +605,7 @@ def _low_pass_step(x_lf: np.ndarray | None, t_lf: float | None, x: Any, t: float
     x = np.array(x, float)
     if x_lf is None or t_lf is None:
         return x
-    a = math.exp(-max(t - t_lf, 0.0) / T)   # time going back holds the value
-    return a * x_lf + (1.0 - a) * x
+    return first_order_step(x_lf, x, t - t_lf, T)
 
 
 def _nonzeros(M: Any) -> Any:

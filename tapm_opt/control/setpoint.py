@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import TapmError
+from ..estimation.lowpass import first_order_step
 from ..geometry import rot_z, ssa, turret_offset
 from ..interfaces import Estimate, Logged, Setpoint
 
@@ -83,8 +84,7 @@ class SetpointChasing:
         if self.p is None:
             self.p = p
         else:
-            a = math.exp(-max(t - self._t, 0.0) / self.T)
-            self.p = a * self.p + (1 - a) * p
+            self.p = first_order_step(self.p, p, t - self._t, self.T)
         self._t = float(t)
         if self.R is not None:
             r = float(np.hypot(*self.p))

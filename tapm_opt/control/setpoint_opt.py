@@ -71,6 +71,7 @@ import casadi as ca
 import numpy as np
 
 from ..errors import TapmError
+from ..estimation.lowpass import first_order_step
 from ..estimation.reliability import RISER_BOTTOM, RISER_TOP, line_signal
 from ..geometry import body_from_turret, rot2_apply, turret_offset
 from ..interfaces import Estimate, Setpoint
@@ -662,9 +663,9 @@ class OptimalSetpoint:
         if self._p_mean is None:
             self._p_mean = e_now
         elif dt > 0:
-            a = math.exp(-dt / self.options.lf_window)
-            self._p_mean = a * self._p_mean + (1 - a) * e_now
-            self._ms_lf = a * self._ms_lf + (1 - a) * float(np.sum((e_now - self._p_mean) ** 2))
+            T = self.options.lf_window
+            self._p_mean = first_order_step(self._p_mean, e_now, dt, T)
+            self._ms_lf = first_order_step(self._ms_lf, float(np.sum((e_now - self._p_mean) ** 2)), dt, T)
         due = (self._t_solve is None and t >= self.options.warmup) or (
             self._t_solve is not None and t - self._t_solve >= self.options.period - 1e-9) or (
             broken != self._broken and t >= 0)

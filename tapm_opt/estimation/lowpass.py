@@ -186,8 +186,7 @@ class LowPassEstimator(_WithDetectorAndMonitor):
         if self._b is None:
             self._b = b_now
         else:
-            a = math.exp(-max(t - self._t_env, 0.0) / self.T_env)
-            self._b = a * self._b + (1 - a) * b_now
+            self._b = first_order_step(self._b, b_now, t - self._t_env, self.T_env)
         self._t_env = t
         return eta, nu, R.T @ self._b
 
@@ -196,6 +195,15 @@ class LowPassEstimator(_WithDetectorAndMonitor):
         if dt == 0:
             return
         self._y, self._yd = critically_damped_step(self._y, self._yd, z, self.omega_c, dt)
+
+
+def first_order_step(y: Any, u: Any, dt: float, T: float) -> Any:
+    """One exact step of the first-order low-pass ``T y' = u - y`` over ``dt`` [s] with the input
+    ``u`` held (time constant ``T`` [s]; floats or arrays): the new ``y``. A step back in time
+    (``dt < 0``) holds ``y``. The filter of :class:`LowPassEstimator`'s load, the MPC's load and
+    riser-angle filters and the setpoint layers' averages."""
+    a = math.exp(-max(dt, 0.0) / T)
+    return a * y + (1.0 - a) * u
 
 
 def critically_damped_step(y: Any, yd: Any, z: Any, w: float, dt: float) -> tuple[Any, Any]:
