@@ -19,6 +19,7 @@ import tapm_opt
 from tapm_opt.config import schema
 from tapm_opt.interfaces import ThrusterCommand
 from tapm_opt.plant import fem_kernel
+from tapm_opt.plant.fem import SimulationDiverged
 from tapm_opt.plant.simulator import Plant, run_open_loop
 
 from _bitwise import assert_same
@@ -84,6 +85,22 @@ def test_line_break_is_bit_identical(fpso):
     assert pc.events == pn.events == [(10.0, f"line {fpso.lines[0].id} broke")]
     assert_same(rc.data, rn.data)
     assert np.all(rc.data[rc.time > 10.0, rc.channels.index(f"T_fairlead[{fpso.lines[0].id}]")] == 0.0)
+
+
+@pytest.mark.parametrize("compiled", [True, False], ids=["compiled", "numpy"])
+def test_a_diverging_fem_is_reported_on_both_paths(fpso, compiled):
+    """FEM substeps 30x the stable step blow the lines up: both outer steps stop with
+    SimulationDiverged naming a line (from the periodic node-speed check, or when a node is no
+    longer finite before the current at the nodes is looked up), not with an error about the
+    current profile's depths."""
+    p = Plant(fpso, segments=10)
+    p.compiled = compiled
+    p.step(0.1)
+    p._dt_stable *= 30.0   # every later step takes 1/30 of the substeps it needs
+    p._h_last = None
+    with pytest.raises(SimulationDiverged, match="line"), np.errstate(all="ignore"):
+        for _ in range(600):
+            p.step(0.1)
 
 
 def test_overload_break_is_bit_identical(fpso):

@@ -46,6 +46,9 @@ __all__ = ["LineSet", "FEMLines", "SimulationDiverged", "KERNELS", "set_default_
 KERNELS = ("numba", "numpy")
 """Implementations of the FEM step: the compiled kernel and the numpy reference."""
 
+MAX_NODE_SPEED = 100.0
+"""Node speed [m/s] above which the FEM state counts as diverged (:meth:`FEMLines.check_health`)."""
+
 _default_kernel = "numba"
 
 
@@ -562,7 +565,7 @@ class FEMLines:
     def check_health(self) -> None:
         """Raise :class:`SimulationDiverged` if any node state is non-finite or absurdly fast."""
         bad = ~np.isfinite(self.r).all(axis=1) | ~np.isfinite(self.v).all(axis=1)
-        fast = np.einsum("ij,ij->i", self.v, self.v) > 100.0**2
+        fast = np.einsum("ij,ij->i", self.v, self.v) > MAX_NODE_SPEED**2
         bad |= fast
         if np.any(bad):
             i = int(np.argmax(bad))

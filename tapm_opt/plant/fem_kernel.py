@@ -451,7 +451,7 @@ def mooring_step(pose0, pose1, rate_prev, h, n_sub, p_cot, p_T, turret_angle, lo
                  r, v, vc, l0, EA, c_int, bond_ok, node_weight, node_mass, cdn, cdt, can_half, cat_half,
                  kb, cb, mu, depth, has_int_damping, has_friction,
                  anchor_idx, anchors, fairlead_idx, attached, fairlead_seg, anchor_seg, active,
-                 strength):  # pragma: no cover - compiled
+                 near_tension, max_speed):  # pragma: no cover - compiled
     """The mooring part of the plant's outer step of ``h`` seconds in ``n_sub`` FEM substeps.
 
     The fairleads follow the total pose interpolated linearly from ``pose0`` to ``pose1`` (each
@@ -476,10 +476,11 @@ def mooring_step(pose0, pose1, rate_prev, h, n_sub, p_cot, p_T, turret_angle, lo
     tau : ndarray (3,)
         Load of the lines on the vessel in {B} [N, N, N m].
     near : bool
-        Some intact line's fairlead or anchor tension bound is within 2 % of its ``strength`` [N]
+        Some intact line's fairlead or anchor tension bound reached its ``near_tension`` [N]
         (``Plant._check_overload`` must look).
     suspect : bool
-        Some node state is non-finite or faster than 99 m/s (``FEMLines.check_health`` must look).
+        Some node state is non-finite or faster than ``max_speed`` [m/s] (``FEMLines.check_health``
+        reports it).
     """
     nl = p_T.shape[0]
     rate = np.empty(3)
@@ -526,12 +527,12 @@ def mooring_step(pose0, pose1, rate_prev, h, n_sub, p_cot, p_T, turret_angle, lo
         b_fl = T[fairlead_seg[j]] + node_weight[fairlead_idx[j]]
         b_an = T[anchor_seg[j]]
         if active[j] and not (math.isnan(b_fl) or math.isnan(b_an)):
-            if max(b_fl, b_an) >= 0.98 * strength[j]:
+            if max(b_fl, b_an) >= near_tension[j]:
                 near = True
     suspect = False
     for k in range(r.shape[0]):
         sp = v[k, 0] * v[k, 0] + v[k, 1] * v[k, 1] + v[k, 2] * v[k, 2]
-        if not (sp <= 99.0 * 99.0) or not (math.isfinite(r[k, 0]) and math.isfinite(r[k, 1])
+        if not (sp <= max_speed * max_speed) or not (math.isfinite(r[k, 0]) and math.isfinite(r[k, 1])
                                            and math.isfinite(r[k, 2])):
             suspect = True
     # fairlead forces (FEMLines.fairlead_forces with the current and the accelerations)

@@ -18,7 +18,7 @@ from ..errors import ModelError, TapmError
 from ..geometry import rot2_apply
 from ..models import catenary
 from ..models.mooring import MooringModel
-from .fem import FEMLines, LineSet, _as_f64
+from .fem import MAX_NODE_SPEED, FEMLines, LineSet, _as_f64
 
 __all__ = ["MooringFEM", "SettleInfo", "SettlingNotConverged", "line_set_from_scenario"]
 
@@ -137,8 +137,14 @@ class MooringFEM:
         return r, v
 
     def _update_current(self) -> np.ndarray:
+        """The current at the nodes [m/s] (n_nodes, 3) for their present depths. Nodes that are no
+        longer finite have no depth: the FEM is reported as diverged (not the current profile's
+        input as bad)."""
         if self.current is not None:
-            self._vc = self.current(self.fem.r[:, 2])
+            z = self.fem.r[:, 2]
+            if not np.isfinite(z).all():
+                self.fem.check_health()
+            self._vc = self.current(z)
         return self._vc
 
     # -- set-up ----------------------------------------------------------------------------
@@ -274,7 +280,7 @@ class MooringFEM:
         return T
 
     def outer_step_compiled(self, pose0: np.ndarray, pose1: np.ndarray, rate_prev: np.ndarray, h: float,
-                            n_sub: int, strength: np.ndarray):
+                            n_sub: int, near_tension: np.ndarray):
         """A plant outer step of the lines in one compiled call (:func:`tapm_opt.plant.fem_kernel.mooring_step`;
         the FEM kernel must be "numba"): the same as :meth:`advance` over ``n_sub`` steps of
         ``self.dt = h / n_sub`` along the poses from ``pose0`` to ``pose1`` [m, m, rad] at the
@@ -283,8 +289,9 @@ class MooringFEM:
 
         Returns the bond tensions at the start of the last step [N], the rate (3,), the fairlead
         accelerations (n_lines, 3) [m/s^2], the load on the vessel (3,) [N, N, N m] in {B} and the
-        flags ``near`` (a line's tension bound within 2 % of ``strength`` [N]) and ``suspect``
-        (a node state for :meth:`FEMLines.check_health` to look at).
+        flags ``near`` (an intact line's tension bound at or above its ``near_tension`` [N]) and
+        ``suspect`` (a node state non-finite or faster than :data:`~tapm_opt.plant.fem.MAX_NODE_SPEED`,
+        for :meth:`FEMLines.check_health` to report).
         """
         from . import fem_kernel
 
@@ -295,7 +302,7 @@ class MooringFEM:
             pose0, pose1, rate_prev, float(h), int(n_sub), self._p_cot, self._p_T, float(g.turret_angle),
             g.turret_mode == "locked", self.fairlead_z,
             _as_f64(fem.r, shape, "r"), _as_f64(fem.v, shape, "v"), _as_f64(self._update_current(), shape, "v_current"),
-            *fem._kernel_constants(), fem.fairlead_seg, fem.anchor_seg, fem.active, strength)
+            *fem._kernel_constants(), fem.fairlead_seg, fem.anchor_seg, fem.active, near_tension, MAX_NODE_SPEED)
         fem.r, fem.v = r, v
         dt = self.dt
         for _ in range(n_sub):  # the same sum as n single steps (FEMLines._advance_compiled)

@@ -46,6 +46,10 @@ from .mooring_fem import MooringFEM, SettleInfo
 from .sensors import Sensors
 from .thrusters import ThrusterBank
 
+#: Fraction of a line's strength at which the plant evaluates its exact fairlead and anchor
+#: tensions for a break (``Plant._check_overload``: the bounds from the segment tensions come first).
+OVERLOAD_NEAR = 0.98
+
 __all__ = ["Plant", "ThrusterCommand", "run_open_loop", "PlantError", "SimulationDiverged"]
 
 
@@ -285,7 +289,7 @@ class Plant:
         m = self.mooring
         fem = m.fem
         bound = np.maximum(T_bonds[fem.fairlead_seg] + fem.node_weight[fem.fairlead_idx], T_bonds[fem.anchor_seg])
-        near = bound >= 0.98 * self.strength
+        near = bound >= OVERLOAD_NEAR * self.strength
         if not np.any(near & fem.active):
             return
         T = np.maximum(m.fairlead_tension(), m.anchor_tension())
@@ -350,7 +354,7 @@ class Plant:
         self._steps += 1
         if compiled:  # substeps, fairlead accelerations and the load in one call, the same numbers
             T_bonds, rate, a_fl, tau_moor, near, suspect = m.outer_step_compiled(pose0, pose1, self._rate, h, n_sub,
-                                                                                 self.strength)
+                                                                                 OVERLOAD_NEAR * self.strength)
             if suspect and self._steps % 20 == 0:
                 m.fem.check_health()
             self._rate = rate
