@@ -495,17 +495,23 @@ class LinearMPC(_MPCBase):
 
             self._osqp_mod = osqp
             blocks = [ca.jacobian(ca.vertcat(prob.g, z), z)]  # the constraints, then the bounds as rows
+            g_parts = [prob.g]
+            big = 1e20   # OSQP's infinity
+            self._l_g = np.where(np.isfinite(prob.lbg), prob.lbg, -big)
+            self._u_g = np.where(np.isfinite(prob.ubg), prob.ubg, big)
         else:
             import piqp
 
             self._piqp_mod = piqp
-            self._eq = np.isfinite(prob.lbg) & (prob.lbg == prob.ubg)   # the dynamics and the initial state
+            eq = np.isfinite(prob.lbg) & (prob.lbg == prob.ubg)   # the dynamics and the initial state
             rows = np.arange(len(prob.lbg))
-            blocks = [ca.jacobian(prob.g[rows[self._eq].tolist()], z), ca.jacobian(prob.g[rows[~self._eq].tolist()], z)]
+            g_parts = [prob.g[rows[eq].tolist()], prob.g[rows[~eq].tolist()]]
+            blocks = [ca.jacobian(g, z) for g in g_parts]
+            self._b_eq, self._lb_in, self._ub_in = prob.lbg[eq], prob.lbg[~eq], prob.ubg[~eq]
         # the QP in the step from z = 0 at the parameters p: the nonzeros (CSC order) of H and of each
-        # constraint block, the gradient q, g(0) and the cost f(0) (the solvers report f(z) - f(0)),
-        # evaluated into numpy buffers set up once
-        outs = [_nonzeros(H), *(_nonzeros(B) for B in blocks), ca.gradient(prob.f, z), prob.g, prob.f]
+        # constraint block, the gradient q, g(0) of each block and the cost f(0) (the solvers report
+        # f(z) - f(0)), evaluated into numpy buffers set up once
+        outs = [_nonzeros(H), *(_nonzeros(B) for B in blocks), ca.gradient(prob.f, z), *g_parts, prob.f]
         fun = ca.Function("qp_data", [z, p], outs)
         fun = ca.Function("qp_data_p", [p], fun(ca.DM.zeros(nz), p))
         self._p_buf = np.zeros(p.numel())
@@ -519,7 +525,8 @@ class LinearMPC(_MPCBase):
 
     def _qp_arrays(self, p: np.ndarray) -> list[np.ndarray]:
         """The QP data at the parameters ``p`` (with the operating point set): the nonzeros of H and
-        of each constraint block, q, g(0), f(0), in buffers the next evaluation overwrites."""
+        of each constraint block, q, g(0) of each block, f(0), in buffers the next evaluation
+        overwrites."""
         self._p_buf[:] = p
         self._eval()
         return self._data
@@ -546,10 +553,10 @@ class LinearMPC(_MPCBase):
             return self._solve_piqp(t)
         Hx, Ax, q, g0 = self._data[:4]
         big = 1e20
-        lbz = np.where(np.isfinite(prob.lbz), prob.lbz, -big)
+        lbz = np.where(np.isfinite(prob.lbz), prob.lbz, -big)   # the bounds change with thruster failures
         ubz = np.where(np.isfinite(prob.ubz), prob.ubz, big)
-        l = np.concatenate([np.where(np.isfinite(prob.lbg), prob.lbg, -big) - g0, lbz])
-        u = np.concatenate([np.where(np.isfinite(prob.ubg), prob.ubg, big) - g0, ubz])
+        l = np.concatenate([self._l_g - g0, lbz])
+        u = np.concatenate([self._u_g - g0, ubz])
         if self._qp is None:
             self._qp = self._osqp_mod.OSQP()
             self._qp.setup(P=self._csc(0, Hx), q=q, A=self._csc(1, Ax), l=l, u=u, verbose=False,
@@ -573,11 +580,9 @@ class LinearMPC(_MPCBase):
         """piqp on the QP data of this step: min 1/2 z'Hz + q'z, the equality rows A z = b, the rest
         h_l <= G z <= h_u, the bounds of z (infinite ones as they are)."""
         prob, piqp = self._prob, self._piqp_mod
-        Hx, Ax, Gx, q, g0 = self._data[:5]
-        eq = self._eq
+        Hx, Ax, Gx, q, g_eq, g_in = self._data[:6]
         P, A, G = self._csc(0, Hx), self._csc(1, Ax), self._csc(2, Gx)
-        b = prob.lbg[eq] - g0[eq]
-        h_l, h_u = prob.lbg[~eq] - g0[~eq], prob.ubg[~eq] - g0[~eq]
+        b, h_l, h_u = self._b_eq - g_eq, self._lb_in - g_in, self._ub_in - g_in
         t0 = time.perf_counter()
         try:
             if self._qp is None:
