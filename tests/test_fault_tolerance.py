@@ -113,3 +113,45 @@ def test_fault_tolerance_is_on_by_default_in_specs(system):
     assert build_controller(system, {"type": "pid"})._ft
     assert build_controller(system, {"type": "lmpc"}).settings.fault_tolerance
     assert not build_controller(system, {"type": "mpc", "mooring": "catenary"}).settings.fault_tolerance
+
+
+@pytest.mark.parametrize("cls", [NonlinearMPC, LinearMPC])
+def test_mpc_tightens_its_dead_band_once_a_break_is_known(system, cls):
+    """``dead_band_damaged``: 20 m off with a 30 m dead band the position term is zero while the
+    mooring is intact (the dead band's slack is 0 over the plan) and stays zero with a break but
+    no damaged dead band; with a 10 m damaged dead band and a break reported, the slack is the
+    distance beyond 10 m (about 1 r_ref) and the plan moves the turret back towards the
+    setpoint."""
+    eta = np.array([20.0, 0.0, 0.0])
+    base = dict(fault_tolerance=True, dead_band=30.0, horizon=8, w_velocity=1.0)
+    runs = {}
+    for name, kw, broken in (("intact", {"dead_band_damaged": 10.0}, ()),
+                             ("damaged", {"dead_band_damaged": 10.0}, ["9"]),
+                             ("plain", {}, ["9"])):
+        ctrl = cls(system, MPCSettings(**base, **kw))
+        ctrl.update(0.0, _est(eta, broken), SP)
+        assert ctrl.last_step().success, ctrl.last_step().status
+        z = ctrl._z
+        S = z[ctrl._prob.idx["S_db"]]
+        runs[name] = (S, z[ctrl._prob.idx["X"]].reshape(-1, 6) * ctrl._prob.scale["x"])
+    r_ref = MPCSettings().r_ref
+    assert np.max(runs["intact"][0]) < 1e-4 and np.max(runs["plain"][0]) < 1e-4
+    S, X = runs["damaged"]
+    assert S[0] == pytest.approx(10.0 / r_ref, rel=0.1)            # 20 m against 10 m: 1 r_ref beyond
+    assert X[-1, 0] < runs["plain"][1][-1, 0] - 0.5                  # the plan heads back
+    assert np.mean(X[1:, 3]) < np.mean(runs["plain"][1][1:, 3])      # surging towards the setpoint
+
+
+def test_damaged_dead_band_settings_are_checked(system):
+    for bad in (0.0, -5.0, float("nan"), "10"):
+        with pytest.raises(MPCError, match="dead_band_damaged"):
+            MPCSettings(fault_tolerance=True, dead_band=30.0, dead_band_damaged=bad)
+    with pytest.raises(MPCError, match="dead_band_damaged = 10.0 needs a dead band"):
+        MPCSettings(fault_tolerance=True, dead_band=0.0, dead_band_damaged=10.0)
+    with pytest.raises(MPCError, match="needs fault_tolerance"):
+        MPCSettings(fault_tolerance=False, dead_band=30.0, dead_band_damaged=10.0)
+    # study specs: not set by default (the dead band stays), taken when given, checked
+    assert build_controller(system, {"type": "lmpc"}).settings.dead_band_damaged is None
+    assert build_controller(system, {"type": "lmpc", "dead_band_damaged": 22.5}).settings.dead_band_damaged == 22.5
+    with pytest.raises(ControllerSpecError, match="dead_band_damaged"):
+        build_controller(system, {"type": "lmpc", "dead_band_damaged": -1.0})

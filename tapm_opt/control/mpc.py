@@ -126,6 +126,10 @@ class _MPCBase:
                 moor = self._without_broken(moor, frozenset(est.broken_lines))
             p[pi["moor"]] = moor
         p[pi["T_lim"]] = self._tension_limits(est)
+        if pi["dead_band"].stop > pi["dead_band"].start:
+            st = self.settings
+            damaged = st.dead_band_damaged is not None and st.fault_tolerance and bool(est.broken_lines)
+            p[pi["dead_band"]] = st.dead_band_damaged if damaged else st.dead_band
         if pi["riser"].stop > pi["riser"].start:
             p[pi["riser"]] = self._riser_parameters(est)
         return p

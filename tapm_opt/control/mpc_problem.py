@@ -71,6 +71,12 @@ class MPCSettings:
         Multiplier of the state terms at the end of the horizon.
     dead_band : float
         Radius of the dead band of the turret offset about the position setpoint [m] (0: none).
+    dead_band_damaged : float or None
+        With ``fault_tolerance``: the dead band's radius [m] once the estimate reports a broken
+        line (None: ``dead_band`` throughout). The damaged mooring has lost its redundancy and
+        restores less, so the thrusters take over more of the station keeping (survey §4.4: the
+        fault is accommodated by modifying the control parameters, not the structure). Needs
+        ``dead_band > 0`` (the radius is a parameter of the dead band's rows).
     safe_radius : float or None
         Soft constraint radius of the turret offset about the field zero point [m] (None: from the
         scenario, or none).
@@ -143,6 +149,7 @@ class MPCSettings:
     w_velocity: float = 1.0
     w_terminal: float = 5.0
     dead_band: float = 0.0
+    dead_band_damaged: float | None = None
     safe_radius: float | None = None
     tension_utilisation: float | None = None
     soft_l1: float = 1e3
@@ -194,6 +201,16 @@ class MPCSettings:
                               ("linearise_about", ("state", "setpoint")), ("hessian", ("gauss-newton", "exact"))):
             if getattr(self, name) not in allowed:
                 raise MPCError(f"MPCSettings.{name} = {getattr(self, name)!r} is not one of {', '.join(allowed)}")
+        v = self.dead_band_damaged
+        if v is not None:
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise MPCError(f"MPCSettings.dead_band_damaged = {v!r} must be a positive number [m] or None")
+            if self.dead_band <= 0:
+                raise MPCError(f"MPCSettings.dead_band_damaged = {v!r} needs a dead band (dead_band > 0, got "
+                               f"{self.dead_band!r})")
+            if not self.fault_tolerance:
+                raise MPCError(f"MPCSettings.dead_band_damaged = {v!r} needs fault_tolerance = true (it is the "
+                               "dead band once a line break is known)")
         for name, what, hi in (("safe_radius", "a positive number", math.inf),
                                ("tension_utilisation", "a number in (0, 1]", 1.0)):
             v = getattr(self, name)
@@ -359,7 +376,7 @@ def build_problem(system: Any, settings: MPCSettings, *, linear: bool = False,
     sizes = [("x0", 6), ("u_prev", n_u), ("eta_d", 3), ("b", 3),
              ("moor", 5 * n_lines if kind == "characteristic" else 0),
              ("poly_A", 3 * n_poly), ("poly_b", n_poly), ("rate_dt", 1 if n_poly else 0),
-             ("T_lim", n_lines), ("riser", 6 if use_riser else 0)]
+             ("T_lim", n_lines), ("riser", 6 if use_riser else 0), ("dead_band", 1 if s.dead_band > 0 else 0)]
     if linear:
         sizes += [("x_op", 6), ("u_op", n_u), ("b_op", 3)]
     p_idx, at = {}, 0
@@ -503,9 +520,9 @@ def build_problem(system: Any, settings: MPCSettings, *, linear: bool = False,
         dp = p_t - eta_d[0:2]
         if s.dead_band > 0:
             for nrm in polyg:
-                g.append((nrm[0] * dp[0] + nrm[1] * dp[1]) / s.r_ref - S_db[k])
+                g.append((nrm[0] * dp[0] + nrm[1] * dp[1] - p[p_idx["dead_band"]]) / s.r_ref - S_db[k])
                 lbg.append(-ca.inf)
-                ubg.append(s.dead_band / s.r_ref)
+                ubg.append(0.0)
             sq(w_state * s.w_position, S_db[k])
         else:
             # no dead band: the distance itself, squared (the polygon's slack would put 16

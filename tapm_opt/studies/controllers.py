@@ -24,7 +24,8 @@ supervisor's first decision.
 MPC (``tapm_opt.control.mpc.MPCSettings``): every settings field; ``dead_band`` defaults to 0.6 of the
 scenario's safe radius (``MPC_DEAD_BAND``), ``w_thrust``, ``w_rate`` and ``w_velocity`` to ``MPC_DEFAULTS``,
 ``fault_tolerance`` to true with the (default) characteristic mooring (a line reported broken
-leaves the prediction);
+leaves the prediction; ``dead_band_damaged`` [m], the dead band once a break is known, is not set:
+the dead band stays, see ``docs/controllers.md`` for what tightening it costs);
 ``period`` [s] is the re-solve period (default the prediction step); ``lmpc`` also takes
 ``qp_solver`` (``"piqp"``, default, or ``"osqp"``).
 
