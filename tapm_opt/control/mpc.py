@@ -96,7 +96,8 @@ class _MPCBase:
 
     def _params(self, est: Estimate, sp: Setpoint) -> np.ndarray:
         """The problem's parameter vector: state, previous thrust, setpoint, load in {E}, the line
-        characteristics at the centre pose and the thrust polytope (``_Problem.p_idx``)."""
+        characteristics at the centre pose, the thrust polytope and the dead band's radius
+        (``_Problem.p_idx``)."""
         eta, nu = np.asarray(est.eta, float), np.asarray(est.nu, float)
         if eta.shape != (3,) or nu.shape != (3,) or not (np.all(np.isfinite(eta)) and np.all(np.isfinite(nu))):
             raise MPCError(f"estimate eta = {eta.tolist()}, nu = {nu.tolist()} must be finite 3-vectors")
@@ -127,8 +128,8 @@ class _MPCBase:
             p[pi["moor"]] = moor
         p[pi["T_lim"]] = self._tension_limits(est)
         if pi["dead_band"].stop > pi["dead_band"].start:
-            st = self.settings
-            damaged = st.dead_band_damaged is not None and st.fault_tolerance and bool(est.broken_lines)
+            st = self.settings   # dead_band_damaged is only set with fault_tolerance (MPCSettings checks)
+            damaged = st.dead_band_damaged is not None and bool(est.broken_lines)
             p[pi["dead_band"]] = st.dead_band_damaged if damaged else st.dead_band
         if pi["riser"].stop > pi["riser"].start:
             p[pi["riser"]] = self._riser_parameters(est)
