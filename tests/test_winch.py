@@ -272,13 +272,6 @@ def _no_winch_scenario():
 
 # -- CLI and study file (need the --winch option of tapm simulate and the study keys) -----------
 
-def _cli_has_winch() -> bool:
-    from tapm_opt.cli import simulate
-
-    return any(p.name == "winch" for p in simulate.params)
-
-
-@pytest.mark.skipif(not _cli_has_winch(), reason="tapm simulate has no --winch option yet")
 def test_cli_simulate_winch_tension(tmp_path):
     import json
 
@@ -303,13 +296,6 @@ def test_cli_simulate_winch_tension(tmp_path):
     assert bad.exit_code != 0 and "kc" in bad.output
 
 
-def _study_has_winch() -> bool:
-    from tapm_opt.studies import spec
-
-    return "winch" in getattr(spec, "_STUDY_KEYS", ())
-
-
-@pytest.mark.skipif(not _study_has_winch(), reason="study files do not take winch yet")
 def test_winch_study_file_parses():
     from pathlib import Path
 
