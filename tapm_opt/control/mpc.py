@@ -228,12 +228,18 @@ class _MPCBase:
         return np.array([*body_from_turret(eta_d[:2], eta[2], self.system.p_cot_B), eta[2]])
 
     def _shift(self, z: np.ndarray) -> np.ndarray:
-        idx, N = self._prob.idx, self.settings.horizon
+        """The plan ``z`` one step on (the warm start and the fallback): states, thrust and slacks
+        moved by a step, the last repeated; with move blocking each block takes the shifted plan's
+        thrust at its first step."""
+        prob, N = self._prob, self.settings.horizon
+        idx = prob.idx
         out = z.copy()
         X = z[idx["X"]].reshape(N + 1, 6)
-        U = z[idx["U"]].reshape(N, self._n_u)
+        U = z[idx["U"]].reshape(prob.n_moves, self._n_u)[prob.block_of]   # the thrust of every step
+        U = np.vstack([U[1:], U[-1:]])
+        starts = np.flatnonzero(np.r_[True, np.diff(prob.block_of) != 0])
         out[idx["X"]] = np.vstack([X[1:], X[-1:]]).ravel()
-        out[idx["U"]] = np.vstack([U[1:], U[-1:]]).ravel()
+        out[idx["U"]] = U[starts].ravel()
         for key in ("S_db", "S_safe", "S_T", "S_R"):
             sl = z[idx[key]]
             out[idx[key]] = np.concatenate([sl[1:], sl[-1:]])
@@ -246,7 +252,7 @@ class _MPCBase:
         return z
 
     def _finish(self, t: float, z: np.ndarray, ok: bool, status: str, solve_time: float, it: int, cost: float) -> np.ndarray:
-        idx, N = self._prob.idx, self.settings.horizon
+        idx, M = self._prob.idx, self._prob.n_moves
         fallback = False
         if not ok or not np.all(np.isfinite(z)):
             fallback = True
@@ -255,17 +261,17 @@ class _MPCBase:
             else:
                 z = self._initial(self._last_p)
                 z[idx["U"]] = np.tile((self._u_prev if self._u_prev is not None else np.zeros(self._n_u))
-                                      / self._prob.scale["u"], N)
+                                      / self._prob.scale["u"], M)
         # hard input bounds (and the thrust polytope) are kept even by a fallback plan
-        U_s = np.clip(z[idx["U"]].reshape(N, self._n_u), self._prob.lbz[idx["U"]].reshape(N, self._n_u),
-                      self._prob.ubz[idx["U"]].reshape(N, self._n_u))
+        U_s = np.clip(z[idx["U"]].reshape(M, self._n_u), self._prob.lbz[idx["U"]].reshape(M, self._n_u),
+                      self._prob.ubz[idx["U"]].reshape(M, self._n_u))
         if fallback:
             U_s = self._into_polytope(U_s)
         U = U_s * self._prob.scale["u"]
         self._z = z
         u0 = U[0]
         self._u_prev = u0.copy()
-        self.plan_u = U
+        self.plan_u = U[self._prob.block_of]   # the thrust of every prediction step
         soft = max(float(np.max(z[idx[k]], initial=0.0)) for k in ("S_safe", "S_T", "S_R"))
         active = []
         if float(np.max(z[idx["S_R"]], initial=0.0)) > 1e-4:
@@ -276,7 +282,7 @@ class _MPCBase:
             active.append("tension")
         if float(np.max(z[idx["S_db"]], initial=0.0)) > 1e-4:
             active.append("dead_band")
-        us = z[idx["U"]].reshape(N, self._n_u)[0]
+        us = z[idx["U"]][:self._n_u]
         lo, hi = self._prob.lbz[idx["U"]][:self._n_u], self._prob.ubz[idx["U"]][:self._n_u]
         free = hi > lo  # a failed thruster's column (bounds 0, 0) is not a capacity limit
         at_box = np.any(free & (np.abs(us) >= np.minimum(-lo, hi) - 1e-4))
@@ -314,7 +320,7 @@ class _MPCBase:
             return  # a problem is built with the intact bounds
         ths = self.system.thrusters.without(self._failed) if self._failed else self.system.thrusters
         self._bounds_changed = False
-        N = self.settings.horizon
+        M = self._prob.n_moves
         if self.settings.decision == "tau":
             box = ths.capacity_box(self.settings.capacity_fraction) if self.settings.thrust_set == "box" else ths.max_tau()
             lim = np.asarray(box) / self._prob.scale["u"]
@@ -323,7 +329,7 @@ class _MPCBase:
             _, lo_si, hi_si, _, _ = ths.extended()
             lo, hi = lo_si / self._prob.scale["u"], hi_si / self._prob.scale["u"]
         sl = self._prob.idx["U"]
-        self._prob.lbz[sl], self._prob.ubz[sl] = np.tile(lo, N), np.tile(hi, N)
+        self._prob.lbz[sl], self._prob.ubz[sl] = np.tile(lo, M), np.tile(hi, M)
 
     def tau_from_u(self, u: np.ndarray) -> np.ndarray:
         """Generalised thrust [N, N, N m] of a decision vector (identity for ``decision="tau"``)."""

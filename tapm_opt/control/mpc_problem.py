@@ -43,6 +43,14 @@ class MPCSettings:
     ----------
     horizon : int
         Prediction steps N.
+    move_blocks : tuple of int or None
+        Move blocking: the lengths, in prediction steps, of the blocks over which the thrust
+        decision is held (they sum to ``horizon``), e.g. ``(1, 1, 2, 4, 8, 14)`` at N = 30; None
+        (default): a move at every step. The states, the soft constraints and the cost are still
+        predicted at every step; only the thrust is held, so the thrust polytope and its rate rows
+        are written once per block (the change between two blocks happens in one step, so it keeps
+        the per-step rate limit). Fewer moves make a long horizon cheap: at N = 50 with 8 blocks
+        the QP has 24 thrust variables instead of 150 and an eighth of the polytope rows.
     dt : float
         Prediction step [s]; also the default re-solve period.
     substeps : int
@@ -136,6 +144,7 @@ class MPCSettings:
     """
 
     horizon: int = 20
+    move_blocks: tuple[int, ...] | None = None
     dt: float = 5.0
     substeps: int = 1
     mooring: Literal["characteristic", "catenary", "linear"] = "characteristic"
@@ -201,6 +210,18 @@ class MPCSettings:
                               ("linearise_about", ("state", "setpoint")), ("hessian", ("gauss-newton", "exact"))):
             if getattr(self, name) not in allowed:
                 raise MPCError(f"MPCSettings.{name} = {getattr(self, name)!r} is not one of {', '.join(allowed)}")
+        mb = self.move_blocks
+        if mb is not None:
+            if not (isinstance(mb, (list, tuple)) and mb
+                    and all(isinstance(b, (int, float)) and not isinstance(b, bool) and math.isfinite(b)
+                            and float(b).is_integer() and b >= 1 for b in mb)):
+                raise MPCError(f"MPCSettings.move_blocks = {mb!r} must be a list of whole numbers >= 1 (block lengths "
+                               "in prediction steps) or None")
+            mb = tuple(int(b) for b in mb)   # 2.0 from a command line is 2
+            if isinstance(self.horizon, int) and sum(mb) != self.horizon:
+                raise MPCError(f"MPCSettings.move_blocks = {list(mb)} sums to {sum(mb)}, not to horizon = "
+                               f"{self.horizon}")
+            object.__setattr__(self, "move_blocks", mb)
         v = self.dead_band_damaged
         if v is not None:
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
@@ -257,6 +278,13 @@ class _Problem:
     #: Rows of the thrust polytope (padded: a row of zeros with bound 1 is always met).
     n_poly: int = 0
     linear: bool = False
+    #: The thrust move that acts at each prediction step (N,): ``arange(N)`` without move blocking.
+    block_of: np.ndarray | None = None
+
+    @property
+    def n_moves(self) -> int:
+        """Thrust moves in the decision (the number of move blocks; N without blocking)."""
+        return int(self.block_of[-1]) + 1
 
 
 def _polygon(n: int) -> np.ndarray:
@@ -440,12 +468,14 @@ def build_problem(system: Any, settings: MPCSettings, *, linear: bool = False,
         Pb = p[p_idx["poly_b"]]
         rdt = p[p_idx["rate_dt"]]
 
-    # decision variables (scaled): X (6 x N+1), U (n_u x N), slacks: dead band, safe, tension, riser
-    # (N each)
-    nX, nU = 6 * (N + 1), n_u * N
+    # decision variables (scaled): X (6 x N+1), U (n_u x M, one move per block: M = N without
+    # move blocking), slacks: dead band, safe, tension, riser (N each)
+    block_of = block_index(s.move_blocks, N)
+    M = int(block_of[-1]) + 1
+    nX, nU = 6 * (N + 1), n_u * M
     z = Sym.sym("z", nX + nU + 4 * N)
     X = ca.reshape(z[:nX], 6, N + 1)
-    U = ca.reshape(z[nX:nX + nU], n_u, N)
+    U = ca.reshape(z[nX:nX + nU], n_u, M)
     S_db = z[nX + nU:nX + nU + N]
     S_safe = z[nX + nU + N:nX + nU + 2 * N]
     S_T = z[nX + nU + 2 * N:nX + nU + 3 * N]
@@ -472,33 +502,35 @@ def build_problem(system: Any, settings: MPCSettings, *, linear: bool = False,
     ubg += [0.0] * 6
     u_last = u_prev / Du
     for k in range(N):
+        j = int(block_of[k])
+        uk = U[:, j]
         xk_si = X[:, k] * Dx
-        uk_si = U[:, k] * Du
-        xn = step(xk_si, uk_si, b_E)
+        xn = step(xk_si, uk * Du, b_E)
         g.append(X[:, k + 1] - xn / Dx)
         lbg += [0.0] * 6
         ubg += [0.0] * 6
-        if n_poly:
+        new_move = k == 0 or block_of[k - 1] != j   # the thrust rows only where a move starts
+        if new_move and n_poly:
             # the attainable thrust, and its change within the same polytope scaled by r dt
-            g.append(ca.mtimes(PA, U[:, k]) - Pb)
+            g.append(ca.mtimes(PA, uk) - Pb)
             lbg += [-ca.inf] * n_poly
             ubg += [0.0] * n_poly
-            g.append(ca.mtimes(PA, U[:, k] - u_last) - rdt * Pb)
+            g.append(ca.mtimes(PA, uk - u_last) - rdt * Pb)
             lbg += [-ca.inf] * n_poly
             ubg += [0.0] * n_poly
-        else:
+        elif new_move:
             # thrust rate (hard)
-            g.append(U[:, k] - u_last)
+            g.append(uk - u_last)
             lbg += list(-rate_s * s.dt)
             ubg += list(rate_s * s.dt)
         # thrust circles of azimuths and the rate of their force vectors (thruster decision):
         # |f| <= f_max and |f_k - f_k-1| <= rate dt, as inscribed polygons (so the magnitude too
         # changes by at most rate dt)
-        if s.decision == "thrusters":
+        if s.decision == "thrusters" and new_move:
             col = 0
             while col < n_u:
                 if kinds[col] == "az":
-                    uv = U[col:col + 2, k]
+                    uv = uk[col:col + 2]
                     duv = uv - u_last[col:col + 2]
                     for nrm in polyg:
                         g.append(nrm[0] * uv[0] + nrm[1] * uv[1])
@@ -510,9 +542,10 @@ def build_problem(system: Any, settings: MPCSettings, *, linear: bool = False,
                     col += 2
                 else:
                     col += 1
-        sq(s.w_thrust, U[:, k])
-        sq(s.w_rate, U[:, k] - u_last)
-        u_last = U[:, k]
+        sq(s.w_thrust, uk)
+        if new_move:
+            sq(s.w_rate, uk - u_last)
+        u_last = uk
         # state terms at k+1
         xe = X[:, k + 1] * Dx
         w_state = s.w_terminal if k == N - 1 else 1.0
@@ -558,8 +591,8 @@ def build_problem(system: Any, settings: MPCSettings, *, linear: bool = False,
     g = ca.vertcat(*g)
     r = ca.vertcat(*res)
     cost = ca.sumsqr(r) + f_lin
-    lbz = np.concatenate([np.full(nX, -np.inf), np.tile(u_lo_s, N), np.zeros(4 * N)])
-    ubz = np.concatenate([np.full(nX, np.inf), np.tile(u_hi_s, N), np.full(4 * N, np.inf)])
+    lbz = np.concatenate([np.full(nX, -np.inf), np.tile(u_lo_s, M), np.zeros(4 * N)])
+    ubz = np.concatenate([np.full(nX, np.inf), np.tile(u_hi_s, M), np.full(4 * N, np.inf)])
     # slacks of constraints that are not there are held at zero
     if s.dead_band <= 0:
         ubz[nX + nU:nX + nU + N] = 0.0
@@ -573,4 +606,12 @@ def build_problem(system: Any, settings: MPCSettings, *, linear: bool = False,
     scale = {"x": x_ref, "u": u_ref, "T_allow": T_allow, "R_safe": R_safe, "p_cot_B": p_cot}
     return _Problem(z=z, p=p, f=cost, g=g, lbz=lbz, ubz=ubz, lbg=np.array(lbg, float), ubg=np.array(ubg, float),
                     idx=idx, scale=scale, n_u=n_u, B_thr=Bu if s.decision == "thrusters" else None, r=r,
-                    p_idx=p_idx, n_poly=n_poly, linear=linear)
+                    p_idx=p_idx, n_poly=n_poly, linear=linear, block_of=block_of)
+
+
+def block_index(move_blocks: tuple[int, ...] | None, horizon: int) -> np.ndarray:
+    """The move acting at each of the ``horizon`` prediction steps (``MPCSettings.move_blocks``):
+    ``arange(horizon)`` without blocking, else block j repeated over its length."""
+    if move_blocks is None:
+        return np.arange(horizon)
+    return np.repeat(np.arange(len(move_blocks)), move_blocks)
