@@ -633,6 +633,41 @@ def test_failed_thrusters_shrink_the_thrust_box(fpso, cls):
     assert np.max(np.abs(tau) / box) > 0.99  # saturated at the reduced box
 
 
+def test_sqp_converges_where_gauss_newton_is_slow(fpso):
+    """A state of the design storm after line 1 broke (57 m off, the thrust saturated, 1.5 MN and
+    1.4e8 N m of load, the study defaults): the Gauss-Newton SQP contracts its dual infeasibility
+    by only ~0.83 per iteration here, so with sqpmethod's absolute 1e-6 it stopped at the 30
+    iteration limit (77 to converge) and the loop applied the shifted previous plan. With the
+    tolerance relative to the L1 weight (NonlinearMPC.SQP_DUAL_TOLERANCE) it converges within the
+    limit, to the first move and the cost of a solve run to 1e-6 with 200 iterations."""
+    from tapm_opt.studies.controllers import MPC_DEFAULTS
+
+    s = MPCSettings(**MPC_DEFAULTS, dead_band=30.0, fault_tolerance=True)
+    x = np.array([-44.61138, -35.77943, 0.403389, -0.2378754, 0.1077731, 1.140355e-03])
+    u_prev = np.array([6.511067e6, -2.886157e6, -1.121037e8])
+    b = np.array([-7.685705e6, 6.458398e5, 1.427865e8])
+    e = Estimate(0.0, x[:3], x[3:], rot_z(x[2]).T @ b, broken_lines=frozenset({"1"}))
+    sp = Setpoint([0.0, 0.0, 0.319821])
+
+    def solve(settings, tol):
+        class Tight(NonlinearMPC):
+            SQP_DUAL_TOLERANCE = tol
+        ctrl = Tight(fpso, settings)
+        ctrl._u_prev = u_prev.copy()   # the move applied at the step before
+        return ctrl, ctrl.update(0.0, e, sp)
+
+    ctrl, u = solve(s, NonlinearMPC.SQP_DUAL_TOLERANCE)
+    d = ctrl.diagnostics[-1]
+    assert d.success and not d.fallback and d.iterations <= s.max_iter, d.status
+    absolute, _ = solve(s, 1e-9)   # sqpmethod's own 1e-6
+    assert not absolute.diagnostics[-1].success and "Maximum_Iterations" in absolute.diagnostics[-1].status
+    ref, u_ref = solve(replace(s, max_iter=200), 1e-9)
+    assert ref.diagnostics[-1].success, ref.diagnostics[-1].status
+    assert np.max(np.abs(u - u_ref) / ThrusterSet.from_scenario(fpso).max_tau()) < 1e-6
+    assert d.cost == pytest.approx(ref.diagnostics[-1].cost, rel=1e-6)
+    assert "thrust_capacity" in d.active
+
+
 def test_failed_sqp_solve_is_retried_with_osqp(fpso, monkeypatch):
     """When the SQP with piqp fails, the same SQP with OSQP for its subproblems solves the step:
     the move is that of an undisturbed solve and the diagnostics say so."""
