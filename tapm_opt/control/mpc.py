@@ -9,7 +9,8 @@ optimal control problem over CasADi symbols, in scaled variables, with multiple 
   the slowly varying environmental load ``b`` in {E} as a parameter, ``tau_env = R(psi)^T b``;
   RK4 over ``dt``;
 * decision variables: generalised thrust ``tau`` (allocation afterwards) or the thrusters' force
-  components directly (extended thrust; allocation inside the MPC);
+  components directly (extended thrust; allocation inside the MPC), one move per prediction step or
+  held over blocks of steps (``MPCSettings.move_blocks``);
 * cost, as least squares plus L1 penalties: thrust power surrogate (so the mooring does the work),
   position error outside a dead band (the TAPM philosophy, survey §4.1) and optionally inside it,
   heading error, velocity, thrust rate, a terminal cost;

@@ -115,7 +115,10 @@ class MPCSettings:
     polygon_sides : int
         Sides of the polygons approximating circles (dead band, safe circle, thrust circles).
     max_iter : int
-        Iteration limit of the NLP solver (SQP iterations or IPOPT iterations).
+        Iteration limit of the NLP solver (SQP iterations or IPOPT iterations). The Gauss–Newton
+        SQP usually needs 3–5; it converges only linearly where the dynamics' curvature matters,
+        and needed up to 46 in the storms of ``studies/mpc_sweep.toml`` (30, the earlier limit,
+        made two solves there fail).
     max_time : float
         Wall-clock limit of one IPOPT solve [s]; SQP is bounded by ``max_iter`` and its QP solver's
         own iteration limit.
@@ -173,7 +176,7 @@ class MPCSettings:
     linearise_about: Literal["state", "setpoint"] = "state"
     hessian: Literal["gauss-newton", "exact"] = "gauss-newton"
     polygon_sides: int = 16
-    max_iter: int = 30
+    max_iter: int = 100
     max_time: float = 10.0
     reliability: bool = False
     delta_s: float = 2.0
