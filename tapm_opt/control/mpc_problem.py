@@ -49,8 +49,8 @@ class MPCSettings:
         (default): a move at every step. The states, the soft constraints and the cost are still
         predicted at every step; only the thrust is held, so the thrust polytope and its rate rows
         are written once per block (the change between two blocks happens in one step, so it keeps
-        the per-step rate limit). Fewer moves make a long horizon cheap: at N = 50 with 8 blocks
-        the QP has 24 thrust variables instead of 150 and an eighth of the polytope rows.
+        the per-step rate limit). Fewer moves make a long horizon cheaper: at N = 50 with 8 blocks
+        the QP has 24 thrust variables instead of 150 and 8 instead of 50 sets of polytope rows.
     dt : float
         Prediction step [s]; also the default re-solve period.
     substeps : int
@@ -116,7 +116,7 @@ class MPCSettings:
         Sides of the polygons approximating circles (dead band, safe circle, thrust circles).
     max_iter : int
         Iteration limit of the NLP solver (SQP iterations or IPOPT iterations). The Gauss–Newton
-        SQP usually needs 3–5; it converges only linearly where the dynamics' curvature matters,
+        SQP usually needs 2–4; it converges only linearly where the dynamics' curvature matters,
         and needed up to 46 in the storms of ``studies/mpc_sweep.toml`` (30, the earlier limit,
         made two solves there fail).
     max_time : float
