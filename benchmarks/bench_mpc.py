@@ -64,8 +64,6 @@ def move_blocks(N: int) -> tuple[int, ...]:
     return tuple(out + [N - sum(out)])
 
 
-
-
 def ren8_with_thrusters():
     """(scenario, description): ren8, given fpso's thrusters if it has none and a 50 m safe radius if
     it has none."""

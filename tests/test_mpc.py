@@ -634,8 +634,8 @@ def test_failed_thrusters_shrink_the_thrust_box(fpso, cls):
 
 
 def test_sqp_converges_where_gauss_newton_is_slow(fpso):
-    """A state of the design storm after line 1 broke (57 m off, the thrust saturated, 1.5 MN and
-    1.4e8 N m of load, the study defaults): the Gauss-Newton SQP contracts its dual infeasibility
+    """A state of the design storm after line 1 broke (57 m off, the thrust saturated, 7.7 MN and
+    1.4e8 N m of load in {E}, the study defaults): the Gauss-Newton SQP contracts its dual infeasibility
     by only ~0.83 per iteration here, so with sqpmethod's absolute 1e-6 it stopped at the earlier
     30-iteration limit (77 to converge) and the loop applied the shifted previous plan. With the
     tolerance relative to the L1 weight (NonlinearMPC.SQP_DUAL_TOLERANCE) it converges within 30,
