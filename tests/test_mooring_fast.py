@@ -321,3 +321,72 @@ def test_lowpass_estimator_follows_a_replaced_model_and_accepts_a_plain_one():
 
     est.model = Plain()
     np.testing.assert_array_equal(est.mooring_load(eta), [1.0, 2.0, 3.0])
+
+
+# ------------------------------------------------------------------------------------------
+# tabulated line characteristics (the MPC's parameters)
+# ------------------------------------------------------------------------------------------
+
+
+def assert_characteristics_agree(m: MooringModel, ev: TabulatedMooringLoad, poses, *, slope_rtol=1e-5):
+    """Tabulated characteristics against ``MooringModel.characteristics``: H0 and T0 within the
+    tables' bound (10 x rtol x max(value, largest pretension)), XF0 exact, the slopes within
+    ``slope_rtol`` of the largest exact slope of each line over the poses."""
+    exact = np.array([m.characteristics(e) for e in poses])
+    got = np.array([ev.characteristics(e) for e in poses])
+    H0 = m.solve_lines(np.zeros(3)).HF.max()
+    for row in (0, 3):
+        np.testing.assert_array_less(np.abs(got[:, row] - exact[:, row]),
+                                     10 * ev.rtol * np.maximum(exact[:, row], H0) + 1e-9)
+    np.testing.assert_array_equal(got[:, 2], exact[:, 2])
+    for row in (1, 4):
+        scale = np.max(np.abs(exact[:, row]), axis=0)
+        assert np.all(np.abs(got[:, row] - exact[:, row]) <= slope_rtol * scale + 1e-9), row
+
+
+@pytest.mark.parametrize("name", list(SCENARIOS))
+def test_tabulated_characteristics_agree_with_the_catenary(name):
+    m = MooringModel.from_scenario(SCENARIOS[name])
+    ev = m.load_evaluator()
+    assert_characteristics_agree(m, ev, random_poses(60, 0.8 * ev.max_offset, seed=11))
+    assert ev.exact_calls == 0
+
+
+def test_tabulated_characteristics_through_regime_changes():
+    """Lines that lift off and touch down along the sweep: the slopes jump at a regime change,
+    and the tables (a node pair there) still follow the catenary on both sides."""
+    m = raised_model()
+    ev = m.load_evaluator()
+    poses = np.array([(x, 0.5 * x, 0.1) for x in np.linspace(-250.0, 250.0, 101)])
+    assert_characteristics_agree(m, ev, poses, slope_rtol=1e-4)
+    assert ev.exact_calls == 0
+
+
+def test_tabulated_slopes_are_the_derivatives_of_the_tabulated_tensions():
+    """The slope rows are the derivatives of the H0 and T0 rows (central differences of the
+    tables themselves along a line's distance), and the characteristics are linear models
+    that reproduce the catenary's tensions at a nearby pose to second order."""
+    m = MooringModel.from_scenario(SCENARIOS["fpso"])
+    ev = m.load_evaluator()
+    eta, d = np.array([35.0, -12.0, 0.2]), np.array([0.05, 0.0, 0.0])
+    c0, cp, cm = ev.characteristics(eta), ev.characteristics(eta + d), ev.characteristics(eta - d)
+    dX = cp[2] - cm[2]
+    np.testing.assert_allclose((cp[0] - cm[0]) / dX, c0[1], rtol=1e-6)
+    np.testing.assert_allclose((cp[3] - cm[3]) / dX, c0[4], rtol=1e-6)
+    far = eta + np.array([2.0, 1.0, 0.0])
+    tau, T = m.characteristic_load(far, c0)
+    exact = m.solve_lines(far)
+    step = np.abs(m.spans(far)[2] - c0[2])
+    assert np.all(np.abs(T - exact.TF) <= 0.05 * np.abs(c0[4]) * step + 1.0)
+
+
+def test_tabulated_characteristics_beyond_the_tables_and_bad_pose():
+    m = MooringModel.from_scenario(SCENARIOS["ren8"])
+    ev = m.load_evaluator(max_offset=5.0)
+    outside = np.array([60.0, -20.0, 0.4])
+    np.testing.assert_array_equal(ev.characteristics(outside), m.characteristics(outside))
+    assert ev.exact_calls == 1
+    with pytest.raises(ModelError, match="eta"):
+        ev.characteristics([np.nan, 0.0, 0.0])
+    with pytest.raises(ModelError, match="eta"):
+        ev.characteristics([1.0, 2.0])

@@ -573,6 +573,32 @@ def test_load_enters_the_prediction_through_its_low_pass_filter(fpso):
     np.testing.assert_allclose(raw._params(est(x, step_B, t=1.0), SP0)[pi["b"]], step_E, rtol=1e-12)
 
 
+def test_line_characteristics_parameters_are_the_catenary_at_the_centre_pose(fpso, monkeypatch):
+    """The ``moor`` parameters are every line's characteristic at the centre pose, read from the
+    model's tabulated catenary: H0, T0 within 1e-8 and the slopes within 1e-5 of
+    ``MooringModel.characteristics`` there; the first move with them is the first move with the
+    exact characteristics to 1e-6 of the thrust scale."""
+    import tapm_opt.control.mpc as mpc_module
+
+    x = np.array([38.0, -14.0, math.radians(12.0), 0.1, 0.0, 0.0])
+    e = est(x, (6e5, -2e5, 1e6))
+    ctrl = LinearMPC(fpso, MPCSettings(horizon=8, **QUADRATIC))
+    pi = ctrl._prob.p_idx
+    got = ctrl._params(e, SP0)[pi["moor"]].reshape(5, -1)
+    want = ctrl.model.characteristics(ctrl._centre(x[:3], SP0.eta_d))
+    np.testing.assert_allclose(got[[0, 3]], want[[0, 3]], rtol=1e-8)
+    np.testing.assert_array_equal(got[2], want[2])
+    for row in (1, 4):
+        assert np.max(np.abs(got[row] - want[row])) <= 1e-5 * np.max(np.abs(want[row]))
+    tabulated = LinearMPC(fpso, MPCSettings(horizon=8, **QUADRATIC))
+    u_tab = tabulated.update(0.0, e, SP0)
+    monkeypatch.setattr(mpc_module, "mooring_parameters", lambda m, eta_c: m.characteristics(eta_c).ravel())
+    exact = LinearMPC(fpso, MPCSettings(horizon=8, **QUADRATIC))
+    u_exact = exact.update(0.0, e, SP0)
+    assert tabulated.last_step().success and exact.last_step().success
+    np.testing.assert_allclose(u_tab, u_exact, rtol=0, atol=1e-6 * np.max(np.abs(u_exact)))
+
+
 # --- bad input -------------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("field,value", [

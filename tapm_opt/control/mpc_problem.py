@@ -311,8 +311,11 @@ def _turret(eta: Any, p_cot_B: np.ndarray, psi_op: Any) -> Any:
 def mooring_parameters(model: MooringModel, eta_c: np.ndarray) -> np.ndarray:
     """Line characteristics of ``mooring="characteristic"`` centred at the pose ``eta_c``
     (``MooringModel.characteristics``, survey eq. 26–28): H0, dH/dXF, XF0, T0, dT/dXF of every line,
-    concatenated row by row, shape (5 n,)."""
-    return model.characteristics(eta_c).ravel()
+    concatenated row by row, shape (5 n,). Read from the model's tabulated catenary
+    (``model.load_evaluator().characteristics``: the tensions within 1e-9, the slopes within about
+    1e-6 of the catenary's; exact beyond the tables), about 60 us against 0.8 ms for the catenary
+    solve of fpso's 12 lines."""
+    return model.load_evaluator().characteristics(eta_c).ravel()
 
 
 def polytope_parameters(thrusters: Any, settings: MPCSettings, u_ref: np.ndarray,

@@ -114,16 +114,27 @@ def _hermite(x0, x1, H0, H1, k0, k1, x):
     return H0 + t * (a + t * ((3.0 * dH - 2.0 * a - b) + t * (a + b - 2.0 * dH)))
 
 
+def _hermite_slope(x0, x1, H0, H1, k0, k1, x):
+    """Derivative d/dx of :func:`_hermite` at x."""
+    h = x1 - x0
+    t = (x - x0) / h
+    a, b, dH = k0 * h, k1 * h, H1 - H0
+    return (a + t * (2.0 * (3.0 * dH - 2.0 * a - b) + 3.0 * t * (a + b - 2.0 * dH))) / h
+
+
 @dataclass(frozen=True)
 class _LineTable:
-    """H(XF) of one line configuration: nodes ``X`` [m] (increasing), ``H`` [N], slopes ``K``
-    [N/m] (one-sided at a regime change, which sits between two nodes 1e-9 relative apart),
-    ``ok`` (per interval: checked within tolerance), ``err`` (per interval: largest checked error
-    relative to the tolerance scale)."""
+    """H(XF) and T(XF) of one line configuration: nodes ``X`` [m] (increasing), ``H`` [N],
+    slopes ``K`` [N/m] (one-sided at a regime change, which sits between two nodes 1e-9 relative
+    apart), the fairlead tension ``T`` [N] and its slopes ``KT`` [N/m] on the same nodes, ``ok``
+    (per interval: both checked within tolerance), ``err`` (per interval: largest checked error of
+    H or T relative to the tolerance scale)."""
 
     X: np.ndarray
     H: np.ndarray
     K: np.ndarray
+    T: np.ndarray
+    KT: np.ndarray
     ok: np.ndarray
     err: np.ndarray
 
@@ -148,11 +159,12 @@ def _regime_changes(solve, lo: float, hi: float, n: int) -> list[tuple[float, fl
 
 def _line_table(ZF, L, EA, w, CB, h_A, lo: float, hi: float, *, rtol: float, H_ref: float,
                 max_nodes: int = 200_000) -> _LineTable:
-    """Adaptive cubic Hermite table of the catenary's HF(XF) over [lo, hi] for one configuration.
+    """Adaptive cubic Hermite tables of the catenary's HF(XF) and TF(XF) over [lo, hi] for one
+    configuration.
 
     Nodes start ~ (hi - lo)/64 apart with a node pair at every regime change; an interval is split
-    in two while the interpolant misses :func:`catenary.solve` by more than
-    ``rtol * max(HF, H_ref)`` at any of :data:`_CHECK_POINTS`. Intervals still off when they are
+    in two while either interpolant misses :func:`catenary.solve` by more than
+    ``rtol * max(HF, H_ref)`` (``rtol * max(TF, H_ref)`` for TF) at any of :data:`_CHECK_POINTS`. Intervals still off when they are
     shorter than 2^-20 (hi - lo), or when the table reaches ``max_nodes``, are marked not ``ok``
     (the evaluator then uses the exact model there).
     """
@@ -167,7 +179,7 @@ def _line_table(ZF, L, EA, w, CB, h_A, lo: float, hi: float, *, rtol: float, H_r
         pieces.append(np.linspace(a, b, max(int(np.ceil((b - a) / h0)), 1) + 1))
     X = np.unique(np.concatenate(pieces))
     s = solve(X)
-    H, K = s.HF, s.dHF_dXF
+    H, K, T, KT = s.HF, s.dHF_dXF, s.TF, s.dTF_dXF
     h_min = (hi - lo) * 2.0 ** -20
     pending = np.ones(X.size - 1, dtype=bool)  # intervals still to check
     ok = np.ones(X.size - 1, dtype=bool)
@@ -181,9 +193,11 @@ def _line_table(ZF, L, EA, w, CB, h_A, lo: float, hi: float, *, rtol: float, H_r
             xt = x0 + t * (x1 - x0)
             st = solve(xt)
             e = np.abs(_hermite(x0, x1, H[j], H[j + 1], K[j], K[j + 1], xt) - st.HF)
-            worst = np.maximum(worst, e / (rtol * np.maximum(st.HF, H_ref)))
+            eT = np.abs(_hermite(x0, x1, T[j], T[j + 1], KT[j], KT[j + 1], xt) - st.TF)
+            worst = np.maximum(worst, np.maximum(e / (rtol * np.maximum(st.HF, H_ref)),
+                                                 eT / (rtol * np.maximum(st.TF, H_ref))))
             if t == 0.5:
-                mid = (xt, st.HF, st.dHF_dXF)
+                mid = (xt, st.HF, st.dHF_dXF, st.TF, st.dTF_dXF)
         err[j] = worst
         split = (worst > 1.0) & (x1 - x0 > h_min) & (X.size + np.cumsum(worst > 1.0) <= max_nodes)
         ok[j] = worst <= 1.0
@@ -196,12 +210,14 @@ def _line_table(ZF, L, EA, w, CB, h_A, lo: float, hi: float, *, rtol: float, H_r
         X = np.insert(X, at, mid[0][split])
         H = np.insert(H, at, mid[1][split])
         K = np.insert(K, at, mid[2][split])
+        T = np.insert(T, at, mid[3][split])
+        KT = np.insert(KT, at, mid[4][split])
         new_pending = np.insert(pending, at, True)
         new_pending[js + np.arange(js.size)] = True  # left halves (indices shift by earlier inserts)
         pending = new_pending
         ok = np.insert(ok, at, True)
         err = np.insert(err, at, 0.0)
-    return _LineTable(X=X, H=H, K=K, ok=ok, err=err)
+    return _LineTable(X=X, H=H, K=K, T=T, KT=KT, ok=ok, err=err)
 
 
 _KERNEL = None
@@ -380,11 +396,13 @@ class TabulatedMooringLoad:
             H_ref = float(np.max(H0[mine])) or w * L or 1.0
             if hi <= lo:  # nothing to tabulate: every pose goes to the exact model
                 tables.append(_LineTable(X=np.array([lo, lo + 1.0]), H=np.zeros(2), K=np.zeros(2),
-                                         ok=np.zeros(1, bool), err=np.full(1, np.inf)))
+                                         T=np.zeros(2), KT=np.zeros(2), ok=np.zeros(1, bool),
+                                         err=np.full(1, np.inf)))
                 continue
             tables.append(_line_table(ZF, L, EA, w, CB, h_A, lo, hi, rtol=self.rtol, H_ref=H_ref))
         self._tables = tuple(tables)
         self._line_table = line_table
+        self._members = tuple(np.flatnonzero(line_table == j) for j in range(len(tables)))
         self.max_error = float(max(np.max(t.err[t.ok], initial=0.0) for t in tables))
         # packed arrays of the compiled kernel (private, writable, contiguous)
         self._par = np.array([model.p_cot_B[0], model.p_cot_B[1], model.turret_angle,
@@ -429,6 +447,42 @@ class TabulatedMooringLoad:
             h = _hermite(tb.X[a], tb.X[a + 1], tb.H[a], tb.H[a + 1], tb.K[a], tb.K[a + 1], x)
             H[mine] = np.where(inside & tb.ok[a], np.maximum(h, 0.0), np.nan)
         return H
+
+    def characteristics(self, eta) -> np.ndarray:
+        """Every line's characteristic about the pose ``eta`` from the tables: the rows of
+        :meth:`MooringModel.characteristics <tapm_opt.models.mooring.MooringModel.characteristics>`
+        (survey eq. 26–28) — H0 [N], dH/dXF [N/m], XF0 [m], T0 [N], dT/dXF [N/m] — shape (5, n).
+
+        H0 and T0 are the tables' values (within ``rtol`` of the catenary, class docstring), the
+        slopes the derivatives of the same cubics (their error is larger, of the order of
+        ``rtol * max(HF, H_0)`` over the node spacing: below 1e-5 of the exact slope's scale on
+        fpso, ``tests/test_mooring_fast.py``). A pose with a line beyond its table is computed by
+        the exact model (counted in :attr:`exact_calls`)."""
+        e = np.asarray(eta, dtype=float)
+        if e.shape != (3,) or not np.all(np.isfinite(e)):
+            return self.model.characteristics(e)  # raises ModelError naming the values
+        _, _, XF = self.model.spans(e)
+        out = np.empty((5, XF.size))
+        out[2] = XF
+        for j, tb in enumerate(self._tables):
+            mine = self._members[j]
+            x = XF[mine]
+            if not (np.all(x >= tb.X[0]) and np.all(x <= tb.X[-1])):
+                break
+            a = np.minimum(np.searchsorted(tb.X, x, side="right") - 1, tb.X.size - 2)
+            if not np.all(tb.ok[a]):
+                break
+            x0, x1 = tb.X[a], tb.X[a + 1]
+            args = (x0, x1, tb.H[a], tb.H[a + 1], tb.K[a], tb.K[a + 1], x)
+            argsT = (x0, x1, tb.T[a], tb.T[a + 1], tb.KT[a], tb.KT[a + 1], x)
+            out[0, mine] = np.maximum(_hermite(*args), 0.0)
+            out[1, mine] = _hermite_slope(*args)
+            out[3, mine] = _hermite(*argsT)
+            out[4, mine] = _hermite_slope(*argsT)
+        else:
+            return out
+        self.exact_calls += 1
+        return self.model.characteristics(e)
 
     # -- evaluation -------------------------------------------------------------------------
     def force(self, eta) -> np.ndarray:
