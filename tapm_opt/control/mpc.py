@@ -52,10 +52,10 @@ __all__ = ["MPCSettings", "MPCError", "NonlinearMPC", "LinearMPC", "build_proble
 LINEAR_QP_SOLVERS = ("piqp", "osqp")
 
 #: piqp's KKT solver for the MPC's QPs (the linear MPC's, the SQP's subproblems): the sparse LDL^T
-#: of the KKT system with the equality and inequality rows condensed into it. On 34 QPs of the
-#: benchmark trajectory (fpso) it gave the default ``sparse_ldlt``'s solutions to 2e-11 in the same
-#: iterations, 10-20 % faster (N = 20: 7.1 -> 6.3 ms; N = 50: 16.2 -> 14.2 ms; N = 50 with 8
-#: moves: 6.6 -> 5.5 ms; ``docs/performance.md``).
+#: of the KKT system with the equality and inequality rows condensed into it. On the linear MPC's
+#: QPs of the benchmark trajectory (fpso; N = 20, 50 and 50 with 8 moves) it gives the default
+#: ``sparse_ldlt``'s solutions to 2e-11 in the same iterations in 0.87-0.88 of its time
+#: (``benchmarks/bench_mpc_parts.py``, ``docs/performance.md``).
 PIQP_KKT_SOLVER = "sparse_ldlt_cond"
 
 
