@@ -14,15 +14,15 @@ radius 28 -> 44 m along a fixed bearing at 0.1 m/s, crossing the dead band, head
 0.05 deg per step, a constant environmental load of 0.5 MN. After 2 warm-up steps, 32 warm-started
 steps are timed -- fewer (at least 5, marked *) where that would take more than ``--budget`` seconds,
 none where a warm-up step takes more than ``--skip-above`` seconds (said so in the output), which keeps
-the run to about 5 minutes. Paths: LinearMPC (piqp, OSQP); NonlinearMPC with the "characteristic" and the
-"catenary" mooring x solver sqp, ipopt, fatrop. Per path: build time (for LinearMPC incl. the QP
-set-up in its first update), median / p95 / max of the wall time of ``update()`` (what the control
-loop sees: parameters, solve, first move), the solver call alone, iterations, failed solves
-(fallbacks), and for the NLP paths the split of the solver's time between the QP solver, the
-Hessian of the Lagrangian, the Jacobians, f/g and the rest (IPOPT: its linear algebra) from
-``nlpsol.stats()``.
+the run to about 5 minutes. Paths: LinearMPC (piqp, OSQP); NonlinearMPC with the "characteristic" and
+the "catenary" mooring x solver sqp, rti (one SQP iteration per step), ipopt, fatrop. Per path: build
+time (for LinearMPC incl. the QP set-up in its first update), median / p95 / max of the wall time of
+``update()`` (what the control loop sees: parameters, solve, first move), the solver call alone,
+iterations, failed solves (fallbacks), and for the NLP paths the split of the solver's time between
+the QP solver, the Hessian of the Lagrangian, the Jacobians, f/g and the rest (IPOPT: its linear
+algebra) from ``nlpsol.stats()``.
 
-``--move-blocks`` adds the linear MPC (piqp) and the nonlinear SQP path with move blocking
+``--move-blocks`` adds the linear MPC (piqp) and the nonlinear SQP and RTI paths with move blocking
 (``MPCSettings.move_blocks``): ``MOVE_BLOCKS[N]``, 5 moves at N = 20 and 8 at N = 50 (other horizons:
 blocks doubling from 1 step).
 
@@ -186,7 +186,7 @@ def main(argv=None) -> None:
         for qp in ("piqp", "osqp"):
             paths.append((N, f"LMPC characteristic {qp}", (LinearMPC, qp), dict(mooring="characteristic")))
         for moor in ("characteristic", "catenary"):
-            for solver in ("sqp", "ipopt", "fatrop"):
+            for solver in ("sqp", "rti", "ipopt", "fatrop"):
                 if solver == "fatrop" and args.no_fatrop:
                     continue
                 paths.append((N, f"NMPC {moor:14s} {solver}", NonlinearMPC, dict(mooring=moor, solver=solver)))
@@ -194,8 +194,9 @@ def main(argv=None) -> None:
             mb = move_blocks(N)
             paths.append((N, f"LMPC characteristic piqp, {len(mb)} moves", (LinearMPC, "piqp"),
                           dict(mooring="characteristic", move_blocks=mb)))
-            paths.append((N, f"NMPC characteristic sqp, {len(mb)} moves", NonlinearMPC,
-                          dict(mooring="characteristic", solver="sqp", move_blocks=mb)))
+            for solver in ("sqp", "rti"):
+                paths.append((N, f"NMPC characteristic {solver}, {len(mb)} moves", NonlinearMPC,
+                              dict(mooring="characteristic", solver=solver, move_blocks=mb)))
 
     hdr = (f"{'N':>3} {'path':34s} {'build s':>8} {'median':>8} {'p95':>8} {'max':>9}   "
            f"{'solver':>8} {'its med':>7} {'its max':>7} {'fail':>4}  {'n':>3}   solver time: QP/hess/jac/f,g/rest")

@@ -712,6 +712,81 @@ def test_failed_sqp_solve_is_retried_with_osqp(fpso, monkeypatch):
     assert np.max(np.abs(tau - ref) / cap) < 1e-4
 
 
+
+def _prescribed_trajectory(n, dt):
+    """Estimates of a slowly moving state (28 m out along 30 deg at 0.1 m/s, heading drifting 0.05 deg
+    a step, 0.5 MN of load in {E}) and the field zero point as setpoint."""
+    bearing, speed = math.radians(30.0), 0.1
+    b_E = 0.5e6 * np.array([math.cos(bearing), math.sin(bearing), 0.0])
+    out = []
+    for k in range(n):
+        r, psi = 28.0 + speed * k * dt, math.radians(2.0 + 0.05 * k)
+        v = rot_z(psi).T @ np.array([speed * math.cos(bearing), speed * math.sin(bearing), 0.0])
+        v[2] = math.radians(0.05) / dt
+        out.append(Estimate(k * dt, [r * math.cos(bearing), r * math.sin(bearing), psi], v, rot_z(psi).T @ b_E))
+    return out
+
+
+def test_rti_is_one_sqp_iteration_per_step_and_tracks_the_converged_sqp(fpso):
+    """solver="rti" (the real-time iteration): every step is one Gauss-Newton SQP iteration from the
+    shifted previous solution, reported as a success with its own status; along a slowly moving state
+    with the study defaults its first moves stay within 5 % of the thrust scale of the converged SQP's
+    (measured: 2 % at N = 20), while the converged SQP takes 2 or more iterations a step."""
+    from tapm_opt.studies.controllers import MPC_DEFAULTS
+
+    base = dict(MPC_DEFAULTS, dead_band=30.0, horizon=10)
+    moves = {}
+    for solver in ("sqp", "rti"):
+        ctrl = NonlinearMPC(fpso, MPCSettings(solver=solver, **base))
+        moves[solver] = np.array([ctrl.update(e.t, e, SP0) for e in _prescribed_trajectory(12, 5.0)])
+        its = [d.iterations for d in ctrl.diagnostics]
+        assert all(d.success and not d.fallback for d in ctrl.diagnostics), [d.status for d in ctrl.diagnostics]
+        if solver == "rti":
+            assert its == [1] * 12 and {d.status for d in ctrl.diagnostics} == {NonlinearMPC.RTI_STATUS}
+        else:
+            assert min(its) >= 2
+    scale = ThrusterSet.from_scenario(fpso).max_tau()
+    err = np.max(np.abs(moves["rti"] - moves["sqp"]) / scale)
+    assert 0.0 < err < 0.05, err
+
+
+def test_rti_settles_to_the_sqp_steady_thrust_in_closed_loop(fpso, plant_fn):
+    """In closed loop on the design model under a steady load the RTI controller settles where the
+    converged SQP settles: the same thrust after 200 s (to 1e-4 of the thrust scale, while the
+    thrust itself still moves by up to 1e-3 a step) and the same position to 1 cm."""
+    s = MPCSettings(**dict(QUADRATIC, horizon=10, dt=5.0))
+    b_E = np.array([4e5, -2e5, 1e6])
+    out = {}
+    for solver in ("sqp", "rti"):
+        ctrl = NonlinearMPC(fpso, replace_solver(s, solver))
+        out[solver] = closed_loop(ctrl, plant_fn, [6.0, -4.0, math.radians(2.0), 0.0, 0.0, 0.0], b_E, 40, s.dt)
+        assert all(d.success and not d.fallback for d in ctrl.diagnostics)
+    scale = ThrusterSet.from_scenario(fpso).max_tau()
+    (tau_s, x_s), (tau_r, x_r) = out["sqp"], out["rti"]
+    assert np.max(np.abs(tau_s[-1] - tau_s[-2]) / scale) < 1e-3    # (nearly) settled
+    assert np.max(np.abs(tau_r[-1] - tau_s[-1]) / scale) < 1e-4    # measured 2.7e-6
+    np.testing.assert_allclose(x_r[-1][:2], x_s[-1][:2], atol=0.01)
+
+
+def test_failed_rti_step_is_retried_then_falls_back(fpso, monkeypatch):
+    """An RTI step whose QP fails is retried with OSQP (one iteration too); when that fails as well
+    the loop gets the shifted previous plan, reported as a fallback."""
+    ctrl = NonlinearMPC(fpso, MPCSettings(solver="rti", **QUADRATIC))
+    ctrl.update(0.0, est(X0), SP0)
+
+    def broken(**kwargs):
+        raise RuntimeError("Error in Function::call for 'mpc': simulated failure")
+
+    monkeypatch.setattr(ctrl, "_solver", broken)
+    ctrl.update(5.0, est(X0), SP0)
+    d = ctrl.diagnostics[-1]
+    assert d.success and "retry after error" in d.status and ctrl.retries == 1
+    monkeypatch.setattr(ctrl, "_retry", broken)
+    ctrl.update(10.0, est(X0), SP0)
+    d = ctrl.diagnostics[-1]
+    assert not d.success and d.fallback
+
+
 # --- attainable thrust polytope and the linearisation about the state --------------------------------
 
 @pytest.mark.parametrize("cls", [LinearMPC, NonlinearMPC], ids=["linear", "nonlinear-sqp"])

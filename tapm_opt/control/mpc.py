@@ -409,19 +409,20 @@ class NonlinearMPC(_MPCBase):
         s = settings
         self._retry = None
         gn = {}
-        if s.solver == "sqp" and s.hessian == "gauss-newton":
+        if s.solver in ("sqp", "rti") and s.hessian == "gauss-newton":
             gn = {"hess_lag": self._gauss_newton(prob)}
         if s.solver == "ipopt":
             opts = {"ipopt.print_level": 0, "print_time": False, "ipopt.max_iter": s.max_iter, "ipopt.tol": 1e-6,
                     "ipopt.warm_start_init_point": "yes", "ipopt.sb": "yes", "ipopt.max_cpu_time": s.max_time}
             self._solver = ca.nlpsol("mpc", "ipopt", nlp, opts)
-        elif s.solver == "sqp":
+        elif s.solver in ("sqp", "rti"):
             # SQP on the Gauss-Newton Hessian (convex QP subproblems) with the sparse proximal
             # interior-point piqp for them: the active-set qrqp cycled on the degenerate vertices
             # of the polygons and the thrust polytope (fpso, N = 10, 43 m off: 77 s and no
             # convergence, against 0.1 s with piqp); the same SQP with OSQP is the retry.
             base = {"print_time": False, "print_header": False, "print_iteration": False,
-                    "print_status": False, "max_iter": s.max_iter, "error_on_fail": False,
+                    "print_status": False, "max_iter": 1 if s.solver == "rti" else s.max_iter,
+                    "error_on_fail": False,
                     "tol_du": self.SQP_DUAL_TOLERANCE * max(1.0, s.soft_l1), **gn}
             self._solver = ca.nlpsol("mpc", "sqpmethod", nlp, {
                 **base, "qpsol": "piqp",
@@ -458,12 +459,20 @@ class NonlinearMPC(_MPCBase):
         return ca.Function("nlp_hess_l", [z, p, lam_f, lam_g], [H], ["x", "p", "lam_f", "lam_g"],
                            ["hess_gamma_x_x"])
 
+    #: Status of an accepted real-time iteration (``solver="rti"``): one SQP iteration whose QP
+    #: solved, which ``sqpmethod`` reports as its iteration limit.
+    RTI_STATUS = "Real_Time_Iteration"
+
     def _call(self, solver: Any, args: dict) -> tuple[bool, str, int, np.ndarray, float, Any]:
         try:
             sol = solver(**args)
             stats = solver.stats()
-            return (bool(stats.get("success", False)), str(stats.get("return_status", "unknown")),
-                    int(stats.get("iter_count", -1)), np.array(sol["x"]).ravel(), float(sol["f"]), sol)
+            ok, status = bool(stats.get("success", False)), str(stats.get("return_status", "unknown"))
+            z, it = np.array(sol["x"]).ravel(), int(stats.get("iter_count", -1))
+            if (self.settings.solver == "rti" and not ok and status == "Maximum_Iterations_Exceeded"
+                    and it == 1 and np.all(np.isfinite(z))):
+                ok, status = True, self.RTI_STATUS
+            return ok, status, it, z, float(sol["f"]), sol
         except RuntimeError as exc:  # an evaluation error inside the solver: treat as a failed solve
             return False, f"error: {str(exc).splitlines()[0][:120]}", -1, args["x0"], math.nan, None
 

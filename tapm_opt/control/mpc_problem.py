@@ -62,10 +62,13 @@ class MPCSettings:
         and ``"linear"`` as ``models.mooring.MooringModel.force_function``.
     decision : {"tau", "thrusters"}
         Optimise the generalised thrust (allocation after) or the thruster forces directly.
-    solver : {"sqp", "ipopt", "fatrop"}
+    solver : {"sqp", "rti", "ipopt", "fatrop"}
         NLP solver of :class:`NonlinearMPC` (SQP: CasADi ``sqpmethod`` with the sparse
-        interior-point ``piqp`` for its QP subproblems, retried with OSQP when it fails; IPOPT;
-        fatrop).
+        interior-point ``piqp`` for its QP subproblems, retried with OSQP when it fails; RTI: the
+        real-time iteration of Diehl, Bock & Schlöder (2005) — the same SQP stopped after one
+        iteration from the shifted previous solution, so each step solves one QP linearised along
+        the predicted trajectory and the iterations spread over the steps (``max_iter`` is not
+        used); IPOPT; fatrop).
     w_thrust, w_rate : float
         Weights on (tau / tau_ref)^2 (or (f_i / f_max,i)^2) and on its change per step; tau_ref is
         ``ThrusterSet.max_tau()`` (``thrust_set="polytope"``) or the capacity box (``"box"``).
@@ -110,7 +113,7 @@ class MPCSettings:
         :class:`LinearMPC` linearises the dynamics: the present state estimate (default: the
         model is exact where the vessel is), or the setpoint at rest with the present heading.
     hessian : {"gauss-newton", "exact"}
-        SQP only: the Gauss–Newton Hessian of the least-squares cost (positive semi-definite by
+        SQP and RTI only: the Gauss–Newton Hessian of the least-squares cost (positive semi-definite by
         construction, regularised by ``1e-8``) or the exact Hessian of the Lagrangian.
     polygon_sides : int
         Sides of the polygons approximating circles (dead band, safe circle, thrust circles).
@@ -152,7 +155,7 @@ class MPCSettings:
     substeps: int = 1
     mooring: Literal["characteristic", "catenary", "linear"] = "characteristic"
     decision: Literal["tau", "thrusters"] = "tau"
-    solver: Literal["sqp", "ipopt", "fatrop"] = "sqp"
+    solver: Literal["sqp", "rti", "ipopt", "fatrop"] = "sqp"
     w_thrust: float = 1.0
     w_rate: float = 1.0
     w_position: float = 1.0
@@ -209,7 +212,7 @@ class MPCSettings:
             if not (isinstance(v, int) and v >= lo):
                 raise MPCError(f"MPCSettings.{name} = {v!r} must be a whole number >= {lo}")
         for name, allowed in (("mooring", ("characteristic", "catenary", "linear")), ("decision", ("tau", "thrusters")),
-                              ("solver", ("sqp", "ipopt", "fatrop")), ("thrust_set", ("polytope", "box")),
+                              ("solver", ("sqp", "rti", "ipopt", "fatrop")), ("thrust_set", ("polytope", "box")),
                               ("linearise_about", ("state", "setpoint")), ("hessian", ("gauss-newton", "exact"))):
             if getattr(self, name) not in allowed:
                 raise MPCError(f"MPCSettings.{name} = {getattr(self, name)!r} is not one of {', '.join(allowed)}")
