@@ -113,8 +113,9 @@ class MPCSettings:
         :class:`LinearMPC` linearises the dynamics: the present state estimate (default: the
         model is exact where the vessel is), or the setpoint at rest with the present heading.
     hessian : {"gauss-newton", "exact"}
-        SQP and RTI only: the Gauss–Newton Hessian of the least-squares cost (positive semi-definite by
-        construction, regularised by ``1e-8``) or the exact Hessian of the Lagrangian.
+        SQP and RTI only: the Gauss–Newton Hessian of the least-squares cost (positive
+        semi-definite by construction, regularised by ``1e-8``) or the exact Hessian of the
+        Lagrangian.
     polygon_sides : int
         Sides of the polygons approximating circles (dead band, safe circle, thrust circles).
     max_iter : int

@@ -164,9 +164,9 @@ def _line_table(ZF, L, EA, w, CB, h_A, lo: float, hi: float, *, rtol: float, H_r
 
     Nodes start ~ (hi - lo)/64 apart with a node pair at every regime change; an interval is split
     in two while either interpolant misses :func:`catenary.solve` by more than
-    ``rtol * max(HF, H_ref)`` (``rtol * max(TF, H_ref)`` for TF) at any of :data:`_CHECK_POINTS`. Intervals still off when they are
-    shorter than 2^-20 (hi - lo), or when the table reaches ``max_nodes``, are marked not ``ok``
-    (the evaluator then uses the exact model there).
+    ``rtol * max(HF, H_ref)`` (``rtol * max(TF, H_ref)`` for TF) at any of :data:`_CHECK_POINTS`.
+    Intervals still off when they are shorter than 2^-20 (hi - lo), or when the table reaches
+    ``max_nodes``, are marked not ``ok`` (the evaluator then uses the exact model there).
     """
     def solve(x):
         return catenary.solve(x, ZF, L, EA, w, CB=CB, h_A=h_A)
