@@ -14,7 +14,7 @@ radius 28 -> 44 m along a fixed bearing at 0.1 m/s, crossing the dead band, head
 0.05 deg per step, a constant environmental load of 0.5 MN. After 2 warm-up steps, 32 warm-started
 steps are timed -- fewer (at least 5, marked *) where that would take more than ``--budget`` seconds,
 none where a warm-up step takes more than ``--skip-above`` seconds (said so in the output), which keeps
-the run to about 5 minutes. Paths: LinearMPC (piqp, OSQP); NonlinearMPC with the "characteristic" and
+the run to about 5 minutes. Paths: LinearMPC (piqp, OSQP, the condensed QP in DAQP); NonlinearMPC with the "characteristic" and
 the "catenary" mooring x solver sqp, rti (one SQP iteration per step), ipopt, fatrop. Per path: build
 time (for LinearMPC incl. the QP set-up in its first update), median / p95 / max of the wall time of
 ``update()`` (what the control loop sees: parameters, solve, first move), the solver call alone,
@@ -22,7 +22,7 @@ iterations, failed solves (fallbacks), and for the NLP paths the split of the so
 the QP solver, the Hessian of the Lagrangian, the Jacobians, f/g and the rest (IPOPT: its linear
 algebra) from ``nlpsol.stats()``.
 
-``--move-blocks`` adds the linear MPC (piqp) and the nonlinear SQP and RTI paths with move blocking
+``--move-blocks`` adds the linear MPC (piqp, DAQP) and the nonlinear SQP and RTI paths with move blocking
 (``MPCSettings.move_blocks``): ``MOVE_BLOCKS[N]``, 5 moves at N = 20 and 8 at N = 50 (other horizons:
 blocks doubling from 1 step).
 
@@ -183,7 +183,7 @@ def main(argv=None) -> None:
 
     paths = []
     for N in args.horizons:
-        for qp in ("piqp", "osqp"):
+        for qp in ("piqp", "osqp", "daqp"):
             paths.append((N, f"LMPC characteristic {qp}", (LinearMPC, qp), dict(mooring="characteristic")))
         for moor in ("characteristic", "catenary"):
             for solver in ("sqp", "rti", "ipopt", "fatrop"):
@@ -192,8 +192,9 @@ def main(argv=None) -> None:
                 paths.append((N, f"NMPC {moor:14s} {solver}", NonlinearMPC, dict(mooring=moor, solver=solver)))
         if args.move_blocks:
             mb = move_blocks(N)
-            paths.append((N, f"LMPC characteristic piqp, {len(mb)} moves", (LinearMPC, "piqp"),
-                          dict(mooring="characteristic", move_blocks=mb)))
+            for qp in ("piqp", "daqp"):
+                paths.append((N, f"LMPC characteristic {qp}, {len(mb)} moves", (LinearMPC, qp),
+                              dict(mooring="characteristic", move_blocks=mb)))
             for solver in ("sqp", "rti"):
                 paths.append((N, f"NMPC characteristic {solver}, {len(mb)} moves", NonlinearMPC,
                               dict(mooring="characteristic", solver=solver, move_blocks=mb)))

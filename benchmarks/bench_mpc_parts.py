@@ -16,6 +16,13 @@ Printed figures, not a timed test. Run from the repository root::
    (``tapm_opt.control.mpc.PIQP_KKT_SOLVER``), set up once and updated per QP as in the MPC,
    the two alternated ``--repeats`` times; median per QP (set-up excluded), iterations, the largest
    difference between the two solutions, and the ratio.
+3. **The linear MPC's step with the condensed QP in DAQP** (``LinearMPC(qp_solver="daqp")``,
+   ``tapm_opt.control.mpc_condensed``) against the sparse QP in piqp (the default): two controllers
+   on the benchmark trajectory, their ``update()`` timed alternately step by step, the DAQP one
+   handed piqp's previous plan before each step so that both solve the same QP (N = 20, N = 20 with
+   5 moves, N = 50 with 8 moves; ``--repeats`` passes over the trajectory); median ``update()``,
+   the ratio, and the largest difference of the first moves (relative to the single-DOF maxima)
+   and of the costs.
 """
 
 from __future__ import annotations
@@ -126,6 +133,40 @@ def qp_solvers(scenario, repeats: int) -> None:
               f"{', '.join(f'{r:.2f}' for r in ratios)}); largest solution difference {dz:.1e}")
 
 
+def condensed_daqp(scenario, repeats: int) -> None:
+    base = dict(MPC_DEFAULTS, dead_band=MPC_DEAD_BAND * scenario.limits.safe_radius)
+    scale = as_system(scenario).thrusters.max_tau()
+    for N, blocks in ((20, None), (20, MOVE_BLOCKS[20]), (50, MOVE_BLOCKS[50])):
+        s = MPCSettings(horizon=N, move_blocks=blocks, **base)
+        ests, sp = trajectory(34, s.dt)
+        times = {"piqp": [], "daqp": []}
+        du, dc, ratios = 0.0, 0.0, []
+        for _ in range(repeats):
+            a, b = LinearMPC(scenario, s, qp_solver="piqp"), LinearMPC(scenario, s, qp_solver="daqp")
+            per = {"piqp": [], "daqp": []}
+            for k, est in enumerate(ests):
+                u = {}
+                for name, c in (("piqp", a), ("daqp", b)):
+                    t0 = time.perf_counter()
+                    u[name] = c.update(est.t, est, sp)
+                    if k >= 2:
+                        per[name].append(time.perf_counter() - t0)
+                du = max(du, float(np.max(np.abs(u["piqp"] - u["daqp"]) / scale)))
+                dc = max(dc, abs(b.last_step().cost / a.last_step().cost - 1))
+                b._u_prev, b._z = a._u_prev.copy(), a._z.copy()
+            for name in per:
+                times[name].extend(per[name])
+            ratios.append(np.median(per["daqp"]) / np.median(per["piqp"]))
+        cq = b._condensed
+        what = f"N = {N}" + (f", {len(blocks)} moves" if blocks else "")
+        print(f"linear MPC step, {what}: condensed QP {cq.nU} variables, {cq.m} rows ({len(cq.groups)} soft); "
+              f"{len(ests) - 2} steps x {repeats}:")
+        for name, t in times.items():
+            print(f"    {name:5s} update() median {np.median(t) * 1e3:6.2f} ms")
+        print(f"    daqp / piqp: {np.median(ratios):.2f} (per repeat {', '.join(f'{r:.2f}' for r in ratios)}); "
+              f"largest difference: first moves {du:.1e} of the maxima, costs {dc:.1e} relative")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--repeats", type=int, default=3)
@@ -135,6 +176,7 @@ def main(argv=None) -> int:
     scenario = tapm_opt.load_scenario(args.scenario)
     characteristics(scenario, args.repeats)
     qp_solvers(scenario, args.repeats)
+    condensed_daqp(scenario, args.repeats)
     return 0
 
 

@@ -49,7 +49,7 @@ from .mpc_problem import (MPCError, MPCSettings, MPCStep, _Problem, build_proble
 __all__ = ["MPCSettings", "MPCError", "NonlinearMPC", "LinearMPC", "build_problem", "MPCStep", "LINEAR_QP_SOLVERS"]
 
 #: QP solvers of :class:`LinearMPC`.
-LINEAR_QP_SOLVERS = ("piqp", "osqp")
+LINEAR_QP_SOLVERS = ("piqp", "osqp", "daqp")
 
 #: piqp's KKT solver for the MPC's QPs (the linear MPC's, the SQP's subproblems): the sparse LDL^T
 #: of the KKT system with the equality and inequality rows condensed into it. On the linear MPC's
@@ -517,6 +517,13 @@ class LinearMPC(_MPCBase):
     per-step conversion). ``eps_abs``, ``eps_rel``: OSQP's tolerances (piqp keeps its defaults).
     """
 
+    #: DAQP's settings for ``qp_solver="daqp"``: its defaults but the iteration limit (a hot-started
+    #: step takes a few active-set changes; the limit bounds a pathological one).
+    DAQP_SETTINGS = {"iter_limit": 2000}
+    #: Solves of one step's condensed QP at most: the soft rows (one per group) chosen again on the
+    #: solution while it violates another row of the group most (``control.mpc_condensed``).
+    DAQP_PASSES = 4
+
     def __init__(self, system: Any, settings: MPCSettings = MPCSettings(), *, qp_solver: str = "piqp",
                  eps_abs: float = 1e-5, eps_rel: float = 1e-5, period: float | None = None):
         super().__init__(system, settings, period=period)
@@ -540,9 +547,10 @@ class LinearMPC(_MPCBase):
             self._l_g = np.where(np.isfinite(prob.lbg), prob.lbg, -big)
             self._u_g = np.where(np.isfinite(prob.ubg), prob.ubg, big)
         else:
-            import piqp
+            if qp_solver == "piqp":
+                import piqp
 
-            self._piqp_mod = piqp
+                self._piqp_mod = piqp
             eq = np.isfinite(prob.lbg) & (prob.lbg == prob.ubg)   # the dynamics and the initial state
             rows = np.arange(len(prob.lbg))
             g_parts = [prob.g[rows[eq].tolist()], prob.g[rows[~eq].tolist()]]
@@ -562,6 +570,12 @@ class LinearMPC(_MPCBase):
             self._buf.set_res(i, memoryview(arr))
         self._mats = [(M.sparsity(), np.array(M.sparsity().row()), np.array(M.sparsity().colind())) for M in (H, *blocks)]
         self._qp = None
+        self._condensed = None
+        if qp_solver == "daqp":
+            from .mpc_condensed import CondensedQP
+
+            self._condensed = CondensedQP(prob, *((row, colind) for _, row, colind in self._mats),
+                                          lb_in=self._lb_in, ub_in=self._ub_in)
 
     def _qp_arrays(self, p: np.ndarray) -> list[np.ndarray]:
         """The QP data at the parameters ``p`` (with the operating point set): the nonzeros of H and
@@ -591,6 +605,8 @@ class LinearMPC(_MPCBase):
         self._f0 = float(self._qp_arrays(p)[-1][0])
         if self.qp_solver == "piqp":
             return self._solve_piqp(t)
+        if self.qp_solver == "daqp":
+            return self._solve_daqp(t)
         Hx, Ax, q, g0 = self._data[:4]
         big = 1e20
         lbz = np.where(np.isfinite(prob.lbz), prob.lbz, -big)   # the bounds change with thruster failures
@@ -642,6 +658,68 @@ class LinearMPC(_MPCBase):
             self._qp = None   # set up afresh at the next step
         dt = time.perf_counter() - t0
         return self._finish(t, z, ok, status, dt, it, cost if ok else math.nan)
+
+
+    def _solve_daqp(self, t: float) -> np.ndarray:
+        """DAQP on the QP of this step condensed (``control.mpc_condensed``): the states eliminated,
+        the slacks as soft rows; set up once, then updated in place with its working set kept (a
+        hot start). The plan is expanded back to the sparse QP's variables, and its cost is the
+        sparse QP's at that plan."""
+        import daqp
+
+        from .allocation import DAQP_STATUS
+
+        prob, cq = self._prob, self._condensed
+        Hx, Ax, Gx, q, g_eq, g_in = self._data[:6]
+        t0 = time.perf_counter()
+        try:
+            if self._z is not None:       # the prediction the soft rows are chosen on: the plan shifted
+                u_pred = self._shift(self._z)[prob.idx["U"]]
+            else:
+                u_pred = np.tile(self._last_p[prob.p_idx["u_prev"]] / prob.scale["u"], prob.n_moves)
+            cq.condense(Hx, Ax, Gx, q, self._b_eq, g_eq, g_in, prob.lbz, prob.ubz, u_pred=u_pred)
+            key = cq.sense.tobytes()
+            if self._qp is None:
+                self._qp = daqp.Model()
+                self._qp.settings = dict(self.DAQP_SETTINGS)
+                flag, _ = self._qp.setup(cq.H, cq.f, cq.A, cq.bu, cq.bl, cq.sense)
+                if flag < 0:
+                    raise ValueError(f"DAQP setup: {DAQP_STATUS.get(flag, flag)}")
+                self._qp.soft_weights(rho_u=cq.rho, w_u=cq.w)
+            elif key != self._daqp_key:   # a thruster's DOF is held or freed: start cold
+                self._qp.update(H=cq.H, f=cq.f, A=cq.A, bupper=cq.bu, blower=cq.bl, sense=cq.sense)
+            else:                         # the same rows: DAQP keeps its working set
+                self._qp.update(H=cq.H, f=cq.f, A=cq.A, bupper=cq.bu, blower=cq.bl)
+            self._daqp_key = key
+            # the soft rows chosen on the predicted plan; chosen again on the solution while it
+            # violates another row of a group most (the best plan by the sparse QP's cost is kept)
+            best, it = None, 0
+            for k in range(self.DAQP_PASSES):
+                if k:
+                    self._qp.update(A=cq.A, bupper=cq.bu, blower=cq.bl)
+                u, _, flag, info = self._qp.solve()
+                u = np.asarray(u, float)
+                it += int(info["iterations"])
+                status = DAQP_STATUS.get(flag, f"exitflag_{flag}")
+                if not (flag > 0 and np.all(np.isfinite(u))):
+                    break
+                z = cq.expand(u)
+                c = cq.cost(Hx, q, z)
+                if best is None or c < best[0]:
+                    best = (c, z, status)
+                if not cq.rechoose(u):
+                    break
+            ok = best is not None
+            if ok:
+                z, status = best[1], best[2]
+            else:
+                z = np.full(self._nz, np.nan)
+        except (ValueError, RuntimeError, MPCError) as exc:  # bad data inside the QP or its condensing
+            ok, status, it, z = False, f"error: {str(exc).splitlines()[0][:120]}", -1, np.full(self._nz, np.nan)
+            self._qp = None
+        dt = time.perf_counter() - t0
+        cost = cq.cost(Hx, q, z) + self._f0 if ok else math.nan
+        return self._finish(t, z, ok, status, dt, it, cost)
 
 
 def _low_pass_step(x_lf: np.ndarray | None, t_lf: float | None, x: Any, t: float, T: float) -> np.ndarray:

@@ -1,0 +1,374 @@
+"""The linear MPC's QP condensed for a dense active-set solver (DAQP).
+
+:class:`~tapm_opt.control.mpc.LinearMPC` evaluates one sparse QP per step (``build_problem(...,
+linear=True)``): states ``X``, thrust moves ``U`` and one slack per step and soft-constraint family
+``S`` (dead band, safe circle, tensions, riser), the dynamics as equality rows. With
+``qp_solver="daqp"`` that QP is condensed here, each step, from the same sparse data:
+
+* **States eliminated.** The equality rows ``A_X X + A_U U + g_eq(0) = 0`` have ``A_X`` unit lower
+  triangular (the initial state, then ``X_k+1 - A X_k``), so ``X = Phi U + x_c`` by forward
+  substitution; the cost and every other row are written in ``U`` alone (``T = [Phi; I]``,
+  ``H_c = T' H T``, ``f_c = T'(H t_0 + q)``).
+* **Slacks as soft rows.** The sparse QP has one slack per step and soft family, below which all
+  of that step's rows of the family must stay (``a_r'z - S_k <= u_r``: the faces of the dead band's
+  and the safe circle's polygons, the lines' tensions, the riser's octagons) and whose cost charges
+  the largest violation once. DAQP's soft rows carry a slack each, ``a_r'z <= u_r`` violated by
+  ``s_r`` at the cost ``w s_r + s_r^2 / (2 rho)``, with ``w`` and ``1 / rho`` the gradient and the
+  curvature of ``S_k`` in the sparse QP (``soft_l1`` and ``2 soft_l2`` for the safe circle, tensions
+  and riser; ``2 w_position`` — times ``w_terminal`` at the last step — for the dead band). To charge
+  each step's violation once, as the sparse QP does, only one row of each slack's group is kept:
+  the one the predicted plan (the previous plan shifted by a step) violates most — the polygon face
+  the turret is predicted to cross, the line predicted to be loaded most; the others are left out of
+  that step's QP. Where that guess is the row that is largest at the optimum, the condensed QP has
+  the sparse QP's solution (``tests/test_mpc_condensed.py``: to 1e-6 with the rows of the sparse
+  optimum); elsewhere it is the relaxation that ignores the other rows of the group, and the plan's
+  reported slacks and cost are the sparse QP's at that plan (every row counted).
+
+The result has ``3 M`` variables (``M`` thrust moves) instead of ``6 (N + 1) + 3 M + 4 N`` and dense
+rows: at N = 50 with 8 moves 24 variables and 3224 rows. DAQP is set up once and updated in place;
+its working set carries over from step to step (a hot start). The plan is expanded back to the sparse
+QP's variables (``X`` from ``U``, each ``S_k`` the largest violation of its rows), so the controller's
+diagnostics, shift and cost are those of the sparse problem.
+
+The sparse kernels run compiled (numba, ``tapm_opt._jit``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+import scipy.sparse as sp
+
+from .._jit import jit
+from .mpc_problem import MPCError, _Problem
+
+__all__ = ["CondensedQP", "DAQP_INF"]
+
+#: DAQP's infinity for one-sided rows.
+DAQP_INF = 1e30
+
+
+def _forward_unit_lower(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, n: int, B: np.ndarray) -> None:
+    """Solve ``L Y = B`` in place for the unit lower triangular ``L``, the first ``n`` columns of a
+    CSC matrix (rows < n; its diagonal entries are skipped, taken as 1)."""
+    for j in range(n):
+        for p in range(indptr[j], indptr[j + 1]):
+            i = indices[p]
+            if i > j:
+                d = data[p]
+                for c in range(B.shape[1]):
+                    B[i, c] -= d * B[j, c]
+
+
+def _scatter_columns(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, c0: int, out: np.ndarray,
+                     sign: float) -> None:
+    """``out[:, k] = sign * M[:, c0 + k]`` for the CSC matrix M (``out`` zeroed by the caller)."""
+    for k in range(out.shape[1]):
+        for p in range(indptr[c0 + k], indptr[c0 + k + 1]):
+            out[indices[p], k] = sign * data[p]
+
+
+def _matmul_cols(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, ncols: int, T: np.ndarray,
+                 out: np.ndarray) -> None:
+    """``out += M[:, :ncols] @ T`` for the CSC matrix M and dense ``T`` (ncols x k)."""
+    for c in range(ncols):
+        for p in range(indptr[c], indptr[c + 1]):
+            r = indices[p]
+            d = data[p]
+            for k in range(T.shape[1]):
+                out[r, k] += d * T[c, k]
+
+
+def _sym_matmul_cols(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, ncols: int, T: np.ndarray,
+                     out: np.ndarray) -> None:
+    """``out += S[:ncols, :ncols] @ T`` for the symmetric S whose upper triangle is the CSC matrix."""
+    for c in range(ncols):
+        for p in range(indptr[c], indptr[c + 1]):
+            r = indices[p]
+            if r >= ncols:
+                continue
+            d = data[p]
+            for k in range(T.shape[1]):
+                out[r, k] += d * T[c, k]
+            if r != c:
+                for k in range(T.shape[1]):
+                    out[c, k] += d * T[r, k]
+
+
+def _quad_upper(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, z: np.ndarray) -> float:
+    """``z' S z`` for the symmetric S whose upper triangle is the CSC matrix."""
+    s = 0.0
+    for c in range(z.shape[0]):
+        for p in range(indptr[c], indptr[c + 1]):
+            r = indices[p]
+            v = data[p] * z[r] * z[c]
+            s += v if r == c else 2.0 * v
+    return s
+
+
+def _csr_rows_times(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, rows: np.ndarray, ncols: int,
+                    T: np.ndarray, out: np.ndarray) -> None:
+    """``out[i] = M[rows[i], :ncols] @ T`` for the CSR matrix M and dense ``T`` (ncols x k)."""
+    for i in range(rows.shape[0]):
+        r = rows[i]
+        for k in range(T.shape[1]):
+            out[i, k] = 0.0
+        for p in range(indptr[r], indptr[r + 1]):
+            c = indices[p]
+            if c < ncols:
+                d = data[p]
+                for k in range(T.shape[1]):
+                    out[i, k] += d * T[c, k]
+
+
+def _csr_rows_dot(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, rows: np.ndarray, ncols: int,
+                  z: np.ndarray, out: np.ndarray) -> None:
+    """``out[i] = M[rows[i], :ncols] @ z[:ncols]`` for the CSR matrix M."""
+    for i in range(rows.shape[0]):
+        r = rows[i]
+        s = 0.0
+        for p in range(indptr[r], indptr[r + 1]):
+            c = indices[p]
+            if c < ncols:
+                s += data[p] * z[c]
+        out[i] = s
+
+
+_forward_unit_lower = jit(_forward_unit_lower)
+_scatter_columns = jit(_scatter_columns)
+_matmul_cols = jit(_matmul_cols)
+_sym_matmul_cols = jit(_sym_matmul_cols)
+_quad_upper = jit(_quad_upper)
+_csr_rows_times = jit(_csr_rows_times)
+_csr_rows_dot = jit(_csr_rows_dot)
+
+
+class CondensedQP:
+    """The condensed form of a linear MPC's sparse QP (module docstring).
+
+    Parameters
+    ----------
+    prob : _Problem
+        The linear problem (``build_problem(..., linear=True)``).
+    H_pattern, Aeq_pattern, G_pattern : (row indices, column pointers)
+        CSC sparsity of the upper triangle of the Hessian, of the equality rows and of the other
+        rows, over the QP's variables z = (X, U, S).
+    lb_in, ub_in : ndarray
+        Bounds of the other rows (before subtracting their value at z = 0).
+
+    After :meth:`condense` the DAQP problem is ``H`` (n x n), ``f``, ``A`` (m x n), ``bu``, ``bl``
+    (n + m: the moves' bounds, then the rows), ``sense`` and the soft weights ``rho``, ``w``; its rows
+    are the hard rows (``hard_rows``, rows of the sparse QP without a slack, or whose slack is held at
+    0) followed by one row per soft group (``groups``: the slacks that cost something), the one
+    chosen for the step (``chosen``). The dimensions are fixed at the first :meth:`condense`.
+    """
+
+    def __init__(self, prob: _Problem, H_pattern: tuple, Aeq_pattern: tuple, G_pattern: tuple,
+                 lb_in: np.ndarray, ub_in: np.ndarray):
+        idx = prob.idx
+        self.nX = idx["X"].stop
+        self.nU = idx["U"].stop - idx["U"].start
+        self.nXU = self.nX + self.nU
+        self.nz = len(prob.lbz)
+        (self._Hr, self._Hc), (self._Ar, self._Ac), (self._Gr, self._Gc) = (
+            tuple(np.asarray(a, np.int64) for a in pat) for pat in (H_pattern, Aeq_pattern, G_pattern))
+        n_eq = int(self._Ar.max(initial=-1)) + 1 if len(self._Ar) else 0
+        if n_eq != self.nX:
+            raise MPCError(f"condensing: {n_eq} equality rows for {self.nX} states (the dynamics must be the "
+                           "only equality rows)")
+        # the equality rows have no slack, and the states come first and form a lower triangle
+        if self._Ac[self.nz] != self._Ac[self.nXU]:
+            raise MPCError("condensing: a slack appears in the dynamics")
+        for j in range(self.nX):
+            rows = self._Ar[self._Ac[j]:self._Ac[j + 1]]
+            if j not in rows or np.any(rows < j):
+                raise MPCError("condensing: the dynamics' state block is not lower triangular with a diagonal")
+        self._eq_diag = np.array([self._Ac[j] + int(np.flatnonzero(self._Ar[self._Ac[j]:self._Ac[j + 1]] == j)[0])
+                                  for j in range(self.nX)], np.int64)
+        # the slack part of the Hessian is diagonal and uncoupled from X and U
+        for c in range(self.nXU, self.nz):
+            rows = self._Hr[self._Hc[c]:self._Hc[c + 1]]
+            if np.any(rows != c):
+                raise MPCError("condensing: a slack is coupled to other variables in the cost")
+        self._diag_pos = np.full(self.nz, -1, np.int64)  # position of H[c, c] for the slacks
+        for c in range(self.nXU, self.nz):
+            if self._Hc[c + 1] > self._Hc[c]:
+                self._diag_pos[c] = self._Hc[c]
+        # each other row holds at most one slack, with the coefficient -1 (checked at each step)
+        m = len(lb_in)
+        self.m_sparse = m
+        self.row_slack = np.full(m, -1, np.int64)
+        slack_pos = []
+        for c in range(self.nXU, self.nz):
+            for p in range(self._Gc[c], self._Gc[c + 1]):
+                r = self._Gr[p]
+                if self.row_slack[r] >= 0:
+                    raise MPCError(f"condensing: row {r} holds two slacks")
+                self.row_slack[r] = c
+                slack_pos.append(p)
+        self._slack_pos = np.array(slack_pos, np.int64)
+        if np.any(np.isfinite(np.asarray(lb_in)[self.row_slack >= 0])):
+            raise MPCError("condensing: a soft row has a finite lower bound")
+        self.lb_in, self.ub_in = np.asarray(lb_in, float), np.asarray(ub_in, float)
+        # G row by row: the CSR structure and the permutation of the CSC nonzeros into it
+        perm = sp.csc_matrix((np.arange(len(self._Gr), dtype=float) + 1.0, self._Gr, self._Gc),
+                             shape=(m, self.nz)).tocsr()
+        perm.sort_indices()
+        self._Rp, self._Ri = perm.indptr.astype(np.int64), perm.indices.astype(np.int64)
+        self._perm = (perm.data - 1.0).astype(np.int64)
+        self._B = np.zeros((self.nX, self.nU + 1))          # [Phi | x_c]
+        self._T = np.zeros((self.nXU, self.nU + 1))         # [T | t_0]
+        self._T[self.nX:, :self.nU] = np.eye(self.nU)
+        self._W = np.zeros((self.nXU, self.nU + 1))
+        self.H = np.zeros((self.nU, self.nU))
+        self.f = np.zeros(self.nU)
+        self.hard_rows: np.ndarray | None = None            # fixed at the first condense
+
+    def _structure(self, Hx: np.ndarray, q: np.ndarray, lbz: np.ndarray, ubz: np.ndarray) -> None:
+        """Sort the rows (first condense): hard rows, soft groups with their weights, free rows."""
+        self.slack_cols = np.unique(self.row_slack[self.row_slack >= 0])
+        cols = self.slack_cols
+        curv = np.where(self._diag_pos[cols] >= 0, Hx[np.maximum(self._diag_pos[cols], 0)], 0.0)
+        lin = q[cols]
+        fixed = ubz[cols] <= lbz[cols]
+        soft = ~fixed & ((curv > 0) | (lin > 0))
+        self._fixed_cols = cols[fixed]
+        hard = self.row_slack < 0
+        hard |= np.isin(self.row_slack, self._fixed_cols)
+        self.hard_rows = np.flatnonzero(hard)
+        self.groups = cols[soft]
+        self._grp_curv, self._grp_lin = curv[soft], lin[soft]
+        srows = np.flatnonzero(np.isin(self.row_slack, self.groups))
+        order = srows[np.argsort(self.row_slack[srows], kind="stable")]
+        self._order = order
+        self._starts = np.flatnonzero(np.r_[True, np.diff(self.row_slack[order]) != 0]) if len(order) else \
+            np.zeros(0, np.int64)
+        self._counts = np.diff(np.r_[self._starts, len(order)])
+        nU, nh, ng = self.nU, len(self.hard_rows), len(self.groups)
+        self.m = nh + ng
+        self.A = np.zeros((self.m, nU))
+        self._AT = np.zeros((self.m, nU + 1))
+        self.bu = np.zeros(nU + self.m)
+        self.bl = np.zeros(nU + self.m)
+        self.sense = np.zeros(nU + self.m, dtype=np.intc)
+        self.sense[nU + nh:] = 8
+        self.rho = np.ones(nU + self.m)
+        self.w = np.zeros(nU + self.m)
+        self.rho[nU + nh:] = 1.0 / self._grp_curv if ng and np.all(self._grp_curv > 0) else \
+            1.0 / np.maximum(self._grp_curv, 1e-12)
+        self.w[nU + nh:] = self._grp_lin
+        self.chosen = np.zeros(ng, np.int64)
+        self._vals = np.zeros(len(order))
+        self._slack_key = (lbz[self.nXU:].copy(), ubz[self.nXU:].copy(), curv.copy(), lin.copy())
+
+    def condense(self, Hx: np.ndarray, Aeqx: np.ndarray, Gx: np.ndarray, q: np.ndarray, b_eq: np.ndarray,
+                 g_eq: np.ndarray, g_in: np.ndarray, lbz: np.ndarray, ubz: np.ndarray,
+                 u_pred: np.ndarray) -> None:
+        """Condense the sparse QP with these values (the nonzeros of H's upper triangle, of the
+        equality rows and of the other rows; the gradient at z = 0, the equality rows' right-hand
+        side and both row blocks at z = 0; the variable bounds) into the DAQP problem (class
+        docstring). Of each soft group the row kept is the one the predicted moves ``u_pred``
+        (scaled) violate most (the first of the largest)."""
+        nX, nU, nXU = self.nX, self.nU, self.nXU
+        if np.any(Aeqx[self._eq_diag] != 1.0):
+            raise MPCError("condensing: the dynamics' state block has a diagonal other than 1")
+        if np.any(Gx[self._slack_pos] != -1.0):
+            raise MPCError("condensing: a soft row's slack coefficient is not -1")
+        if self.hard_rows is None:
+            self._structure(Hx, q, lbz, ubz)
+        else:
+            cols = self.slack_cols
+            curv = np.where(self._diag_pos[cols] >= 0, Hx[np.maximum(self._diag_pos[cols], 0)], 0.0)
+            key = self._slack_key
+            if not (np.array_equal(key[0], lbz[nXU:]) and np.array_equal(key[1], ubz[nXU:])
+                    and np.array_equal(key[2], curv) and np.array_equal(key[3], q[cols])):
+                raise MPCError("condensing: the slacks' bounds or weights changed after the set-up")
+        # states: X = Phi U + x_c
+        B = self._B
+        B[:] = 0.0
+        _scatter_columns(self._Ac, self._Ar, Aeqx, nX, B[:, :nU], -1.0)
+        B[:, nU] = b_eq - g_eq
+        _forward_unit_lower(self._Ac, self._Ar, Aeqx, nX, B)
+        T = self._T
+        T[:nX] = B
+        # cost
+        W = self._W
+        W[:] = 0.0
+        _sym_matmul_cols(self._Hc, self._Hr, Hx, nXU, T, W)
+        TW = T[:, :nU].T @ W
+        self.H[:] = 0.5 * (TW[:, :nU] + TW[:, :nU].T)
+        self.f[:] = TW[:, nU] + T[:, :nU].T @ q[:nXU]
+        # rows: the hard ones, then of each soft group the row the predicted plan violates most
+        self._Gr_vals, self._g_in = Gx[self._perm], g_in
+        self.bu[:nU], self.bl[:nU] = ubz[nX:nXU], lbz[nX:nXU]
+        self.sense[:nU] = np.where(self.bu[:nU] <= self.bl[:nU], 5, 0)   # a failed thruster's DOF: held
+        nh = len(self.hard_rows)
+        self._set_rows(self.hard_rows, 0)
+        if len(self._order):
+            self.chosen[:] = self._largest(self._z_of(u_pred))
+            self._set_rows(self.chosen, nh)
+
+    def rechoose(self, u: np.ndarray, tol: float = 1e-7) -> bool:
+        """Choose again, on the plan of the moves ``u``, the row of each soft group that plan
+        violates by more than ``tol`` beyond the chosen row's violation (and beyond 0): the row it
+        violates most. True (and those rows replaced) when any group changes, so the QP is to be
+        solved again; a group whose rows the plan does not violate keeps its row."""
+        if not len(self._order):
+            return False
+        z = self._z_of(u)
+        rows = self._largest(z)
+        v_best = self._excess(rows, z)
+        v_now = self._excess(self.chosen, z)
+        change = v_best > np.maximum(v_now, 0.0) + tol
+        if not np.any(change):
+            return False
+        self.chosen[change] = rows[change]
+        self._set_rows(self.chosen, len(self.hard_rows))
+        return True
+
+    def _excess(self, rows: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """Value of the sparse QP's ``rows`` above their upper bounds at ``z``."""
+        out = np.empty(len(rows))
+        _csr_rows_dot(self._Rp, self._Ri, self._Gr_vals, rows, self.nXU, z, out)
+        return out + self._g_in[rows] - self.ub_in[rows]
+
+    def _z_of(self, u: np.ndarray) -> np.ndarray:
+        """States and moves of the prediction with the moves ``u`` (the first nX + nU variables)."""
+        return self._T[:, :self.nU] @ u + self._T[:, self.nU]
+
+    def _largest(self, z: np.ndarray) -> np.ndarray:
+        """Of each soft group, the row with the largest value above its bound at ``z`` (the first of
+        the largest)."""
+        order = self._order
+        _csr_rows_dot(self._Rp, self._Ri, self._Gr_vals, order, self.nXU, z, self._vals)
+        v = self._vals + self._g_in[order] - self.ub_in[order]
+        at_max = np.flatnonzero(v >= np.repeat(np.maximum.reduceat(v, self._starts), self._counts))
+        group = np.searchsorted(self._starts, at_max, side="right") - 1
+        return order[at_max[np.unique(group, return_index=True)[1]]]
+
+    def _set_rows(self, rows: np.ndarray, at: int) -> None:
+        """Write the sparse QP's ``rows`` in the moves into the DAQP rows from ``at`` on."""
+        nU, k = self.nU, len(rows)
+        AT = self._AT[at:at + k]
+        _csr_rows_times(self._Rp, self._Ri, self._Gr_vals, rows, self.nXU, self._T, AT)
+        self.A[at:at + k] = AT[:, :nU]
+        const = AT[:, nU] + self._g_in[rows]
+        self.bu[nU + at:nU + at + k] = np.minimum(self.ub_in[rows] - const, DAQP_INF)
+        self.bl[nU + at:nU + at + k] = np.maximum(self.lb_in[rows] - const, -DAQP_INF)
+
+    def expand(self, u: np.ndarray) -> np.ndarray:
+        """The sparse QP's variables of the condensed solution ``u``: the states of the prediction,
+        the moves, and each slack the largest violation of all its rows (0 when none)."""
+        z = np.zeros(self.nz)
+        z[:self.nX] = self._B[:, :self.nU] @ u + self._B[:, self.nU]
+        z[self.nX:self.nXU] = u
+        order = self._order
+        if len(order):
+            _csr_rows_dot(self._Rp, self._Ri, self._Gr_vals, order, self.nXU, z, self._vals)
+            viol = self._vals + self._g_in[order] - self.ub_in[order]
+            z[self.groups] = np.maximum(np.maximum.reduceat(viol, self._starts), 0.0)
+        return z
+
+    def cost(self, Hx: np.ndarray, q: np.ndarray, z: np.ndarray) -> float:
+        """The sparse QP's cost at ``z`` relative to z = 0: ``z' H z / 2 + q' z``."""
+        return 0.5 * _quad_upper(self._Hc, self._Hr, Hx, z) + float(q @ z)
