@@ -14,8 +14,10 @@ radius 28 -> 44 m along a fixed bearing at 0.1 m/s, crossing the dead band, head
 0.05 deg per step, a constant environmental load of 0.5 MN. After 2 warm-up steps, 32 warm-started
 steps are timed -- fewer (at least 5, marked *) where that would take more than ``--budget`` seconds,
 none where a warm-up step takes more than ``--skip-above`` seconds (said so in the output), which keeps
-the run to about 5 minutes. Paths: LinearMPC (piqp, OSQP, the condensed QP in DAQP); NonlinearMPC with the "characteristic" and
-the "catenary" mooring x solver sqp, rti (one SQP iteration per step), ipopt, fatrop. Per path: build
+the run to about 5 minutes. Paths: LinearMPC (piqp, OSQP, the condensed QP in DAQP);
+NonlinearMPC with the "characteristic" and the "catenary" mooring x solver sqp, rti (one SQP
+iteration per step), ipopt, fatrop, and the rti with its Gauss-Newton QP condensed for DAQP
+(``qp_solver="daqp"``, ``tapm_opt.control.mpc_condensed``). Per path: build
 time (for LinearMPC incl. the QP set-up in its first update), median / p95 / max of the wall time of
 ``update()`` (what the control loop sees: parameters, solve, first move), the solver call alone,
 iterations, failed solves (fallbacks), and for the NLP paths the split of the solver's time between
@@ -110,7 +112,7 @@ def run_case(scenario, settings, cls, steps: int, *, budget: float, skip_above: 
     """Build, 2 warm-up steps, then ``steps`` timed steps (fewer if a step is slow: at most ``budget``
     seconds of timed steps, at least 5; none if a warm-up step takes more than ``skip_above`` s)."""
     t0 = time.perf_counter()
-    if isinstance(cls, tuple):  # (LinearMPC, its QP solver)
+    if isinstance(cls, tuple):  # (the MPC class, its QP solver)
         cls, qp = cls
         ctrl = cls(scenario, settings, qp_solver=qp)
     else:
@@ -190,6 +192,8 @@ def main(argv=None) -> None:
                 if solver == "fatrop" and args.no_fatrop:
                     continue
                 paths.append((N, f"NMPC {moor:14s} {solver}", NonlinearMPC, dict(mooring=moor, solver=solver)))
+        paths.append((N, "NMPC characteristic rti daqp", (NonlinearMPC, "daqp"),
+                      dict(mooring="characteristic", solver="rti")))
         if args.move_blocks:
             mb = move_blocks(N)
             for qp in ("piqp", "daqp"):
@@ -198,8 +202,10 @@ def main(argv=None) -> None:
             for solver in ("sqp", "rti"):
                 paths.append((N, f"NMPC characteristic {solver}, {len(mb)} moves", NonlinearMPC,
                               dict(mooring="characteristic", solver=solver, move_blocks=mb)))
+            paths.append((N, f"NMPC characteristic rti daqp, {len(mb)} moves", (NonlinearMPC, "daqp"),
+                          dict(mooring="characteristic", solver="rti", move_blocks=mb)))
 
-    hdr = (f"{'N':>3} {'path':34s} {'build s':>8} {'median':>8} {'p95':>8} {'max':>9}   "
+    hdr = (f"{'N':>3} {'path':38s} {'build s':>8} {'median':>8} {'p95':>8} {'max':>9}   "
            f"{'solver':>8} {'its med':>7} {'its max':>7} {'fail':>4}  {'n':>3}   solver time: QP/hess/jac/f,g/rest")
     print("wall time of update() per step [ms]; 'solver' = median of the solver call alone [ms]")
     print(hdr)
@@ -209,7 +215,7 @@ def main(argv=None) -> None:
         settings = MPCSettings(horizon=N, **base, **kw)
         r = run_case(sc, settings, cls, steps, budget=args.budget, skip_above=args.skip_above)
         if "skipped" in r:
-            print(f"{N:3d} {name:34s} {r['skipped']}")
+            print(f"{N:3d} {name:38s} {r['skipped']}")
             notes.append(f"N = {N}, {name.split()[1]} {name.split()[2]}: {r['skipped']}")
             continue
         results[(N, name)] = r
@@ -220,7 +226,7 @@ def main(argv=None) -> None:
             sp_txt = " / ".join(f"{100 * v / t['total']:.0f}%" for v in (t["QP"], t["hess"], t["jac"], t["f/g"], rest))
         fail = f"{r['fail']:4d}"
         star = "*" if r["n"] < steps else " "
-        print(f"{N:3d} {name:34s} {r['build']:8.2f} {fmt_ms(r['wall'])}   {np.median(r['solve']) * 1e3:8.2f} "
+        print(f"{N:3d} {name:38s} {r['build']:8.2f} {fmt_ms(r['wall'])}   {np.median(r['solve']) * 1e3:8.2f} "
               f"{int(np.median(r['its'])):7d} {int(np.max(r['its'])):7d} {fail}  {r['n']:3d}{star}  {sp_txt}")
         if r["fail"]:
             notes.append(f"N = {N}, {name.split()[1]} {name.split()[2]}: {r['fail']} of {r['n']} solves failed "

@@ -157,7 +157,7 @@ def condensed_daqp(scenario, repeats: int) -> None:
             for name in per:
                 times[name].extend(per[name])
             ratios.append(np.median(per["daqp"]) / np.median(per["piqp"]))
-        cq = b._condensed
+        cq = b._daqp.cq
         what = f"N = {N}" + (f", {len(blocks)} moves" if blocks else "")
         print(f"linear MPC step, {what}: condensed QP {cq.nU} variables, {cq.m} rows ({len(cq.groups)} soft); "
               f"{len(ests) - 2} steps x {repeats}:")

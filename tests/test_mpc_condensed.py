@@ -1,9 +1,11 @@
-"""The linear MPC's condensed QP for DAQP (``LinearMPC(qp_solver="daqp")``, module
-``tapm_opt.control.mpc_condensed``), checked against the sparse QP solved by piqp: the condensing
-is exact (states, slacks and cost of the sparse QP at the sparse optimum), the condensed solution
-is the sparse optimum when the chosen soft rows are those of the sparse optimum, never cheaper than
-it (piqp's optimum is a lower bound of the sparse cost) and within a fraction of a percent when the
-turret sits on a polygon's corner; the failure path, thruster failures, and the study option.
+"""The MPC's QPs condensed for DAQP (module ``tapm_opt.control.mpc_condensed``): the linear MPC's
+(``LinearMPC(qp_solver="daqp")``) checked against the sparse QP solved by piqp — the condensing is
+exact (states, slacks and cost of the sparse QP at the sparse optimum), the condensed solution is
+the sparse optimum when the chosen soft rows are those of the sparse optimum, never cheaper than it
+(piqp's optimum is a lower bound of the sparse cost) and within a percent when the turret sits on a
+polygon's corner; the failure path, thruster failures, the study option — and the real-time
+iteration's Gauss-Newton QP (``NonlinearMPC(solver="rti", qp_solver="daqp")``) against CasADi's
+one-iteration SQP and, in closed loop, the converged SQP.
 """
 
 from __future__ import annotations
@@ -67,7 +69,7 @@ def side_by_side(sc, s, states, passes=None):
     (so both solve the same QP); (first moves, costs) of each, and the DAQP controller."""
     a, b = LinearMPC(sc, s, qp_solver="piqp"), LinearMPC(sc, s, qp_solver="daqp")
     if passes is not None:
-        b.DAQP_PASSES = passes
+        b._daqp.passes = passes
     moves, costs = {"piqp": [], "daqp": []}, {"piqp": [], "daqp": []}
     for e in states:
         for name, c in (("piqp", a), ("daqp", b)):
@@ -103,7 +105,7 @@ def test_condensing_is_exact_at_the_sparse_optimum(fpso):
         b.update(e.t, e, SP0)
     z_star = a._z
     Hx, Ax, Gx, q, g_eq, g_in = a._data[:6]
-    cq, prob = b._condensed, a._prob
+    cq, prob = b._daqp.cq, a._prob
     cq.condense(Hx, Ax, Gx, q, a._b_eq, g_eq, g_in, prob.lbz, prob.ubz, u_pred=z_star[prob.idx["U"]])
     z = cq.expand(z_star[prob.idx["U"]])
     x_ref = np.abs(z_star[prob.idx["X"]]).max()
@@ -139,7 +141,7 @@ def test_corner_of_a_polygon_costs_a_fraction_of_a_percent(fpso):
     assert np.all(gap <= gap1 + 1e-7)
     assert np.mean(gap < 1e-6) >= 0.8
     assert np.max(gap1) > np.max(gap)                 # the passes matter here
-    assert ctrl.DAQP_PASSES == 4
+    assert ctrl._daqp.passes == 4
 
 
 def test_failed_daqp_solve_applies_shifted_previous_plan(fpso, monkeypatch):
@@ -150,26 +152,26 @@ def test_failed_daqp_solve_applies_shifted_previous_plan(fpso, monkeypatch):
     e = drift(3, s.dt)
     ctrl.update(e[0].t, e[0], SP0)
     plan = ctrl.plan_u.copy()
-    real = ctrl._qp
-    monkeypatch.setattr(ctrl, "_qp", SimpleNamespace(update=lambda **kw: None,
-                                                     solve=lambda: (np.zeros(ctrl._condensed.nU), 0.0, -4,
-                                                                    {"iterations": 2000})))
+    real = ctrl._daqp._model
+    monkeypatch.setattr(ctrl._daqp, "_model", SimpleNamespace(update=lambda **kw: None,
+                                                               solve=lambda: (np.zeros(ctrl._daqp.cq.nU), 0.0, -4,
+                                                                              {"iterations": 2000})))
     tau = ctrl.update(e[1].t, e[1], SP0)
     d = ctrl.last_step()
     assert d.fallback and not d.success and d.status == "max_iter_reached"
     assert np.allclose(tau, plan[1], rtol=1e-12, atol=1e-6)
-    ctrl._qp = real
+    ctrl._daqp._model = real
     data = ctrl._data
 
     def corrupt():
         ctrl._data = list(data)
         ctrl._data[1] = data[1].copy()
-        ctrl._data[1][ctrl._condensed._eq_diag[0]] = 2.0    # the dynamics' diagonal is not 1
+        ctrl._data[1][ctrl._daqp.cq._eq_diag[0]] = 2.0    # the dynamics' diagonal is not 1
         return ctrl._data
     monkeypatch.setattr(ctrl, "_qp_arrays", lambda p: corrupt())
     ctrl.update(e[2].t, e[2], SP0)
     d = ctrl.last_step()
-    assert d.fallback and d.status.startswith("error: condensing") and ctrl._qp is None
+    assert d.fallback and d.status.startswith("error: condensing") and ctrl._daqp._model is None
 
 
 def test_condensing_refuses_a_changed_slack_cost(fpso):
@@ -180,7 +182,7 @@ def test_condensing_refuses_a_changed_slack_cost(fpso):
     e = drift(1, s.dt)[0]
     ctrl.update(e.t, e, SP0)
     Hx, Ax, Gx, q, g_eq, g_in = ctrl._data[:6]
-    cq, prob = ctrl._condensed, ctrl._prob
+    cq, prob = ctrl._daqp.cq, ctrl._prob
     H2 = Hx.copy()
     H2[cq._diag_pos[cq.groups[0]]] *= 2.0       # the first step's dead-band slack costs twice as much
     with pytest.raises(MPCError, match="weights changed"):
@@ -218,7 +220,7 @@ def test_failed_thrusters_in_the_condensed_qp(fpso, decision):
 
 def test_study_files_take_the_linear_mpc_qp_solver(fpso, tmp_path):
     """``qp_solver`` of an ``lmpc`` controller in a study file reaches the controller; a bad one,
-    or one on the nonlinear MPC, is an error naming the field."""
+    or DAQP for a nonlinear MPC that is not the real-time iteration, is an error saying so."""
     from tapm_opt.studies.study import load_study
     from tapm_opt.studies.controllers import build_controller
 
@@ -230,7 +232,98 @@ def test_study_files_take_the_linear_mpc_qp_solver(fpso, tmp_path):
     study = load_study(path)
     assert [c for c in study.cases if c.labels["controller"] == "L"][0].inputs["controller"]["qp_solver"] == "daqp"
     for body, message in (('type = "lmpc"\nqp_solver = "qrqp"\n', "qp_solver = 'qrqp'"),
-                          ('type = "mpc"\nqp_solver = "daqp"\n', "controllers[0].qp_solver")):
+                          ('type = "mpc"\nqp_solver = "daqp"\n', "needs solver = 'rti'")):
         path.write_text(base + body)
         with pytest.raises(Exception, match=message.replace("[", r"\[").replace("]", r"\]")):
             load_study(path)
+
+
+# --- the real-time iteration's Gauss-Newton QP, condensed -------------------------------------------
+
+@pytest.mark.parametrize("blocks", [None, (1, 1, 2, 4, 12)], ids=["N20", "N20-5moves"])
+def test_rti_with_daqp_is_the_sqp_methods_real_time_iteration(fpso, blocks):
+    """``NonlinearMPC(solver="rti", qp_solver="daqp")`` takes the step of CasADi's one-iteration SQP
+    (its Gauss-Newton QP solved by piqp) along the drift: first moves to 1e-5 of the single-DOF
+    maxima, costs (the NLP's, at the new plan) to 1e-6; both within 5 % of the converged SQP."""
+    from tapm_opt.control.mpc import NonlinearMPC
+
+    s = settings(fpso, horizon=20, move_blocks=blocks, solver="rti")
+    states = drift(20, s.dt)
+    out = {}
+    for qp in ("piqp", "daqp"):
+        ctrl = NonlinearMPC(fpso, s, qp_solver=qp)
+        u = np.array([ctrl.update(e.t, e, SP0) for e in states])
+        d = ctrl.diagnostics
+        assert all(x.success and not x.fallback and x.status == NonlinearMPC.RTI_STATUS for x in d)
+        out[qp] = (u, np.array([x.cost for x in d]))
+    sqp = NonlinearMPC(fpso, settings(fpso, horizon=20, move_blocks=blocks, solver="sqp"))
+    u_sqp = np.array([sqp.update(e.t, e, SP0) for e in states])
+    scale = ThrusterSet.from_scenario(fpso).max_tau()
+    assert np.max(np.abs(out["daqp"][0] - out["piqp"][0]) / scale) < 1e-5
+    assert np.allclose(out["daqp"][1], out["piqp"][1], rtol=1e-6)
+    assert np.max(np.abs(out["daqp"][0] - u_sqp) / scale) < 0.05
+
+
+def test_rti_with_daqp_settles_to_the_sqp_steady_thrust(fpso):
+    """In closed loop on the design model (RK4, 5 substeps) under a steady load the RTI with DAQP
+    settles where the converged SQP does: the same thrust after 200 s to 1e-4 of the maxima."""
+    from tapm_opt.control.mpc import NonlinearMPC
+    from tapm_opt.models.mooring import MooringModel
+    from tapm_opt.models.vessel import VesselParams, moored_function
+
+    vp = VesselParams.from_scenario(fpso)
+    fn = moored_function(vp, MooringModel.from_scenario(fpso).force_function("characteristic").expand(), form="design")
+    b_E = np.array([4e5, -2e5, 1e6])
+
+    def loop(ctrl, steps=40, dt=5.0):
+        x, taus = np.array([6.0, -4.0, math.radians(2.0), 0.0, 0.0, 0.0]), []
+        for k in range(steps):
+            tau = ctrl.update(k * dt, Estimate(k * dt, x[:3], x[3:], rot_z(x[2]).T @ b_E), SP0)
+            taus.append(tau)
+            h = dt / 5
+            for _ in range(5):
+                f = lambda xx: np.asarray(fn(xx, tau, rot_z(xx[2]).T @ b_E, np.zeros(2))).ravel()  # noqa: E731
+                k1 = f(x)
+                k2 = f(x + h / 2 * k1)
+                k3 = f(x + h / 2 * k2)
+                k4 = f(x + h * k3)
+                x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        assert all(d.success and not d.fallback for d in ctrl.diagnostics)
+        return np.array(taus)
+
+    s = settings(fpso, horizon=10, w_position_in=1.0, dead_band=0.0, w_position=0.0)
+    tau_s = loop(NonlinearMPC(fpso, s))
+    tau_r = loop(NonlinearMPC(fpso, MPCSettings(**{**s.__dict__, "solver": "rti"}), qp_solver="daqp"))
+    scale = ThrusterSet.from_scenario(fpso).max_tau()
+    assert np.max(np.abs(tau_s[-1] - tau_s[-2]) / scale) < 1e-3
+    assert np.max(np.abs(tau_r[-1] - tau_s[-1]) / scale) < 1e-4
+
+
+def test_rti_with_daqp_failure_falls_back_and_bad_options(fpso, monkeypatch):
+    """A DAQP failure in an RTI step applies the shifted plan and names DAQP's status; qp_solver =
+    "daqp" needs the real-time iteration with the Gauss-Newton Hessian; unknown QP solvers are
+    refused, from Python and from a study's controller table."""
+    from tapm_opt.control.mpc import NonlinearMPC
+    from tapm_opt.studies.controllers import ControllerSpecError, build_controller
+
+    s = settings(fpso, horizon=8, solver="rti")
+    ctrl = NonlinearMPC(fpso, s, qp_solver="daqp")
+    e = drift(2, s.dt)
+    ctrl.update(e[0].t, e[0], SP0)
+    plan = ctrl.plan_u.copy()
+    monkeypatch.setattr(ctrl._daqp, "_model", SimpleNamespace(update=lambda **kw: None,
+                                                               solve=lambda: (np.zeros(ctrl._daqp.cq.nU), 0.0, -1,
+                                                                              {"iterations": 3})))
+    tau = ctrl.update(e[1].t, e[1], SP0)
+    d = ctrl.last_step()
+    assert d.fallback and not d.success and d.status == "primal_infeasible"
+    assert np.allclose(tau, plan[1], rtol=1e-12, atol=1e-6)
+    with pytest.raises(MPCError, match="needs solver = 'rti'"):
+        NonlinearMPC(fpso, settings(fpso, horizon=3, solver="sqp"), qp_solver="daqp")
+    with pytest.raises(MPCError, match="hessian = 'exact'"):
+        NonlinearMPC(fpso, settings(fpso, horizon=3, solver="rti", hessian="exact"), qp_solver="daqp")
+    with pytest.raises(MPCError, match="qp_solver = 'osqp'"):
+        NonlinearMPC(fpso, settings(fpso, horizon=3), qp_solver="osqp")
+    assert build_controller(fpso, {"type": "mpc", "horizon": 3, "solver": "rti", "qp_solver": "daqp"}).qp_solver == "daqp"
+    with pytest.raises(ControllerSpecError, match="needs solver = 'rti'"):
+        build_controller(fpso, {"type": "mpc", "horizon": 3, "qp_solver": "daqp"})

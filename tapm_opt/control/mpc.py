@@ -46,10 +46,15 @@ from ..models.system import as_system
 from .mpc_problem import (MPCError, MPCSettings, MPCStep, _Problem, build_problem, mooring_parameters,
                           polytope_parameters)
 
-__all__ = ["MPCSettings", "MPCError", "NonlinearMPC", "LinearMPC", "build_problem", "MPCStep", "LINEAR_QP_SOLVERS"]
+__all__ = ["MPCSettings", "MPCError", "NonlinearMPC", "LinearMPC", "build_problem", "MPCStep", "LINEAR_QP_SOLVERS",
+           "NONLINEAR_QP_SOLVERS"]
 
 #: QP solvers of :class:`LinearMPC`.
 LINEAR_QP_SOLVERS = ("piqp", "osqp", "daqp")
+#: QP solvers of :class:`NonlinearMPC`: piqp inside CasADi's ``sqpmethod`` (every NLP solver but
+#: IPOPT and fatrop, which have their own), or the real-time iteration's Gauss–Newton QP condensed
+#: for DAQP (``solver="rti"`` only).
+NONLINEAR_QP_SOLVERS = ("piqp", "daqp")
 
 #: piqp's KKT solver for the MPC's QPs (the linear MPC's, the SQP's subproblems): the sparse LDL^T
 #: of the KKT system with the equality and inequality rows condensed into it. On the linear MPC's
@@ -57,6 +62,13 @@ LINEAR_QP_SOLVERS = ("piqp", "osqp", "daqp")
 #: ``sparse_ldlt``'s solutions to 2e-11 in the same iterations in 0.87-0.88 of its time
 #: (``benchmarks/bench_mpc_parts.py``, ``docs/performance.md``).
 PIQP_KKT_SOLVER = "sparse_ldlt_cond"
+
+#: DAQP's settings for the condensed QPs (``qp_solver="daqp"``): its defaults but the iteration
+#: limit (a hot-started step takes a few active-set changes; the limit bounds a pathological one).
+DAQP_SETTINGS = {"iter_limit": 2000}
+#: Solves of one step's condensed QP at most: the soft rows (one per group) chosen again on the
+#: solution while it violates another row of the group most (``control.mpc_condensed``).
+DAQP_PASSES = 4
 
 
 # ------------------------------------------------------------------------------------------
@@ -400,14 +412,29 @@ class NonlinearMPC(_MPCBase):
     #: 10 and the cost to 2e-8 after 24.
     SQP_DUAL_TOLERANCE = 1e-5
 
-    def __init__(self, system: Any, settings: MPCSettings = MPCSettings(), *, period: float | None = None):
+    def __init__(self, system: Any, settings: MPCSettings = MPCSettings(), *, period: float | None = None,
+                 qp_solver: str = "piqp"):
         super().__init__(system, settings, period=period)
+        if qp_solver not in NONLINEAR_QP_SOLVERS:
+            raise MPCError(f"qp_solver = {qp_solver!r} is not one of {', '.join(NONLINEAR_QP_SOLVERS)}")
+        s = settings
+        if qp_solver == "daqp" and (s.solver != "rti" or s.hessian != "gauss-newton"):
+            raise MPCError(f"qp_solver = 'daqp' needs solver = 'rti' and hessian = 'gauss-newton' (one Gauss-Newton "
+                           f"QP per step, condensed), got solver = {s.solver!r}, hessian = {s.hessian!r}")
+        self.qp_solver = qp_solver
         prob = build_problem(self.system, settings, model=self.model, riser=self.riser)
         self._prob = prob
         self._n_u = prob.n_u
-        nlp = {"x": prob.z, "p": prob.p, "f": prob.f, "g": prob.g}
-        s = settings
+        self._lam_x = None
+        self._lam_g = None
+        #: Solves the retry solver (SQP with OSQP) rescued after the first one failed.
+        self.retries = 0
         self._retry = None
+        self._daqp = None
+        if qp_solver == "daqp":
+            self._setup_rti_daqp(prob)
+            return
+        nlp = {"x": prob.z, "p": prob.p, "f": prob.f, "g": prob.g}
         gn = {}
         if s.solver in ("sqp", "rti") and s.hessian == "gauss-newton":
             gn = {"hess_lag": self._gauss_newton(prob)}
@@ -439,10 +466,29 @@ class NonlinearMPC(_MPCBase):
             opts = {"print_time": False, "fatrop.print_level": 0, "fatrop.max_iter": s.max_iter,
                     "fatrop.mu_init": 0.1, "fatrop.tol": 1e-6}
             self._solver = ca.nlpsol("mpc", "fatrop", nlp, opts)
-        self._lam_x = None
-        self._lam_g = None
-        #: Solves the retry solver (SQP with OSQP) rescued after the first one failed.
-        self.retries = 0
+
+    def _setup_rti_daqp(self, prob: _Problem) -> None:
+        """``qp_solver="daqp"``: the Gauss–Newton QP of the NLP at a point ``z_lin`` as CasADi
+        functions evaluated into numpy buffers (the upper triangle of ``2 J_r^T J_r``, the Jacobians
+        of the equality rows and of the others, the cost's gradient, both row blocks and the cost at
+        ``z_lin``), condensed and solved by DAQP (``control.mpc_condensed``)."""
+        from .mpc_condensed import CondensedDAQP, CondensedQP
+
+        z, p = prob.z, prob.p
+        Jr = ca.jacobian(prob.r, z)
+        H = ca.triu(2 * ca.mtimes(Jr.T, Jr))
+        eq = np.isfinite(prob.lbg) & (prob.lbg == prob.ubg)   # the dynamics and the initial state
+        rows = np.arange(len(prob.lbg))
+        g_eq, g_in = prob.g[rows[eq].tolist()], prob.g[rows[~eq].tolist()]
+        J_eq, J_in = ca.jacobian(g_eq, z), ca.jacobian(g_in, z)
+        outs = [_nonzeros(H), _nonzeros(J_eq), _nonzeros(J_in), ca.gradient(prob.f, z), g_eq, g_in, prob.f]
+        (self._gn_z, self._gn_p), self._gn_data, self._gn_eval = _buffered(ca.Function("gn_qp", [z, p], outs))
+        self._f_fun = ca.Function("f", [z, p], [prob.f])
+        self._b_eq = prob.lbg[eq]
+        patterns = [(np.array(M.sparsity().row()), np.array(M.sparsity().colind())) for M in (H, J_eq, J_in)]
+        self._daqp = CondensedDAQP(CondensedQP(prob, *patterns, lb_in=prob.lbg[~eq], ub_in=prob.ubg[~eq]),
+                                   DAQP_SETTINGS, DAQP_PASSES)
+        self._slacks = slice(prob.idx["U"].stop, len(prob.lbz))
 
     @staticmethod
     def _gauss_newton(prob: _Problem) -> ca.Function:
@@ -476,8 +522,32 @@ class NonlinearMPC(_MPCBase):
         except RuntimeError as exc:  # an evaluation error inside the solver: treat as a failed solve
             return False, f"error: {str(exc).splitlines()[0][:120]}", -1, args["x0"], math.nan, None
 
+    def _solve_rti_daqp(self, t: float, p: np.ndarray) -> np.ndarray:
+        """One real-time iteration with the condensed QP in DAQP: the Gauss–Newton QP at the
+        shifted previous plan (its slacks set to 0: they enter the rows linearly and the cost
+        quadratically, so the QP's slacks are the new plan's), condensed and solved, and the full
+        step taken."""
+        prob = self._prob
+        z_lin = self._shift(self._z) if self._z is not None else self._initial(p)
+        z_lin[self._slacks] = 0.0
+        t0 = time.perf_counter()
+        self._gn_z[:], self._gn_p[:] = z_lin, p
+        try:
+            self._gn_eval()
+            Hx, Ax, Gx, q, g_eq, g_in, _ = self._gn_data
+            ok, status, it, dz = self._daqp.solve(Hx, Ax, Gx, q, self._b_eq, g_eq, g_in, prob.lbz - z_lin,
+                                                  prob.ubz - z_lin, np.zeros(self._daqp.cq.nU))
+        except (ValueError, RuntimeError, MPCError) as exc:  # bad data inside the QP or its condensing
+            ok, status, it, dz = False, f"error: {str(exc).splitlines()[0][:120]}", -1, np.full(len(z_lin), np.nan)
+            self._daqp.reset()
+        z = z_lin + dz
+        cost = float(self._f_fun(z, p)) if ok else math.nan
+        return self._finish(t, z, ok, self.RTI_STATUS if ok else status, time.perf_counter() - t0, it, cost)
+
     def _solve(self, t: float, p: np.ndarray) -> np.ndarray:
         prob = self._prob
+        if self._daqp is not None:
+            return self._solve_rti_daqp(t, p)
         z0 = self._shift(self._z) if self._z is not None else self._initial(p)
         args = {"x0": z0, "p": p, "lbx": prob.lbz, "ubx": prob.ubz, "lbg": prob.lbg, "ubg": prob.ubg}
         if self._lam_g is not None:
@@ -517,13 +587,6 @@ class LinearMPC(_MPCBase):
     per-step conversion). ``eps_abs``, ``eps_rel``: OSQP's tolerances (piqp keeps its defaults).
     """
 
-    #: DAQP's settings for ``qp_solver="daqp"``: its defaults but the iteration limit (a hot-started
-    #: step takes a few active-set changes; the limit bounds a pathological one).
-    DAQP_SETTINGS = {"iter_limit": 2000}
-    #: Solves of one step's condensed QP at most: the soft rows (one per group) chosen again on the
-    #: solution while it violates another row of the group most (``control.mpc_condensed``).
-    DAQP_PASSES = 4
-
     def __init__(self, system: Any, settings: MPCSettings = MPCSettings(), *, qp_solver: str = "piqp",
                  eps_abs: float = 1e-5, eps_rel: float = 1e-5, period: float | None = None):
         super().__init__(system, settings, period=period)
@@ -562,20 +625,16 @@ class LinearMPC(_MPCBase):
         outs = [_nonzeros(H), *(_nonzeros(B) for B in blocks), ca.gradient(prob.f, z), *g_parts, prob.f]
         fun = ca.Function("qp_data", [z, p], outs)
         fun = ca.Function("qp_data_p", [p], fun(ca.DM.zeros(nz), p))
-        self._p_buf = np.zeros(p.numel())
-        self._data = [np.zeros(o.numel()) for o in outs]
-        self._buf, self._eval = fun.buffer()
-        self._buf.set_arg(0, memoryview(self._p_buf))
-        for i, arr in enumerate(self._data):
-            self._buf.set_res(i, memoryview(arr))
+        (self._p_buf,), self._data, self._eval = _buffered(fun)
         self._mats = [(M.sparsity(), np.array(M.sparsity().row()), np.array(M.sparsity().colind())) for M in (H, *blocks)]
         self._qp = None
-        self._condensed = None
+        self._daqp = None
         if qp_solver == "daqp":
-            from .mpc_condensed import CondensedQP
+            from .mpc_condensed import CondensedDAQP, CondensedQP
 
-            self._condensed = CondensedQP(prob, *((row, colind) for _, row, colind in self._mats),
-                                          lb_in=self._lb_in, ub_in=self._ub_in)
+            self._daqp = CondensedDAQP(CondensedQP(prob, *((row, colind) for _, row, colind in self._mats),
+                                                   lb_in=self._lb_in, ub_in=self._ub_in),
+                                       DAQP_SETTINGS, DAQP_PASSES)
 
     def _qp_arrays(self, p: np.ndarray) -> list[np.ndarray]:
         """The QP data at the parameters ``p`` (with the operating point set): the nonzeros of H and
@@ -665,60 +724,20 @@ class LinearMPC(_MPCBase):
         the slacks as soft rows; set up once, then updated in place with its working set kept (a
         hot start). The plan is expanded back to the sparse QP's variables, and its cost is the
         sparse QP's at that plan."""
-        import daqp
-
-        from .allocation import DAQP_STATUS
-
-        prob, cq = self._prob, self._condensed
+        prob = self._prob
         Hx, Ax, Gx, q, g_eq, g_in = self._data[:6]
+        if self._z is not None:       # the prediction the soft rows are chosen on: the plan shifted
+            u_pred = self._shift(self._z)[prob.idx["U"]]
+        else:
+            u_pred = np.tile(self._last_p[prob.p_idx["u_prev"]] / prob.scale["u"], prob.n_moves)
         t0 = time.perf_counter()
         try:
-            if self._z is not None:       # the prediction the soft rows are chosen on: the plan shifted
-                u_pred = self._shift(self._z)[prob.idx["U"]]
-            else:
-                u_pred = np.tile(self._last_p[prob.p_idx["u_prev"]] / prob.scale["u"], prob.n_moves)
-            cq.condense(Hx, Ax, Gx, q, self._b_eq, g_eq, g_in, prob.lbz, prob.ubz, u_pred=u_pred)
-            key = cq.sense.tobytes()
-            if self._qp is None:
-                self._qp = daqp.Model()
-                self._qp.settings = dict(self.DAQP_SETTINGS)
-                flag, _ = self._qp.setup(cq.H, cq.f, cq.A, cq.bu, cq.bl, cq.sense)
-                if flag < 0:
-                    raise ValueError(f"DAQP setup: {DAQP_STATUS.get(flag, flag)}")
-                self._qp.soft_weights(rho_u=cq.rho, w_u=cq.w)
-            elif key != self._daqp_key:   # a thruster's DOF is held or freed: start cold
-                self._qp.update(H=cq.H, f=cq.f, A=cq.A, bupper=cq.bu, blower=cq.bl, sense=cq.sense)
-            else:                         # the same rows: DAQP keeps its working set
-                self._qp.update(H=cq.H, f=cq.f, A=cq.A, bupper=cq.bu, blower=cq.bl)
-            self._daqp_key = key
-            # the soft rows chosen on the predicted plan; chosen again on the solution while it
-            # violates another row of a group most (the best plan by the sparse QP's cost is kept)
-            best, it = None, 0
-            for k in range(self.DAQP_PASSES):
-                if k:
-                    self._qp.update(A=cq.A, bupper=cq.bu, blower=cq.bl)
-                u, _, flag, info = self._qp.solve()
-                u = np.asarray(u, float)
-                it += int(info["iterations"])
-                status = DAQP_STATUS.get(flag, f"exitflag_{flag}")
-                if not (flag > 0 and np.all(np.isfinite(u))):
-                    break
-                z = cq.expand(u)
-                c = cq.cost(Hx, q, z)
-                if best is None or c < best[0]:
-                    best = (c, z, status)
-                if not cq.rechoose(u):
-                    break
-            ok = best is not None
-            if ok:
-                z, status = best[1], best[2]
-            else:
-                z = np.full(self._nz, np.nan)
+            ok, status, it, z = self._daqp.solve(Hx, Ax, Gx, q, self._b_eq, g_eq, g_in, prob.lbz, prob.ubz, u_pred)
         except (ValueError, RuntimeError, MPCError) as exc:  # bad data inside the QP or its condensing
             ok, status, it, z = False, f"error: {str(exc).splitlines()[0][:120]}", -1, np.full(self._nz, np.nan)
-            self._qp = None
+            self._daqp.reset()
         dt = time.perf_counter() - t0
-        cost = cq.cost(Hx, q, z) + self._f0 if ok else math.nan
+        cost = self._daqp.cq.cost(Hx, q, z) + self._f0 if ok else math.nan
         return self._finish(t, z, ok, status, dt, it, cost)
 
 
@@ -730,6 +749,23 @@ def _low_pass_step(x_lf: np.ndarray | None, t_lf: float | None, x: Any, t: float
     if x_lf is None or t_lf is None:
         return x
     return first_order_step(x_lf, x, t - t_lf, T)
+
+
+def _buffered(fun: ca.Function) -> tuple[list[np.ndarray], list[np.ndarray], Any]:
+    """``fun`` evaluated into numpy buffers set up once: ``(inputs, outputs, evaluate)`` — write
+    the inputs in place, call ``evaluate()``, read the outputs (overwritten by the next call)."""
+    ins = [np.zeros(fun.numel_in(i)) for i in range(fun.n_in())]
+    outs = [np.zeros(fun.numel_out(i)) for i in range(fun.n_out())]
+    buf, call = fun.buffer()
+    for i, arr in enumerate(ins):
+        buf.set_arg(i, memoryview(arr))
+    for i, arr in enumerate(outs):
+        buf.set_res(i, memoryview(arr))
+
+    def evaluate(_buf: Any = buf) -> None:   # the buffer lives as long as this function
+        call()
+
+    return ins, outs, evaluate
 
 
 def _nonzeros(M: Any) -> Any:

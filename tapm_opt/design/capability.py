@@ -81,6 +81,7 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from .._io import csv_text
+from .._parallel import limit_threads, worker_threads
 from ..errors import TapmError
 from ..geometry import body_from_turret, ssa, turret_offset
 from ..standards import DNV_CAPACITY_FACTOR, DNV_E301_QUASI_STATIC_FACTORS
@@ -953,7 +954,8 @@ class _Engine:
 _WORKER: dict = {}
 
 
-def _worker_init(scenario: Any, options: CapabilityOptions) -> None:
+def _worker_init(scenario: Any, options: CapabilityOptions, threads: int) -> None:
+    limit_threads(threads)   # its share of the cores (tapm_opt._parallel)
     _WORKER["engine"] = _Engine(scenario, options)
 
 
@@ -1056,8 +1058,9 @@ def capability(scenario: Any, options: CapabilityOptions | Mapping[str, Any] | N
         import multiprocessing as mp
 
         ctx = mp.get_context("fork") if "fork" in mp.get_all_start_methods() else None
-        with cf.ProcessPoolExecutor(max_workers=min(opt.workers, len(specs)), mp_context=ctx,
-                                    initializer=_worker_init, initargs=(scenario, opt)) as pool:
+        n_workers = min(opt.workers, len(specs))
+        with cf.ProcessPoolExecutor(max_workers=n_workers, mp_context=ctx, initializer=_worker_init,
+                                    initargs=(scenario, opt, worker_threads(n_workers))) as pool:
             # intact first: the failure cases need its envelope; mooring alone meanwhile
             futs = {pool.submit(_worker_case, s, None): s for s in sorted(first, key=lambda s: s[0] != "intact")}
             while futs:

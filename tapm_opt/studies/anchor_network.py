@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from .._parallel import limit_threads, worker_threads
 from ..errors import TapmError
 from ..estimation.anchor_slam import AnchorSlamError, VirtualVessel, VirtualVesselNetwork, _finite
 from ..models.mooring import MooringModel
@@ -177,7 +178,8 @@ def generate_network(scenario: Any, n: int, *, duration: float, seed: int = 0, s
         if workers == 1:
             recs = [_record(a) for a in jobs]
         else:
-            with ProcessPoolExecutor(max_workers=workers) as ex:
+            with ProcessPoolExecutor(max_workers=workers, initializer=limit_threads,
+                                     initargs=(worker_threads(workers),)) as ex:
                 recs = list(ex.map(_record, jobs))
     except PlantError as exc:
         raise AnchorSlamError(f"a virtual-vessel run failed on the plant: {exc}") from None

@@ -26,8 +26,10 @@ scenario's safe radius (``MPC_DEAD_BAND``), ``w_thrust``, ``w_rate`` and ``w_vel
 ``fault_tolerance`` to true with the (default) characteristic mooring (a line reported broken
 leaves the prediction; ``dead_band_damaged`` [m], the dead band once a break is known, is not set:
 the dead band stays, see ``docs/controllers.md`` for what tightening it costs);
-``period`` [s] is the re-solve period (default the prediction step); ``lmpc`` also takes
-``qp_solver`` (``"piqp"``, default, or ``"osqp"``).
+``period`` [s] is the re-solve period (default the prediction step); ``qp_solver`` is, for
+``lmpc``, ``"piqp"`` (default), ``"osqp"`` or ``"daqp"`` (the QP condensed for DAQP,
+``control.mpc_condensed``), for ``mpc`` ``"piqp"`` (default: inside the NLP solver) or ``"daqp"``
+(with ``solver = "rti"``: each step's Gauss–Newton QP condensed for DAQP).
 
 The defaults were tuned on the fpso design storm (``docs/controllers.md``): the PID as the
 softest restoring loop that keeps the vessel inside the safe circle, the MPC with a dead band at
@@ -186,7 +188,7 @@ def build_controller(system: Any, spec: Mapping[str, Any] | str, *, where: str =
             if table is not None:
                 return supervised_pid(system, gain_table=table, initial_sea_state=o["initial_sea_state"], **opts)
             return supervised_pid(system, pid=ctrl, initial_sea_state=o["initial_sea_state"], **opts)
-        allowed = {f.name for f in fields(MPCSettings)} | {"period"} | ({"qp_solver"} if kind == "lmpc" else set())
+        allowed = {f.name for f in fields(MPCSettings)} | {"period", "qp_solver"}
         _unknown(set(spec), allowed, where)
         period = spec.pop("period", None)
         qp_solver = spec.pop("qp_solver", "piqp")
@@ -204,7 +206,7 @@ def build_controller(system: Any, spec: Mapping[str, Any] | str, *, where: str =
             if getattr(settings, name) > hi:
                 raise ControllerSpecError(f"{where}.{name} = {getattr(settings, name)!r} is above {hi}")
         if kind == "mpc":
-            return NonlinearMPC(system, settings, period=None if period is None else float(period))
+            return NonlinearMPC(system, settings, period=None if period is None else float(period), qp_solver=qp_solver)
         return LinearMPC(system, settings, period=None if period is None else float(period), qp_solver=qp_solver)
     except ControllerSpecError:
         raise

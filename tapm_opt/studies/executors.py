@@ -35,6 +35,7 @@ import time
 from pathlib import Path
 from typing import Any, Protocol, Sequence
 
+from .._parallel import limit_threads, worker_threads
 from . import store
 from .jobs import case_payload, error_info, local_case_job, record_failure, store_case
 from .spec import Case
@@ -102,8 +103,10 @@ def _watch_parent(parent_pid: int, interval: float) -> None:
             os._exit(1)
 
 
-def _init_worker(parent_pid: int, use_pdeathsig: bool, interval: float) -> None:
-    """Initializer of every local worker: end this process when ``parent_pid`` dies."""
+def _init_worker(parent_pid: int, use_pdeathsig: bool, interval: float, threads: int) -> None:
+    """Initializer of every local worker: end this process when ``parent_pid`` dies; its BLAS and
+    OpenMP pools get ``threads`` threads (its share of the cores, ``tapm_opt._parallel``)."""
+    limit_threads(threads)
     if use_pdeathsig:
         _set_pdeathsig()
     if os.getppid() != parent_pid:   # the parent died before the watch began
@@ -146,7 +149,7 @@ def run_local(todo: Sequence[Case], out: Path, workers: int, bar: Progress, outc
         Filled with ``{id: outcome}`` (:func:`~tapm_opt.studies.jobs.store_case`) as cases end.
     """
     ctx = multiprocessing.get_context("spawn")   # no fork of a parent holding threads or solver state
-    init = (os.getpid(), USE_PDEATHSIG, PARENT_POLL)
+    init = (os.getpid(), USE_PDEATHSIG, PARENT_POLL, worker_threads(workers))
     pending = list(todo)
     while pending:
         n = min(workers, len(pending))

@@ -428,7 +428,7 @@ def _parse_controllers(ck: Checker, data: Mapping, out: _Parsed) -> None:
         spec = None
         if kind is not None:
             n_issues = len(ck.issues)
-            allowed = set(PID_DEFAULTS) if kind == "pid" else mpc_allowed | ({"qp_solver"} if kind == "lmpc" else set())
+            allowed = set(PID_DEFAULTS) if kind == "pid" else mpc_allowed | {"qp_solver"}
             ck.keys(opts, allowed | {"name", "type"}, p)
             if len(ck.issues) == n_issues:
                 spec = _normalise_spec(kind, opts)
