@@ -148,6 +148,12 @@ def test_move_blocks_are_whole_numbers_of_steps():
     """A list (a TOML array) becomes a tuple; whole numbers written as floats (a command line's
     2.0) are accepted as such."""
     assert MPCSettings(move_blocks=[1.0, 19.0]).move_blocks == (1, 19)
+    # numpy numbers (a list built with numpy) and a 1-D array are whole numbers too
+    assert MPCSettings(move_blocks=[np.int64(1), np.float64(19.0)]).move_blocks == (1, 19)
+    assert MPCSettings(move_blocks=np.array([1, 1, 18])).move_blocks == (1, 1, 18)
+    assert all(type(b) is int for b in MPCSettings(move_blocks=np.array([1, 19])).move_blocks)
+    with pytest.raises(MPCError, match="whole numbers >= 1"):
+        MPCSettings(move_blocks=[np.bool_(True), 19])
     assert MPCSettings(horizon=6, move_blocks=[1, 2, 3]).move_blocks == (1, 2, 3)
     assert MPCSettings().move_blocks is None
 
