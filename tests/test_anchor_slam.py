@@ -316,3 +316,74 @@ def test_cli_rejects_a_network_of_another_scenario(network, tmp_path, capsys):
     bogus.write_bytes(b"not a zip")
     code = main(["estimate", "anchors", "ren8", "--out", str(tmp_path / "o"), "--network", str(bogus)])
     assert code == 2 and "cannot be read" in capsys.readouterr().err
+
+
+# --- the current's share of the tensions (eq. 8's Delta T_c) ---------------------------------------
+
+def test_current_tension_share_is_zero_without_current_and_odd_in_the_current(sc):
+    """No current, no share; the current reversed gives, line by line, nearly the opposite share
+    (drag ~ |v| v on a line that is otherwise the same, to first order); a current along the
+    anchor-fairlead direction of a line changes its tension more than one across it."""
+    from dataclasses import replace
+
+    from tapm_opt.studies.anchor_network import current_tension_share
+
+    base = replace(sc.sea_states[0], current_profile="uniform", current_profile_depths=(),
+                   current_profile_factors=())
+    eta = np.array([10.0, -5.0, 0.0])
+    assert np.array_equal(current_tension_share(sc, replace(base, current_speed=0.0), eta), np.zeros(8))
+    east = current_tension_share(sc, replace(base, current_speed=0.3, current_direction=math.pi / 2), eta)
+    west = current_tension_share(sc, replace(base, current_speed=0.3, current_direction=-math.pi / 2), eta)
+    scale = np.max(np.abs(east))
+    assert scale > 1e3                                               # kN at 0.3 m/s on ren8's lines
+    assert np.max(np.abs(east + west)) < 0.2 * scale
+    # lines 3 and 7 run east-west (anchors due east and west), lines 1 and 5 north-south
+    assert min(abs(east[2]), abs(east[6])) > 3 * max(abs(east[0]), abs(east[4]))
+    with pytest.raises(AnchorSlamError, match="eta"):
+        current_tension_share(sc, base, [0.0, np.nan, 0.0])
+
+
+def test_current_correction_brings_the_mapped_ranges_to_the_true_distances(sc, network, rmap):
+    """On the plant's records (currents up to 0.2 m/s), the records' mean ranges from the tensions
+    less the current's share are nearer the true mean distances to the anchors than those from the
+    tensions as measured: the RMS over records and lines of the difference falls."""
+    net, _ = network
+    A = np.asarray(rmap.model.anchors, float)[:, :2]
+    err = {True: [], False: []}
+    for v in (*net.vessels, net.live):
+        assert v.current_tension is not None and v.current_tension.shape == (8,)
+        true = np.linalg.norm(A[None] - v.truth[:, None, :2], axis=2).mean(axis=0)
+        for corr in (True, False):
+            err[corr].append(rmap.ranges(v.mapped_tensions(corr), clip=True)[0].mean(axis=0) - true)
+    rms = {k: float(np.sqrt(np.mean(np.square(v)))) for k, v in err.items()}
+    assert rms[True] < rms[False], rms
+
+
+def test_networks_keep_the_current_share_and_older_files_load_without_it(sc, network, tmp_path):
+    net, path = network
+    again = VirtualVesselNetwork.load(path)
+    for a, b in zip((again.live, *again.vessels), (net.live, *net.vessels)):
+        assert np.array_equal(a.current_tension, b.current_tension)
+    from dataclasses import replace
+
+    old = replace(net, vessels=tuple(replace(v, current_tension=None) for v in net.vessels),
+                  live=replace(net.live, current_tension=None))
+    p = old.save(tmp_path / "old.npz")
+    loaded = VirtualVesselNetwork.load(p)
+    assert all(v.current_tension is None for v in (loaded.live, *loaded.vessels))
+    assert np.array_equal(loaded.vessels[0].mapped_tensions(), net.vessels[0].tensions)
+    res = run_anchor_slam(sc, loaded, duration=100.0)
+    assert res.summary()["current_correction"] is False
+
+
+def test_cli_switches_the_current_correction(network, tmp_path, capsys):
+    _, path = network
+    out = {}
+    for flag in ("--current-correction", "--no-current-correction"):
+        code = main(["estimate", "anchors", "ren8", "--virtual-vessels", "4", "--duration", "300", "--out",
+                     str(tmp_path / flag), "--network", str(path), flag])
+        assert code == 0, capsys.readouterr().err
+        out[flag] = json.loads((tmp_path / flag / "summary.json").read_text())
+    assert out["--current-correction"]["current_correction"] is True
+    assert out["--no-current-correction"]["current_correction"] is False
+    assert out["--current-correction"]["anchors"] != out["--no-current-correction"]["anchors"]

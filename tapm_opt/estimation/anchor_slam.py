@@ -328,6 +328,12 @@ class VirtualVessel:
     settle_time : float
         Simulated time before the record [s] (the vessel started at the quasi-static equilibrium of
         the mean load).
+    current_tension : ndarray (M,) or None
+        The share of each fairlead tension [N] that the record's current puts on the lines, the
+        seed's ``Delta T_c`` of eq. (8): the line model settled under the measured current minus
+        settled without it, at the record's mean LF pose
+        (``studies.anchor_network.current_tension_share``). Subtracted from the tensions before the
+        tension -> range map (:meth:`mapped_tensions`); None: not known, no correction.
     """
 
     t: np.ndarray
@@ -339,6 +345,14 @@ class VirtualVessel:
     cot: np.ndarray
     sea_state: dict
     settle_time: float
+    current_tension: np.ndarray | None = None
+
+    def mapped_tensions(self, current_correction: bool = True) -> np.ndarray:
+        """The tensions the range map reads [N] (n, M): the measured ones less the current's share
+        ``current_tension`` (eq. 8's ``Delta T_c``) when it is known and ``current_correction``."""
+        if current_correction and self.current_tension is not None:
+            return self.tensions - np.asarray(self.current_tension, float)[None, :]
+        return self.tensions
 
     def head(self, n: int) -> "VirtualVessel":
         """The first ``n`` samples."""
@@ -388,6 +402,8 @@ class VirtualVesselNetwork:
         for k, v in enumerate((self.live, *self.vessels)):
             for name in ("t", "position", "heading", "tensions", "tau_thr", "truth", "cot"):
                 arrays[f"{k}_{name}"] = np.asarray(getattr(v, name))
+            if v.current_tension is not None:
+                arrays[f"{k}_current_tension"] = np.asarray(v.current_tension, float)
             metas.append({"sea_state": v.sea_state, "settle_time": v.settle_time})
         head = {"format": NETWORK_FORMAT, "scenario": self.scenario, "records": metas, "meta": self.meta}
         arrays["header"] = np.frombuffer(json.dumps(head).encode("utf-8"), dtype=np.uint8)
@@ -406,9 +422,11 @@ class VirtualVesselNetwork:
                                           f"not {NETWORK_FORMAT!r}")
                 recs = []
                 for k, m in enumerate(head["records"]):
+                    dT = np.array(z[f"{k}_current_tension"]) if f"{k}_current_tension" in z.files else None
                     recs.append(VirtualVessel(**{n: np.array(z[f"{k}_{n}"]) for n in
                                                  ("t", "position", "heading", "tensions", "tau_thr", "truth", "cot")},
-                                              sea_state=m["sea_state"], settle_time=float(m["settle_time"])))
+                                              sea_state=m["sea_state"], settle_time=float(m["settle_time"]),
+                                              current_tension=dT))
         except AnchorSlamError:
             raise
         except (OSError, KeyError, ValueError) as exc:
@@ -870,7 +888,8 @@ class SlamResult:
     ``t`` (n,) [s]; ``position`` (n, 2) tension-only LF position estimate [m]; ``position_std``
     (n, 2) [m]; ``truth`` (n, 2) true LF position [m]; ``anchors`` (n, M, 2) estimates [m];
     ``anchor_std`` (n, M, 2) [m]; ``anchors_true`` (M, 2); ``line_ids``; ``burn_in`` [s] -- the
-    start of the window of ``position_rms_error``.
+    start of the window of ``position_rms_error``; ``current_correction``: whether the records'
+    tensions were corrected for the current's share (eq. 8's ``Delta T_c``).
     """
 
     t: np.ndarray
@@ -884,6 +903,7 @@ class SlamResult:
     line_ids: tuple[str, ...]
     n_virtual: int
     burn_in: float
+    current_correction: bool = False
 
     @property
     def anchor_errors(self) -> np.ndarray:
@@ -909,7 +929,7 @@ class SlamResult:
                 "position_rms_error": self.position_rms_error,
                 "max_anchor_error": float(self.anchor_errors.max()),
                 "virtual_vessels": self.n_virtual, "duration": float(self.t[-1] - self.t[0]),
-                "burn_in": self.burn_in}
+                "burn_in": self.burn_in, "current_correction": self.current_correction}
 
     def csv_tables(self) -> dict[str, tuple[list[str], list[list[float]]]]:
         """``{"estimates.csv": (header, rows), "anchors.csv": ...}`` -- the series over time and
@@ -933,7 +953,7 @@ class SlamResult:
 
 def run_anchor_slam(scenario: Any, network: VirtualVesselNetwork, *, n_virtual: int | None = None,
                     duration: float | None = None, anchors0: Any = None, settings: SlamSettings | None = None,
-                    burn_in: float | None = None) -> SlamResult:
+                    burn_in: float | None = None, current_correction: bool = True) -> SlamResult:
     """Replay ``network`` (its first ``n_virtual`` vessels, ``duration`` [s]) through
     :class:`AnchorSLAM` from the initial anchors ``anchors0`` (M, 2) [m] (default: the scenario's
     anchors perturbed as in Table 4, :func:`table4_initial_anchors`).
@@ -941,8 +961,10 @@ def run_anchor_slam(scenario: Any, network: VirtualVesselNetwork, *, n_virtual: 
     Every step (the records' sample period) reads all records at the same instant (§6.1): the live
     vessel's heading, thrust and tensions (-> ``d_I``) and each virtual vessel's observer position and
     tensions (-> ``d_IJ``), mapped by :class:`TensionRangeMap` (clipped to its domain) with the
-    variances of eq. (12) at the mapped distances. ``burn_in`` (default a tenth of the duration)
-    starts the window of the position RMS error.
+    variances of eq. (12) at the mapped distances; with ``current_correction`` (default) each
+    record's tensions less the current's share where the record has it
+    (:attr:`VirtualVessel.current_tension`, eq. 8's ``Delta T_c``). ``burn_in`` (default a tenth of
+    the duration) starts the window of the position RMS error.
     """
     from ..models.system import System
 
@@ -962,9 +984,9 @@ def run_anchor_slam(scenario: Any, network: VirtualVesselNetwork, *, n_virtual: 
                               f"{scenario.name!r} has {M} lines")
     N = len(vs)
     # all ranges at once (vectorised inversion): live (n, M), virtual (N, n, M)
-    d_live, X_live = rmap.ranges(live.tensions, clip=True)
+    d_live, X_live = rmap.ranges(live.mapped_tensions(current_correction), clip=True)
     var_live = rmap.range_variance(X_live, s.sigma_T, sigma_Td=s.sigma_Td, sigma_gps=s.sigma_gps)
-    Tv = np.stack([v.tensions for v in vs])
+    Tv = np.stack([v.mapped_tensions(current_correction) for v in vs])
     d_v, X_v = rmap.ranges(Tv, clip=True)
     var_v = rmap.range_variance(X_v, s.sigma_T, sigma_Td=s.sigma_Td_virtual)
     pv = np.stack([v.cot for v in vs])                     # (N, n, 2)
@@ -985,7 +1007,9 @@ def run_anchor_slam(scenario: Any, network: VirtualVesselNetwork, *, n_virtual: 
     bi = 0.1 * T if burn_in is None else _finite("burn_in", burn_in, lo=0.0, strict=False, unit="s")
     return SlamResult(t=live.t.copy(), position=pos, position_std=pos_std, truth=live.truth[:, :2].copy(),
                       anchors=anc, anchor_std=anc_std, anchors_true=np.asarray(system.lines.anchors, float),
-                      anchors_initial=np.asarray(anchors0, float), line_ids=rmap.line_ids, n_virtual=N, burn_in=bi)
+                      anchors_initial=np.asarray(anchors0, float), line_ids=rmap.line_ids, n_virtual=N, burn_in=bi,
+                      current_correction=bool(current_correction and any(r.current_tension is not None
+                                                                         for r in (live, *vs))))
 
 
 # ------------------------------------------------------------------------------------------

@@ -20,7 +20,7 @@ from ..errors import TapmError
 from ..estimation.anchor_slam import AnchorSlamError, VirtualVessel, VirtualVesselNetwork, _finite
 from ..models.mooring import MooringModel
 
-__all__ = ["random_sea_states", "generate_network"]
+__all__ = ["random_sea_states", "generate_network", "current_tension_share"]
 
 
 def _sea_state_dict(ss: Any) -> dict:
@@ -85,6 +85,32 @@ def random_sea_states(scenario: Any, n: int, *, seed: int = 0, min_offset: float
     return out
 
 
+def current_tension_share(scenario: Any, sea_state: Any, eta: Any, *, segments: int | None = None) -> np.ndarray:
+    """The share of each fairlead tension [N], shape (M,), that ``sea_state``'s current puts on the
+    lines with the vessel held at ``eta`` (x [m], y [m], psi [rad]): the seed's ``Delta T_c`` of
+    eq. (8), which its range map leaves out. The scenario's lines as the FEM of the plant
+    (``plant.mooring_fem.MooringFEM``, ``segments`` per line) settled by dynamic relaxation under
+    the current's profile and without it; the difference of the settled fairlead tensions. Zero
+    without a current. The tensions the range map reads are the measured ones less this share
+    (``estimation.anchor_slam.VirtualVessel.current_tension``)."""
+    from ..plant.environment import CurrentProfile
+    from ..plant.mooring_fem import MooringFEM
+
+    eta = np.asarray(eta, dtype=float)
+    if eta.shape != (3,) or not np.all(np.isfinite(eta)):
+        raise AnchorSlamError(f"eta = {eta.tolist()} must be a finite pose (x [m], y [m], psi [rad])")
+    if not float(getattr(sea_state, "current_speed", 0.0)) > 0.0:
+        return np.zeros(len(scenario.lines))
+    profile = CurrentProfile(sea_state, scenario.environment.water_depth)
+    T = []
+    for current in (profile.velocity, None):
+        fem = MooringFEM(scenario, segments=segments, current=current)
+        fem.initialise(eta)
+        fem.settle(eta, max_time=3000.0)
+        T.append(fem.fairlead_tension())
+    return T[0] - T[1]
+
+
 class _Recorder:
     """An Estimator that passes through the inner one and keeps what a stored record needs."""
 
@@ -113,7 +139,7 @@ def _record(args: tuple) -> VirtualVessel:
     from .closed_loop import ClosedLoopSettings, run_closed_loop
     from .controllers import build_controller
 
-    scenario, ss, eta0, seed, settle, settle_max, settle_tol, duration, segments, dt = args
+    scenario, ss, eta0, seed, settle, settle_max, settle_tol, duration, segments, dt, live = args
     system = System.from_scenario(scenario)
     plant = Plant(system, sea_state=ss, seed=seed, eta0=eta0, segments=segments)
     ctrl = build_controller(system, {"type": "pid", "modes": "calm"})  # heading only (§6.1)
@@ -134,10 +160,17 @@ def _record(args: tuple) -> VirtualVessel:
     rows = rec.rows
     t = np.array([r[0] for r in rows])
     cot = np.array([r[6][:2] + rot_z(r[6][2])[:2, :2] @ system.p_cot_B for r in rows])
-    return VirtualVessel(t=t - t[0], position=np.array([r[1] for r in rows]), heading=np.array([r[2] for r in rows]),
+    position, heading = np.array([r[1] for r in rows]), np.array([r[2] for r in rows])
+    # the current's share of the tensions (eq. 8's Delta T_c) at the record's mean pose as the
+    # estimator knows it: a stored vessel's mean observer position; the live vessel's position is
+    # what is sought, so the field zero point (the share changes little over tens of metres)
+    psi = float(np.angle(np.mean(np.exp(1j * heading))))
+    pose = np.array([0.0, 0.0, psi]) if live else np.array([*position.mean(axis=0), psi])
+    return VirtualVessel(t=t - t[0], position=position, heading=heading,
                          tensions=np.array([r[3] for r in rows]), tau_thr=np.array([r[4] for r in rows]),
                          truth=np.array([r[5] for r in rows]), cot=cot, sea_state=_sea_state_dict(ss),
-                         settle_time=t_settle)
+                         settle_time=t_settle,
+                         current_tension=current_tension_share(scenario, ss, pose, segments=segments))
 
 
 def generate_network(scenario: Any, n: int, *, duration: float, seed: int = 0, settle: float = 200.0,
@@ -171,8 +204,8 @@ def generate_network(scenario: Any, n: int, *, duration: float, seed: int = 0, s
         ss = scenario.sea_state(live_sea_state) if isinstance(live_sea_state, str) else live_sea_state
         model = MooringModel.from_scenario(scenario)
         envs[-1] = (ss, model.equilibrium(mean_environmental_load(scenario, ss, 0.0, seed=seed).total, psi=0.0))
-    jobs = [(scenario, ss, eta, seed * 1000 + j + 1, settle, settle_max, settle_tol, duration, segments, dt)
-            for j, (ss, eta) in enumerate(envs)]
+    jobs = [(scenario, ss, eta, seed * 1000 + j + 1, settle, settle_max, settle_tol, duration, segments, dt,
+             j == len(envs) - 1) for j, (ss, eta) in enumerate(envs)]
     workers = max(1, min(int(workers), len(jobs), os.cpu_count() or 1))
     try:
         if workers == 1:
