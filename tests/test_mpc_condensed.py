@@ -81,6 +81,12 @@ def side_by_side(sc, s, states, passes=None):
     return {k: np.array(v) for k, v in moves.items()}, {k: np.array(v) for k, v in costs.items()}, b
 
 
+def fail_daqp(monkeypatch, ctrl, flag: int) -> None:
+    """Make the controller's DAQP model return exit flag ``flag`` (a failure) from now on."""
+    monkeypatch.setattr(ctrl._daqp, "_model", SimpleNamespace(
+        update=lambda **kw: None, solve=lambda: (np.zeros(ctrl._daqp.cq.nU), 0.0, flag, {"iterations": 3})))
+
+
 @pytest.mark.parametrize("N, blocks", [(20, None), (50, BLOCKS_50)], ids=["N20", "N50-8moves"])
 def test_condensed_qp_gives_the_sparse_optimum(fpso, N, blocks):
     """On a drift across the dead band (one face of it violated at a time) the condensed QP has
@@ -153,9 +159,7 @@ def test_failed_daqp_solve_applies_shifted_previous_plan(fpso, monkeypatch):
     ctrl.update(e[0].t, e[0], SP0)
     plan = ctrl.plan_u.copy()
     real = ctrl._daqp._model
-    monkeypatch.setattr(ctrl._daqp, "_model", SimpleNamespace(update=lambda **kw: None,
-                                                               solve=lambda: (np.zeros(ctrl._daqp.cq.nU), 0.0, -4,
-                                                                              {"iterations": 2000})))
+    fail_daqp(monkeypatch, ctrl, -4)
     tau = ctrl.update(e[1].t, e[1], SP0)
     d = ctrl.last_step()
     assert d.fallback and not d.success and d.status == "max_iter_reached"
@@ -311,9 +315,7 @@ def test_rti_with_daqp_failure_falls_back_and_bad_options(fpso, monkeypatch):
     e = drift(2, s.dt)
     ctrl.update(e[0].t, e[0], SP0)
     plan = ctrl.plan_u.copy()
-    monkeypatch.setattr(ctrl._daqp, "_model", SimpleNamespace(update=lambda **kw: None,
-                                                               solve=lambda: (np.zeros(ctrl._daqp.cq.nU), 0.0, -1,
-                                                                              {"iterations": 3})))
+    fail_daqp(monkeypatch, ctrl, -1)
     tau = ctrl.update(e[1].t, e[1], SP0)
     d = ctrl.last_step()
     assert d.fallback and not d.success and d.status == "primal_infeasible"
