@@ -149,12 +149,13 @@ _csr_rows_dot = jit(_csr_rows_dot)
 
 
 class CondensedQP:
-    """The condensed form of a linear MPC's sparse QP (module docstring).
+    """The condensed form of an MPC's sparse QP (module docstring): the linear MPC's, or the
+    real-time iteration's Gauss–Newton QP in the step from the linearisation point.
 
     Parameters
     ----------
     prob : _Problem
-        The linear problem (``build_problem(..., linear=True)``).
+        The MPC problem (``build_problem``) whose variables and index maps the QP has.
     H_pattern, Aeq_pattern, G_pattern : (row indices, column pointers)
         CSC sparsity of the upper triangle of the Hessian, of the equality rows and of the other
         rows, over the QP's variables z = (X, U, S).
@@ -201,7 +202,6 @@ class CondensedQP:
                 self._diag_pos[c] = self._Hc[c]
         # each other row holds at most one slack, with the coefficient -1 (checked at each step)
         m = len(lb_in)
-        self.m_sparse = m
         self.row_slack = np.full(m, -1, np.int64)
         slack_pos = []
         for c in range(self.nXU, self.nz):
@@ -237,9 +237,7 @@ class CondensedQP:
         lin = q[cols]
         fixed = ubz[cols] <= lbz[cols]
         soft = ~fixed & ((curv > 0) | (lin > 0))
-        self._fixed_cols = cols[fixed]
-        hard = self.row_slack < 0
-        hard |= np.isin(self.row_slack, self._fixed_cols)
+        hard = (self.row_slack < 0) | np.isin(self.row_slack, cols[fixed])
         self.hard_rows = np.flatnonzero(hard)
         self.groups = cols[soft]
         self._grp_curv, self._grp_lin = curv[soft], lin[soft]
