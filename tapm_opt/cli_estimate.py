@@ -86,20 +86,24 @@ def estimate() -> None:
                    "at most 1200 s).")
 @click.option("--workers", type=click.IntRange(1, 64), default=None,
               help="Processes for the plant runs (default: 2, or 1 on a single CPU).")
-@click.option("--current-correction/--no-current-correction", default=True, show_default=True,
-              help="Subtract from each record's tensions the share its current puts on the lines (the seed's "
-                   "Delta T_c of eq. 8: the line model settled under the record's current, less without it) "
-                   "before mapping them to ranges.")
+@click.option("--line-correction/--no-line-correction", default=True, show_default=True,
+              help="Correct each record's ranges by the line model (the seed's Delta T_c and Delta T_v of eq. 8): "
+                   "a stored record's mean range error along its own track under its sea state, the live "
+                   "record's tensions less the share its current puts on the lines.")
+@click.option("--survey/--no-survey", default=True, show_default=True,
+              help="Fit the anchors to the stored records in batch (least squares from the initial guesses) "
+                   "and start the EKF from that fit; without it the EKF starts from the initial guesses.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of text.")
 def anchors(scenario_name: str, n_virtual: int, duration: float, out_dir: str, initial: str | None,
-            network: str | None, seed: int, settle: float, workers: int | None, current_correction: bool,
-            as_json: bool) -> None:
+            network: str | None, seed: int, settle: float, workers: int | None, line_correction: bool,
+            survey: bool, as_json: bool) -> None:
     """Estimate SCENARIO's anchors and the vessel's position from the line tensions (EKF-SLAM).
 
     Generates N virtual vessels -- the vessel settled at equilibria in random environments, heading-only
     control, records of the observer's LF position and the measured tensions -- and the live
-    vessel's record on the plant, then runs the EKF of eq. 15-16 from the initial anchor guesses,
-    each record's tensions less the share its current puts on the lines (eq. 8's Delta T_c).
+    vessel's record on the plant, fits the anchors to the stored records in batch from the initial
+    anchor guesses, then runs the EKF of eq. 15-16 from that fit; every record's ranges corrected by
+    the line model (eq. 8's Delta T_c and Delta T_v).
     Writes OUT/estimates.csv (position and anchors over time), anchors.csv, summary.json and
     network.npz (the stored records, for --network). Errors are horizontal, in metres.
     """
@@ -135,7 +139,7 @@ def anchors(scenario_name: str, n_virtual: int, duration: float, out_dir: str, i
         net = generate_network(sc, n_virtual, duration=duration, seed=seed, settle=settle,
                                workers=workers or min(2, os.cpu_count() or 1))
     res = run_anchor_slam(sc, net, n_virtual=n_virtual, duration=duration, anchors0=a0,
-                          current_correction=current_correction)
+                          line_correction=line_correction, survey=survey)
     summary = {"scenario": sc.name, **res.summary(),
                "virtual_vessel_equilibria": [[float(v) for v in vv.cot.mean(axis=0)] for vv in net.vessels[:n_virtual]]}
     # compute everything first, then write: no half-written output on a failure

@@ -247,8 +247,11 @@ def test_ren8_network_and_position_target(sc, network, ren8_result):
     res = ren8_result
     assert np.max(np.hypot(*(res.anchors_initial - res.anchors_true).T)) > 300   # Table 4's guesses
     assert res.position_rms_error < 5.0               # tension-only vs the true LF position
-    # the anchors converge from 98-370 m to tens of metres; most within 20 m
-    assert np.max(res.anchor_errors) < 60.0 and np.sum(res.anchor_errors < 20.0) >= 6, res.anchor_errors
+    # from Table 4's guesses (98-370 m off) every anchor ends within 20 m (the issue's target; the
+    # survey of the stored records with the line model's range bias: 5.0 m at worst here, 42 m for
+    # the EKF alone without the correction)
+    assert res.summary()["survey"] and res.summary()["line_correction"]
+    assert np.max(res.anchor_errors) < 20.0, res.anchor_errors
 
 
 def test_cli_writes_files_and_json(network, tmp_path, capsys):
@@ -346,7 +349,8 @@ def test_current_tension_share_is_zero_without_current_and_odd_in_the_current(sc
 def test_current_correction_brings_the_mapped_ranges_to_the_true_distances(sc, network, rmap):
     """On the plant's records (currents up to 0.2 m/s), the records' mean ranges from the tensions
     less the current's share are nearer the true mean distances to the anchors than those from the
-    tensions as measured: the RMS over records and lines of the difference falls."""
+    tensions as measured: the RMS over records and lines of the difference falls; the range bias
+    along each stored record's track (current and waves) brings them nearer still."""
     net, _ = network
     A = np.asarray(rmap.model.anchors, float)[:, :2]
     err = {True: [], False: []}
@@ -357,6 +361,15 @@ def test_current_correction_brings_the_mapped_ranges_to_the_true_distances(sc, n
             err[corr].append(rmap.ranges(v.mapped_tensions(corr), clip=True)[0].mean(axis=0) - true)
     rms = {k: float(np.sqrt(np.mean(np.square(v)))) for k, v in err.items()}
     assert rms[True] < rms[False], rms
+    # the range bias of the line model along each stored record (the live vessel has none)
+    biased = []
+    for v in net.vessels:
+        assert v.range_bias is not None and v.range_bias.shape == (8,)
+        true = np.linalg.norm(A[None] - v.truth[:, None, :2], axis=2).mean(axis=0)
+        biased.append(v.ranges(rmap, True)[0].mean(axis=0) - true)
+    assert net.live.range_bias is None
+    stored = float(np.sqrt(np.mean(np.square(err[False][:-1]))))
+    assert float(np.sqrt(np.mean(np.square(biased)))) < 0.5 * stored, (biased, stored)
 
 
 def test_networks_keep_the_current_share_and_older_files_load_without_it(sc, network, tmp_path):
@@ -364,26 +377,52 @@ def test_networks_keep_the_current_share_and_older_files_load_without_it(sc, net
     again = VirtualVesselNetwork.load(path)
     for a, b in zip((again.live, *again.vessels), (net.live, *net.vessels)):
         assert np.array_equal(a.current_tension, b.current_tension)
+        assert (a.range_bias is None and b.range_bias is None) or np.array_equal(a.range_bias, b.range_bias)
     from dataclasses import replace
 
-    old = replace(net, vessels=tuple(replace(v, current_tension=None) for v in net.vessels),
+    old = replace(net, vessels=tuple(replace(v, current_tension=None, range_bias=None) for v in net.vessels),
                   live=replace(net.live, current_tension=None))
     p = old.save(tmp_path / "old.npz")
     loaded = VirtualVesselNetwork.load(p)
     assert all(v.current_tension is None for v in (loaded.live, *loaded.vessels))
     assert np.array_equal(loaded.vessels[0].mapped_tensions(), net.vessels[0].tensions)
     res = run_anchor_slam(sc, loaded, duration=100.0)
-    assert res.summary()["current_correction"] is False
+    assert res.summary()["line_correction"] is False
 
 
-def test_cli_switches_the_current_correction(network, tmp_path, capsys):
+def test_cli_switches_the_line_correction_and_the_survey(network, tmp_path, capsys):
     _, path = network
     out = {}
-    for flag in ("--current-correction", "--no-current-correction"):
+    for flags in (("--line-correction",), ("--no-line-correction",), ("--no-survey",)):
         code = main(["estimate", "anchors", "ren8", "--virtual-vessels", "4", "--duration", "300", "--out",
-                     str(tmp_path / flag), "--network", str(path), flag])
+                     str(tmp_path / flags[0]), "--network", str(path), *flags])
         assert code == 0, capsys.readouterr().err
-        out[flag] = json.loads((tmp_path / flag / "summary.json").read_text())
-    assert out["--current-correction"]["current_correction"] is True
-    assert out["--no-current-correction"]["current_correction"] is False
-    assert out["--current-correction"]["anchors"] != out["--no-current-correction"]["anchors"]
+        out[flags[0]] = json.loads((tmp_path / flags[0] / "summary.json").read_text())
+    assert out["--line-correction"]["line_correction"] is True and out["--line-correction"]["survey"] is True
+    assert out["--no-line-correction"]["line_correction"] is False
+    assert out["--no-survey"]["survey"] is False
+    assert out["--line-correction"]["anchors"] != out["--no-line-correction"]["anchors"]
+
+
+def test_survey_fits_exact_ranges_exactly_and_refuses_bad_input(rmap, system):
+    """Ranges that are the true distances from wandering landmarks give the anchors back (to
+    1e-6 m) from Table 4's guesses; the covariance is symmetric positive definite, at least 1 m^2
+    on its diagonal; no records or bad guesses are AnchorSlamErrors."""
+    from types import SimpleNamespace
+
+    from tapm_opt.estimation.anchor_slam import survey_anchors
+
+    A = np.asarray(system.lines.anchors, float)[:, :2]
+    rng = np.random.default_rng(4)
+    recs = []
+    for c in ([30.0, 5.0], [-10.0, 40.0], [-25.0, -20.0], [15.0, -35.0]):
+        P = np.asarray(c) + np.cumsum(rng.normal(0, 0.3, (300, 2)), axis=0)
+        d = np.linalg.norm(A[None] - P[:, None, :], axis=2)
+        recs.append(SimpleNamespace(cot=P, t=np.arange(300.0), ranges=lambda m, corr, d=d: (d, d)))
+    est, cov = survey_anchors(rmap, recs, table4_initial_anchors(system.lines.anchors))
+    assert np.max(np.hypot(*(est - A).T)) < 1e-6
+    assert np.allclose(cov, cov.T) and np.all(np.linalg.eigvalsh(cov) > 0) and np.all(np.diag(cov) >= 1.0)
+    with pytest.raises(AnchorSlamError, match="at least one stored record"):
+        survey_anchors(rmap, [], A)
+    with pytest.raises(AnchorSlamError, match="anchors0"):
+        survey_anchors(rmap, recs, A[:3])

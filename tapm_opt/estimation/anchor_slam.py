@@ -53,7 +53,7 @@ from ..models import catenary
 from ..models.mooring import MooringModel
 
 __all__ = ["AnchorSlamError", "TensionRangeMap", "VirtualVessel", "VirtualVesselNetwork", "AnchorSLAM",
-           "SlamSettings", "SlamResult", "PositionFix", "TensionPositionEstimator", "run_anchor_slam",
+           "SlamSettings", "SlamResult", "PositionFix", "TensionPositionEstimator", "run_anchor_slam", "survey_anchors",
            "table4_initial_anchors", "TABLE4_TRUE", "TABLE4_INITIAL", "NETWORK_FORMAT"]
 
 #: Table 4 of the seed: anchor positions (x, y) [m] as printed (z = 1000 m down for all).
@@ -334,6 +334,13 @@ class VirtualVessel:
         settled without it, at the record's mean LF pose
         (``studies.anchor_network.current_tension_share``). Subtracted from the tensions before the
         tension -> range map (:meth:`mapped_tensions`); None: not known, no correction.
+    range_bias : ndarray (M,) or None
+        The mean error of the tension -> range map along this record [m] (eq. 8's ``Delta T_c``
+        and ``Delta T_v`` together, as range): the line model driven along the record's observer
+        track plus the wave-frequency motion of its sea state, under its current
+        (``studies.anchor_network.range_bias_along``). Subtracted from the record's ranges where
+        known (:meth:`ranges`), in place of ``current_tension``. None for the live vessel, whose
+        track is what is sought.
     """
 
     t: np.ndarray
@@ -346,13 +353,23 @@ class VirtualVessel:
     sea_state: dict
     settle_time: float
     current_tension: np.ndarray | None = None
+    range_bias: np.ndarray | None = None
 
-    def mapped_tensions(self, current_correction: bool = True) -> np.ndarray:
+    def mapped_tensions(self, line_correction: bool = True) -> np.ndarray:
         """The tensions the range map reads [N] (n, M): the measured ones less the current's share
-        ``current_tension`` (eq. 8's ``Delta T_c``) when it is known and ``current_correction``."""
-        if current_correction and self.current_tension is not None:
+        ``current_tension`` (eq. 8's ``Delta T_c``) when it is known and ``line_correction``."""
+        if line_correction and self.current_tension is not None:
             return self.tensions - np.asarray(self.current_tension, float)[None, :]
         return self.tensions
+
+    def ranges(self, range_map: "TensionRangeMap", line_correction: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """``(d, X)`` of :meth:`TensionRangeMap.ranges` for this record's tensions (clipped to the
+        map's domain), with ``line_correction`` the line model's correction: the record's range
+        bias subtracted where it is known, else the current's share of the tensions."""
+        if line_correction and self.range_bias is not None:
+            d, X = range_map.ranges(self.tensions, clip=True)
+            return d - np.asarray(self.range_bias, float)[None, :], X
+        return range_map.ranges(self.mapped_tensions(line_correction), clip=True)
 
     def head(self, n: int) -> "VirtualVessel":
         """The first ``n`` samples."""
@@ -402,8 +419,9 @@ class VirtualVesselNetwork:
         for k, v in enumerate((self.live, *self.vessels)):
             for name in ("t", "position", "heading", "tensions", "tau_thr", "truth", "cot"):
                 arrays[f"{k}_{name}"] = np.asarray(getattr(v, name))
-            if v.current_tension is not None:
-                arrays[f"{k}_current_tension"] = np.asarray(v.current_tension, float)
+            for name in ("current_tension", "range_bias"):
+                if getattr(v, name) is not None:
+                    arrays[f"{k}_{name}"] = np.asarray(getattr(v, name), float)
             metas.append({"sea_state": v.sea_state, "settle_time": v.settle_time})
         head = {"format": NETWORK_FORMAT, "scenario": self.scenario, "records": metas, "meta": self.meta}
         arrays["header"] = np.frombuffer(json.dumps(head).encode("utf-8"), dtype=np.uint8)
@@ -422,11 +440,11 @@ class VirtualVesselNetwork:
                                           f"not {NETWORK_FORMAT!r}")
                 recs = []
                 for k, m in enumerate(head["records"]):
-                    dT = np.array(z[f"{k}_current_tension"]) if f"{k}_current_tension" in z.files else None
+                    opt = {n: (np.array(z[f"{k}_{n}"]) if f"{k}_{n}" in z.files else None)
+                           for n in ("current_tension", "range_bias")}
                     recs.append(VirtualVessel(**{n: np.array(z[f"{k}_{n}"]) for n in
                                                  ("t", "position", "heading", "tensions", "tau_thr", "truth", "cot")},
-                                              sea_state=m["sea_state"], settle_time=float(m["settle_time"]),
-                                              current_tension=dT))
+                                              sea_state=m["sea_state"], settle_time=float(m["settle_time"]), **opt))
         except AnchorSlamError:
             raise
         except (OSError, KeyError, ValueError) as exc:
@@ -888,8 +906,10 @@ class SlamResult:
     ``t`` (n,) [s]; ``position`` (n, 2) tension-only LF position estimate [m]; ``position_std``
     (n, 2) [m]; ``truth`` (n, 2) true LF position [m]; ``anchors`` (n, M, 2) estimates [m];
     ``anchor_std`` (n, M, 2) [m]; ``anchors_true`` (M, 2); ``line_ids``; ``burn_in`` [s] -- the
-    start of the window of ``position_rms_error``; ``current_correction``: whether the records'
-    tensions were corrected for the current's share (eq. 8's ``Delta T_c``).
+    start of the window of ``position_rms_error``; ``line_correction``: whether the records'
+    ranges were corrected by the line model (eq. 8's ``Delta T_c``, ``Delta T_v``); ``anchors_survey``
+    (M, 2) [m]: the batch estimate the filter started from (None: it started from
+    ``anchors_initial``).
     """
 
     t: np.ndarray
@@ -903,7 +923,8 @@ class SlamResult:
     line_ids: tuple[str, ...]
     n_virtual: int
     burn_in: float
-    current_correction: bool = False
+    line_correction: bool = False
+    anchors_survey: np.ndarray | None = None
 
     @property
     def anchor_errors(self) -> np.ndarray:
@@ -929,7 +950,8 @@ class SlamResult:
                 "position_rms_error": self.position_rms_error,
                 "max_anchor_error": float(self.anchor_errors.max()),
                 "virtual_vessels": self.n_virtual, "duration": float(self.t[-1] - self.t[0]),
-                "burn_in": self.burn_in, "current_correction": self.current_correction}
+                "burn_in": self.burn_in, "line_correction": self.line_correction,
+                "survey": self.anchors_survey is not None}
 
     def csv_tables(self) -> dict[str, tuple[list[str], list[list[float]]]]:
         """``{"estimates.csv": (header, rows), "anchors.csv": ...}`` -- the series over time and
@@ -951,20 +973,70 @@ class SlamResult:
         return {"estimates.csv": (head, rows), "anchors.csv": (ah, arows)}
 
 
+def survey_anchors(range_map: TensionRangeMap, vessels: Any, anchors0: Any, *,
+                   line_correction: bool = True, correlation_time: float = 200.0) -> tuple[np.ndarray, np.ndarray]:
+    """Batch estimate of the anchors from stored records: for each anchor ``i`` the horizontal
+    position that best fits, in least squares from ``anchors0[i]``, every sample of every record's
+    range ``d_ij(t)`` (:meth:`VirtualVessel.ranges`, the line model's correction with
+    ``line_correction``) as the distance to that record's observer COT ``p_j(t)``:
+    ``min sum_j,t (|p_i^a - p_j(t)| - d_ij(t))^2``.
+
+    The stored records are a batch (the seed's §4: "previously collected and stored data"), so the
+    anchors need not be filtered: the EKF of eq. 15-16 treats the 1 Hz ranges as white noise, but
+    their errors are correlated over a record (the landmark's slow wander, the lines' dynamics), and
+    the filter then settles tens of metres off where the least-squares fit of the same ranges is
+    within a few metres (``docs/anchor_slam.md``). Returns ``(anchors (M, 2) [m], covariance
+    (2M, 2M) [m^2])``: block-diagonal, each block the fit's ``s^2 (J^T J)^-1`` with ``s^2`` the
+    residuals' variance, times the samples in ``correlation_time`` [s] (the range errors'
+    correlation: about half the stored vessels' 400 s surge period), and at least ``1 m^2`` on
+    the diagonal.
+    """
+    from scipy.optimize import least_squares
+
+    vs = list(vessels)
+    if not vs:
+        raise AnchorSlamError("the survey needs at least one stored record (virtual vessels = 0)")
+    a0 = np.asarray(anchors0, dtype=float)
+    M = len(range_map.line_ids)
+    if a0.shape != (M, 2) or not np.all(np.isfinite(a0)):
+        raise AnchorSlamError(f"anchors0 has shape {a0.shape}: it must be {M} finite (x, y) pairs [m]")
+    P = np.concatenate([v.cot for v in vs])                            # (n, 2)
+    D = np.concatenate([v.ranges(range_map, line_correction)[0] for v in vs])   # (n, M)
+    dt = float(np.median(np.diff(vs[0].t))) if len(vs[0].t) > 1 else 1.0
+    per_record = max(1.0, min(_finite("correlation_time", correlation_time, lo=0.0, unit="s") / dt,
+                              len(P) / len(vs)))
+    out, cov = np.zeros((M, 2)), np.zeros((2 * M, 2 * M))
+    for i in range(M):
+        def resid(a, d=D[:, i]):
+            return np.hypot(a[0] - P[:, 0], a[1] - P[:, 1]) - d
+
+        sol = least_squares(resid, a0[i], method="lm")
+        J = sol.jac
+        s2 = float(np.mean(sol.fun ** 2))
+        C = s2 * per_record * np.linalg.pinv(J.T @ J)
+        C[np.diag_indices(2)] = np.maximum(np.diag(C), 1.0)
+        out[i] = sol.x
+        cov[2 * i:2 * i + 2, 2 * i:2 * i + 2] = C
+    return out, cov
+
+
 def run_anchor_slam(scenario: Any, network: VirtualVesselNetwork, *, n_virtual: int | None = None,
                     duration: float | None = None, anchors0: Any = None, settings: SlamSettings | None = None,
-                    burn_in: float | None = None, current_correction: bool = True) -> SlamResult:
+                    burn_in: float | None = None, line_correction: bool = True, survey: bool = True) -> SlamResult:
     """Replay ``network`` (its first ``n_virtual`` vessels, ``duration`` [s]) through
     :class:`AnchorSLAM` from the initial anchors ``anchors0`` (M, 2) [m] (default: the scenario's
     anchors perturbed as in Table 4, :func:`table4_initial_anchors`).
 
-    Every step (the records' sample period) reads all records at the same instant (§6.1): the live
-    vessel's heading, thrust and tensions (-> ``d_I``) and each virtual vessel's observer position and
-    tensions (-> ``d_IJ``), mapped by :class:`TensionRangeMap` (clipped to its domain) with the
-    variances of eq. (12) at the mapped distances; with ``current_correction`` (default) each
-    record's tensions less the current's share where the record has it
-    (:attr:`VirtualVessel.current_tension`, eq. 8's ``Delta T_c``). ``burn_in`` (default a tenth of
-    the duration) starts the window of the position RMS error.
+    With ``survey`` (default) the stored records are first fitted in batch from ``anchors0``
+    (:func:`survey_anchors`), and the filter starts from that fit and its covariance; without it,
+    from ``anchors0`` with ``SlamSettings.anchor_std0``. Every step (the records' sample period)
+    reads all records at the same instant (§6.1): the live vessel's heading, thrust and tensions
+    (-> ``d_I``) and each virtual vessel's observer position and tensions (-> ``d_IJ``), mapped by
+    :class:`TensionRangeMap` (clipped to its domain) with the variances of eq. (12) at the mapped
+    distances; with ``line_correction`` (default) the line model's correction of each record
+    (:meth:`VirtualVessel.ranges`: its range bias along its track where known, else the current's
+    share of its tensions). ``burn_in`` (default a tenth of the duration) starts the window of the
+    position RMS error.
     """
     from ..models.system import System
 
@@ -984,32 +1056,45 @@ def run_anchor_slam(scenario: Any, network: VirtualVesselNetwork, *, n_virtual: 
                               f"{scenario.name!r} has {M} lines")
     N = len(vs)
     # all ranges at once (vectorised inversion): live (n, M), virtual (N, n, M)
-    d_live, X_live = rmap.ranges(live.mapped_tensions(current_correction), clip=True)
+    d_live, X_live = live.ranges(rmap, line_correction)
     var_live = rmap.range_variance(X_live, s.sigma_T, sigma_Td=s.sigma_Td, sigma_gps=s.sigma_gps)
-    Tv = np.stack([v.mapped_tensions(current_correction) for v in vs])
-    d_v, X_v = rmap.ranges(Tv, clip=True)
+    dX = [v.ranges(rmap, line_correction) for v in vs]
+    d_v, X_v = np.stack([d for d, _ in dX]), np.stack([X for _, X in dX])
     var_v = rmap.range_variance(X_v, s.sigma_T, sigma_Td=s.sigma_Td_virtual)
     pv = np.stack([v.cot for v in vs])                     # (N, n, 2)
-    ekf = AnchorSLAM(rmap, system.vessel.M, system.vessel.D_lin, anchors0, n_virtual=N, settings=s,
-                     eta0=(0.0, 0.0, float(live.heading[0])), p_cot_B=system.p_cot_B, virtual0=pv[:, 0, :])
+    a_start, cov0, survey_cov = np.asarray(anchors0, float), None, None
+    n_ekf = N
+    if survey:
+        # the stored records fitted in batch; the filter then locates the live vessel on those
+        # anchors, held (the live ranges do not move them: their errors are correlated too, and
+        # with the anchors free they pulled them tens of metres off the fit)
+        a_start, survey_cov = survey_anchors(rmap, vs, anchors0, line_correction=line_correction)
+        s, cov0, n_ekf = replace(s, anchor_noise=0.0), np.eye(2 * M) * 1e-6, 0
+    ekf = AnchorSLAM(rmap, system.vessel.M, system.vessel.D_lin, a_start, n_virtual=n_ekf, settings=s,
+                     eta0=(0.0, 0.0, float(live.heading[0])), p_cot_B=system.p_cot_B,
+                     virtual0=pv[:, 0, :] if n_ekf else None, anchor_cov0=cov0)
     n = len(live.t)
     pos, pos_std = np.zeros((n, 2)), np.zeros((n, 2))
     anc, anc_std = np.zeros((n, M, 2)), np.zeros((n, M, 2))
     for k in range(n):
         tau = live.tau_thr[k - 1] if k else live.tau_thr[0]
+        virtual = dict(p_virtual=pv[:, k, :], d_virtual=d_v[:, k, :].T, var_virtual=var_v[:, k, :].T) if n_ekf else {}
         ekf.step(float(live.t[k]), tau_c=tau, heading=float(live.heading[k]), d_live=d_live[k], var_live=var_live[k],
-                 p_virtual=pv[:, k, :], d_virtual=d_v[:, k, :].T, var_virtual=var_v[:, k, :].T)
+                 **virtual)
         pos[k] = ekf.x[6:8]
         pos_std[k] = np.sqrt(np.diag(ekf.P)[6:8])
         anc[k] = ekf.anchors
         anc_std[k] = np.sqrt(np.diag(ekf.anchor_cov)).reshape(M, 2)
+    if survey_cov is not None:   # the anchors' uncertainty is the fit's
+        anc_std[:] = np.sqrt(np.diag(survey_cov)).reshape(M, 2)[None]
     T = float(live.t[-1] - live.t[0])
     bi = 0.1 * T if burn_in is None else _finite("burn_in", burn_in, lo=0.0, strict=False, unit="s")
+    used = any(r.current_tension is not None or r.range_bias is not None for r in (live, *vs))
     return SlamResult(t=live.t.copy(), position=pos, position_std=pos_std, truth=live.truth[:, :2].copy(),
                       anchors=anc, anchor_std=anc_std, anchors_true=np.asarray(system.lines.anchors, float),
                       anchors_initial=np.asarray(anchors0, float), line_ids=rmap.line_ids, n_virtual=N, burn_in=bi,
-                      current_correction=bool(current_correction and any(r.current_tension is not None
-                                                                         for r in (live, *vs))))
+                      line_correction=bool(line_correction and used),
+                      anchors_survey=a_start.copy() if survey else None)
 
 
 # ------------------------------------------------------------------------------------------

@@ -20,7 +20,7 @@ from ..errors import TapmError
 from ..estimation.anchor_slam import AnchorSlamError, VirtualVessel, VirtualVesselNetwork, _finite
 from ..models.mooring import MooringModel
 
-__all__ = ["random_sea_states", "generate_network", "current_tension_share"]
+__all__ = ["random_sea_states", "generate_network", "current_tension_share", "range_bias_along"]
 
 
 def _sea_state_dict(ss: Any) -> dict:
@@ -111,6 +111,56 @@ def current_tension_share(scenario: Any, sea_state: Any, eta: Any, *, segments: 
     return T[0] - T[1]
 
 
+def range_bias_along(scenario: Any, sea_state: Any, positions: Any, headings: Any, *, seed: int = 0,
+                     segments: int | None = None, skip: float = 60.0, dt: float = 1.0) -> np.ndarray:
+    """The mean error of the tension -> range map along a record [m], shape (M,): the mean over the
+    record of ``d_i`` from the line model's fairlead tensions minus the true distance from anchor
+    ``i`` to the COT, with the lines (the plant's FEM, ``segments`` per line) settled at the first
+    pose and then driven along ``positions`` (n, 2) [m] and ``headings`` (n,) [rad] (the record's
+    LF track, samples ``dt`` [s] apart, linear in between) plus the wave-frequency motion of
+    ``sea_state`` (the plant's wave model, realisation ``seed``), under its current; the first
+    ``skip`` [s] are left out. The seed's eq. 8 terms ``Delta T_c`` (current) and ``Delta T_v``
+    (vessel motion) together, as range: the taut lines' mean wave-frequency dynamic tension
+    shortens their mapped ranges (up to 2 m on ren8 with ``Hs`` 3 m). Subtracted from a stored
+    record's ranges (``VirtualVessel.range_bias``)."""
+    from ..estimation.anchor_slam import TensionRangeMap
+    from ..geometry import rot_z
+    from ..plant.environment import Environment
+    from ..plant.mooring_fem import MooringFEM
+
+    P = np.asarray(positions, dtype=float)
+    psi = np.unwrap(np.asarray(headings, dtype=float))
+    if P.ndim != 2 or P.shape[1] != 2 or psi.shape != (len(P),) or len(P) < 2 or not (
+            np.all(np.isfinite(P)) and np.all(np.isfinite(psi))):
+        raise AnchorSlamError(f"positions {P.shape} and headings {psi.shape} must be a finite track of n >= 2 "
+                              "samples: (n, 2) [m] and (n,) [rad]")
+    env = Environment(scenario, sea_state, seed=seed)
+    fem = MooringFEM(scenario, segments=segments, current=env.current_at if sea_state.current_speed > 0 else None)
+    rmap = TensionRangeMap.from_scenario(scenario)
+    anchors = np.asarray(rmap.model.anchors, dtype=float)[:, :2]
+    c = np.asarray(rmap.model.p_cot_B, dtype=float)
+    pose0 = np.array([P[0, 0], P[0, 1], psi[0]])
+    fem.initialise(pose0)
+    fem.settle(pose0, max_time=3000.0)
+    nsub = max(1, int(round(dt / fem.dt)))
+    a = np.arange(1, nsub + 1) / nsub
+    err = []
+    for k in range(len(P) - 1):
+        t = (k + a) * dt
+        d_lf = np.concatenate([P[k + 1] - P[k], [psi[k + 1] - psi[k]]])
+        lf = np.column_stack([P[k, 0] + a * d_lf[0], P[k, 1] + a * d_lf[1], psi[k] + a * d_lf[2]])
+        eta = lf + env.eta_wf(t, float(psi[k]))
+        eta_dot = np.repeat((d_lf / dt)[None, :], nsub, axis=0) + env.eta_wf_dot(t, float(psi[k]))
+        fem.advance(eta, eta_dot)
+        if t[-1] >= skip:
+            e = eta[-1]
+            cot = e[:2] + rot_z(e[2])[:2, :2] @ c
+            err.append(rmap.ranges(fem.fairlead_tension(), clip=True)[0] - np.linalg.norm(anchors - cot, axis=1))
+    if not err:
+        raise AnchorSlamError(f"the record ({(len(P) - 1) * dt:g} s) is shorter than skip = {skip:g} s")
+    return np.mean(err, axis=0)
+
+
 class _Recorder:
     """An Estimator that passes through the inner one and keeps what a stored record needs."""
 
@@ -166,11 +216,16 @@ def _record(args: tuple) -> VirtualVessel:
     # what is sought, so the field zero point (the share changes little over tens of metres)
     psi = float(np.angle(np.mean(np.exp(1j * heading))))
     pose = np.array([0.0, 0.0, psi]) if live else np.array([*position.mean(axis=0), psi])
+    # the map's range bias along a stored record's own track (its observer positions and headings;
+    # another realisation of the waves): not for the live vessel, whose track is what is sought
+    bias = None if live else range_bias_along(scenario, ss, position, heading, seed=seed + 7, segments=segments,
+                                              dt=dt)
     return VirtualVessel(t=t - t[0], position=position, heading=heading,
                          tensions=np.array([r[3] for r in rows]), tau_thr=np.array([r[4] for r in rows]),
                          truth=np.array([r[5] for r in rows]), cot=cot, sea_state=_sea_state_dict(ss),
                          settle_time=t_settle,
-                         current_tension=current_tension_share(scenario, ss, pose, segments=segments))
+                         current_tension=current_tension_share(scenario, ss, pose, segments=segments),
+                         range_bias=bias)
 
 
 def generate_network(scenario: Any, n: int, *, duration: float, seed: int = 0, settle: float = 200.0,
