@@ -240,7 +240,10 @@ def generate_network(scenario: Any, n: int, *, duration: float, seed: int = 0, s
     equilibrium of its mean load, in chunks of ``settle`` [s] until the observer's mean LF position
     moves less than ``settle_tol`` [m] from one chunk to the next (at most ``settle_max`` [s]); then
     the observer's LF position, the measured tensions, heading and thrust are recorded every ``dt``
-    [s] for ``duration`` [s]. ``workers`` (<= 2 recommended) processes share the runs.
+    [s] for ``duration`` [s]. Each record also keeps the line model's correction (eq. 8): a stored
+    record its range bias along its own track (:func:`range_bias_along`), every record the
+    current's share of its tensions (:func:`current_tension_share`; the live one at the field zero
+    point). ``workers`` (<= 2 recommended) processes share the runs.
     """
     from ..plant.environment import PlantError
 
