@@ -326,6 +326,7 @@ def test_rti_with_daqp_failure_falls_back_and_bad_options(fpso, monkeypatch):
         NonlinearMPC(fpso, settings(fpso, horizon=3, solver="rti", hessian="exact"), qp_solver="daqp")
     with pytest.raises(MPCError, match="qp_solver = 'osqp'"):
         NonlinearMPC(fpso, settings(fpso, horizon=3), qp_solver="osqp")
-    assert build_controller(fpso, {"type": "mpc", "horizon": 3, "solver": "rti", "qp_solver": "daqp"}).qp_solver == "daqp"
+    rti = build_controller(fpso, {"type": "mpc", "horizon": 3, "solver": "rti", "qp_solver": "daqp"})
+    assert rti.qp_solver == "daqp"
     with pytest.raises(ControllerSpecError, match="needs solver = 'rti'"):
         build_controller(fpso, {"type": "mpc", "horizon": 3, "qp_solver": "daqp"})

@@ -320,8 +320,8 @@ def mooring_parameters(model: MooringModel, eta_c: np.ndarray) -> np.ndarray:
     (``MooringModel.characteristics``, survey eq. 26–28): H0, dH/dXF, XF0, T0, dT/dXF of every line,
     concatenated row by row, shape (5 n,). Read from the model's tabulated catenary
     (``model.load_evaluator().characteristics``: the tensions within 1e-9, the slopes within 3e-7
-    of the largest exact slope on the built-in scenarios; exact beyond the tables), about 60 us against 0.8 ms for the catenary
-    solve of fpso's 12 lines."""
+    of the largest exact slope on the built-in scenarios; exact beyond the tables), about 60 us
+    against 0.8 ms for the catenary solve of fpso's 12 lines."""
     return model.load_evaluator().characteristics(eta_c).ravel()
 
 

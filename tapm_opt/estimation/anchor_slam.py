@@ -1055,16 +1055,17 @@ def run_anchor_slam(scenario: Any, network: VirtualVesselNetwork, *, n_virtual: 
         raise AnchorSlamError(f"the network's records hold {live.tensions.shape[1]} tensions; scenario "
                               f"{scenario.name!r} has {M} lines")
     N = len(vs)
-    # all ranges at once (vectorised inversion): live (n, M), virtual (N, n, M)
+    # ranges at once (vectorised inversion): live (n, M), virtual (N, n, M)
     d_live, X_live = live.ranges(rmap, line_correction)
     var_live = rmap.range_variance(X_live, s.sigma_T, sigma_Td=s.sigma_Td, sigma_gps=s.sigma_gps)
-    dX = [v.ranges(rmap, line_correction) for v in vs]
-    d_v, X_v = np.stack([d for d, _ in dX]), np.stack([X for _, X in dX])
-    var_v = rmap.range_variance(X_v, s.sigma_T, sigma_Td=s.sigma_Td_virtual)
     pv = np.stack([v.cot for v in vs])                     # (N, n, 2)
     a_start, cov0, survey_cov = np.asarray(anchors0, float), None, None
     n_ekf = N
-    if survey:
+    if not survey:   # the filter reads the stored records' ranges (with the survey, the fit does)
+        dX = [v.ranges(rmap, line_correction) for v in vs]
+        d_v, X_v = np.stack([d for d, _ in dX]), np.stack([X for _, X in dX])
+        var_v = rmap.range_variance(X_v, s.sigma_T, sigma_Td=s.sigma_Td_virtual)
+    else:
         # the stored records fitted in batch; the filter then locates the live vessel on those
         # anchors, held (the live ranges do not move them: their errors are correlated too, and
         # with the anchors free they pulled them tens of metres off the fit)

@@ -149,10 +149,10 @@ def run_local(todo: Sequence[Case], out: Path, workers: int, bar: Progress, outc
         Filled with ``{id: outcome}`` (:func:`~tapm_opt.studies.jobs.store_case`) as cases end.
     """
     ctx = multiprocessing.get_context("spawn")   # no fork of a parent holding threads or solver state
-    init = (os.getpid(), USE_PDEATHSIG, PARENT_POLL, worker_threads(workers))
     pending = list(todo)
     while pending:
         n = min(workers, len(pending))
+        init = (os.getpid(), USE_PDEATHSIG, PARENT_POLL, worker_threads(n))   # the pool's share of the cores
         marks = {c.id: _started_mark(out, c.id) for c in pending}
         retry: list[Case] = []
         ex = cf.ProcessPoolExecutor(max_workers=n, mp_context=ctx, initializer=_init_worker, initargs=init)
