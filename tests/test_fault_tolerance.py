@@ -152,8 +152,108 @@ def test_damaged_dead_band_settings_are_checked(system):
         MPCSettings(fault_tolerance=True, dead_band=0.0, dead_band_damaged=10.0)
     with pytest.raises(MPCError, match="needs fault_tolerance"):
         MPCSettings(fault_tolerance=False, dead_band=30.0, dead_band_damaged=10.0)
-    # study specs: not set by default (the dead band stays), taken when given, checked
-    assert build_controller(system, {"type": "lmpc"}).settings.dead_band_damaged is None
-    assert build_controller(system, {"type": "lmpc", "dead_band_damaged": 22.5}).settings.dead_band_damaged == 22.5
+    with pytest.raises(MPCError, match="dead_band_budget"):
+        MPCSettings(fault_tolerance=True, dead_band=30.0, dead_band_damaged=10.0, dead_band_budget="no")
+    # study specs: 0.75 of the dead band, budgeted, by default with fault tolerance; taken when
+    # given, checked; none without fault tolerance
+    st = build_controller(system, {"type": "lmpc"}).settings
+    assert (st.dead_band, st.dead_band_damaged, st.dead_band_budget) == (30.0, 22.5, True)
+    assert build_controller(system, {"type": "mpc", "dead_band": 20.0}).settings.dead_band_damaged == 15.0
+    assert build_controller(system, {"type": "lmpc", "dead_band_damaged": 25.0}).settings.dead_band_damaged == 25.0
+    assert build_controller(system, {"type": "lmpc", "fault_tolerance": False}).settings.dead_band_damaged is None
+    assert build_controller(system, {"type": "lmpc", "dead_band": 0.0}).settings.dead_band_damaged is None
+    assert not build_controller(system, {"type": "lmpc", "dead_band_budget": False}).settings.dead_band_budget
     with pytest.raises(ControllerSpecError, match="dead_band_damaged"):
         build_controller(system, {"type": "lmpc", "dead_band_damaged": -1.0})
+
+
+# --- the dead band after a break within the intact thrust budget ---------------------------------
+
+PSI_STORM = 0.33   # rad: about where the heading chasing holds the bow in the fpso design storm
+
+
+@pytest.fixture(scope="module")
+def storm_load(system):
+    """The fpso design storm's mean wind, drift and current load in {E} at PSI_STORM [N, N, N m]
+    (waves going south, about 5 MN)."""
+    from tapm_opt.design.loads import mean_environmental_load
+    from tapm_opt.geometry import rot_z
+
+    return rot_z(PSI_STORM) @ mean_environmental_load(system.scenario, "storm", PSI_STORM).total
+
+
+def test_net_load_along_the_load_falls_as_the_mooring_takes_it_up(system, storm_load):
+    """Without thrust the vessel rests where the net load along the mean load is zero; closer in
+    the load wins (positive), further out the mooring (negative), and the net load falls
+    steadily with the radius. Cross-check: with no environment it is the catenary mooring's
+    exact force (``MooringModel.force``) projected on the direction."""
+    from tapm_opt.control.mpc import net_load_along
+    from tapm_opt.geometry import body_from_turret, rot_z
+
+    e = storm_load[:2] / np.hypot(*storm_load[:2])
+    radii = np.arange(0.0, 61.0, 5.0)
+    net = np.array([net_load_along(system.lines, storm_load, PSI_STORM, r, e) for r in radii])
+    assert net[0] > 1e6 and net[-1] < 0.0 and np.all(np.diff(net) < 0.0)
+    for r in (10.0, 40.0):
+        x, y = body_from_turret(r * e, PSI_STORM, system.p_cot_B)
+        exact = rot_z(PSI_STORM)[:2, :2] @ system.lines.force(np.array([x, y, PSI_STORM]))[:2] @ e
+        assert net_load_along(system.lines, np.zeros(3), PSI_STORM, r, e) == pytest.approx(exact, rel=1e-6)
+
+
+def test_budgeted_dead_band_tightens_after_lee_and_side_breaks_not_weather_ones(system, storm_load):
+    """In the design storm's mean load, losing a lee line (9-12: they pull downwind) or a side line
+    (5-8) leaves the mooring restoring as much or more along the load, so the damaged mooring
+    holds 22.5 m within the intact budget; losing a weather line (1-4) takes restoring away and
+    the dead band stays at 30 m. Widening the bracket puts the weather break's radius inside it,
+    where the damaged mooring needs exactly the budget (bisection against the closed budget)."""
+    from tapm_opt.control.mpc import budgeted_dead_band, net_load_along
+
+    lines = system.lines
+    for lid in ("5", "6", "7", "8", "9", "10", "11", "12"):
+        assert budgeted_dead_band(lines, lines.without([lid]), storm_load, PSI_STORM, 22.5, 30.0) == 22.5, lid
+    for lid in ("1", "2", "3", "4"):
+        assert budgeted_dead_band(lines, lines.without([lid]), storm_load, PSI_STORM, 22.5, 30.0) == 30.0, lid
+    e = storm_load[:2] / np.hypot(*storm_load[:2])
+    damaged = lines.without(["4"])
+    budget = net_load_along(lines, storm_load, PSI_STORM, 22.5, e)
+    r = budgeted_dead_band(lines, damaged, storm_load, PSI_STORM, 22.5, 80.0)
+    assert 30.0 < r < 80.0
+    assert net_load_along(damaged, storm_load, PSI_STORM, r, e) <= budget
+    assert net_load_along(damaged, storm_load, PSI_STORM, r - 0.02, e) > budget     # the smallest such radius
+    # nothing broken: the budget is the need, the damaged radius holds; no load: nothing to budget
+    assert budgeted_dead_band(lines, lines, storm_load, PSI_STORM, 22.5, 30.0) == 22.5
+    assert budgeted_dead_band(lines, damaged, np.zeros(3), PSI_STORM, 22.5, 30.0) == 22.5
+    assert budgeted_dead_band(lines, damaged, storm_load, PSI_STORM, 35.0, 30.0) == 35.0   # not a tightening
+    # a mild sea the intact mooring holds at 15 m without thrust (zero budget): the weather break's
+    # dead band is where the damaged mooring alone holds the vessel
+    mild = 0.25 * storm_load
+    assert net_load_along(lines, mild, PSI_STORM, 15.0, e) < 0.0
+    r = budgeted_dead_band(lines, damaged, mild, PSI_STORM, 15.0, 80.0)
+    assert 30.0 < r < 80.0
+    assert net_load_along(damaged, mild, PSI_STORM, r, e) == pytest.approx(0.0, abs=5e3)   # N: 1 cm x stiffness
+
+
+@pytest.mark.parametrize("cls", [NonlinearMPC, LinearMPC])
+def test_mpc_uses_and_logs_the_budgeted_dead_band(system, storm_load, cls):
+    """In the loop: the radius in use is the step's ``dead_band`` and the log's record; a lee
+    break gives 22.5 m, a weather break keeps 30 m, and without the budget any break gives 22.5 m."""
+    from tapm_opt.geometry import rot_z
+
+    tau_B = rot_z(PSI_STORM).T @ storm_load
+    eta = np.array([-28.0, -10.0, PSI_STORM])
+
+    def run(broken, **kw):
+        ctrl = cls(system, MPCSettings(fault_tolerance=True, dead_band=30.0, dead_band_damaged=22.5, horizon=6, **kw))
+        for t, b in ((0.0, ()), (5.0, broken)):
+            ctrl.update(t, Estimate(t=t, eta=eta, nu=np.zeros(3), tau_env=tau_B, broken_lines=frozenset(b)), SP)
+        return ctrl
+
+    intact = run(())
+    assert intact.last_step().dead_band == 30.0 and intact.log() == []
+    lee, weather, tight = run(["9"]), run(["4"]), run(["4"], dead_band_budget=False)
+    assert [c.last_step().dead_band for c in (lee, weather, tight)] == [22.5, 30.0, 22.5]
+    assert lee.log() == [{"t": 5.0, "event": "dead band", "radius": 22.5, "broken": ["9"]}]
+    assert weather.log()[0]["radius"] == 30.0 and tight.log()[0]["radius"] == 22.5
+    assert [s.dead_band for s in lee.diagnostics] == [30.0, 22.5]
+    lee.reset()
+    assert lee.log() == []

@@ -49,7 +49,7 @@ from .mpc_problem import (MPCError, MPCSettings, MPCStep, _Problem, build_proble
                           polytope_parameters)
 
 __all__ = ["MPCSettings", "MPCError", "NonlinearMPC", "LinearMPC", "build_problem", "MPCStep", "LINEAR_QP_SOLVERS",
-           "NONLINEAR_QP_SOLVERS"]
+           "NONLINEAR_QP_SOLVERS", "budgeted_dead_band", "net_load_along"]
 
 #: QP solvers of :class:`LinearMPC`.
 LINEAR_QP_SOLVERS = ("piqp", "osqp", "daqp")
@@ -71,6 +71,10 @@ DAQP_SETTINGS = {"iter_limit": 2000}
 #: Solves of one step's condensed QP at most: the soft rows (one per group) chosen again on the
 #: solution while it violates another row of the group most (``control.mpc_condensed``).
 DAQP_PASSES = 4
+#: Time constant [s] of the low-pass filter that gives the mean environmental load (in {E}) along
+#: which the dead band after a break is budgeted (``MPCSettings.dead_band_budget``): the slowly
+#: varying drift of the storms here has periods of 100-300 s.
+MEAN_LOAD_TIME_CONSTANT = 300.0
 
 
 # ------------------------------------------------------------------------------------------
@@ -110,6 +114,17 @@ class _MPCBase:
         self._t_theta: float | None = None
         self._b_lf: np.ndarray | None = None       # low-passed estimated load in {E} (3,) [N, N, N m]
         self._t_b: float | None = None
+        self._b_mean: np.ndarray | None = None     # its mean for the dead band's budget (3,)
+        self._t_mean: float | None = None
+        self._damaged_lines: dict[frozenset, Any] = {}   # the mooring without the broken lines
+        self._radius = math.nan                    # the dead band's radius of the last step [m]
+        self._log: list[dict] = []                 # the dead band's changes after a break
+
+    def log(self) -> list[dict]:
+        """The dead band's radius after a break (``dead_band_damaged``): a record ``{"t", "event":
+        "dead band", "radius" [m], "broken"}`` when a break is first reported and whenever the
+        budgeted radius has moved 0.5 m since the last record (``interfaces.Logged``)."""
+        return [dict(r) for r in self._log]
 
     @property
     def owns_allocation(self) -> bool:
@@ -149,13 +164,38 @@ class _MPCBase:
                 moor = self._without_broken(moor, frozenset(est.broken_lines))
             p[pi["moor"]] = moor
         p[pi["T_lim"]] = self._tension_limits(est)
+        self._radius = math.nan
         if pi["dead_band"].stop > pi["dead_band"].start:
-            st = self.settings   # dead_band_damaged is only set with fault_tolerance (MPCSettings checks)
-            damaged = st.dead_band_damaged is not None and bool(est.broken_lines)
-            p[pi["dead_band"]] = st.dead_band_damaged if damaged else st.dead_band
+            p[pi["dead_band"]] = self._radius = self._dead_band(float(est.t), eta[2], rot_z(eta[2]) @ tau_env,
+                                                 frozenset(est.broken_lines))
         if pi["riser"].stop > pi["riser"].start:
             p[pi["riser"]] = self._riser_parameters(est)
         return p
+
+    def _dead_band(self, t: float, psi: float, b_E: np.ndarray, broken: frozenset) -> float:
+        """The dead band's radius [m]: ``dead_band``, or once a break is reported
+        ``dead_band_damaged``, within the intact thrust budget (:func:`budgeted_dead_band`, at the
+        estimated load low-passed over ``MEAN_LOAD_TIME_CONSTANT``) with ``dead_band_budget``."""
+        st = self.settings   # dead_band_damaged is only set with fault_tolerance (MPCSettings checks)
+        if st.dead_band_damaged is None:
+            return st.dead_band
+        if st.dead_band_budget:   # the mean load is followed from the start: the break needs it as it was
+            self._b_mean = _low_pass_step(self._b_mean, self._t_mean, b_E, t, MEAN_LOAD_TIME_CONSTANT)
+            self._t_mean = t
+        broken = broken & frozenset(self.model.line_ids)
+        if not broken:
+            return st.dead_band
+        if st.dead_band_budget:
+            if broken not in self._damaged_lines:
+                self._damaged_lines[broken] = self.model.without(broken)
+            r = budgeted_dead_band(self.model, self._damaged_lines[broken], self._b_mean, psi, st.dead_band_damaged,
+                                   st.dead_band)
+        else:
+            r = st.dead_band_damaged
+        ids = sorted(broken)
+        if not self._log or self._log[-1]["broken"] != ids or abs(self._log[-1]["radius"] - r) >= 0.5:
+            self._log.append({"t": t, "event": "dead band", "radius": r, "broken": ids})
+        return r
 
     def _load_in_prediction(self, t: float, b_E: np.ndarray) -> np.ndarray:
         """The estimated load in {E} through the first-order low-pass filter of time constant
@@ -314,7 +354,8 @@ class _MPCBase:
         if at_box:
             active.append("thrust_capacity")
         self.diagnostics.append(MPCStep(t=t, success=ok, status=status, solve_time=solve_time, iterations=it,
-                                        fallback=fallback, cost=cost, active=tuple(active), max_soft_violation=soft))
+                                        fallback=fallback, cost=cost, active=tuple(active), max_soft_violation=soft,
+                                        dead_band=self._radius))
         return u0
 
     def last_step(self) -> MPCStep | None:
@@ -394,6 +435,8 @@ class _MPCBase:
         self.diagnostics = []
         self._theta_lf = self._t_theta = None
         self._b_lf = self._t_b = None
+        self._b_mean = self._t_mean = None
+        self._log = []
 
 
 class NonlinearMPC(_MPCBase):
@@ -750,6 +793,74 @@ class LinearMPC(_MPCBase):
         dt = time.perf_counter() - t0
         cost = self._daqp.cq.cost(Hx, q, z) + self._f0 if ok else math.nan
         return self._finish(t, z, ok, status, dt, it, cost)
+
+
+def net_load_along(lines: Any, b_E: np.ndarray, psi: float, radius: float, direction: np.ndarray) -> float:
+    """Mean environmental plus mooring load [N] along the unit vector ``direction`` in {E} on the
+    vessel at rest with heading ``psi`` [rad] whose turret sits ``radius`` [m] along ``direction``
+    from its field-zero-point position: ``(b_E + R(psi) tau_moor) . direction`` over (x, y). The
+    thrusters hold the vessel there by pushing this much against ``direction`` (positive: the
+    mooring alone does not hold it there).
+
+    Parameters
+    ----------
+    lines : MooringModel
+        The mooring (``models.mooring``; a damaged one from ``MooringModel.without``).
+    b_E : array (3,)
+        Environmental load in {E} [N, N, N m].
+    """
+    xy = body_from_turret(radius * direction, psi, lines.p_cot_B)
+    tau_moor = np.asarray(lines.force_fast(np.array([xy[0], xy[1], psi])), float)
+    return float((b_E[:2] + rot_z(psi)[:2, :2] @ tau_moor[:2]) @ direction)
+
+
+def budgeted_dead_band(intact: Any, damaged: Any, b_E: Any, psi: float, r_damaged: float, r_intact: float) -> float:
+    """The dead band's radius [m] after a line break within the intact thrust budget
+    (``MPCSettings.dead_band_budget``).
+
+    The budget is the thrust along the mean environmental load ``b_E`` that holds the intact
+    vessel (mooring ``intact``) with its turret at ``r_damaged`` along that load,
+    ``B = max(0, net_load_along(intact, ..., r_damaged))``. The result is the smallest radius ``r``
+    in [``r_damaged``, ``r_intact``] at which the damaged mooring needs at most that budget,
+    ``net_load_along(damaged, ..., r) <= B`` (the net load falls as the turret moves out along the
+    load and the lines take it up; found by bisection on the bracket to 1 cm); ``r_intact`` if
+    even there it needs more, ``r_damaged`` if it needs no more there.
+
+    Quasi-static: the vessel at rest at the mean load; the slowly varying and wave-frequency
+    loads, which the dead band's margin to the safe circle is for, are left out.
+
+    Parameters
+    ----------
+    intact, damaged : MooringModel
+        The mooring before and after the break (``MooringModel.without``).
+    b_E : array (3,)
+        Mean environmental load in {E} [N, N, N m]; below 1 N in the horizontal plane there is no
+        load to budget and the result is ``r_damaged``.
+    psi : float
+        Heading [rad].
+    r_damaged, r_intact : float
+        The dead band's radius after and before the break [m]; ``r_damaged >= r_intact`` returns
+        ``r_damaged``.
+    """
+    b_E = np.asarray(b_E, float)
+    load = float(np.hypot(b_E[0], b_E[1]))
+    if r_damaged >= r_intact or not load >= 1.0:
+        return float(r_damaged)
+    e = b_E[:2] / load
+    budget = max(0.0, net_load_along(intact, b_E, psi, r_damaged, e))
+
+    def excess(r: float) -> float:
+        return net_load_along(damaged, b_E, psi, r, e) - budget
+
+    if excess(r_damaged) <= 0.0:
+        return float(r_damaged)
+    if excess(r_intact) > 0.0:
+        return float(r_intact)
+    lo, hi = float(r_damaged), float(r_intact)
+    while hi - lo > 0.01:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if excess(mid) <= 0.0 else (mid, hi)
+    return hi
 
 
 def _low_pass_step(x_lf: np.ndarray | None, t_lf: float | None, x: Any, t: float, T: float) -> np.ndarray:

@@ -88,6 +88,16 @@ class MPCSettings:
         restores less, so the thrusters take over more of the station keeping (survey §4.4: the
         fault is accommodated by modifying the control parameters, not the structure). Needs
         ``dead_band > 0`` (the radius is a parameter of the dead band's rows).
+    dead_band_budget : bool
+        With ``dead_band_damaged``: tighten only as far as the intact thrust budget allows
+        (:func:`~tapm_opt.control.mpc.budgeted_dead_band`). The budget is the mean thrust, along
+        the mean environmental load, that would hold the intact vessel at ``dead_band_damaged``;
+        after the break the MPC holds the tightest radius in [``dead_band_damaged``,
+        ``dead_band``] that the damaged mooring lets it hold within that budget. A lee or side break
+        leaves the mooring restoring at least as much along the load, and the dead band shrinks
+        to ``dead_band_damaged``; a weather-side break takes restoring away, the thrusters already
+        carry the lost line's load, and the dead band stays nearer ``dead_band``. False:
+        ``dead_band_damaged`` after any break.
     safe_radius : float or None
         Soft constraint radius of the turret offset about the field zero point [m] (None: from the
         scenario, or none).
@@ -166,6 +176,7 @@ class MPCSettings:
     w_terminal: float = 5.0
     dead_band: float = 0.0
     dead_band_damaged: float | None = None
+    dead_band_budget: bool = True
     safe_radius: float | None = None
     tension_utilisation: float | None = None
     soft_l1: float = 1e3
@@ -199,7 +210,7 @@ class MPCSettings:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
                 raise MPCError(f"MPCSettings.{name} = {v!r} must be a number >= 0")
-        for name in ("reliability", "fault_tolerance"):
+        for name in ("reliability", "fault_tolerance", "dead_band_budget"):
             if not isinstance(getattr(self, name), bool):
                 raise MPCError(f"MPCSettings.{name} = {getattr(self, name)!r} must be true or false")
         if self.fault_tolerance and self.mooring != "characteristic":
@@ -252,10 +263,12 @@ class MPCSettings:
 @dataclass(frozen=True, kw_only=True)
 class MPCStep(ControllerStep):
     """Diagnostics of one MPC update: a :class:`~tapm_opt.interfaces.ControllerStep` with the
-    optimal cost and the largest normalised soft-constraint violation."""
+    optimal cost, the largest normalised soft-constraint violation and the dead band's radius [m]
+    (NaN: none)."""
 
     cost: float = math.nan
     max_soft_violation: float = 0.0
+    dead_band: float = math.nan
 
 
 # ------------------------------------------------------------------------------------------

@@ -24,8 +24,9 @@ supervisor's first decision.
 MPC (``tapm_opt.control.mpc.MPCSettings``): every settings field; ``dead_band`` defaults to 0.6 of the
 scenario's safe radius (``MPC_DEAD_BAND``), ``w_thrust``, ``w_rate`` and ``w_velocity`` to ``MPC_DEFAULTS``,
 ``fault_tolerance`` to true with the (default) characteristic mooring (a line reported broken
-leaves the prediction; ``dead_band_damaged`` [m], the dead band once a break is known, is not set:
-the dead band stays, see ``docs/controllers.md`` for what tightening it costs);
+leaves the prediction), and with it ``dead_band_damaged`` [m], the dead band once a break is known,
+to ``MPC_DEAD_BAND_DAMAGED`` of the dead band, tightened within the intact thrust budget
+(``dead_band_budget``, ``docs/controllers.md``);
 ``period`` [s] is the re-solve period (default the prediction step); ``qp_solver`` is, for
 ``lmpc``, ``"piqp"`` (default), ``"osqp"`` or ``"daqp"`` (the QP condensed for DAQP,
 ``control.mpc_condensed``), for ``mpc`` ``"piqp"`` (default: inside the NLP solver) or ``"daqp"``
@@ -67,6 +68,10 @@ PID_DEFAULTS = {"periods": (250.0, 250.0, 150.0), "damping": (0.8, 0.8, 0.8), "i
 MPC_DEFAULTS = {"w_thrust": 10.0, "w_rate": 5.0, "w_velocity": 5.0}
 #: Dead band of the MPCs' turret offset as a fraction of the safe radius.
 MPC_DEAD_BAND = 0.6
+#: The MPCs' dead band once a line break is reported (with fault tolerance), as a fraction of the
+#: dead band, within the intact thrust budget (``MPCSettings.dead_band_budget``): 0.45 of the safe
+#: radius with the default dead band (docs/controllers.md "Tightening the MPC after a break").
+MPC_DEAD_BAND_DAMAGED = 0.75
 
 
 class ControllerSpecError(TapmError, ValueError):
@@ -195,6 +200,9 @@ def build_controller(system: Any, spec: Mapping[str, Any] | str, *, where: str =
         if "dead_band" not in spec and system.limits.safe_radius is not None:
             spec["dead_band"] = MPC_DEAD_BAND * system.limits.safe_radius
         ft = {"fault_tolerance": spec.get("mooring", "characteristic") == "characteristic"}  # where it can be
+        if (spec.get("fault_tolerance", ft["fault_tolerance"]) is True and "dead_band_damaged" not in spec
+                and isinstance(spec.get("dead_band"), (int, float)) and spec["dead_band"] > 0):
+            spec["dead_band_damaged"] = MPC_DEAD_BAND_DAMAGED * spec["dead_band"]
         settings = MPCSettings(**{**MPC_DEFAULTS, **ft, **spec})
         n_pred = settings.horizon * settings.substeps
         if n_pred > _MAX_HORIZON:
