@@ -422,7 +422,7 @@ def plant_forced_motion(scenario_name: str, dof: str, amplitude: float, period: 
 @cli.command()
 @click.argument("scenario_name", metavar="SCENARIO")
 @click.option("--controller", type=click.Choice(["pid", "mpc", "lmpc"]), default="pid", show_default=True,
-              help="PID modes, nonlinear MPC, or linear MPC (OSQP).")
+              help="PID modes, nonlinear MPC, or linear MPC (piqp; --option qp_solver=osqp|daqp).")
 @click.option("--duration", type=float, default=3600.0, show_default=True, help="Simulated time [s].")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), required=True,
               callback=_out_path("dir", "run directory"), help="Run directory to write.")
