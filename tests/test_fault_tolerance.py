@@ -188,16 +188,21 @@ def test_net_load_along_the_load_falls_as_the_mooring_takes_it_up(system, storm_
     steadily with the radius. Cross-check: with no environment it is the catenary mooring's
     exact force (``MooringModel.force``) projected on the direction."""
     from tapm_opt.control.mpc import net_load_along
-    from tapm_opt.geometry import body_from_turret, rot_z
+    from tapm_opt.geometry import rot_z, turret_offset
 
     e = storm_load[:2] / np.hypot(*storm_load[:2])
     radii = np.arange(0.0, 61.0, 5.0)
     net = np.array([net_load_along(system.lines, storm_load, PSI_STORM, r, e) for r in radii])
     assert net[0] > 1e6 and net[-1] < 0.0 and np.all(np.diff(net) < 0.0)
+    c = np.array([-6.0, 4.0])   # a setpoint off the field zero point: the dead band's centre
     for r in (10.0, 40.0):
-        x, y = body_from_turret(r * e, PSI_STORM, system.p_cot_B)
-        exact = rot_z(PSI_STORM)[:2, :2] @ system.lines.force(np.array([x, y, PSI_STORM]))[:2] @ e
-        assert net_load_along(system.lines, np.zeros(3), PSI_STORM, r, e) == pytest.approx(exact, rel=1e-6)
+        # the pose written out: the turret, p_cot_B ahead of the body origin, at c + r e
+        R = rot_z(PSI_STORM)[:2, :2]
+        xy = c + r * e + system.p_cot_B - R @ system.p_cot_B
+        eta = np.array([xy[0], xy[1], PSI_STORM])
+        np.testing.assert_allclose(turret_offset(eta, system.p_cot_B), c + r * e, atol=1e-9)
+        exact = (R @ system.lines.force(eta)[:2]) @ e
+        assert net_load_along(system.lines, np.zeros(3), PSI_STORM, r, e, c) == pytest.approx(exact, rel=1e-6)
 
 
 def test_budgeted_dead_band_tightens_after_lee_and_side_breaks_not_weather_ones(system, storm_load):
@@ -209,9 +214,11 @@ def test_budgeted_dead_band_tightens_after_lee_and_side_breaks_not_weather_ones(
     from tapm_opt.control.mpc import budgeted_dead_band, net_load_along
 
     lines = system.lines
-    for lid in ("5", "6", "7", "8", "9", "10", "11", "12"):
+    for lid in ("9", "10", "11", "12"):      # the lee bundle: 0.6-0.9 MN below the budget at 22.5 m
         assert budgeted_dead_band(lines, lines.without([lid]), storm_load, PSI_STORM, 22.5, 30.0) == 22.5, lid
-    for lid in ("1", "2", "3", "4"):
+    for lid in ("5", "6", "7", "8"):         # the side bundle: 2-15 % below it, at this heading
+        assert budgeted_dead_band(lines, lines.without([lid]), storm_load, PSI_STORM, 22.5, 30.0) < 25.0, lid
+    for lid in ("1", "2", "3", "4"):         # the weather bundle: 2 MN above it
         assert budgeted_dead_band(lines, lines.without([lid]), storm_load, PSI_STORM, 22.5, 30.0) == 30.0, lid
     e = storm_load[:2] / np.hypot(*storm_load[:2])
     damaged = lines.without(["4"])
@@ -252,8 +259,32 @@ def test_mpc_uses_and_logs_the_budgeted_dead_band(system, storm_load, cls):
     assert intact.last_step().dead_band == 30.0 and intact.log() == []
     lee, weather, tight = run(["9"]), run(["4"]), run(["4"], dead_band_budget=False)
     assert [c.last_step().dead_band for c in (lee, weather, tight)] == [22.5, 30.0, 22.5]
-    assert lee.log() == [{"t": 5.0, "event": "dead band", "radius": 22.5, "broken": ["9"]}]
+    assert lee.log() == [{"t": 5.0, "event": "mode switch", "from": "intact", "to": "damaged", "radius": 22.5,
+                          "broken": ["9"]}]
     assert weather.log()[0]["radius"] == 30.0 and tight.log()[0]["radius"] == 22.5
     assert [s.dead_band for s in lee.diagnostics] == [30.0, 22.5]
+    # the report withdrawn: back to the intact dead band, logged; every line reported: no budget
+    lee.update(10.0, Estimate(t=10.0, eta=eta, nu=np.zeros(3), tau_env=tau_B, broken_lines=frozenset()), SP)
+    assert lee.last_step().dead_band == 30.0 and lee.log()[-1]["to"] == "intact"
+    everything = run(list(system.lines.line_ids))
+    assert everything.last_step().dead_band == 30.0
     lee.reset()
     assert lee.log() == []
+
+
+def test_budget_follows_the_setpoint(system, storm_load):
+    """The dead band is centred on the position setpoint, and so is the budget: about a setpoint
+    15 m up-weather a lee break still tightens and a weather break does not, and the interior
+    radius of a wide bracket moves with the centre and meets the budget there."""
+    from tapm_opt.control.mpc import budgeted_dead_band, net_load_along
+
+    lines, e = system.lines, storm_load[:2] / np.hypot(*storm_load[:2])
+    c = -15.0 * e
+    for lid, want in (("9", 22.5), ("4", 30.0)):
+        assert budgeted_dead_band(lines, lines.without([lid]), storm_load, PSI_STORM, 22.5, 30.0, c) == want
+    # and the radius differs from the one about the field zero point where it is interior
+    r0 = budgeted_dead_band(lines, lines.without(["4"]), storm_load, PSI_STORM, 22.5, 80.0)
+    r1 = budgeted_dead_band(lines, lines.without(["4"]), storm_load, PSI_STORM, 22.5, 80.0, c)
+    assert abs(r1 - r0) > 1.0
+    b = net_load_along(lines, storm_load, PSI_STORM, 22.5, e, c)
+    assert net_load_along(lines.without(["4"]), storm_load, PSI_STORM, r1, e, c) <= max(b, 0.0)

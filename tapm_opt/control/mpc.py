@@ -40,6 +40,7 @@ import casadi as ca
 import numpy as np
 import scipy.sparse as sp
 
+from ..errors import ModelError
 from ..estimation.lowpass import first_order_step
 from ..estimation.reliability import RISER_BOTTOM, RISER_TOP, line_signal
 from ..geometry import body_from_turret, rot_z, ssa
@@ -121,9 +122,11 @@ class _MPCBase:
         self._log: list[dict] = []                 # the dead band's changes after a break
 
     def log(self) -> list[dict]:
-        """The dead band's radius after a break (``dead_band_damaged``): a record ``{"t", "event":
-        "dead band", "radius" [m], "broken"}`` when a break is first reported and whenever the
-        budgeted radius has moved 0.5 m since the last record (``interfaces.Logged``)."""
+        """The dead band after a break (with ``dead_band_damaged``; ``interfaces.Logged``): a
+        record ``{"t", "event": "mode switch", "from", "to": "intact" | "damaged", "radius" [m],
+        "broken"}`` whenever the set of broken lines reported changes (the KPI ``mode_switches``
+        counts them), and ``{"t", "event": "dead band", "radius", "broken"}`` whenever the budgeted
+        radius has moved 0.5 m since the last record."""
         return [dict(r) for r in self._log]
 
     @property
@@ -167,33 +170,45 @@ class _MPCBase:
         self._radius = math.nan
         if pi["dead_band"].stop > pi["dead_band"].start:
             p[pi["dead_band"]] = self._radius = self._dead_band(float(est.t), eta[2], rot_z(eta[2]) @ tau_env,
-                                                 frozenset(est.broken_lines))
+                                                                frozenset(est.broken_lines), eta_d[:2])
         if pi["riser"].stop > pi["riser"].start:
             p[pi["riser"]] = self._riser_parameters(est)
         return p
 
-    def _dead_band(self, t: float, psi: float, b_E: np.ndarray, broken: frozenset) -> float:
+    def _dead_band(self, t: float, psi: float, b_E: np.ndarray, broken: frozenset, centre: np.ndarray) -> float:
         """The dead band's radius [m]: ``dead_band``, or once a break is reported
-        ``dead_band_damaged``, within the intact thrust budget (:func:`budgeted_dead_band`, at the
-        estimated load low-passed over ``MEAN_LOAD_TIME_CONSTANT``) with ``dead_band_budget``."""
+        ``dead_band_damaged``, within the intact thrust budget (:func:`budgeted_dead_band`) with
+        ``dead_band_budget``: at the estimated load and heading low-passed over
+        ``MEAN_LOAD_TIME_CONSTANT`` (the heading as its unit vector), about the setpoint
+        ``centre`` (a turret offset). Logged (:meth:`log`)."""
         st = self.settings   # dead_band_damaged is only set with fault_tolerance (MPCSettings checks)
         if st.dead_band_damaged is None:
             return st.dead_band
-        if st.dead_band_budget:   # the mean load is followed from the start: the break needs it as it was
-            self._b_mean = _low_pass_step(self._b_mean, self._t_mean, b_E, t, MEAN_LOAD_TIME_CONSTANT)
+        if st.dead_band_budget:   # followed from the start: the break needs them as they were
+            m = np.concatenate([b_E, [math.cos(psi), math.sin(psi)]])
+            self._b_mean = _low_pass_step(self._b_mean, self._t_mean, m, t, MEAN_LOAD_TIME_CONSTANT)
             self._t_mean = t
         broken = broken & frozenset(self.model.line_ids)
         if not broken:
-            return st.dead_band
-        if st.dead_band_budget:
-            if broken not in self._damaged_lines:
-                self._damaged_lines[broken] = self.model.without(broken)
-            r = budgeted_dead_band(self.model, self._damaged_lines[broken], self._b_mean, psi, st.dead_band_damaged,
-                                   st.dead_band)
-        else:
+            r = st.dead_band
+        elif not st.dead_band_budget:
             r = st.dead_band_damaged
+        else:
+            if broken not in self._damaged_lines:
+                try:
+                    self._damaged_lines[broken] = self.model.without(broken)
+                except ModelError:        # no line left: the thrusters hold it all, no budget to share
+                    self._damaged_lines[broken] = None
+            damaged = self._damaged_lines[broken]
+            b_mean, psi_mean = self._b_mean[:3], math.atan2(self._b_mean[4], self._b_mean[3])
+            r = st.dead_band if damaged is None else budgeted_dead_band(
+                self.model, damaged, b_mean, psi_mean, st.dead_band_damaged, st.dead_band, centre)
         ids = sorted(broken)
-        if not self._log or self._log[-1]["broken"] != ids or abs(self._log[-1]["radius"] - r) >= 0.5:
+        last = self._log[-1] if self._log else {"broken": [], "radius": st.dead_band}
+        if last["broken"] != ids:
+            self._log.append({"t": t, "event": "mode switch", "from": "damaged" if last["broken"] else "intact",
+                              "to": "damaged" if ids else "intact", "radius": r, "broken": ids})
+        elif ids and abs(last["radius"] - r) >= 0.5:
             self._log.append({"t": t, "event": "dead band", "radius": r, "broken": ids})
         return r
 
@@ -795,12 +810,13 @@ class LinearMPC(_MPCBase):
         return self._finish(t, z, ok, status, dt, it, cost)
 
 
-def net_load_along(lines: Any, b_E: np.ndarray, psi: float, radius: float, direction: np.ndarray) -> float:
+def net_load_along(lines: Any, b_E: np.ndarray, psi: float, radius: float, direction: np.ndarray,
+                   centre: Any = (0.0, 0.0)) -> float:
     """Mean environmental plus mooring load [N] along the unit vector ``direction`` in {E} on the
-    vessel at rest with heading ``psi`` [rad] whose turret sits ``radius`` [m] along ``direction``
-    from its field-zero-point position: ``(b_E + R(psi) tau_moor) . direction`` over (x, y). The
-    thrusters hold the vessel there by pushing this much against ``direction`` (positive: the
-    mooring alone does not hold it there).
+    vessel at rest with heading ``psi`` [rad] whose turret offset is ``centre + radius *
+    direction`` [m] (``centre``: a turret offset, default the field zero point):
+    ``(b_E + R(psi) tau_moor) . direction`` over (x, y). The thrusters hold the vessel there by
+    pushing this much against ``direction`` (positive: the mooring alone does not hold it there).
 
     Parameters
     ----------
@@ -809,48 +825,55 @@ def net_load_along(lines: Any, b_E: np.ndarray, psi: float, radius: float, direc
     b_E : array (3,)
         Environmental load in {E} [N, N, N m].
     """
-    xy = body_from_turret(radius * direction, psi, lines.p_cot_B)
+    c = np.asarray(centre, float)
+    xy = body_from_turret(c + radius * direction, psi, lines.p_cot_B)
     tau_moor = np.asarray(lines.force_fast(np.array([xy[0], xy[1], psi])), float)
     return float((b_E[:2] + rot_z(psi)[:2, :2] @ tau_moor[:2]) @ direction)
 
 
-def budgeted_dead_band(intact: Any, damaged: Any, b_E: Any, psi: float, r_damaged: float, r_intact: float) -> float:
+def budgeted_dead_band(intact: Any, damaged: Any, b_E: Any, psi: float, r_damaged: float, r_intact: float,
+                       centre: Any = (0.0, 0.0)) -> float:
     """The dead band's radius [m] after a line break within the intact thrust budget
     (``MPCSettings.dead_band_budget``).
 
     The budget is the thrust along the mean environmental load ``b_E`` that holds the intact
-    vessel (mooring ``intact``) with its turret at ``r_damaged`` along that load,
-    ``B = max(0, net_load_along(intact, ..., r_damaged))``. The result is the smallest radius ``r``
-    in [``r_damaged``, ``r_intact``] at which the damaged mooring needs at most that budget,
+    vessel (mooring ``intact``) with its turret ``r_damaged`` from the dead band's centre along that
+    load, ``B = max(0, net_load_along(intact, ..., r_damaged))``. The result is the smallest radius
+    ``r`` in [``r_damaged``, ``r_intact``] at which the damaged mooring needs at most that budget,
     ``net_load_along(damaged, ..., r) <= B`` (the net load falls as the turret moves out along the
     load and the lines take it up; found by bisection on the bracket to 1 cm); ``r_intact`` if
     even there it needs more, ``r_damaged`` if it needs no more there.
 
-    Quasi-static: the vessel at rest at the mean load; the slowly varying and wave-frequency
-    loads, which the dead band's margin to the safe circle is for, are left out.
+    Only the thrust along the load is budgeted: it is the part the dead band's radius moves. The
+    load across it that a break leaves (after a side break of fpso in its design storm about
+    2 MN, against 0.1 MN intact) has to be carried at any radius. Quasi-static: the vessel at rest
+    at the mean load; the slowly varying and wave-frequency loads, which the dead band's margin to
+    the safe circle is for, are left out.
 
     Parameters
     ----------
     intact, damaged : MooringModel
         The mooring before and after the break (``MooringModel.without``).
     b_E : array (3,)
-        Mean environmental load in {E} [N, N, N m]; below 1 N in the horizontal plane there is no
-        load to budget and the result is ``r_damaged``.
+        Mean environmental load in {E} [N, N, N m]; below 1 N in the horizontal plane (or not
+        finite) there is no load to budget and the result is ``r_damaged``.
     psi : float
         Heading [rad].
     r_damaged, r_intact : float
         The dead band's radius after and before the break [m]; ``r_damaged >= r_intact`` returns
         ``r_damaged``.
+    centre : array (2,)
+        The dead band's centre, a turret offset [m] (the position setpoint).
     """
     b_E = np.asarray(b_E, float)
     load = float(np.hypot(b_E[0], b_E[1]))
-    if r_damaged >= r_intact or not load >= 1.0:
+    if r_damaged >= r_intact or not load >= 1.0 or not math.isfinite(load):
         return float(r_damaged)
     e = b_E[:2] / load
-    budget = max(0.0, net_load_along(intact, b_E, psi, r_damaged, e))
+    budget = max(0.0, net_load_along(intact, b_E, psi, r_damaged, e, centre))
 
     def excess(r: float) -> float:
-        return net_load_along(damaged, b_E, psi, r, e) - budget
+        return net_load_along(damaged, b_E, psi, r, e, centre) - budget
 
     if excess(r_damaged) <= 0.0:
         return float(r_damaged)

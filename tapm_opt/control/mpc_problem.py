@@ -90,14 +90,15 @@ class MPCSettings:
         ``dead_band > 0`` (the radius is a parameter of the dead band's rows).
     dead_band_budget : bool
         With ``dead_band_damaged``: tighten only as far as the intact thrust budget allows
-        (:func:`~tapm_opt.control.mpc.budgeted_dead_band`). The budget is the mean thrust, along
-        the mean environmental load, that would hold the intact vessel at ``dead_band_damaged``;
-        after the break the MPC holds the tightest radius in [``dead_band_damaged``,
-        ``dead_band``] that the damaged mooring lets it hold within that budget. A lee or side break
-        leaves the mooring restoring at least as much along the load, and the dead band shrinks
-        to ``dead_band_damaged``; a weather-side break takes restoring away, the thrusters already
-        carry the lost line's load, and the dead band stays nearer ``dead_band``. False:
-        ``dead_band_damaged`` after any break.
+        (:func:`~tapm_opt.control.mpc.budgeted_dead_band`). The budget is the mean thrust along
+        the mean environmental load (the part the radius moves) that would hold the intact vessel
+        ``dead_band_damaged`` from the setpoint along that load; after the break the MPC holds the
+        tightest radius in [``dead_band_damaged``, ``dead_band``] that the damaged mooring lets it
+        hold within that budget (quasi-static, at the estimated load and heading low-passed over
+        300 s). A lee or side break leaves the mooring restoring at least as much along the load,
+        and the dead band shrinks to ``dead_band_damaged``; a weather-side break takes restoring
+        away, the thrusters already carry the lost line's load, and the dead band stays nearer
+        ``dead_band``. False: ``dead_band_damaged`` after any break.
     safe_radius : float or None
         Soft constraint radius of the turret offset about the field zero point [m] (None: from the
         scenario, or none).

@@ -368,9 +368,9 @@ def _detection(result: Result, breaks: dict[str, float]) -> dict[str, Any]:
 
 
 def _mode_switches(result: Result) -> dict[str, float]:
-    """``mode_switches`` — the controller's switches of mode set or gain-table row (events
-    ``{"event": "mode switch"}`` of ``meta["controller_log"]``), absent when the controller keeps
-    no log."""
+    """``mode_switches`` — the controller's switches of mode set or gain-table row, or of the MPC's
+    dead band between intact and damaged (events ``{"event": "mode switch"}`` of
+    ``meta["controller_log"]``), absent when the controller keeps no log."""
     log = result.meta.get("controller_log")
     if log is None:
         return {}
