@@ -62,7 +62,11 @@ def _result(controller: str, seed: int, *, duration: float = 1200.0, t_break: fl
         ch.append((f"f[{tid}]", "N", f))
         ch.append((f"P[{tid}]", "W", 1e6 * (f / 1e6) ** 1.5))
     meta = {"scenario": "fpso", "events": [[t_break, "line 7 broke"]],
-            "diagnostics": {"solver_time_median": 0.0125} if controller == "MPC" else {}}
+            "diagnostics": {"solver_time_median": 0.0125} if controller == "MPC" else {},
+            "estimator_log": [{"t": t_break + 3.0, "line": "7", "event": "line break detected"}]}
+    if controller == "MPC":
+        meta["controller_log"] = [{"t": t_break + 5.0, "event": "mode switch", "from": "intact", "to": "damaged",
+                                   "radius": 22.5, "broken": ["7"]}]
     return Result(time=t, data=np.column_stack([c[2] for c in ch]), channels=tuple(c[0] for c in ch),
                   units=tuple(c[1] for c in ch), meta=meta)
 
@@ -178,6 +182,26 @@ def test_report_files_exist_and_html_is_self_contained(report):
     # the study file verbatim (escaped) in a <pre>, and the case list with labels
     assert "# compare &lt;PID&gt; &amp; MPC" in page
     assert "line 7 broken at 600 s" in page
+    # what the estimator and controller decided, per case, in time order
+    md = md_path.read_text()
+    assert ("Decisions: t = 603 s: estimator: line 7 break detected; t = 605 s: controller: mode switch "
+            "intact → damaged, dead band 22.5 m") in md
+    assert "Decisions: t = 603 s: estimator: line 7 break detected\n" in md       # the PID keeps no log
+
+
+def test_decisions_are_ordered_and_bad_records_left_out():
+    from tapm_opt.report.series import decisions_of
+
+    r = _result("PID", 0, duration=10.0, t_break=5.0)
+    r.meta["controller_log"] = [{"t": 7.0, "event": "sea state", "from": "normal", "to": "storm"},
+                                {"t": float("nan"), "event": "mode switch"}, "not a record",
+                                {"t": 2.0, "event": "dead band", "radius": 25.04, "broken": ["1"]}]
+    assert decisions_of(r) == [[2.0, "controller: dead band 25.0 m"],
+                               [7.0, "controller: sea state normal → storm"],
+                               [8.0, "estimator: line 7 break detected"]]
+    r.meta.pop("controller_log")
+    r.meta["estimator_log"] = None
+    assert decisions_of(r) == []
 
 
 def test_markdown_links_figures_relatively(report):

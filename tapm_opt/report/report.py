@@ -37,9 +37,13 @@ from .kpi_tables import (_PER_LINE, HEADLINE_KPIS, ConditionGroup, _csv_table, _
                          _label_keys, _line_table, condition_groups, headline_kpis, kpi_direction,
                          side_by_side_tables)
 from .reliability import OPTIMAL_SETPOINTS, case_reliability, plan_half_width, reliability_figure, safe_regions
-from .series import causal_traces, comparison_series, events_of
+from .series import causal_traces, comparison_series, decisions_of, events_of
 
 __all__ = ["write_report", "ReportError", "kpi_direction", "side_by_side_tables", "BEST_MARK"]
+
+
+#: Decisions of the estimator and controller listed per case at most (the rest are counted).
+MAX_DECISIONS = 12
 
 
 def _status_text(c: CaseInfo) -> str:
@@ -80,6 +84,11 @@ def _case_section(c: CaseInfo, blocks: list, figures_out: list[Fig], problems: l
     if events:
         blocks.append(Para("Events: " + "; ".join(f"t = {float(e[0]):g} s: {e[1]}" for e in events
                                                   if isinstance(e, (list, tuple)) and len(e) >= 2)))
+    decisions = decisions_of(result)
+    if decisions:
+        shown = "; ".join(f"t = {t:g} s: {text}" for t, text in decisions[:MAX_DECISIONS])
+        more = len(decisions) - MAX_DECISIONS
+        blocks.append(Para("Decisions: " + shown + (f"; and {more} more" if more > 0 else "")))
     title = f"{c.name} ({c.controller})"
 
     def add(kind: str, make, caption: str) -> None:

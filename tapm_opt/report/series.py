@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
@@ -27,7 +27,7 @@ from .data import ReportError
 
 __all__ = ["MAX_POINTS", "TurretTrack", "ComparisonSeries", "IndexRun", "CausalTraces", "decimate",
            "turret_position_of", "turret_track", "break_times", "causal_runs", "causal_traces", "events_of",
-           "comparison_series"]
+           "decisions_of", "comparison_series"]
 
 #: Most points per plotted curve (see :func:`decimate`).
 MAX_POINTS = 2000
@@ -58,6 +58,37 @@ def events_of(result: Any) -> list:
     """The ``[time [s], text]`` entries of ``result.meta["events"]`` (empty when there are none)."""
     ev = result.meta.get("events", []) if isinstance(result.meta, dict) else []
     return list(ev) if isinstance(ev, (list, tuple)) else []
+
+
+def _decision_text(role: str, e: Mapping) -> str:
+    kind = str(e.get("event", "event"))
+    if kind == "line break detected":
+        return f"{role}: line {e.get('line')} break detected"
+    radius = e.get("radius")
+    if kind == "dead band" and isinstance(radius, (int, float)):
+        return f"{role}: dead band {float(radius):.1f} m"
+    text = f"{role}: {kind}"
+    if "from" in e or "to" in e:
+        text += f" {e.get('from')} → {e.get('to')}"
+    if isinstance(radius, (int, float)):
+        text += f", dead band {float(radius):.1f} m"
+    return text
+
+
+def decisions_of(result: Any) -> list:
+    """``[time [s], text]`` of what the loop's components decided, in time order: the estimator's
+    detections (``meta["estimator_log"]``) and the controller's switches (``meta["controller_log"]``:
+    a supervisor's sea state and mode set or gain-table row, the MPC's dead band after a break).
+    Records without a finite time are left out."""
+    meta = result.meta if isinstance(result.meta, dict) else {}
+    out = []
+    for role in ("estimator", "controller"):
+        log = meta.get(f"{role}_log")
+        for e in log if isinstance(log, (list, tuple)) else []:
+            t = e.get("t") if isinstance(e, Mapping) else None
+            if isinstance(t, (int, float)) and math.isfinite(t):
+                out.append([float(t), _decision_text(role, e)])
+    return sorted(out, key=lambda x: x[0])
 
 
 @dataclass(frozen=True)
