@@ -163,6 +163,9 @@ def test_damaged_dead_band_settings_are_checked(system):
     assert build_controller(system, {"type": "lmpc", "fault_tolerance": False}).settings.dead_band_damaged is None
     assert build_controller(system, {"type": "lmpc", "dead_band": 0.0}).settings.dead_band_damaged is None
     assert not build_controller(system, {"type": "lmpc", "dead_band_budget": False}).settings.dead_band_budget
+    for spec in ({"fault_tolerance": False}, {"dead_band": 0.0}, {"mooring": "catenary"}):
+        with pytest.raises(ControllerSpecError, match="dead_band_budget = False has nothing to budget"):
+            build_controller(system, {"type": "lmpc", "dead_band_budget": False, **spec})
     with pytest.raises(ControllerSpecError, match="dead_band_damaged"):
         build_controller(system, {"type": "lmpc", "dead_band_damaged": -1.0})
 

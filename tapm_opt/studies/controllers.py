@@ -203,6 +203,9 @@ def build_controller(system: Any, spec: Mapping[str, Any] | str, *, where: str =
         if (spec.get("fault_tolerance", ft["fault_tolerance"]) is True and "dead_band_damaged" not in spec
                 and isinstance(spec.get("dead_band"), (int, float)) and spec["dead_band"] > 0):
             spec["dead_band_damaged"] = MPC_DEAD_BAND_DAMAGED * spec["dead_band"]
+        if "dead_band_budget" in spec and spec.get("dead_band_damaged") is None:
+            raise ControllerSpecError(f"{where}.dead_band_budget = {spec['dead_band_budget']!r} has nothing to budget: "
+                                      "it needs fault tolerance and a dead band (dead_band > 0)")
         settings = MPCSettings(**{**MPC_DEFAULTS, **ft, **spec})
         n_pred = settings.horizon * settings.substeps
         if n_pred > _MAX_HORIZON:
