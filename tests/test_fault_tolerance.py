@@ -291,3 +291,28 @@ def test_budget_follows_the_setpoint(system, storm_load):
     assert abs(r1 - r0) > 1.0
     b = net_load_along(lines, storm_load, PSI_STORM, 22.5, e, c)
     assert net_load_along(lines.without(["4"]), storm_load, PSI_STORM, r1, e, c) <= max(b, 0.0)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("line, radius", [("9", 22.5), ("4", 30.0)])
+def test_in_the_storm_the_mpc_tightens_after_a_lee_break_not_a_weather_one(line, radius):
+    """Closed loop with the study defaults (the EKF, the tension test, heading chasing, the linear
+    MPC's 30 m dead band and 22.5 m once a break is known, budgeted; fpso, design storm, 10
+    segments): a break at 400 s is reported 8 s later and the MPC's next solve (at 410 s) switches to
+    the damaged dead band — 22.5 m for the lee line 9, 30 m for the weather line 4 — from the mean
+    load so far (the running mean before 300 s of estimates have passed), and the KPI counts the
+    switch."""
+    from tapm_opt.config.schema import Fault
+    from tapm_opt.plant.simulator import Plant
+    from tapm_opt.studies.closed_loop import ClosedLoopSettings, run_closed_loop
+    from tapm_opt.studies.kpis import case_kpis
+
+    sc = load_scenario("fpso")
+    sysm = System.from_scenario(sc)
+    plant = Plant(sc, sea_state="storm", seed=1, segments=10, faults=[Fault(kind="line_break", line=line, time=400.0)])
+    r = run_closed_loop(plant, build_controller(sysm, {"type": "lmpc"}),
+                        ClosedLoopSettings(duration=430.0, heading="chasing"), system=sysm)
+    assert [(e["t"], e["line"]) for e in r.meta["estimator_log"]] == [(408.0, line)]
+    assert r.meta["controller_log"] == [{"t": 410.0, "event": "mode switch", "from": "intact", "to": "damaged",
+                                         "radius": radius, "broken": [line]}]
+    assert case_kpis(r, sc)["mode_switches"] == 1

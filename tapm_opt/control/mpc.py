@@ -115,8 +115,9 @@ class _MPCBase:
         self._t_theta: float | None = None
         self._b_lf: np.ndarray | None = None       # low-passed estimated load in {E} (3,) [N, N, N m]
         self._t_b: float | None = None
-        self._b_mean: np.ndarray | None = None     # its mean for the dead band's budget (3,)
+        self._b_mean: np.ndarray | None = None     # its mean and the heading's for the dead band's budget (5,)
         self._t_mean: float | None = None
+        self._t_first = 0.0
         self._damaged_lines: dict[frozenset, Any] = {}   # the mooring without the broken lines
         self._radius = math.nan                    # the dead band's radius of the last step [m]
         self._log: list[dict] = []                 # the dead band's changes after a break
@@ -179,14 +180,19 @@ class _MPCBase:
         """The dead band's radius [m]: ``dead_band``, or once a break is reported
         ``dead_band_damaged``, within the intact thrust budget (:func:`budgeted_dead_band`) with
         ``dead_band_budget``: at the estimated load and heading low-passed over
-        ``MEAN_LOAD_TIME_CONSTANT`` (the heading as its unit vector), about the setpoint
-        ``centre`` (a turret offset). Logged (:meth:`log`)."""
+        ``MEAN_LOAD_TIME_CONSTANT`` (the heading as its unit vector; over the time since the first
+        estimate until that has passed, so an early break sees the mean so far, not the filter's
+        start), about the setpoint ``centre`` (a turret offset). Logged (:meth:`log`)."""
         st = self.settings   # dead_band_damaged is only set with fault_tolerance (MPCSettings checks)
         if st.dead_band_damaged is None:
             return st.dead_band
         if st.dead_band_budget:   # followed from the start: the break needs them as they were
             m = np.concatenate([b_E, [math.cos(psi), math.sin(psi)]])
-            self._b_mean = _low_pass_step(self._b_mean, self._t_mean, m, t, MEAN_LOAD_TIME_CONSTANT)
+            if self._t_mean is None:
+                self._t_first = t
+            # the running mean over the time so far until MEAN_LOAD_TIME_CONSTANT has passed
+            T = min(MEAN_LOAD_TIME_CONSTANT, max(t - self._t_first, 1e-9))
+            self._b_mean = _low_pass_step(self._b_mean, self._t_mean, m, t, T)
             self._t_mean = t
         broken = broken & frozenset(self.model.line_ids)
         if not broken:
