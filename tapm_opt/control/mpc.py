@@ -150,7 +150,8 @@ class _MPCBase:
             if v.shape != (3,) or not np.all(np.isfinite(v)):
                 raise MPCError(f"{name} = {v.tolist()} must be a finite 3-vector")
         eta_d[2] = eta[2] + ssa(eta_d[2] - eta[2])  # heading setpoint unwrapped next to the heading
-        b_E = self._load_in_prediction(float(est.t), rot_z(eta[2]) @ tau_env)
+        tau_env_E = rot_z(eta[2]) @ tau_env
+        b_E = self._load_in_prediction(float(est.t), tau_env_E)
         pi = self._prob.p_idx
         p = np.zeros(self._prob.p.numel())
         if self._prob.n_poly:
@@ -170,7 +171,7 @@ class _MPCBase:
         p[pi["T_lim"]] = self._tension_limits(est)
         self._radius = math.nan
         if pi["dead_band"].stop > pi["dead_band"].start:
-            p[pi["dead_band"]] = self._radius = self._dead_band(float(est.t), eta[2], rot_z(eta[2]) @ tau_env,
+            p[pi["dead_band"]] = self._radius = self._dead_band(float(est.t), eta[2], tau_env_E,
                                                                 frozenset(est.broken_lines), eta_d[:2])
         if pi["riser"].stop > pi["riser"].start:
             p[pi["riser"]] = self._riser_parameters(est)
@@ -217,6 +218,18 @@ class _MPCBase:
         elif ids and abs(last["radius"] - r) >= 0.5:
             self._log.append({"t": t, "event": "dead band", "radius": r, "broken": ids})
         return r
+
+    def _condensed_solve(self, evaluate: Any, *args: Any) -> tuple[bool, str, int, np.ndarray]:
+        """``CondensedDAQP.solve(*args)`` after ``evaluate()`` (the QP data into their buffers;
+        None: evaluated already); bad data inside the QP or its condensing is a failed solve (its
+        message the status) and DAQP is set up afresh at the next step."""
+        try:
+            if evaluate is not None:
+                evaluate()
+            return self._daqp.solve(*args)
+        except (ValueError, RuntimeError, MPCError) as exc:
+            self._daqp.reset()
+            return False, _error_status(exc), -1, np.full(self._daqp.cq.nz, np.nan)
 
     def _load_in_prediction(self, t: float, b_E: np.ndarray) -> np.ndarray:
         """The estimated load in {E} through the first-order low-pass filter of time constant
@@ -550,9 +563,7 @@ class NonlinearMPC(_MPCBase):
         z, p = prob.z, prob.p
         Jr = ca.jacobian(prob.r, z)
         H = ca.triu(2 * ca.mtimes(Jr.T, Jr))
-        eq = np.isfinite(prob.lbg) & (prob.lbg == prob.ubg)   # the dynamics and the initial state
-        rows = np.arange(len(prob.lbg))
-        g_eq, g_in = prob.g[rows[eq].tolist()], prob.g[rows[~eq].tolist()]
+        eq, (g_eq, g_in) = _split_rows(prob)
         J_eq, J_in = ca.jacobian(g_eq, z), ca.jacobian(g_in, z)
         outs = [_nonzeros(H), _nonzeros(J_eq), _nonzeros(J_in), ca.gradient(prob.f, z), g_eq, g_in, prob.f]
         (self._gn_z, self._gn_p), self._gn_data, self._gn_eval = _buffered(ca.Function("gn_qp", [z, p], outs))
@@ -593,7 +604,7 @@ class NonlinearMPC(_MPCBase):
                 ok, status = True, self.RTI_STATUS
             return ok, status, it, z, float(sol["f"]), sol
         except RuntimeError as exc:  # an evaluation error inside the solver: treat as a failed solve
-            return False, f"error: {str(exc).splitlines()[0][:120]}", -1, args["x0"], math.nan, None
+            return False, _error_status(exc), -1, args["x0"], math.nan, None
 
     def _solve_rti_daqp(self, t: float, p: np.ndarray) -> np.ndarray:
         """One real-time iteration with the condensed QP in DAQP: the Gauss–Newton QP at the
@@ -605,14 +616,9 @@ class NonlinearMPC(_MPCBase):
         z_lin[self._slacks] = 0.0
         t0 = time.perf_counter()
         self._gn_z[:], self._gn_p[:] = z_lin, p
-        try:
-            self._gn_eval()
-            Hx, Ax, Gx, q, g_eq, g_in, _ = self._gn_data
-            ok, status, it, dz = self._daqp.solve(Hx, Ax, Gx, q, self._b_eq, g_eq, g_in, prob.lbz - z_lin,
-                                                  prob.ubz - z_lin, np.zeros(self._daqp.cq.nU))
-        except (ValueError, RuntimeError, MPCError) as exc:  # bad data inside the QP or its condensing
-            ok, status, it, dz = False, f"error: {str(exc).splitlines()[0][:120]}", -1, np.full(len(z_lin), np.nan)
-            self._daqp.reset()
+        Hx, Ax, Gx, q, g_eq, g_in, _ = self._gn_data   # the buffers the evaluation fills
+        ok, status, it, dz = self._condensed_solve(self._gn_eval, Hx, Ax, Gx, q, self._b_eq, g_eq, g_in,
+                                                   prob.lbz - z_lin, prob.ubz - z_lin, np.zeros(self._daqp.cq.nU))
         z = z_lin + dz
         cost = float(self._f_fun(z, p)) if ok else math.nan
         return self._finish(t, z, ok, self.RTI_STATUS if ok else status, time.perf_counter() - t0, it, cost)
@@ -690,9 +696,7 @@ class LinearMPC(_MPCBase):
                 import piqp
 
                 self._piqp_mod = piqp
-            eq = np.isfinite(prob.lbg) & (prob.lbg == prob.ubg)   # the dynamics and the initial state
-            rows = np.arange(len(prob.lbg))
-            g_parts = [prob.g[rows[eq].tolist()], prob.g[rows[~eq].tolist()]]
+            eq, g_parts = _split_rows(prob)
             blocks = [ca.jacobian(g, z) for g in g_parts]
             self._b_eq, self._lb_in, self._ub_in = prob.lbg[eq], prob.lbg[~eq], prob.ubg[~eq]
         # the QP in the step from z = 0 at the parameters p: the nonzeros (CSC order) of H and of each
@@ -789,7 +793,7 @@ class LinearMPC(_MPCBase):
             ok = bool(status == piqp.Status.PIQP_SOLVED and np.all(np.isfinite(z)))
             it, cost, status = int(res.info.iter), float(res.info.primal_obj) + self._f0, status.name
         except (ValueError, RuntimeError) as exc:  # bad data inside the QP solver
-            ok, status, it, z, cost = False, f"error: {str(exc).splitlines()[0][:120]}", -1, np.full(self._nz, np.nan), math.nan
+            ok, status, it, z, cost = False, _error_status(exc), -1, np.full(self._nz, np.nan), math.nan
             self._qp = None   # set up afresh at the next step
         dt = time.perf_counter() - t0
         return self._finish(t, z, ok, status, dt, it, cost if ok else math.nan)
@@ -806,11 +810,8 @@ class LinearMPC(_MPCBase):
         else:
             u_pred = np.tile(self._last_p[prob.p_idx["u_prev"]] / prob.scale["u"], prob.n_moves)
         t0 = time.perf_counter()
-        try:
-            ok, status, it, z = self._daqp.solve(Hx, Ax, Gx, q, self._b_eq, g_eq, g_in, prob.lbz, prob.ubz, u_pred)
-        except (ValueError, RuntimeError, MPCError) as exc:  # bad data inside the QP or its condensing
-            ok, status, it, z = False, f"error: {str(exc).splitlines()[0][:120]}", -1, np.full(self._nz, np.nan)
-            self._daqp.reset()
+        ok, status, it, z = self._condensed_solve(None, Hx, Ax, Gx, q, self._b_eq, g_eq, g_in, prob.lbz, prob.ubz,
+                                                  u_pred)
         dt = time.perf_counter() - t0
         cost = self._daqp.cq.cost(Hx, q, z) + self._f0 if ok else math.nan
         return self._finish(t, z, ok, status, dt, it, cost)
@@ -900,6 +901,19 @@ def _low_pass_step(x_lf: np.ndarray | None, t_lf: float | None, x: Any, t: float
     if x_lf is None or t_lf is None:
         return x
     return first_order_step(x_lf, x, t - t_lf, T)
+
+
+def _split_rows(prob: _Problem) -> tuple[np.ndarray, list]:
+    """The problem's rows split into the equality rows (the dynamics and the initial state: equal
+    finite bounds) and the others: ``(mask of the equality rows, [g_eq, g_in])``."""
+    eq = np.isfinite(prob.lbg) & (prob.lbg == prob.ubg)
+    rows = np.arange(len(prob.lbg))
+    return eq, [prob.g[rows[eq].tolist()], prob.g[rows[~eq].tolist()]]
+
+
+def _error_status(exc: BaseException) -> str:
+    """A solver's exception as the step's status: ``"error: "`` and its first line (120 characters)."""
+    return f"error: {str(exc).splitlines()[0][:120] if str(exc) else type(exc).__name__}"
 
 
 def _buffered(fun: ca.Function) -> tuple[list[np.ndarray], list[np.ndarray], Any]:

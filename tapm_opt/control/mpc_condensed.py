@@ -73,17 +73,6 @@ def _scatter_columns(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, 
             out[indices[p], k] = sign * data[p]
 
 
-def _matmul_cols(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, ncols: int, T: np.ndarray,
-                 out: np.ndarray) -> None:
-    """``out += M[:, :ncols] @ T`` for the CSC matrix M and dense ``T`` (ncols x k)."""
-    for c in range(ncols):
-        for p in range(indptr[c], indptr[c + 1]):
-            r = indices[p]
-            d = data[p]
-            for k in range(T.shape[1]):
-                out[r, k] += d * T[c, k]
-
-
 def _sym_matmul_cols(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, ncols: int, T: np.ndarray,
                      out: np.ndarray) -> None:
     """``out += S[:ncols, :ncols] @ T`` for the symmetric S whose upper triangle is the CSC matrix."""
@@ -141,7 +130,6 @@ def _csr_rows_dot(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, row
 
 _forward_unit_lower = jit(_forward_unit_lower)
 _scatter_columns = jit(_scatter_columns)
-_matmul_cols = jit(_matmul_cols)
 _sym_matmul_cols = jit(_sym_matmul_cols)
 _quad_upper = jit(_quad_upper)
 _csr_rows_times = jit(_csr_rows_times)
@@ -229,11 +217,16 @@ class CondensedQP:
         self.f = np.zeros(self.nU)
         self.hard_rows: np.ndarray | None = None            # fixed at the first condense
 
+    def _slack_curvature(self, Hx: np.ndarray) -> np.ndarray:
+        """The Hessian's diagonal at each slack of ``slack_cols`` (0 where it has none)."""
+        pos = self._diag_pos[self.slack_cols]
+        return np.where(pos >= 0, Hx[np.maximum(pos, 0)], 0.0)
+
     def _structure(self, Hx: np.ndarray, q: np.ndarray, lbz: np.ndarray, ubz: np.ndarray) -> None:
         """Sort the rows (first condense): hard rows, soft groups with their weights, free rows."""
         self.slack_cols = np.unique(self.row_slack[self.row_slack >= 0])
         cols = self.slack_cols
-        curv = np.where(self._diag_pos[cols] >= 0, Hx[np.maximum(self._diag_pos[cols], 0)], 0.0)
+        curv = self._slack_curvature(Hx)
         lin = q[cols]
         fixed = ubz[cols] <= lbz[cols]
         soft = ~fixed & ((curv > 0) | (lin > 0))
@@ -279,11 +272,10 @@ class CondensedQP:
         if self.hard_rows is None:
             self._structure(Hx, q, lbz, ubz)
         else:
-            cols = self.slack_cols
-            curv = np.where(self._diag_pos[cols] >= 0, Hx[np.maximum(self._diag_pos[cols], 0)], 0.0)
             key = self._slack_key
             if not (np.array_equal(key[0], lbz[nXU:]) and np.array_equal(key[1], ubz[nXU:])
-                    and np.array_equal(key[2], curv) and np.array_equal(key[3], q[cols])):
+                    and np.array_equal(key[2], self._slack_curvature(Hx))
+                    and np.array_equal(key[3], q[self.slack_cols])):
                 raise MPCError("condensing: the slacks' bounds or weights changed after the set-up")
         # states: X = Phi U + x_c
         B = self._B
@@ -328,9 +320,10 @@ class CondensedQP:
         self._set_rows(self.chosen, len(self.hard_rows))
         return True
 
-    def _excess(self, rows: np.ndarray, z: np.ndarray) -> np.ndarray:
-        """Value of the sparse QP's ``rows`` above their upper bounds at ``z``."""
-        out = np.empty(len(rows))
+    def _excess(self, rows: np.ndarray, z: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """Value of the sparse QP's ``rows`` above their upper bounds at ``z`` (``out``: a buffer
+        for the rows' products)."""
+        out = np.empty(len(rows)) if out is None else out
         _csr_rows_dot(self._Rp, self._Ri, self._Gr_vals, rows, self.nXU, z, out)
         return out + self._g_in[rows] - self.ub_in[rows]
 
@@ -342,8 +335,7 @@ class CondensedQP:
         """Of each soft group, the row with the largest value above its bound at ``z`` (the first of
         the largest)."""
         order = self._order
-        _csr_rows_dot(self._Rp, self._Ri, self._Gr_vals, order, self.nXU, z, self._vals)
-        v = self._vals + self._g_in[order] - self.ub_in[order]
+        v = self._excess(order, z, self._vals)
         at_max = np.flatnonzero(v >= np.repeat(np.maximum.reduceat(v, self._starts), self._counts))
         group = np.searchsorted(self._starts, at_max, side="right") - 1
         return order[at_max[np.unique(group, return_index=True)[1]]]
@@ -366,8 +358,7 @@ class CondensedQP:
         z[self.nX:self.nXU] = u
         order = self._order
         if len(order):
-            _csr_rows_dot(self._Rp, self._Ri, self._Gr_vals, order, self.nXU, z, self._vals)
-            viol = self._vals + self._g_in[order] - self.ub_in[order]
+            viol = self._excess(order, z, self._vals)
             z[self.groups] = np.maximum(np.maximum.reduceat(viol, self._starts), 0.0)
         return z
 

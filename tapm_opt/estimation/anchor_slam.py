@@ -1059,7 +1059,7 @@ def run_anchor_slam(scenario: Any, network: VirtualVesselNetwork, *, n_virtual: 
     d_live, X_live = live.ranges(rmap, line_correction)
     var_live = rmap.range_variance(X_live, s.sigma_T, sigma_Td=s.sigma_Td, sigma_gps=s.sigma_gps)
     pv = np.stack([v.cot for v in vs])                     # (N, n, 2)
-    a_start, cov0, survey_cov = np.asarray(anchors0, float), None, None
+    a_start, cov0 = np.asarray(anchors0, float), None
     n_ekf = N
     if not survey:   # the filter reads the stored records' ranges (with the survey, the fit does)
         dX = [v.ranges(rmap, line_correction) for v in vs]
@@ -1086,7 +1086,7 @@ def run_anchor_slam(scenario: Any, network: VirtualVesselNetwork, *, n_virtual: 
         pos_std[k] = np.sqrt(np.diag(ekf.P)[6:8])
         anc[k] = ekf.anchors
         anc_std[k] = np.sqrt(np.diag(ekf.anchor_cov)).reshape(M, 2)
-    if survey_cov is not None:   # the anchors' uncertainty is the fit's
+    if survey:   # the anchors' uncertainty is the fit's
         anc_std[:] = np.sqrt(np.diag(survey_cov)).reshape(M, 2)[None]
     T = float(live.t[-1] - live.t[0])
     bi = 0.1 * T if burn_in is None else _finite("burn_in", burn_in, lo=0.0, strict=False, unit="s")

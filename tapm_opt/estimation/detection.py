@@ -385,8 +385,8 @@ class TensionResidualDetector:
     ``Delta_i / 2``, below the intact residuals of fpso's calm, normal and storm seas, and the
     confirmation over ``min_samples`` samples, longer than an intact line's wave-frequency dips
     below the reference in its extreme sea (up to 5 s) (:attr:`worst_drop` reports how close they
-    came; docs/estimation.md gives the figures). Expected delay of a loss of ``D_i >= Delta_i / 2``: about
-    ``h / min(d_i (D_i / s_i - d_i / 2), h / min_samples)`` samples (Basseville & Nikiforov §5.2),
+    came; docs/estimation.md gives the figures). Expected delay of a loss of ``D_i >= Delta_i / 2``:
+    about ``h / min(d_i (D_i / s_i - d_i / 2), h / min_samples)`` samples (Basseville & Nikiforov §5.2),
     i.e. ``min_samples`` samples for a break on fpso in any of its sea states.
 
     Why CUSUM and not a GLR: the post-break level is known within a factor of two (zero or the
@@ -454,8 +454,8 @@ class TensionResidualDetector:
     """
 
     def __init__(self, model: Any, *, shift: float = 0.5, false_alarm_time: float = FALSE_ALARM_TIME_DEFAULT,
-                 rate: float = 1.0, min_samples: int | None = None, noise_rel: float = 0.002, dynamic_rel: float = 0.02,
-                 adapt: bool = True, tau: float = 600.0, clip: float = 3.0):
+                 rate: float = 1.0, min_samples: int | None = None, noise_rel: float = 0.002,
+                 dynamic_rel: float = 0.02, adapt: bool = True, tau: float = 600.0, clip: float = 3.0):
         def num(name, v, lo, hi=math.inf, *, lo_ok=False, unit=""):
             ok = isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool) and \
                 math.isfinite(v) and (v >= lo if lo_ok else v > lo) and v <= hi

@@ -74,6 +74,11 @@ MPC_DEAD_BAND = 0.6
 MPC_DEAD_BAND_DAMAGED = 0.75
 
 
+#: Keys of an MPC's controller specification: every ``MPCSettings`` field, the re-solve period and
+#: the QP solver.
+MPC_SPEC_KEYS = frozenset({f.name for f in fields(MPCSettings)} | {"period", "qp_solver"})
+
+
 class ControllerSpecError(TapmError, ValueError):
     """A controller specification names an unknown type or option, or a bad value."""
 
@@ -193,8 +198,7 @@ def build_controller(system: Any, spec: Mapping[str, Any] | str, *, where: str =
             if table is not None:
                 return supervised_pid(system, gain_table=table, initial_sea_state=o["initial_sea_state"], **opts)
             return supervised_pid(system, pid=ctrl, initial_sea_state=o["initial_sea_state"], **opts)
-        allowed = {f.name for f in fields(MPCSettings)} | {"period", "qp_solver"}
-        _unknown(set(spec), allowed, where)
+        _unknown(set(spec), set(MPC_SPEC_KEYS), where)
         period = spec.pop("period", None)
         qp_solver = spec.pop("qp_solver", "piqp")
         if "dead_band" not in spec and system.limits.safe_radius is not None:

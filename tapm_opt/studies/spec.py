@@ -23,7 +23,7 @@ from ..config.loader import fem_size_issues, log_size_issues
 from ..errors import ScenarioError
 from . import store
 from ._checks import Checker
-from .controllers import CONTROLLER_TYPES, PID_DEFAULTS, ControllerSpecError, build_controller
+from .controllers import CONTROLLER_TYPES, MPC_SPEC_KEYS, PID_DEFAULTS, ControllerSpecError, build_controller
 from .store import StudyError
 
 __all__ = ["Case", "Study", "load_study", "study_from_dict", "expand_cases"]
@@ -402,7 +402,6 @@ def _embedded_gain_table(ck: Checker, path: str, base_dir: Path, where: str) -> 
 
 
 def _parse_controllers(ck: Checker, data: Mapping, out: _Parsed) -> None:
-    from ..control.mpc import MPCSettings
     from .closed_loop import combination_issues
 
     if "controllers" not in data:
@@ -410,7 +409,6 @@ def _parse_controllers(ck: Checker, data: Mapping, out: _Parsed) -> None:
     entries = ck.tables(data.get("controllers", []), "controllers")
     if "controllers" in data and not entries and isinstance(data["controllers"], list):
         ck.err("controllers", "is empty: give at least one [[controllers]]")
-    mpc_allowed = {f.name for f in dataclasses.fields(MPCSettings)} | {"period"}
     for i, e in enumerate(entries):
         p = f"controllers[{i}]"
         if "type" not in e:
@@ -428,7 +426,7 @@ def _parse_controllers(ck: Checker, data: Mapping, out: _Parsed) -> None:
         spec = None
         if kind is not None:
             n_issues = len(ck.issues)
-            allowed = set(PID_DEFAULTS) if kind == "pid" else mpc_allowed | {"qp_solver"}
+            allowed = set(PID_DEFAULTS) if kind == "pid" else set(MPC_SPEC_KEYS)
             ck.keys(opts, allowed | {"name", "type"}, p)
             if len(ck.issues) == n_issues:
                 spec = _normalise_spec(kind, opts)
