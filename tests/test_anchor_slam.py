@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from tapm_opt.cli import cli, main
-from tapm_opt.cli_estimate import estimate
+from tapm_opt.cli.estimate import estimate
 from tapm_opt.config import load_scenario
 from tapm_opt.errors import TapmError
 from tapm_opt.estimation.anchor_slam import (TABLE4_INITIAL, TABLE4_TRUE, AnchorSLAM, AnchorSlamError, SlamSettings,

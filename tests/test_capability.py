@@ -252,7 +252,7 @@ def test_scenario_without_safe_radius_is_refused():
 
 @pytest.fixture()
 def tapm():
-    from tapm_opt.cli_capability import capability as command
+    from tapm_opt.cli.capability import capability as command
 
     if "capability" not in cli.commands:
         cli.add_command(command)

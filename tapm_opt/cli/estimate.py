@@ -21,15 +21,15 @@ __all__ = ["estimate", "anchors"]
 
 def _out_dir(ctx: click.Context, param: click.Parameter, value: str | None) -> str | None:
     """``--out``: the output-directory check of every ``tapm`` command (``cli._out_path``)."""
-    from .cli import _out_path
+    from ._common import out_path
 
-    return _out_path("dir")(ctx, param, value)
+    return out_path("dir")(ctx, param, value)
 
 
 def _read_initial(path: str, line_ids: tuple[str, ...]) -> np.ndarray:
     """Initial anchor guesses from a CSV with a header ``id,x,y`` [m] (one row per line id; an
     optional ``z`` column is ignored: the filter is 2-D, §4.1)."""
-    from .estimation.anchor_slam import AnchorSlamError
+    from ..estimation.anchor_slam import AnchorSlamError
 
     try:
         with open(path, newline="", encoding="utf-8") as fh:
@@ -107,13 +107,13 @@ def anchors(scenario_name: str, n_virtual: int, duration: float, out_dir: str, i
     Writes OUT/estimates.csv (position and anchors over time), anchors.csv, summary.json and
     network.npz (the stored records, for --network). Errors are horizontal, in metres.
     """
-    from ._io import atomic_write_text, csv_text
-    from .cli import _load
-    from .estimation.anchor_slam import (AnchorSlamError, VirtualVesselNetwork, run_anchor_slam,
+    from .._io import atomic_write_text, csv_text
+    from ._common import load
+    from ..estimation.anchor_slam import (AnchorSlamError, VirtualVesselNetwork, run_anchor_slam,
                                          table4_initial_anchors)
-    from .models.mooring import MooringModel
+    from ..models.mooring import MooringModel
 
-    sc = _load(scenario_name)
+    sc = load(scenario_name)
     if not (math.isfinite(duration) and 10.0 <= duration <= 86400.0):
         raise click.BadParameter(f"{duration!r} s must be a finite number in [10, 86400] s", param_hint="'--duration'")
     if not (math.isfinite(settle) and settle > 0):
@@ -134,7 +134,7 @@ def anchors(scenario_name: str, n_virtual: int, duration: float, out_dir: str, i
             raise AnchorSlamError(f"--network {network!r} holds {net.n} virtual vessels; --virtual-vessels = "
                                   f"{n_virtual} needs at least as many")
     else:
-        from .studies.anchor_network import generate_network
+        from ..studies.anchor_network import generate_network
 
         net = generate_network(sc, n_virtual, duration=duration, seed=seed, settle=settle,
                                workers=workers or min(2, os.cpu_count() or 1))

@@ -18,9 +18,9 @@ __all__ = ["capability"]
 def _out_dir(ctx: click.Context, param: click.Parameter, value: str | None) -> str | None:
     """``--out``: the check of every ``tapm`` command's output directory (``cli._out_path``),
     imported when called (``tapm_opt.cli`` imports this module)."""
-    from .cli import _out_path
+    from ._common import out_path
 
-    return _out_path("dir")(ctx, param, value)
+    return out_path("dir")(ctx, param, value)
 
 
 @click.command("capability")
@@ -61,11 +61,11 @@ def capability(scenario_name: str, out_dir: str, level: str, heading: str, fixed
     OUT/capability.csv, capability.json (the numbers A, B, C, D), capability.png and
     capability_cases.png. Method: docs/capability.md.
     """
-    from .cli import _load, _parse_floats
-    from .design.capability import CapabilityOptions, capability as compute
-    from .report.capability import write_capability
+    from ._common import load, parse_floats
+    from ..design.capability import CapabilityOptions, capability as compute
+    from ..report.capability import write_capability
 
-    sc = _load(scenario_name)
+    sc = load(scenario_name)
     if sea_state is not None and sea_state not in [s.id for s in sc.sea_states]:
         raise click.BadParameter(f"{sea_state!r} is not a sea state of scenario {sc.name!r}; its sea states: "
                                  f"{', '.join(s.id for s in sc.sea_states) or 'none'}", param_hint="'--sea-state'")
@@ -77,7 +77,7 @@ def capability(scenario_name: str, out_dir: str, level: str, heading: str, fixed
             raise click.BadParameter(f"{v!r} must be a finite angle in [-360, 360] deg", param_hint=f"'{name}'")
     dirs = None
     if directions is not None:
-        vals = _parse_floats(directions, "--directions")
+        vals = parse_floats(directions, "--directions")
         if any(abs(d) > 360.0 for d in vals):
             raise click.BadParameter(f"{directions!r}: each direction must be within [-360, 360] deg",
                                      param_hint="'--directions'")

@@ -1,0 +1,173 @@
+"""The ``tapm report``, ``tapm study run`` and ``tapm compare`` commands."""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import click
+
+from ..config.loader import log_size_issues
+from ._common import check_issues, cli, load, out_path
+
+
+@cli.command()
+@click.argument("study_dir", metavar="DIR", type=click.Path())
+@click.option("--html", "out_html", type=click.Path(dir_okay=False), default=None, callback=out_path("file"),
+              help="HTML file (default DIR/report.html).")
+@click.option("--md", "out_md", type=click.Path(dir_okay=False), default=None, callback=out_path("file"),
+              help="Markdown file (default DIR/report.md).")
+def report(study_dir: str, out_html: str | None, out_md: str | None) -> None:
+    """Write the HTML and Markdown report of the study results in DIR (saved results only)."""
+    from ..report import write_report
+
+    if not study_dir.strip():
+        raise click.BadParameter(f"{study_dir!r} is empty: give the study directory", param_hint="DIR")
+    html, md = write_report(study_dir, out_html=out_html, out_md=out_md)
+    click.echo(f"wrote {html}")
+    click.echo(f"wrote {md}")
+
+
+# ------------------------------------------------------------------------------------------
+# tapm study run, tapm compare
+# ------------------------------------------------------------------------------------------
+
+
+@cli.group()
+def study() -> None:
+    """Design studies: many closed-loop cases, in parallel, resumable."""
+
+
+EXIT_CASES_FAILED = 1
+
+_workers_option = click.option(
+    "--workers", type=click.IntRange(0, 256), default=None,
+    help="Local worker processes (default: CPU count; 0: one case after the other in this process).")
+
+
+def _exit_if_failed(summary) -> None:
+    """With failed cases: name them, say how many, and exit with status 1."""
+    if summary.failed:
+        for cid in summary.failed:
+            click.echo(f"  failed: case {cid}: {summary.errors.get(cid, '')}", err=True)
+        click.echo(f"error: {len(summary.failed)} of {summary.n_cases} cases failed (traceback in "
+                   f"{Path(summary.out_dir) / 'cases' / '<id>' / 'error.json'}; re-running runs them again)", err=True)
+        sys.exit(EXIT_CASES_FAILED)
+
+
+@study.command("run")
+@click.argument("study_file", metavar="STUDY.toml", type=click.Path(dir_okay=False))
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), required=True,
+              callback=out_path("dir", "study directory"), help="Study output directory.")
+@_workers_option
+@click.option("--scheduler", default=None, help="Dask distributed scheduler address (tcp://host:port); needs the 'dask' extra.")
+@click.option("--no-progress", is_flag=True, help="No progress bar.")
+def study_run(study_file: str, out_dir: str, workers: int | None, scheduler: str | None, no_progress: bool) -> None:
+    """Run every case of STUDY.toml not yet finished in OUT (re-running resumes), then the KPI table.
+
+    Exit status 0 when every case finished, 1 when any case failed (each failed case has
+    OUT/cases/<id>/error.json), 2 for a bad study file or option, or when another run is writing
+    into OUT.
+    """
+    from ..studies.study import load_study, run_study
+
+    if not study_file.strip():
+        raise click.BadParameter(f"{study_file!r} is empty: give the study file", param_hint="STUDY.toml")
+    st = load_study(study_file)
+    summary = run_study(st, out_dir, workers=workers, scheduler=scheduler, progress=not no_progress)
+    click.echo(str(summary))
+    _exit_if_failed(summary)
+
+
+def _compare_sea_state(sc, requested: str | None) -> tuple[str, str | None]:
+    """The sea state of ``tapm compare`` and a note saying why when it is not the one asked for.
+
+    ``requested`` if given; else ``storm``; else the scenario's most severe sea state: largest Hs,
+    then largest wind speed, then largest current speed.
+    """
+    ids = [s.id for s in sc.sea_states]
+    if requested is not None:
+        if requested not in ids:
+            raise click.BadParameter(f"{requested!r} is not a sea state of scenario {sc.name!r}; its sea states: "
+                                     f"{', '.join(ids) or 'none'}", param_hint="'--sea-state'")
+        return requested, None
+    if "storm" in ids:
+        return "storm", None
+    if not ids:
+        raise click.BadParameter(f"scenario {sc.name!r} defines no sea state", param_hint="SCENARIO")
+    worst = max(sc.sea_states, key=lambda s: (s.Hs, s.wind_speed, s.current_speed))
+    which = "its only sea state" if len(ids) == 1 else "its most severe sea state (largest Hs)"
+    return worst.id, (f"scenario {sc.name} has no sea state 'storm': using {which}, {worst.id!r} (Hs {worst.Hs:g} m, "
+                      f"Tp {worst.Tp:g} s, wind {worst.wind_speed:g} m/s, current {worst.current_speed:g} m/s)")
+
+
+@cli.command()
+@click.argument("scenario_name", metavar="[SCENARIO]", default="fpso")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="tapm_compare", show_default=True,
+              callback=out_path("dir", "study directory"),
+              help="Output directory (results, KPI tables, report).")
+@_workers_option
+@click.option("--duration", type=float, default=None, help="Override the study's duration [s].")
+@click.option("--sea-state", "sea_state", default=None,
+              help="Sea state id of SCENARIO (default: 'storm'; a scenario without one: its most severe, largest Hs).")
+def compare(scenario_name: str, out_dir: str, workers: int | None, duration: float | None,
+            sea_state: str | None) -> None:
+    """The main job: MPC against PID in a storm with a line break half-way, and the report.
+
+    Runs the default study (tapm_opt/studies/builtin/mpc_vs_pid.toml, also studies/mpc_vs_pid.toml)
+    on SCENARIO (default: the built-in fpso) in its sea state 'storm' (or --sea-state; a scenario
+    with no 'storm' runs in its most severe sea state, the one with the largest Hs, and the output
+    says which), writes OUT/report.html and OUT/report.md and prints the headline KPIs. Re-running
+    resumes. Exit status 1 when any case failed.
+    """
+    import tomllib
+
+    from ..report import write_report
+    from ..studies.study import run_study, study_from_dict
+
+    path = Path(__file__).parent.parent / "studies" / "builtin" / "mpc_vs_pid.toml"
+    data = tomllib.loads(path.read_text(encoding="utf-8"))
+    if duration is not None:
+        if not (math.isfinite(duration) and duration > 0):
+            raise click.BadParameter(f"--duration = {duration} must be a positive number of seconds")
+        data["study"]["duration"] = duration
+    sc = load(scenario_name)
+    if duration is not None:
+        check_issues(log_size_issues(sc, duration, float(data["study"].get("dt_log", 1.0)), where="--duration",
+                                      dt_name="the study's dt_log"))
+    sid, note = _compare_sea_state(sc, sea_state)
+    if note:
+        click.echo(note)
+    ss = sc.sea_state(sid)
+    brk = data["conditions"][0]["line_break"]
+    data["study"]["scenario"] = scenario_name
+    data["sea_states"] = [{"id": sid}]
+    data["study"]["description"] = (
+        f"PID control modes vs linear and nonlinear MPC on {sc.name} in sea state {sid} (Hs {ss.Hs:g} m, Tp {ss.Tp:g} s, wind "
+        f"{ss.wind_speed:g} m/s, current {ss.current_speed:g} m/s); line {brk['line']} breaks at "
+        f"{brk['time_fraction'] * data['study']['duration']:g} s")
+    st = study_from_dict(data, base_dir=Path.cwd(), source=str(path))
+    summary = run_study(st, out_dir, workers=workers, progress=True)
+    html, md = write_report(out_dir)
+    click.echo(str(summary))
+    _print_headlines(Path(out_dir), [c.id for c in st.cases])
+    click.echo(f"report: {html}")
+    click.echo(f"        {md}")
+    _exit_if_failed(summary)
+
+
+def _print_headlines(out: Path, ids: list[str]) -> None:
+    from ..studies.store import load_study_results
+
+    rows = [r for r in load_study_results(out) if r.id in ids and r.status == "finished"]
+    if not rows:
+        return
+    click.echo(f"  {'case':42s} {'offset max':>10} {'outside safe':>12} {'T/MBS max':>9} {'delta min':>9} {'energy':>10}")
+    nan = float("nan")
+    for r in rows:
+        k, labels = r.kpis, r.labels
+        name = f"{labels.get('controller')}, {labels.get('sea_state')}, {labels.get('condition')}"
+        click.echo(f"  {name[:42]:42s} {k.get('offset_max', nan):8.1f} m {k.get('time_outside_safe', nan):10.0f} s "
+                   f"{k.get('util_max', nan):9.3f} {k.get('delta_min', nan):9.2f} "
+                   f"{k.get('thrust_energy', nan) / 3.6e9:6.2f} MWh")
