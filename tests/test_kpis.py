@@ -236,6 +236,50 @@ def test_dnv_als_after_a_line_break_excludes_the_broken_line():
     json.dumps(kp, allow_nan=False)
 
 
+def test_an_overload_break_counts_and_its_tension_enters_the_maxima():
+    """A line breaks at 101 % of its MBS between two 1 s samples: the samples peak at 99.8 %, the
+    plant's event carries the 101 %; the overload event splits the record like a prescribed break."""
+    t = grid(100.0, 1.0)
+    tb = 50.4
+    T = {lid: np.full(len(t), 4e6) for lid in LINES}
+    T["2"] = np.where(t <= 50.0, 4e6 + 5.98e6 * (t / 50.0) ** 4, 0.0)  # 9.98 MN at 50 s, broken at 51 s
+    ev = (tb, "line 2 broke: overload, tension 10.1 MN = 101 % MBS >= strength 10 MN")
+    res = make_result(t, T=T, events=[ev])
+    kp = case_kpis(res, scenario(MBS=10e6, MBS_std=0.0), dnv_class1_common_factor=False)
+    assert kp["lines_broken"] == 1
+    assert kp["T_max[2]"] == pytest.approx(10.1e6) and kp["T_max"] == pytest.approx(10.1e6)
+    assert kp["util_max[2]"] == pytest.approx(1.01) and kp["util_max"] == pytest.approx(1.01)
+    assert kp["T_mean[2]"] < 9.98e6  # the mean is of the samples, up to the break
+    # the broken line's ULS check sees the tension that broke it; the others have an ALS check
+    mean2 = float(np.trapezoid(T["2"][:51], t[:51]) / 50.0)
+    assert kp["dnv_uls[2]"] == pytest.approx((1.1 * mean2 + 1.5 * (10.1e6 - mean2)) / 9.5e6, rel=1e-9)
+    assert "dnv_als[2]" not in kp and kp["dnv_als_pass"] == 3
+    assert basic_kpis(res, scenario(MBS=10e6))["utilisation_max"] == pytest.approx(1.01)
+    # without the tension in the event only the samples are known
+    plain = make_result(t, T=T, events=[(tb, "line 2 broke")])
+    assert case_kpis(plain, scenario(MBS=10e6))["util_max"] == pytest.approx(0.998)
+    # in the plant's 'mbs' mode a line breaks at its MBS at least: the event's rounding cannot read lower
+    low = make_result(t, T=T, events=[(tb, "line 2 broke: overload, tension 9.99 MN = 100 % MBS >= strength 10 MN")])
+    assert case_kpis(low, scenario(MBS=10e6))["util_max"] == pytest.approx(1.0)
+    low.meta["break_on_overload"] = "mbs"
+    assert case_kpis(low, scenario(MBS=10.02e6))["util_max"] == pytest.approx(1.0)
+
+
+def test_kpis_take_a_system_as_well_as_a_scenario():
+    from tapm_opt.models.system import System
+
+    t = grid(100.0, 0.5)
+    res = make_result(t, x=10 + np.sin(t), T={"1": np.full(len(t), 2e6)}, drop=("psi_d",))
+    sc = scenario()
+    system = System.from_scenario(sc)
+    assert basic_kpis(res, system) == basic_kpis(res, sc)
+    full = make_result(t, x=10 + np.sin(t), T={"1": np.full(len(t), 2e6)}, events=[(60.0, "line 3 broke")])
+    assert case_kpis(full, system) == case_kpis(full, sc)
+    # a system of the damaged condition still carries the whole scenario: every line's KPIs
+    damaged = system.with_broken(["3"])
+    assert case_kpis(full, damaged) == case_kpis(full, sc)
+
+
 def test_a_break_event_naming_an_unknown_line_is_an_error():
     t = grid(10.0, 1.0)
     with pytest.raises(KpiError, match=r"T_fairlead\[9\]"):

@@ -8,7 +8,8 @@ reliability index of survey eq. (32) -- causal, as a monitor on board would comp
 the riser end angles and their indices ([G] §2.2) when the result carries them, the DNV-OS-E301
 (October 2008) line-strength check, thrust energy and a fuel proxy, and the controller's
 solve-time statistics. :func:`kpi_table` writes one row per case as CSV and Markdown. Every
-definition, unit and assumption is in ``docs/kpis.md``.
+definition and assumption is in ``docs/kpis.md``; every KPI's unit, better direction and column
+order in :mod:`tapm_opt.studies.kpi_catalogue` (:func:`kpi_unit` and :func:`kpi_order` are its).
 
 :func:`basic_kpis` (used by ``tapm simulate``) is the historical subset of :func:`case_kpis`.
 """
@@ -20,7 +21,7 @@ import io
 import math
 import re
 from dataclasses import dataclass
-from typing import Any, Iterable, Mapping, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
@@ -29,12 +30,14 @@ from ..estimation.reliability import LP_WINDOW_DEFAULT, SIGMA_WINDOW_DEFAULT, ca
 from ..geometry import ssa, turret_offset
 from ..results import Result
 from ..standards import DNV_CAPACITY_FACTOR, DNV_CLASS1_COMMON_FACTOR, DNV_E301_2008_FACTORS
+from .kpi_catalogue import kpi as _catalogue_kpi
+from .kpi_catalogue import kpi_order, kpi_unit, per_line_kpis
 
 __all__ = [
     "KpiError", "case_kpis", "basic_kpis", "kpi_table", "kpi_unit", "kpi_order",
     "gumbel_k", "low_pass", "reliability_index", "ReliabilityTrace",
     "DNV_E301_2008_FACTORS", "DNV_CAPACITY_FACTOR", "SFC_DEFAULT", "LP_WINDOW_DEFAULT", "SIGMA_WINDOW_DEFAULT",
-    "DELTA_S_DEFAULT", "RISER_ENDS", "IndexRun", "causal_runs", "break_times",
+    "DELTA_S_DEFAULT", "RISER_ENDS", "IndexRun", "causal_runs", "break_times", "break_tensions",
 ]
 
 
@@ -53,40 +56,17 @@ SFC_DEFAULT = 0.2
 #: Lower threshold of the reliability index (seed line-break example).
 DELTA_S_DEFAULT = 2.0
 
-_BREAK_RE = re.compile(r"line\s+(\S+)\s+broke")
+# The plant's break events: "line <id> broke" (a prescribed break) and "line <id> broke: overload,
+# tension <T> MN = <p> % MBS >= strength <S> MN" (tension and strength to 3 significant digits).
+_BREAK_RE = re.compile(r"line\s+(\S+)\s+broke(?::\s*(?P<detail>.*))?", re.DOTALL)
+_BREAK_TENSION_RE = re.compile(r"\btension\s+(?P<T>[0-9][0-9.]*(?:[eE][-+]?[0-9]+)?)\s*MN\b")
+_BREAK_STRENGTH_RE = re.compile(r"\bstrength\s+(?P<S>[0-9][0-9.]*(?:[eE][-+]?[0-9]+)?)\s*MN\b")
 
-# Stable order of the KPI columns (kpi_order); per-line names follow the aggregate ones.
-_AGG_ORDER: tuple[tuple[str, str], ...] = (
-    ("duration", "s"),
-    ("offset_max", "m"), ("offset_mean", "m"), ("offset_std", "m"),
-    ("time_outside_safe", "s"), ("time_outside_alert", "s"),
-    ("heading_error_max", "deg"),
-    ("T_max", "N"), ("util_max", "-"),
-    ("delta_min", "-"), ("delta_frac_below", "-"), ("delta_min_offline", "-"),
-    ("dnv_uls_max", "-"), ("dnv_uls_pass", "lines"), ("dnv_uls_fail", "lines"),
-    ("dnv_als_max", "-"), ("dnv_als_pass", "lines"), ("dnv_als_fail", "lines"),
-    ("lines_broken", "lines"),
-    ("break_detected_at", "s"), ("detection_delay", "s"), ("break_isolated", "-"), ("break_isolated_line", ""),
-    ("false_alarms", "-"), ("mode_switches", "-"),
-    ("riser_top_angle_max_deg", "deg"), ("riser_bottom_angle_max_deg", "deg"),
-    ("riser_delta_min", "-"), ("riser_delta_top_min", "-"), ("riser_delta_bottom_min", "-"),
-    ("riser_delta_frac_below", "-"),
-    ("thrust_energy", "J"), ("thrust_power_mean", "W"), ("fuel", "kg"),
-    ("thrust_to_command_ratio", "-"), ("winch_energy", "J"),
-    ("solver_time_median", "s"), ("solver_time_p95", "s"), ("solver_time_max", "s"),
-    ("solver_failures", "-"), ("solver_fallbacks", "-"), ("allocation_fallbacks", "-"),
-)
-_LINE_ORDER: tuple[tuple[str, str], ...] = (
-    ("T_max", "N"), ("T_mean", "N"), ("util_max", "-"), ("delta_min", "-"), ("delta_frac_below", "-"),
-    ("delta_min_offline", "-"), ("dnv_uls", "-"), ("dnv_als", "-"),
-)
-_UNITS = {**dict(_AGG_ORDER), **{f"{k}[]": u for k, u in _LINE_ORDER}, "utilisation_max": "-"}
+# Units, directions and the column order of the KPIs: tapm_opt.studies.kpi_catalogue (one table).
+#: The per-line quantities, in column order (T_max, T_mean, util_max, ...).
+_LINE_QUANTITIES: tuple[str, ...] = tuple(e.base for e in per_line_kpis())
 _DIAG_KEYS = ("solver_time_median", "solver_time_p95", "solver_time_max", "solver_failures", "solver_fallbacks",
               "allocation_fallbacks")
-_COUNT_KEYS = {"dnv_uls_pass", "dnv_uls_fail", "dnv_als_pass", "dnv_als_fail", "lines_broken", "false_alarms",
-               "mode_switches",
-               "solver_failures",
-               "solver_fallbacks", "allocation_fallbacks"}
 _LABEL_ORDER = ("scenario", "sea_state", "controller", "condition", "seed")
 #: The riser ends: (KPI name part, angle-magnitude channel [rad], Riser field of the mean critical angle).
 RISER_ENDS: tuple[tuple[str, str, str], ...] = (
@@ -300,10 +280,12 @@ def _run_stats(runs: Sequence[IndexRun], delta_s: float) -> tuple[float, float]:
 
 
 def _dnv_ratio(t: np.ndarray, T: np.ndarray, mbs: float, limit_state: str, consequence_class: int,
-               common_factor: bool) -> float:
+               common_factor: bool, peak: float = -math.inf) -> float:
+    """LHS / S_C of the line check on the record (t, T); ``peak`` [N]: a maximum the samples
+    missed (the tension of the line's break)."""
     g_mean, g_dyn = DNV_E301_2008_FACTORS[(limit_state, consequence_class)]
     t_mean = _tmean(t, T)
-    t_dyn = float(T.max()) - t_mean
+    t_dyn = max(float(T.max()), peak) - t_mean
     lhs = g_mean * t_mean + g_dyn * t_dyn
     if common_factor and limit_state == "ULS" and consequence_class == 1 and t_mean > 2.0 / 3.0 * t_dyn:
         lhs = DNV_CLASS1_COMMON_FACTOR * (t_mean + t_dyn)
@@ -322,10 +304,10 @@ def _channel(result: Result, name: str, what: str, mask: np.ndarray) -> np.ndarr
     return x
 
 
-def break_times(result: Any, line_ids: Sequence[str] | None = None) -> dict[str, float]:
-    """``{line id: time [s]}`` of the ``"line <id> broke"`` events of a result (the first per
-    line); with ``line_ids``, an event naming another line is an error."""
-    out: dict[str, float] = {}
+def _break_events(result: Any, line_ids: Sequence[str] | None) -> list[tuple[float, str, str]]:
+    """``(time, line id, detail)`` of the line-break events of a result, in log order (``detail``:
+    the text after ``"broke:"``, empty for a prescribed break)."""
+    out = []
     for ev in result.meta.get("events", []) or []:
         try:
             te, text = float(ev[0]), str(ev[1])
@@ -337,7 +319,45 @@ def break_times(result: Any, line_ids: Sequence[str] | None = None) -> dict[str,
         lid = m.group(1)
         if line_ids is not None and lid not in line_ids:
             raise KpiError(f"event {text!r} at t = {te:g} s names a line without a channel 'T_fairlead[{lid}]'")
+        out.append((te, lid, m.group("detail") or ""))
+    return out
+
+
+def break_times(result: Any, line_ids: Sequence[str] | None = None) -> dict[str, float]:
+    """``{line id: time [s]}`` of the ``"line <id> broke"`` events of a result (the first per
+    line), prescribed breaks and overload breaks (``"line <id> broke: overload, ..."``) alike; with
+    ``line_ids``, an event naming another line is an error."""
+    out: dict[str, float] = {}
+    for te, lid, _ in _break_events(result, line_ids):
         out[lid] = min(te, out.get(lid, math.inf))
+    return out
+
+
+def break_tensions(result: Any, line_ids: Sequence[str] | None = None,
+                   strength: Mapping[str, float] | None = None) -> dict[str, float]:
+    """``{line id: tension [N]}`` at the overload break of each line that broke from overload.
+
+    The plant checks the tension at every step and logs the break with the tension that broke
+    the line (``"line <id> broke: overload, tension <T> MN = ... >= strength <S> MN"``), which the
+    logged samples, taken at ``dt_log``, usually miss: the break's peak falls between them. The
+    event's figures are rounded to 3 significant digits, so the tension returned is the larger
+    of ``<T>``, ``<S>`` and ``strength[line]`` when given (the plant breaks a line only when its
+    tension has reached its strength). A prescribed break (no tension in its event) gives none.
+    """
+    first = break_times(result, line_ids)
+    out: dict[str, float] = {}
+    for te, lid, detail in _break_events(result, line_ids):
+        if te != first[lid] or lid in out:
+            continue
+        mt = _BREAK_TENSION_RE.search(detail)
+        if not mt:
+            continue
+        ms = _BREAK_STRENGTH_RE.search(detail)
+        vals = [float(mt.group("T")) * 1e6, float(ms.group("S")) * 1e6 if ms else 0.0]
+        if strength is not None and lid in strength:
+            vals.append(float(strength[lid]))
+        if all(math.isfinite(v) for v in vals):
+            out[lid] = max(vals)
     return out
 
 
@@ -377,10 +397,23 @@ def _mode_switches(result: Result) -> dict[str, float]:
     return {"mode_switches": sum(1 for e in log if isinstance(e, Mapping) and e.get("event") == "mode switch")}
 
 
+def _scenario_of(system_or_scenario: Any) -> Any:
+    """The scenario of a :class:`~tapm_opt.models.system.System`, or the argument itself (a
+    scenario: lines, thrusters, limits, turret and riser are read from it)."""
+    from ..config import Scenario
+
+    if isinstance(system_or_scenario, Scenario):
+        return system_or_scenario
+    from ..models.system import System   # only for an argument that is not a scenario (CasADi)
+
+    return system_or_scenario.scenario if isinstance(system_or_scenario, System) else system_or_scenario
+
+
 def _compute(result: Result, scenario: Any, *, t_start: float, lp_window: float, delta_s: float,
              consequence_class: int, sfc: float, dnv_class1_common_factor: bool,
              require_setpoint: bool = True, sigma_window: float = SIGMA_WINDOW_DEFAULT,
              reliability: bool = True) -> dict[str, float]:
+    scenario = _scenario_of(scenario)
     if consequence_class not in (1, 2):
         raise KpiError(f"consequence_class = {consequence_class!r} must be 1 or 2")
     if not (sfc >= 0 and math.isfinite(sfc)):
@@ -436,7 +469,12 @@ def _compute(result: Result, scenario: Any, *, t_start: float, lp_window: float,
     t_b1 = min(breaks.values(), default=math.inf)
     mbs_all = scenario.line_arrays["MBS"]
     mbs_std_all = scenario.line_arrays["MBS_std"]
-    per: dict[str, dict[str, float]] = {k: {} for k, _ in _LINE_ORDER}
+    # the tension of an overload break, which falls between the logged samples; in the plant's
+    # 'mbs' mode a line breaks at its MBS, which bounds the event's rounded figures from below
+    floor = ({lid: float(v) for lid, v in zip(line_ids, mbs_all)}
+             if result.meta.get("break_on_overload") == "mbs" else None)
+    peaks = break_tensions(result, line_ids, floor)
+    per: dict[str, dict[str, float]] = {k: {} for k in _LINE_QUANTITIES}
     eps = 1e-9 * max(1.0, abs(float(t[-1])))
     intact_all = t <= t_b1 + eps
     segments = (intact_all, ~intact_all)
@@ -453,15 +491,19 @@ def _compute(result: Result, scenario: Any, *, t_start: float, lp_window: float,
         intact = alive & intact_all
         damaged = alive & ~intact
         ta, Ta = t[alive], T[alive]
-        per["T_max"][lid] = float(Ta.max())
+        # the line's own break (in the window, as the line is alive there) with the tension that broke it
+        peak = peaks.get(lid, -math.inf)
+        t_max = max(float(Ta.max()), peak)
+        per["T_max"][lid] = t_max
         per["T_mean"][lid] = _tmean(ta, Ta)
-        per["util_max"][lid] = float(Ta.max() / mbs)
+        per["util_max"][lid] = t_max / mbs
+        peak_intact = peak if breaks.get(lid, math.inf) <= t_b1 + eps else -math.inf
         if intact.any():
             per["dnv_uls"][lid] = _dnv_ratio(t[intact], T[intact], mbs, "ULS", consequence_class,
-                                             dnv_class1_common_factor)
+                                             dnv_class1_common_factor, peak_intact)
         if damaged.any():
             per["dnv_als"][lid] = _dnv_ratio(t[damaged], T[damaged], mbs, "ALS", consequence_class,
-                                             dnv_class1_common_factor)
+                                             dnv_class1_common_factor, peak if peak_intact == -math.inf else -math.inf)
         if mbs_std > 0 and reliability:
             rel_cols.append(j)
             traces = [reliability_index(t[seg], T[seg], mbs, mbs_std, window=lp_window)
@@ -543,9 +585,9 @@ def _compute(result: Result, scenario: Any, *, t_start: float, lp_window: float,
     for k in _DIAG_KEYS:
         v = diag.get(k)
         if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v):
-            out[k] = int(v) if k in _COUNT_KEYS else float(v)
+            out[k] = int(v) if _catalogue_kpi(k).kind == "count" else float(v)
 
-    for k, _ in _LINE_ORDER:
+    for k in _LINE_QUANTITIES:
         for lid, v in per[k].items():
             out[f"{k}[{lid}]"] = v
     return out
@@ -590,9 +632,10 @@ def case_kpis(result: Result, scenario: Any, *, t_start: float = 0.0, lp_window:
         line, ``P[<thruster>]`` for every scenario thruster; ``riser_top_angle``,
         ``riser_bottom_angle`` [rad] (angle magnitudes) and ``meta["events"]``,
         ``meta["diagnostics"]`` when present).
-    scenario : Scenario
+    scenario : Scenario or System
         The scenario the result was run with (MBS, MBS_std, limits, line and thruster ids, the
-        riser's critical angles).
+        riser's critical angles), or a :class:`~tapm_opt.models.system.System` built from it
+        (its ``scenario`` is read).
     t_start : float
         Samples before this time [s] are left out of every statistic (start-up transient);
         default 0. The solver statistics from ``meta["diagnostics"]`` always cover the whole run.
@@ -634,7 +677,8 @@ def case_kpis(result: Result, scenario: Any, *, t_start: float = 0.0, lp_window:
 
 
 def basic_kpis(result: Result, scenario: Any) -> dict[str, float]:
-    """Offsets, heading error, tensions, thrust energy and solver statistics of one run.
+    """Offsets, heading error, tensions, thrust energy and solver statistics of one run
+    (``scenario``: the Scenario or a System built from it, as in :func:`case_kpis`).
 
     The historical subset of :func:`case_kpis` (whole record): ``duration``, ``offset_max``/
     ``offset_mean``/``offset_std`` [m], ``time_outside_safe``/``time_outside_alert`` [s],
@@ -658,39 +702,6 @@ def basic_kpis(result: Result, scenario: Any) -> dict[str, float]:
 
 
 # -- tables ------------------------------------------------------------------------------------
-
-_PER_LINE_RE = re.compile(r"^(.*)\[(.*)\]$")
-
-
-def _natural(s: str) -> tuple:
-    return tuple((0, int(p), "") if p.isdigit() else (1, 0, p) for p in re.split(r"(\d+)", s) if p)
-
-
-def kpi_unit(name: str) -> str:
-    """Unit of a KPI name (``"N"``, ``"m"``, ``"-"``, ...); ``""`` for an unknown name."""
-    m = _PER_LINE_RE.match(name)
-    return _UNITS.get(f"{m.group(1)}[]" if m else name, "")
-
-
-def kpi_order(names: Iterable[str]) -> list[str]:
-    """Sort KPI names into the documented column order: the aggregate KPIs in their fixed order,
-    then the per-line KPIs grouped by quantity (T_max, T_mean, util_max, delta_min,
-    delta_frac_below, delta_min_offline, dnv_uls, dnv_als) with line ids in natural order, then any
-    other names alphabetically."""
-    names = list(dict.fromkeys(names))
-    agg = [k for k, _ in _AGG_ORDER]
-    line_q = [k for k, _ in _LINE_ORDER]
-
-    def key(n: str) -> tuple:
-        if n in agg:
-            return (0, agg.index(n), ())
-        m = _PER_LINE_RE.match(n)
-        if m and m.group(1) in line_q:
-            return (1, line_q.index(m.group(1)), _natural(m.group(2)))
-        return (2, 0, (n,))
-
-    return sorted(names, key=key)
-
 
 def _row_parts(row: Mapping[str, Any]) -> tuple[Any, Any, dict, dict]:
     labels = dict(row.get("labels") or {})
