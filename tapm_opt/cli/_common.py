@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any
 
 import click
 import numpy as np
@@ -13,7 +14,7 @@ import numpy as np
 from .. import __version__
 from ..config import load_scenario
 
-__all__ = ["EXIT_USER_ERROR", "State", "cli", "load", "out_path", "check_issues", "parse_floats", "key_values",
+__all__ = ["EXIT_USER_ERROR", "State", "ControllerKindChoice", "cli", "load", "out_path", "check_issues", "parse_floats", "key_values",
            "parse_value"]
 
 EXIT_USER_ERROR = 2
@@ -23,6 +24,26 @@ class State:
     """Process-wide flags of the command line (``--verbose``)."""
 
     verbose = False
+
+
+class ControllerKindChoice(click.ParamType):
+    """``--controller``: a registered controller kind (:mod:`tapm_opt.control.registry`), read
+    when the option is parsed, so an installed plugin's kind is a choice too."""
+
+    name = "kind"
+
+    def get_metavar(self, param: click.Parameter, ctx: click.Context | None = None) -> str:
+        from ..control.registry import kind_names
+
+        return "[" + "|".join(kind_names()) + "]"
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> str:
+        from ..control.registry import ControllerSpecError, kind
+
+        try:
+            return kind(value, where="--controller").name
+        except ControllerSpecError as exc:
+            self.fail(str(exc).removeprefix("--controller.type = "), param, ctx)
 
 
 def load(name_or_path: str):

@@ -3,20 +3,21 @@
 from __future__ import annotations
 
 import math
-import time
 from pathlib import Path
 
 import click
 
 from .._io import atomic_write_text
 from ..config.loader import fem_size_issues, log_size_issues
-from ._common import check_issues, cli, key_values, load, out_path
+from ._common import ControllerKindChoice, check_issues, cli, key_values, load, out_path
 
 
 @cli.command()
 @click.argument("scenario_name", metavar="SCENARIO")
-@click.option("--controller", type=click.Choice(["pid", "mpc", "lmpc"]), default="pid", show_default=True,
-              help="PID modes, nonlinear MPC, or linear MPC (piqp; --option qp_solver=osqp|daqp).")
+@click.option("--controller", type=ControllerKindChoice(), default="pid", show_default=True,
+              help="A registered controller kind: pid (the TAPM PID modes), mpc (nonlinear MPC: real-time iteration, "
+                   "DAQP; --option solver=sqp for the converged SQP), lmpc (linear MPC, DAQP; --option "
+                   "qp_solver=piqp|osqp for the sparse QP), or an installed one (docs/controllers.md).")
 @click.option("--duration", type=float, default=3600.0, show_default=True, help="Simulated time [s].")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), required=True,
               callback=out_path("dir", "run directory"), help="Run directory to write.")
@@ -59,10 +60,8 @@ def simulate(scenario_name: str, controller: str, duration: float, out_dir: str,
     import json
 
     from ..models.system import System
-    from ..plant.simulator import Plant
-    from ..studies.closed_loop import DEFAULT_ESTIMATOR, ClosedLoopSettings, run_closed_loop
-    from ..studies.controllers import build_controller
-    from ..studies.kpis import basic_kpis
+    from ..studies.closed_loop import ClosedLoopSettings
+    from ..studies.recipe import run_case_on
 
     if not (math.isfinite(duration) and duration > 0):
         raise click.BadParameter(f"--duration = {duration} must be a positive number of seconds")
@@ -106,42 +105,35 @@ def simulate(scenario_name: str, controller: str, duration: float, out_dir: str,
                                  param_hint="'--sea-state'")
     check_issues(fem_size_issues(sc, segments, where="--segments"))
     check_issues(log_size_issues(sc, duration, dt_log, where="--duration", dt_name="every control step, >= 1 s apart"))
-    system = System.from_scenario(sc)  # built once: controller, runner and estimator share it
-    ctrl = build_controller(system, spec, where="--option", dt_control=dt_control,
-                            estimator=estimation.get("estimator", DEFAULT_ESTIMATOR),
-                            winch=(w_opts or {}) if winch == "tension" else None)
+    system = System.from_scenario(sc)  # built once: controller, plant and runner share it
     settings = ClosedLoopSettings(duration=duration, dt_control=dt_control, dt_log=dt_log, true_state=true_state,
                                   setpoint=setpoint, heading=heading, setpoint_options=sp_opts or None, **estimation,
                                   **winching)
-    w0 = time.perf_counter()
-    plant = Plant(system, sea_state=sea_state, seed=seed, segments=segments)
     try:
-        res = run_closed_loop(plant, ctrl, settings, system=system,
-                              meta={"controller_spec": {**spec, **estimation}, "seed": seed})
+        run = run_case_on(system, spec, settings, sea_state=sea_state, seed=seed, segments=segments,
+                          where="--option", meta={"controller_spec": {**spec, **estimation}})
     except ClosedLoopError as exc:   # e.g. --winch tension on a scenario without winches
         raise click.BadParameter(str(exc), param_hint="'--winch'") from None
+    res, k = run.result, dict(run.kpis)
+    k["utilisation_max"] = k.get("util_max", math.nan)   # the summary's name since its first version
     out = Path(out_dir)
     res.save(out / "result.npz")
-    k = basic_kpis(res, sc)
     summary = {"scenario": sc.name, "controller": spec, **estimation,
                **({"winch": winch, "winch_options": w_opts} if winch != "none" else {}),
-               "sea_state": plant.sea_state.id if plant.sea_state else "none",
-               "seed": seed, "duration": duration, "kpis": k, "diagnostics": res.meta.get("diagnostics", {}),
-               "events": plant.events}
-    wall = time.perf_counter() - w0
-    summary["wall_time"] = wall
-    summary["settle"] = {"time": plant.settle_info.time, "wall_time": plant.settle_info.wall_time}
-    click.echo(f"{sc.name}, {controller}, {summary['sea_state']} sea, {duration:g} s (wall {wall:.1f} s, of which "
-               f"{plant.settle_info.wall_time:.1f} s settling the lines)")
+               "sea_state": run.sea_state, "seed": seed, "duration": duration, "kpis": k,
+               "diagnostics": res.meta.get("diagnostics", {}), "events": run.events, "wall_time": run.wall_time,
+               "settle": {"time": run.settle_time, "wall_time": run.settle_wall_time}}
+    click.echo(f"{sc.name}, {controller}, {run.sea_state} sea, {duration:g} s (wall "
+               f"{run.wall_time:.1f} s, of which {run.settle_wall_time:.1f} s settling the lines)")
+    for t, what in run.events:   # line breaks and thruster failures, as the plant logged them
+        click.echo(f"  t = {t:.1f} s: {what}")
     click.echo(f"  offset max {k['offset_max']:.1f} m, mean {k['offset_mean']:.1f} m; outside safe circle "
                f"{k['time_outside_safe']:.0f} s; heading error max {k['heading_error_max']:.1f} deg")
+    n_broken = int(k.get("lines_broken", 0) or 0)
     click.echo(f"  max tension {k['T_max'] / 1e3:.0f} kN ({100 * k['utilisation_max']:.1f} % MBS); "
-               f"thrust energy {k['thrust_energy'] / 3.6e9:.3f} MWh")
+               f"thrust energy {k['thrust_energy'] / 3.6e9:.3f} MWh"
+               + (f"; {n_broken} line{'s' if n_broken != 1 else ''} broken" if n_broken else ""))
     if winch != "none":
-        from ..studies.kpis import case_kpis
-
-        kw = case_kpis(res, sc)
-        k.update({n: kw[n] for n in ("thrust_to_command_ratio", "winch_energy") if n in kw})
         click.echo(f"  winch control: thrust/command {k.get('thrust_to_command_ratio', float('nan')):.3f}, "
                    f"winch energy {k.get('winch_energy', 0.0) / 3.6e9:.4f} MWh")
     if "solver_time_median" in k:

@@ -17,5 +17,10 @@ from .reliability import (LP_WINDOW_DEFAULT as LP_WINDOW_DEFAULT, SIGMA_WINDOW_D
                           ReliabilityRecord as ReliabilityRecord, ReliabilityState as ReliabilityState,
                           causal_reliability as causal_reliability, gumbel_k as gumbel_k)
 
-__all__ = ["ReliabilityMonitor", "ReliabilityState", "ReliabilityRecord", "ReliabilityError", "causal_reliability",
+#: The estimator of the closed loop, study files, ``tapm simulate`` and the controllers' build
+#: context unless one is chosen: the EKF, which left the least wave-frequency motion in its LF
+#: estimate (docs/estimation.md).
+DEFAULT_ESTIMATOR = "ekf"
+
+__all__ = ["DEFAULT_ESTIMATOR", "ReliabilityMonitor", "ReliabilityState", "ReliabilityRecord", "ReliabilityError", "causal_reliability",
            "gumbel_k", "LP_WINDOW_DEFAULT", "SIGMA_WINDOW_DEFAULT"]

@@ -35,6 +35,7 @@ from ..control.allocation import ThrustAllocator
 from ..control.setpoint import FixedSetpoint, HeadingChasing, SetpointChasing
 from ..control.setpoint_opt import METHODS, OptimalSetpoint, SetpointOptions
 from ..errors import TapmError
+from ..estimation import DEFAULT_ESTIMATOR
 from ..estimation.detection import TensionDropDetector, TensionResidualDetector
 from ..estimation.lowpass import LowPassEstimator, TrueStateEstimator
 from ..estimation.reliability import monitor_for
@@ -53,9 +54,6 @@ class ClosedLoopError(TapmError, ValueError):
     """Bad closed-loop settings."""
 
 
-#: The estimator of :class:`ClosedLoopSettings`, study files and ``tapm simulate`` unless one is
-#: chosen: the EKF, which left the least wave-frequency motion in its LF estimate (docs/estimation.md).
-DEFAULT_ESTIMATOR = "ekf"
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -25,30 +25,9 @@ from typing import Any, Mapping
 
 from ..config import scenario_from_dict
 from . import store
-from .controllers import build_controller
 
-__all__ = ["compute_kpis", "run_case", "case_payload", "store_case", "local_case_job", "record_failure",
+__all__ = ["run_case", "case_payload", "store_case", "local_case_job", "record_failure",
            "error_info"]
-
-
-def compute_kpis(result: Any, scenario: Any) -> dict[str, float]:
-    """KPIs of one case: :func:`tapm_opt.studies.kpis.case_kpis` with its defaults.
-
-    Parameters
-    ----------
-    result : Result
-        The closed-loop run.
-    scenario : Scenario
-        The scenario it ran with (faults included).
-
-    Returns
-    -------
-    dict
-        ``{name: number}`` (names and units in ``docs/kpis.md``).
-    """
-    from .kpis import case_kpis
-
-    return case_kpis(result, scenario)
 
 
 def run_case(inputs: Mapping[str, Any]) -> tuple[Any, dict[str, float]]:
@@ -67,7 +46,7 @@ def run_case(inputs: Mapping[str, Any]) -> tuple[Any, dict[str, float]]:
     result : Result
         The closed-loop run; ``meta`` adds ``case_id``, ``controller_spec`` and ``seed``.
     kpis : dict
-        :func:`compute_kpis` of the result against the case's scenario.
+        :func:`tapm_opt.studies.kpis.case_kpis` of the result (the recipe, :mod:`tapm_opt.studies.recipe`).
 
     Notes
     -----
@@ -75,23 +54,16 @@ def run_case(inputs: Mapping[str, Any]) -> tuple[Any, dict[str, float]]:
     ``seed``); only wall-clock figures in ``meta`` (and KPIs taken from them) differ.
     """
     from ..models.system import System
-    from ..plant.simulator import Plant
-    from .closed_loop import ClosedLoopSettings, run_closed_loop
+    from .closed_loop import ClosedLoopSettings
+    from .recipe import run_case_on
 
     cid = store.case_id(inputs)
     sc = scenario_from_dict(inputs["scenario"], source=f"case {cid}")
     system = System.from_scenario(sc)  # built once; plant, controller and runner share it
-    spec = dict(inputs["controller"])
-    cl = dict(inputs.get("closed_loop") or {})
-    settings = ClosedLoopSettings(duration=float(inputs["duration"]), **cl)
-    ctrl = build_controller(system, spec, where="controller", dt_control=settings.dt_control,
-                            estimator=settings.estimator,
-                            winch=(settings.winch_options or {}) if settings.winch == "tension" else None)
-    plant = Plant(system, sea_state=sc.sea_state(inputs["sea_state"]), seed=int(inputs["seed"]),
-                  segments=inputs.get("segments"))
-    result = run_closed_loop(plant, ctrl, settings, system=system,
-                             meta={"case_id": cid, "controller_spec": spec, "seed": int(inputs["seed"])})
-    return result, compute_kpis(result, sc)
+    settings = ClosedLoopSettings(duration=float(inputs["duration"]), **dict(inputs.get("closed_loop") or {}))
+    run = run_case_on(system, inputs["controller"], settings, sea_state=sc.sea_state(inputs["sea_state"]),
+                      seed=int(inputs["seed"]), segments=inputs.get("segments"), meta={"case_id": cid})
+    return run.result, run.kpis
 
 
 def _head(cid: str, name: str, labels: dict, inputs: dict) -> dict:

@@ -9,7 +9,6 @@ turns the product of sea states, controllers, conditions and seeds, plus the lis
 
 from __future__ import annotations
 
-import dataclasses
 import difflib
 import tomllib
 from dataclasses import dataclass, field
@@ -18,12 +17,13 @@ from typing import Any, Mapping
 
 from .._io import toml_key, toml_value
 from ..config import Fault, builtin_scenarios, load_scenario, scenario_from_dict, scenario_to_dict
-from ..config.loader import BUILTIN_DIR, _fmt, _is_number  # the scenario loader's value checks
+from ..config.loader import BUILTIN_DIR, _fmt  # the scenario loader's value checks
 from ..config.loader import fem_size_issues, log_size_issues
 from ..errors import ScenarioError
 from . import store
 from ._checks import Checker
-from .controllers import CONTROLLER_TYPES, MPC_SPEC_KEYS, PID_DEFAULTS, ControllerSpecError, build_controller
+from ..control.registry import kind as _controller_kind, kind_names as _controller_kinds
+from .controllers import ControllerSpecError, build_controller
 from .store import StudyError
 
 __all__ = ["Case", "Study", "load_study", "study_from_dict", "expand_cases"]
@@ -101,7 +101,6 @@ _TOP_KEYS = {"study", "sea_states", "controllers", "conditions", "cases", "capab
 _CONDITION_KEYS = {"name", "line_break", "thruster_failure"}
 _FAULT_KEYS = {"line_break": {"line", "time", "time_fraction"}, "thruster_failure": {"thruster", "time", "time_fraction"}}
 _CASE_KEYS = {"name", "sea_state", "controller", "condition", "seed", "duration"}
-_NAMES = {"pid": "PID", "mpc": "NMPC", "lmpc": "MPC"}
 
 
 @dataclass(frozen=True)
@@ -144,22 +143,10 @@ def _resolve_scenario(value: str, base_dir: Path) -> str | Path:
 
 
 def _normalise_spec(kind: str, opts: dict) -> dict:
-    """Numbers in the form the controller takes them (``35`` and ``35.0`` give one case id)."""
-    from ..control.mpc import MPCSettings
-
-    out: dict = {"type": kind}
-    if kind == "pid":
-        for k, v in opts.items():
-            if k in ("periods", "damping", "tau_limit") and isinstance(v, list):
-                v = [float(x) if _is_number(x) else x for x in v]
-            elif k == "integral_ratio" and _is_number(v):
-                v = float(v)
-            out[k] = v
-        return out
-    floats = {f.name for f in dataclasses.fields(MPCSettings) if "float" in str(f.type)} | {"period"}
-    for k, v in opts.items():
-        out[k] = float(v) if (k in floats and _is_number(v)) else v
-    return out
+    """Numbers in the form the controller takes them (``35`` and ``35.0`` give one case id): the
+    kind's own ``normalise`` (:mod:`tapm_opt.control.registry`)."""
+    k = _controller_kind(kind)
+    return {"type": kind, **(k.normalise(opts) if k.normalise is not None else dict(opts))}
 
 
 @dataclass
@@ -412,9 +399,9 @@ def _parse_controllers(ck: Checker, data: Mapping, out: _Parsed) -> None:
     for i, e in enumerate(entries):
         p = f"controllers[{i}]"
         if "type" not in e:
-            ck.err(f"{p}.type", f"missing required field ({', '.join(CONTROLLER_TYPES)})")
-        kind = ck.choice(e["type"], CONTROLLER_TYPES, f"{p}.type") if "type" in e else None
-        cname = ck.text(e["name"], f"{p}.name") if "name" in e else _NAMES.get(kind or "")
+            ck.err(f"{p}.type", f"missing required field ({', '.join(_controller_kinds())})")
+        kind = ck.choice(e["type"], _controller_kinds(), f"{p}.type") if "type" in e else None
+        cname = ck.text(e["name"], f"{p}.name") if "name" in e else (_controller_kind(kind).label if kind else None)
         opts = {k: v for k, v in e.items()
                 if k not in ("name", "type", "setpoint", "setpoint_options", "estimator", "detector", "winch",
                              "winch_options")}
@@ -426,7 +413,7 @@ def _parse_controllers(ck: Checker, data: Mapping, out: _Parsed) -> None:
         spec = None
         if kind is not None:
             n_issues = len(ck.issues)
-            allowed = set(PID_DEFAULTS) if kind == "pid" else set(MPC_SPEC_KEYS)
+            allowed = set(_controller_kind(kind).option_names())
             ck.keys(opts, allowed | {"name", "type"}, p)
             if len(ck.issues) == n_issues:
                 spec = _normalise_spec(kind, opts)

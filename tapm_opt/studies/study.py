@@ -92,7 +92,8 @@ validation, cases), :mod:`~tapm_opt.studies.jobs` (one case: :func:`run_case`, s
 
 from __future__ import annotations
 
-from .jobs import compute_kpis, run_case
+from .jobs import run_case
+from .kpis import case_kpis as compute_kpis  # a case's KPIs (the name studies used before the recipe)
 from .runner import StudySummary, run_study, write_tables
 from .spec import Case, Study, expand_cases, load_study, study_from_dict
 from .store import StudyBusyError, StudyError, StudyIssue, StudyRunError
