@@ -1,4 +1,5 @@
-"""Small file helpers: outputs are written atomically (never half-written)."""
+"""Small file helpers: outputs are written atomically (never half-written). Text from input
+files is printed through :func:`terminal_text` (from :mod:`tapm_opt._text`, re-exported here)."""
 
 from __future__ import annotations
 
@@ -7,6 +8,8 @@ import io
 import json
 import os
 import tempfile
+
+from ._text import terminal_text  # noqa: F401 - re-exported for printing input text
 
 
 def _umask() -> int:

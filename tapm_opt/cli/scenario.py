@@ -31,20 +31,42 @@ def scenario_list() -> None:
 @scenario.command("validate")
 @click.argument("files", nargs=-1, required=True)
 def scenario_validate(files: tuple[str, ...]) -> None:
-    """Check scenario FILES; print every problem found. Exit status 1 if any is invalid."""
+    """Check scenario FILES; print every problem found. Exit status 1 if any is invalid.
+
+    After the file checks, engineering checks on the mooring and thrusters (pretension against MBS,
+    lines straight under their fairlead, balance at the field zero point, thrust capacity, unit
+    slips): an error makes the file INVALID, a warning is printed and the file stays valid.
+    """
+    from .._text import terminal_text
+    from ..models.sanity import engineering_issues
+
     bad = 0
     for f in files:
+        name = terminal_text(f)
         try:
             sc = load_scenario(f)
         except ScenarioError as exc:
             bad += 1
             n = len(exc.issues)
-            click.echo(f"{f}: INVALID ({n} problem{'s' if n != 1 else ''})")
+            click.echo(f"{name}: INVALID ({n} problem{'s' if n != 1 else ''})")
             for issue in exc.issues:
-                click.echo(f"  - {issue}")
+                click.echo(f"  - {terminal_text(issue)}")
             continue
-        click.echo(f"{f}: OK — {sc.name}: {len(sc.lines)} lines, {len(sc.thrusters)} thrusters, "
-                   f"{len(sc.sea_states)} sea states")
+        found = engineering_issues(sc)
+        errors = [i for i in found if i.severity == "error"]
+        warns = [i for i in found if i.severity != "error"]
+        if errors:
+            bad += 1
+            n = len(errors)
+            click.echo(f"{name}: INVALID ({n} problem{'s' if n != 1 else ''})")
+            for issue in errors:
+                click.echo(f"  - {terminal_text(issue)}")
+        else:
+            click.echo(f"{name}: OK — {terminal_text(sc.name)}: {len(sc.lines)} lines, {len(sc.thrusters)} thrusters, "
+                       f"{len(sc.sea_states)} sea states" + (f"; {len(warns)} warning{'s' if len(warns) != 1 else ''}"
+                                                             if warns else ""))
+        for issue in warns:
+            click.echo(f"  - warning: {terminal_text(issue)}")
     if bad:
         sys.exit(1)
 
@@ -53,15 +75,16 @@ def scenario_validate(files: tuple[str, ...]) -> None:
 @click.argument("name")
 def scenario_show(name: str) -> None:
     """Print a summary of scenario NAME (built-in name or TOML file)."""
+    from .._text import terminal_text as tt
     from ..models.mooring import MooringModel
 
     sc = load(name)
     env, v, tur = sc.environment, sc.vessel, sc.turret
-    click.echo(f"Scenario {sc.name}: {sc.meta.description}")
+    click.echo(f"Scenario {tt(sc.name)}: {tt(sc.meta.description)}")
     for s in sc.meta.sources:
-        click.echo(f"  source: {s}")
+        click.echo(f"  source: {tt(s)}")
     click.echo(f"Environment: depth {env.water_depth:g} m, rho_w {env.water_density:g} kg/m3, g {env.gravity:g} m/s2")
-    click.echo(f"Vessel {v.name}: Lpp {v.length_pp:g} m, B {v.breadth:g} m, T {v.draught:g} m; "
+    click.echo(f"Vessel {tt(v.name)}: Lpp {v.length_pp:g} m, B {v.breadth:g} m, T {v.draught:g} m; "
                f"M diag [{', '.join(f'{x:.3g}' for x in np.diag(v.M))}]")
     click.echo(f"Turret: {tur.mode}, at ({tur.position[0]:g}, {tur.position[1]:g}) m in {{B}}, "
                f"fairlead radius {tur.fairlead_radius:g} m, depth {tur.fairlead_depth:g} m")
@@ -71,7 +94,7 @@ def scenario_show(name: str) -> None:
     click.echo(f"  {'id':>6} {'type':>10} {'L [m]':>8} {'XF [m]':>8} {'T [kN]':>9} {'H [kN]':>9} {'T/MBS':>6} regime")
     _, _, XF = model.spans(np.zeros(3))
     for i, ln in enumerate(sc.lines):
-        click.echo(f"  {ln.id:>6} {ln.type:>10} {ln.length:8.1f} {XF[i]:8.1f} {sol.TF[i] / 1e3:9.1f} "
+        click.echo(f"  {tt(ln.id):>6} {tt(ln.type):>10} {ln.length:8.1f} {XF[i]:8.1f} {sol.TF[i] / 1e3:9.1f} "
                    f"{sol.HF[i] / 1e3:9.1f} {sol.TF[i] / model.MBS[i]:6.3f} {sol.regime_names()[i]}")
     tau0 = model.force(np.zeros(3))
     click.echo(f"Net mooring load at the field zero point: X {tau0[0] / 1e3:.3g} kN, Y {tau0[1] / 1e3:.3g} kN, "
@@ -79,16 +102,16 @@ def scenario_show(name: str) -> None:
     if sc.thrusters:
         click.echo(f"Thrusters ({len(sc.thrusters)}):")
         for t in sc.thrusters:
-            click.echo(f"  {t.id:>6} {t.kind:8s} at ({t.position[0]:g}, {t.position[1]:g}) m, "
+            click.echo(f"  {tt(t.id):>6} {t.kind:8s} at ({t.position[0]:g}, {t.position[1]:g}) m, "
                        f"max {t.max_thrust / 1e3:.0f} kN")
     for s in sc.sea_states:
-        click.echo(f"Sea state {s.id}: Hs {s.Hs:g} m, Tp {s.Tp:g} s, wind {s.wind_speed:g} m/s, "
+        click.echo(f"Sea state {tt(s.id)}: Hs {s.Hs:g} m, Tp {s.Tp:g} s, wind {s.wind_speed:g} m/s, "
                    f"current {s.current_speed:g} m/s")
     if sc.riser is not None:
         click.echo(f"Riser: length {sc.riser.length:g} m, top tension {sc.riser.top_tension / 1e3:.0f} kN")
     for f in sc.faults:
         target = f.line if f.kind == "line_break" else f.thruster
-        click.echo(f"Fault: {f.kind} of {target} at t = {f.time:g} s")
+        click.echo(f"Fault: {f.kind} of {tt(target)} at t = {f.time:g} s")
     if sc.limits.safe_radius is not None:
         click.echo(f"Limits: safe radius {sc.limits.safe_radius:g} m, alert radius {sc.limits.alert_radius} m")
 

@@ -160,7 +160,7 @@ class _Parser:
             if not isinstance(v, str):
                 self.err(path, f"must be text, got {type(v).__name__} {_fmt(v)}")
                 return _MISSING
-            return v
+            return self.text(v, path, check)
         if tp is bool:
             if not isinstance(v, bool):
                 self.err(path, f"must be true or false, got {_fmt(v)}")
@@ -176,6 +176,14 @@ class _Parser:
         if origin is tuple:
             return self.array(tp, v, path, meta)
         raise TypeError(f"unsupported schema type {tp!r} at {path}")  # pragma: no cover
+
+    def text(self, v: str, path: str, check: Any) -> Any:
+        """Free text through its length check (the message names the length, not a long value)."""
+        msg = check(v) if check is not None else None
+        if msg:
+            self.err(path, msg)
+            return _MISSING
+        return v
 
     def number(self, v: Any, path: str, check: Any, unit: str) -> Any:
         if not _is_number(v):
@@ -207,7 +215,8 @@ class _Parser:
             if not isinstance(v, list) or not all(isinstance(s, str) for s in v):
                 self.err(path, "must be a list of text entries")
                 return _MISSING
-            return tuple(v)
+            texts = [self.text(s, f"{path}[{i}]", meta.get("check")) for i, s in enumerate(v)]
+            return _MISSING if any(t is _MISSING for t in texts) else tuple(texts)
         if not isinstance(v, list):
             self.err(path, f"must be a list of numbers with shape {shape}, got {type(v).__name__} {_fmt(v)}")
             return _MISSING
@@ -311,6 +320,16 @@ MAX_FEM_NODES = 100_000
 MAX_FEM_NODE_UPDATES = 1.0e8
 #: Largest in-memory log of a simulation [bytes]: rows (duration / dt_log) x channels x 8 bytes.
 MAX_LOG_BYTES = 2**30
+#: Highest the fairleads may lie above the water line [m] (turret.fairlead_depth >= -this): chain
+#: stoppers on deck stand at most about the freeboard of the largest hulls above the water.
+MAX_FAIRLEAD_HEIGHT = 30.0
+#: Smallest acceleration all thrusters together may give the vessel, sum(max_thrust) / M11
+#: [m/s^2]: DP and thruster-assist vessels have 0.005-0.05 (the built-ins 0.03); 1e-4 is a thrust
+#: given in kN instead of N.
+MIN_THRUST_ACCELERATION = 1.0e-4
+#: An anchor this fraction of the water depth above the seabed is raised far; when every anchor is,
+#: the water depth is wrong (e.g. given in feet), not the anchors.
+RAISED_ANCHOR_FRACTION = 0.5
 
 
 def _metres(x: float) -> str:
@@ -430,6 +449,13 @@ def _field_issues(obj: Any, path: str, issues: list[ScenarioIssue]) -> None:
                 issues.append(ScenarioIssue(fpath, f"= {_fmt(v)} is not one of {', '.join(map(repr, get_args(tp)))}"))
             continue
         unit, check = f.metadata.get("unit", ""), f.metadata.get("check")
+        texts = [(fpath, v)] if isinstance(v, str) else (
+            [(f"{fpath}[{i}]", x) for i, x in enumerate(v)] if isinstance(v, tuple) and v and isinstance(v[0], str)
+            else [])
+        for sub, x in texts:
+            msg = check(x) if check is not None and isinstance(x, str) else None
+            if msg:
+                issues.append(ScenarioIssue(sub, msg))
         for sub, x in _numbers(v, fpath):
             if not math.isfinite(x):
                 issues.append(ScenarioIssue(sub, f"= {_fmt(x)} must be a finite number"))
@@ -600,6 +626,30 @@ def _plausibility(sc: Scenario, fl_x: np.ndarray, fl_y: np.ndarray, issues: list
 
     if not bad_types:
         issues.extend(fem_size_issues(sc))
+
+    if tur.fairlead_depth < -MAX_FAIRLEAD_HEIGHT:
+        issues.append(ScenarioIssue("turret.fairlead_depth", (
+            f"= {tur.fairlead_depth:g} m puts the fairleads {-tur.fairlead_depth:g} m above the water line (depth is "
+            f"z down, 0 at the water line); fairleads lie at most {MAX_FAIRLEAD_HEIGHT:g} m above it (chain stoppers "
+            "on deck), usually below it: check the sign and units")))
+    h_A = [env.water_depth - ln.anchor[2] for ln in sc.lines if len(ln.anchor) == 3]
+    if sc.lines and len(h_A) == len(sc.lines) and min(h_A) > RAISED_ANCHOR_FRACTION * env.water_depth:
+        z_max = max(ln.anchor[2] for ln in sc.lines)
+        feet = (f"; {env.water_depth:g} is {env.water_depth * 0.3048:.6g} m in feet"
+                if abs(env.water_depth * 0.3048 - z_max) <= 0.01 * z_max else "")
+        issues.append(ScenarioIssue("environment.water_depth", (
+            f"= {env.water_depth:g} m puts every anchor more than {RAISED_ANCHOR_FRACTION:g} x the water depth above "
+            f"the seabed (the anchors' z is {min(ln.anchor[2] for ln in sc.lines):g}-{z_max:g} m, z down): check the "
+            f"units of the water depth and of the anchors' z{feet}")))
+    if sc.thrusters and all(th.max_thrust > 0 for th in sc.thrusters) and M[0, 0] > 0:
+        total = sum(th.max_thrust for th in sc.thrusters)
+        if total < MIN_THRUST_ACCELERATION * M[0, 0]:
+            k = int(np.argmax([th.max_thrust for th in sc.thrusters]))
+            issues.append(ScenarioIssue(f"thrusters[{k}].max_thrust", (
+                f"= {sc.thrusters[k].max_thrust:g} N: all {len(sc.thrusters)} thrusters together ({total:g} N) would "
+                f"accelerate the vessel's surge mass ({M[0, 0]:g} kg) by {total / M[0, 0]:.3g} m/s^2, under "
+                f"{MIN_THRUST_ACCELERATION:g} (DP and thruster-assisted vessels: 0.005-0.05): thrusts are in N, "
+                "not kN")))
 
     for i, th in enumerate(sc.thrusters):
         p = f"thrusters[{i}]"
@@ -798,6 +848,7 @@ def validate(sc: Scenario) -> list[ScenarioIssue]:
 
     line_ids = [ln.id for ln in sc.lines]
     thr_ids = [t.id for t in sc.thrusters]
+    first_fault: dict[tuple[str, str], int] = {}
     for i, fault in enumerate(sc.faults):
         p = f"faults[{i}]"
         if fault.kind == "line_break":
@@ -810,6 +861,23 @@ def validate(sc: Scenario) -> list[ScenarioIssue]:
                 issues.append(ScenarioIssue(f"{p}.thruster", "is required for a thruster_failure"))
             elif fault.thruster not in thr_ids:
                 issues.append(ScenarioIssue(f"{p}.thruster", f"= {fault.thruster!r} is not a thruster id; thrusters are {thr_ids}"))
+        key, target = ("line", fault.line) if fault.kind == "line_break" else ("thruster", fault.thruster)
+        if target is None:
+            continue
+        j = first_fault.setdefault((fault.kind, target), i)
+        if j != i:
+            issues.append(ScenarioIssue(f"{p}.{key}", (
+                f"= {target!r}: faults[{j}] already {'breaks' if key == 'line' else 'fails'} {key} {target!r} at "
+                f"t = {sc.faults[j].time:g} s; a {key} {'breaks' if key == 'line' else 'fails'} once (remove one of "
+                "the two)")))
+    broken = {f.line for f in sc.faults if f.kind == "line_break"}
+    if line_ids and set(line_ids) <= broken:
+        last = max((i for i, f in enumerate(sc.faults) if f.kind == "line_break"), key=lambda i: sc.faults[i].time)
+        issues.append(ScenarioIssue(f"faults[{last}].line", (
+            f"= {sc.faults[last].line!r} breaks the last intact line: the faults break every line "
+            f"({len(line_ids)} of {len(line_ids)}), and the controllers, estimators and fault detection model "
+            "the vessel on its mooring, so a run with no line left cannot be simulated; keep at least one "
+            "line intact")))
 
     lim = sc.limits
     if lim.safe_radius is not None and lim.alert_radius is not None and lim.alert_radius <= lim.safe_radius:
@@ -876,6 +944,8 @@ def read_toml(path: Path, error: type[ScenarioError] | Any) -> dict[str, Any]:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise error(f"cannot read {path}: {exc}", source=str(path)) from None
+    if text.startswith("\ufeff"):  # a UTF-8 byte-order mark (some Windows editors write one): not TOML, skipped
+        text = text[1:]
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

@@ -94,6 +94,30 @@ def fem_segments(v: int) -> str | None:
             f"{gib((v + 1) * FEM_BYTES_PER_NODE)}, and its stable step shrinks with the segment length")
 
 
+#: Longest free text of each kind [characters]: ids (of line types, lines, thrusters, sea states,
+#: and the ids faults name) and names are labels; a description is a paragraph; a source is one
+#: reference. Longer text is a pasted file or a corrupted one, and would flood every report.
+MAX_ID_LENGTH = 200
+MAX_NAME_LENGTH = 200
+MAX_DESCRIPTION_LENGTH = 10_000
+MAX_SOURCE_LENGTH = 1_000
+
+
+def text_limit(most: int, *, nonempty: bool = False, what: str = "text") -> Check:
+    """A check of free text: at most ``most`` characters and, with ``nonempty``, not empty or
+    blank. Its message never repeats a long value (only its length)."""
+    def check(v: str) -> str | None:
+        if nonempty and not v.strip():
+            return f"= {v!r} must not be empty: {what} is 1-{most} characters"
+        if len(v) > most:
+            return f"is {len(v)} characters long, above the limit of {most} characters for {what}"
+        return None
+
+    check.__doc__ = f"1-{most} characters" if nonempty else f"at most {most} characters"
+    return check
+
+
+_ID_TEXT = text_limit(MAX_ID_LENGTH, nonempty=True, what="an id")
 positive.__doc__ = "> 0"
 nonneg.__doc__ = ">= 0"
 fem_segments.__doc__ = f"[2, {MAX_SEGMENTS}]"
@@ -125,8 +149,11 @@ def spec(
     shape : tuple of int, optional
         Required shape of an array-valued field; ``-1`` allows any length.
     id_like : bool
-        Accept an integer and store it as a string (ids).
+        Accept an integer and store it as a string (ids); ids are checked to be 1 to
+        :data:`MAX_ID_LENGTH` characters unless ``check`` says otherwise.
     """
+    if id_like and check is None:
+        check = _ID_TEXT
     meta = {"doc": doc, "unit": unit, "check": check, "shape": shape, "id_like": id_like}
     if default is MISSING:
         return field(metadata=meta)
@@ -141,9 +168,11 @@ Mat = tuple[tuple[float, ...], ...]
 class Meta:
     """Identification of the scenario and where its numbers come from."""
 
-    name: str = spec("Scenario name (used in reports).")
-    description: str = spec("What the scenario represents.", default="")
-    sources: tuple[str, ...] = spec("References the numbers are taken from.", default=(), shape=(-1,))
+    name: str = spec("Scenario name (used in reports).", check=text_limit(MAX_NAME_LENGTH, what="a name"))
+    description: str = spec("What the scenario represents.", default="",
+                            check=text_limit(MAX_DESCRIPTION_LENGTH, what="a description"))
+    sources: tuple[str, ...] = spec("References the numbers are taken from.", default=(), shape=(-1,),
+                                    check=text_limit(MAX_SOURCE_LENGTH, what="a source"))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -161,7 +190,7 @@ class Environment:
 class Vessel:
     """Hull and low-frequency hydrodynamics in 3 DOF (surge, sway, yaw) about the body origin CO."""
 
-    name: str = spec("Vessel name.", default="vessel")
+    name: str = spec("Vessel name.", default="vessel", check=text_limit(MAX_NAME_LENGTH, what="a name"))
     mass_matrix: Mat = spec(
         "Generalised mass matrix M = M_RB + M_A incl. zero-frequency added mass, about CO.",
         "kg, kg m, kg m^2",
