@@ -61,6 +61,11 @@ class SettleInfo:
     wall_time: float = 0.0
 
 
+#: Fastest node speed [m/s] below which lines that have not settled are taken to be still creeping
+#: toward rest (a slow drift in a strong current) rather than an unstable FEM step, in the message.
+SETTLE_UNSTABLE_SPEED = 1.0
+
+
 class SettlingNotConverged(TapmError, RuntimeError):
     """The lines did not come to rest within the settling time; ``info`` is the :class:`SettleInfo`."""
 
@@ -217,13 +222,24 @@ class MooringFEM:
         if not converged and strict:
             i = int(np.argmax(np.einsum("ij,ij->i", fem.v, fem.v)))
             j = int(fem.line_of_node[i])
-            raise SettlingNotConverged(
-                f"the mooring lines did not settle within {max_time:g} s: the fastest node (line "
-                f"{fem.lines.ids[j]!r}, node {i - int(fem.node_start[j])}) still moves at {speed:.3g} m/s "
-                f"(tolerance {speed_tol:g}) and the fairlead tensions change by {change:.2g} per "
-                f"{n_check * dt:.3g} s (tolerance {tol:g}); if the speed stays high the FEM step is unstable "
-                f"(lower the step's safety factor, now {self.safety:g}), otherwise settle longer (max_time)",
-                info)
+            head = (f"the mooring lines did not settle within {max_time:g} s: the fastest node (line "
+                    f"{fem.lines.ids[j]!r}, node {i - int(fem.node_start[j])}) still moves at {speed:.3g} m/s "
+                    f"(tolerance {speed_tol:g}) and the fairlead tensions change by {change:.2g} per "
+                    f"{n_check * dt:.3g} s (tolerance {tol:g})")
+            vc = float(np.sqrt(np.max(np.einsum("ij,ij->i", self._vc, self._vc)))) if self.current is not None else 0.0
+            if speed < SETTLE_UNSTABLE_SPEED:
+                flow = f" in a current of up to {vc:.3g} m/s at the nodes" if vc > 0 else ""
+                advice = (f"; the lines are still creeping toward rest{flow}, not unstable (no node faster than "
+                          f"{SETTLE_UNSTABLE_SPEED:g} m/s): they need longer than the plant's settling time. From the "
+                          "command line, a weaker current (the sea state's current_speed or current_profile) or "
+                          "another sea state (--sea-state) settles sooner; from Python, settle(max_time=...) of "
+                          "tapm_opt.plant.mooring_fem.MooringFEM gives it longer")
+            else:
+                advice = (f"; a node this fast means the explicit FEM step is unstable for these lines (step "
+                          f"{dt:.3g} s, {self.safety:g} of the stability limit). From the command line, other "
+                          "segment counts (--segments, or the scenario's lines[].segments) change the step; from "
+                          "Python, a smaller safety factor (Simulator(..., safety=0.5)) shortens it")
+            raise SettlingNotConverged(head + advice, info)
         fem.v[:] = 0.0
         fem.t = 0.0
         return info
