@@ -242,7 +242,8 @@ def test_better_convention():
         assert kpi_direction(k) == 1, k
     for k in ("riser_top_angle_max_deg", "riser_bottom_angle_max_deg", "riser_delta_frac_below", "delta_frac_below"):
         assert kpi_direction(k) == -1, k
-    assert kpi_direction("duration") == 0 and kpi_direction("lines_broken") == 0
+    assert kpi_direction("duration") == 0 and kpi_direction("mode_switches") == 0
+    assert kpi_direction("lines_broken") == -1 and kpi_direction("false_alarms") == -1
 
 
 def test_full_kpi_table_and_per_line_delta(report):

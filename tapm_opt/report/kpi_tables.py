@@ -1,12 +1,10 @@
-"""The report's KPI tables: the "better" convention, units and order of the KPIs, the side-by-side
-tables (controllers compared on otherwise equal cases), the full KPI table and the per-line table.
+"""The report's KPI tables: the side-by-side tables (controllers compared on otherwise equal
+cases, the better value marked), the full KPI table and the per-line table.
 
-"Better": lower is better for offsets, time outside the circles, heading error, tensions,
-utilisation, the time below delta_s, DNV ratios and failing lines, riser end angles, energy, power,
-fuel, solve times and failure/fallback counts; higher is better for the reliability indices
-(``delta_min``, ``delta_min_offline``, ``riser_delta_min``, ``riser_delta_top_min``,
-``riser_delta_bottom_min``) and the number of lines that pass a DNV check. Neutral (never marked):
-``duration``, ``lines_broken`` and any KPI not named here.
+Units, the "better" convention and the column order come from the KPI catalogue
+(:mod:`tapm_opt.studies.kpi_catalogue`): lower is better for a KPI the catalogue says to
+minimise, higher for one it says to maximise; the others (``duration``, ``mode_switches``,
+``thrust_to_command_ratio``, ...) and any name not in the catalogue are never marked.
 """
 
 from __future__ import annotations
@@ -17,6 +15,7 @@ import re
 from dataclasses import dataclass
 from typing import Any, Iterable, Sequence
 
+from ..studies.kpi_catalogue import kpi_order, kpi_sign, kpi_unit, per_line_kpis
 from .data import CaseInfo, StudyData
 from .document import Cell, Table, _fmt, _fmt_text
 
@@ -25,16 +24,6 @@ __all__ = ["kpi_direction", "side_by_side_tables", "condition_groups", "Conditio
 
 # -- the "better" convention -------------------------------------------------------------------
 
-_LOWER = {
-    "offset_max", "offset_mean", "offset_std", "time_outside_safe", "time_outside_alert", "heading_error_max",
-    "T_max", "T_mean", "util_max", "utilisation_max", "delta_frac_below", "dnv_uls_max", "dnv_als_max",
-    "dnv_uls", "dnv_als", "dnv_uls_fail", "dnv_als_fail", "thrust_energy", "thrust_power_mean", "fuel",
-    "solver_time_median", "solver_time_p95", "solver_time_max", "solver_failures", "solver_fallbacks",
-    "allocation_fallbacks", "controller_time_median", "controller_time_max",
-    "riser_top_angle_max_deg", "riser_bottom_angle_max_deg", "riser_delta_frac_below",
-}
-_HIGHER = {"delta_min", "delta_min_offline", "riser_delta_min", "riser_delta_top_min", "riser_delta_bottom_min",
-           "dnv_uls_pass", "dnv_als_pass"}
 _PER_LINE = re.compile(r"^(.*)\[(.*)\]$")
 
 #: The headline KPIs charted per condition (name, what it is), in chart order; ``util_max`` is
@@ -63,55 +52,19 @@ def headline_kpis(cases: Sequence[CaseInfo]) -> list[tuple[str, str]]:
 
 
 def kpi_direction(name: str) -> int:
-    """-1 if a lower value of KPI ``name`` is better, +1 if higher is better, 0 if neutral.
+    """-1 if a lower value of KPI ``name`` is better, +1 if higher is better, 0 if neutral or not
+    a catalogue KPI (:func:`tapm_opt.studies.kpi_catalogue.kpi_sign`).
 
     Per-line KPIs (``T_max[3]``) follow their quantity (``T_max``)."""
-    m = _PER_LINE.match(name)
-    base = m.group(1) if m else name
-    if base in _LOWER:
-        return -1
-    if base in _HIGHER:
-        return 1
-    return 0
-
-
-# -- optional helpers from the KPI module (the report works without them) ----------------------
-
-_FALLBACK_UNITS = {
-    "duration": "s", "offset_max": "m", "offset_mean": "m", "offset_std": "m", "time_outside_safe": "s",
-    "time_outside_alert": "s", "heading_error_max": "deg", "T_max": "N", "T_mean": "N", "util_max": "-",
-    "utilisation_max": "-", "delta_min": "-", "delta_frac_below": "-", "dnv_uls_max": "-", "dnv_als_max": "-",
-    "dnv_uls": "-", "dnv_als": "-", "dnv_uls_pass": "lines", "dnv_uls_fail": "lines", "dnv_als_pass": "lines",
-    "dnv_als_fail": "lines", "lines_broken": "lines", "thrust_energy": "J", "thrust_power_mean": "W", "fuel": "kg",
-    "solver_time_median": "s", "solver_time_p95": "s", "solver_time_max": "s", "solver_failures": "-",
-    "solver_fallbacks": "-", "allocation_fallbacks": "-", "delta_min_offline": "-",
-    "riser_top_angle_max_deg": "deg", "riser_bottom_angle_max_deg": "deg", "riser_delta_min": "-",
-    "riser_delta_top_min": "-", "riser_delta_bottom_min": "-", "riser_delta_frac_below": "-",
-}
+    return kpi_sign(name)
 
 
 def _kpi_unit(name: str) -> str:
-    try:
-        from ..studies.kpis import kpi_unit
-
-        u = kpi_unit(name)
-        if u:
-            return u
-    except ImportError:
-        pass
-    m = _PER_LINE.match(name)
-    return _FALLBACK_UNITS.get(m.group(1) if m else name, "")
+    return kpi_unit(name)
 
 
 def _kpi_order(names: Iterable[str]) -> list[str]:
-    names = list(dict.fromkeys(names))
-    try:
-        from ..studies.kpis import kpi_order
-
-        return list(kpi_order(names))
-    except ImportError:
-        agg = list(_FALLBACK_UNITS)
-        return sorted(names, key=lambda n: (0, agg.index(n), n) if n in agg else (1, 0, n))
+    return kpi_order(names)
 
 
 # -- tables ----------------------------------------------------------------------------------
@@ -249,9 +202,7 @@ def _csv_table(header: list[str], rows: list[list[str]]) -> Table:
 
 
 def _line_table(kpis: dict, line_ids: Sequence[str]) -> Table | None:
-    qs = [q for q in ("T_max", "T_mean", "util_max", "delta_min", "delta_frac_below", "delta_min_offline", "dnv_uls",
-                      "dnv_als")
-          if any(f"{q}[{lid}]" in kpis for lid in line_ids)]
+    qs = [q for q in (e.base for e in per_line_kpis()) if any(f"{q}[{lid}]" in kpis for lid in line_ids)]
     if not qs:
         return None
     rows = [[Cell(lid)] + [Cell(_fmt(kpis.get(f"{q}[{lid}]"))) for q in qs] for lid in line_ids]
