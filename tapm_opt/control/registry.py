@@ -39,6 +39,7 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import math
+import re
 import warnings
 from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping
@@ -407,7 +408,7 @@ def _settings_docs(doc: str) -> dict[str, str]:
 
     def flush() -> None:
         text = " ".join(body)
-        first = text.split(". ")[0].rstrip(".")
+        first = re.split(r"(?<!e\.g)(?<!eq)(?<!i\.e)(?<!cf)\.\s+(?=[A-Z(])", text)[0].rstrip(".")
         for n in names:
             out[n] = first
 
@@ -519,6 +520,7 @@ def _normalise_mpc(spec: Mapping[str, Any]) -> dict:
 
 
 MPC_SEARCH_SPACE = {
+    "horizon": Dimension(10, 50, integer=True),
     "w_thrust": Dimension(0.3, 100.0, log=True),
     "w_rate": Dimension(0.1, 50.0, log=True),
     "w_velocity": Dimension(0.1, 50.0, log=True),
@@ -661,3 +663,51 @@ def build(system: Any, spec: Mapping[str, Any] | str, *, where: str = "controlle
         raise ControllerSpecError(f"{where}: {exc}") from None
     except (TypeError, ValueError) as exc:
         raise ControllerSpecError(f"{where}: {exc}") from None
+
+
+# ------------------------------------------------------------------------------------------
+# the docs' table
+# ------------------------------------------------------------------------------------------
+
+
+def _text(v: Any) -> str:
+    if isinstance(v, float) and not v.is_integer():
+        return f"{v:.4g}"
+    if isinstance(v, float):
+        return f"{v:g}"
+    if isinstance(v, tuple):
+        return ", ".join(_text(x) for x in v)
+    return "none" if v is None else str(v).lower() if isinstance(v, bool) else str(v)
+
+
+def _search_text(d: Dimension | None) -> str:
+    if d is None:
+        return "fixed"
+    if d.choices is not None:
+        return "one of " + ", ".join(str(c) for c in d.choices)
+    scale = "log" if d.log else "linear"
+    rel = f" × {d.relative_to.replace('_', ' ')}" if d.relative_to else ""
+    size = f", {d.size} values" if d.size > 1 else ""
+    kind_ = "integer" if d.integer else "real"
+    return f"[{d.low:g}, {d.high:g}]{rel}, {scale}, {kind_}{size}"
+
+
+def markdown_table(names: tuple[str, ...] | None = None) -> str:
+    """The docs' table of controller kinds and their options (``docs/controllers.md``, checked by
+    ``tests/test_registry.py``; ``python -m tapm_opt.control.registry`` prints it)."""
+    rows = ["| kind | option | default | unit | tuning search space | meaning |", "|---|---|---|---|---|---|"]
+    for n in names or tuple(k.name for k in _BUILTIN):
+        k = _KINDS[n]
+        first = True
+        for d in k.describe():
+            doc = d["doc"].replace("|", "\\|").replace("\n", " ")
+            if d["allowed"]:
+                doc += " (" + ", ".join(_text(a) for a in d["allowed"]) + ")"
+            rows.append(f"| {f'`{k.name}` ({k.label})' if first else ''} | `{d['name']}` | {_text(d['default'])} | "
+                        f"{d['unit']} | {_search_text(d['search'])} | {doc} |")
+            first = False
+    return "\n".join(rows) + "\n"
+
+
+if __name__ == "__main__":  # pragma: no cover
+    print(markdown_table(), end="")
