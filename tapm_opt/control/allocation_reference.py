@@ -1,10 +1,14 @@
-"""Thrust allocation: the readable reference of the QP, written with cvxpy (tests and documentation only)."""
+"""Thrust allocation: the readable reference of the QP, written with cvxpy (tests and documentation only).
+
+:mod:`tapm_opt.control.allocation` re-exports :func:`allocate_reference`, so this module does not
+import it back: the allocator comes in as an argument.
+"""
 
 from __future__ import annotations
 
 import math
 import time
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
@@ -12,13 +16,10 @@ from ..models.thrust import configuration_matrix, extended_columns
 from .allocation_base import AllocationError, AllocationResult
 from .allocation_step import HALF_PI
 
-if TYPE_CHECKING:
-    from .allocation import ThrustAllocator
-
 __all__ = ["allocate_reference"]
 
 
-def allocate_reference(allocator: ThrustAllocator, tau_cmd: Any, dt: float | None = None, *,
+def allocate_reference(allocator: Any, tau_cmd: Any, dt: float | None = None, *,
                        solver: str = "HIGHS", **solver_options: Any) -> AllocationResult:
     """The same QP as :meth:`ThrustAllocator.allocate`, written with cvxpy in the body-frame force
     components u_i (radial and tangential parts as projections on e(b), e(b + pi/2)) and built on
@@ -32,6 +33,15 @@ def allocate_reference(allocator: ThrustAllocator, tau_cmd: Any, dt: float | Non
     path; the variables, cost and constraints are written out here, independently of the OSQP
     matrices. In the result, ``solve_time`` is the wall time of the cvxpy solve and
     ``iterations`` is 0.
+
+    Parameters
+    ----------
+    allocator : ThrustAllocator
+        The allocator whose QP is rebuilt (its step data, weights and state are read).
+    tau_cmd : array_like, shape (3,)
+        Commanded generalised force in {B} [N, N, N m].
+    dt : float, optional
+        Time step [s] of the rate limits (as for :meth:`ThrustAllocator.allocate`).
 
     Raises
     ------
