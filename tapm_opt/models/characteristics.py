@@ -1,18 +1,23 @@
 """Line characteristics and system restoring curves (survey eq. 25–29), as plain tables.
 
 These functions compute; writing files is the caller's job (see ``tapm lines``).
+
+They take a :class:`~tapm_opt.models.mooring.MooringModel` as an argument and read its lines; the
+mooring model builds its :class:`TabulatedMooringLoad` from here
+(:meth:`~tapm_opt.models.mooring.MooringModel.load_evaluator`), so this module does not import it
+back.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from ..errors import ModelError
 from . import catenary
-from .mooring import MooringModel
 
 __all__ = ["LineCharacteristics", "OffsetCurves", "TabulatedMooringLoad", "line_characteristics", "offset_curves"]
 
@@ -50,7 +55,7 @@ class OffsetCurves:
     T: np.ndarray
 
 
-def line_characteristics(model: MooringModel, *, half_range: float, n_points: int = 41) -> LineCharacteristics:
+def line_characteristics(model: Any, *, half_range: float, n_points: int = 41) -> LineCharacteristics:
     """H, V, T of each line for XF in [XF0 - half_range, XF0 + half_range] (eq. 25).
 
     Parameters
@@ -74,11 +79,12 @@ def line_characteristics(model: MooringModel, *, half_range: float, n_points: in
                                regime=sol.regime)
 
 
-def offset_curves(model: MooringModel, directions: np.ndarray, offsets: np.ndarray) -> OffsetCurves:
+def offset_curves(model: Any, directions: np.ndarray, offsets: np.ndarray) -> OffsetCurves:
     """Mooring load and tensions for the vessel displaced by ``offsets`` along ``directions``.
 
     Parameters
     ----------
+    model : MooringModel
     directions : array_like, shape (n_dir,)
         Offset directions in {E} from north [rad].
     offsets : array_like, shape (n_off,)
@@ -364,7 +370,7 @@ class TabulatedMooringLoad:
         Calls answered by ``MooringModel.force`` because a line's distance was not covered.
     """
 
-    def __init__(self, model: MooringModel, *, max_offset: float | None = None, rtol: float = 1e-9,
+    def __init__(self, model: Any, *, max_offset: float | None = None, rtol: float = 1e-9,
                  kernel: str = "auto"):
         if kernel not in ("auto", "numba", "numpy"):
             raise ModelError(f"kernel = {kernel!r} is not one of 'auto', 'numba', 'numpy'")
