@@ -137,8 +137,8 @@ class TensionRangeMap:
         frac = _finite("x_max_tension", x_max_tension, lo=0.0)
         self._par = (model.ZF, model.L, model.EA, model.w, model.CB, model.h_A)
         # domain: the slack limit (a line lying slack has TF independent of X) .. TF = frac * MBS
-        L2 = catenary._hanging_length(model.ZF + model.h_A, model.w, model.EA)
-        L1 = catenary._hanging_length(model.h_A, model.w, model.EA)
+        L2 = catenary.hanging_length(model.ZF + model.h_A, model.w, model.EA)
+        L1 = catenary.hanging_length(model.h_A, model.w, model.EA)
         X_slack = np.maximum(model.L - L1 - L2, 0.0)
         self.X_lo = X_slack + 1e-6 * model.L + 1e-3
         T_cap = frac * np.asarray(model.MBS, float)

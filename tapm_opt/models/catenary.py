@@ -98,6 +98,7 @@ __all__ = [
     "REGIMES",
     "CatenarySolution",
     "closure",
+    "hanging_length",
     "solve",
     "line_profile",
     "symbolic_function",
@@ -315,9 +316,10 @@ def _check_inputs(**arrays: np.ndarray) -> None:
             raise CatenaryError(f"{name} = {float(arr[idx])!r}{where} {what}")
 
 
-def _hanging_length(ZF, w, EA):
-    """Length of a line hanging vertically with no horizontal tension over a height ZF:
-    the root of ZF = Ls + w Ls^2 / (2 EA), in a form without cancellation."""
+def hanging_length(ZF, w, EA):
+    """Unstretched length [m] of a line hanging vertically with no horizontal tension over a
+    height ZF [m] (submerged weight w [N/m], axial stiffness EA [N]; floats or arrays): the root
+    of ZF = Ls + w Ls^2 / (2 EA), in a form without cancellation."""
     return 2.0 * ZF / (1.0 + np.sqrt(1.0 + 2.0 * w * ZF / EA))
 
 
@@ -470,8 +472,8 @@ def solve(XF, ZF, L, EA, w, *, CB=0.0, h_A=0.0, tol: float = 1e-9, max_iter: int
             regime[m] = WEIGHTLESS
         heavy = ~m
         # slack: hanging vertically from the fairlead (L2) and from an elevated lower end (L1)
-        L1 = _hanging_length(hA, w, EA)
-        L2 = _hanging_length(ZF + hA, w, EA)
+        L1 = hanging_length(hA, w, EA)
+        L2 = hanging_length(ZF + hA, w, EA)
         m = heavy & (L1 + L2 <= L) & (L - L1 - L2 >= XF)
         if np.any(m):
             out["VF"][m] = w[m] * L2[m]
@@ -603,8 +605,8 @@ def line_profile(XF: float, ZF: float, L: float, EA: float, w: float, *, CB: flo
         T = np.full(n, float(sol.TF))
     elif reg == SLACK:
         # hanging from A over L1, untensioned on the seabed over LB, hanging from the fairlead over L2
-        L1 = float(_hanging_length(h_A, w, EA))
-        L2 = float(_hanging_length(ZF + h_A, w, EA))  # not L - LBot: no cancellation
+        L1 = float(hanging_length(h_A, w, EA))
+        L2 = float(hanging_length(ZF + h_A, w, EA))  # not L - LBot: no cancellation
         LB = float(sol.LBot)
         s1 = np.minimum(s, L1)
         z1 = -(s1 + w * (L1 * s1 - 0.5 * s1 * s1) / EA)
