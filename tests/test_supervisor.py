@@ -21,7 +21,9 @@ from tapm_opt.control.pid import MODE_SETS, ControlError
 from tapm_opt.control.scheduled import GainScheduledPID
 from tapm_opt.control.supervisor import (DEFAULT_BAND, SeaStateFeatures, SeaStateReference, SeaStateSupervisor,
                                          SupervisedController, SupervisorError, WaveMotionStatistics,
-                                         _estimator_complement, spectral_features, supervised_pid, wave_band_sos)
+                                         spectral_features, wave_band_sos)
+from tapm_opt.design.supervisor import sea_state_supervisor, supervised_pid
+from tapm_opt.estimation.lowpass import estimator_complement
 from tapm_opt.interfaces import Controller, Estimate, FaultAware, Logged, Setpoint
 from tapm_opt.models.system import System
 from tapm_opt.studies.controllers import build_controller
@@ -44,7 +46,7 @@ def system(fpso):
 @pytest.fixture(scope="module")
 def base(system):
     """The fpso supervisor (its references are shared by the runs' supervisors)."""
-    return SeaStateSupervisor.from_scenario(system)
+    return sea_state_supervisor(system)
 
 
 def _halfway(fpso):
@@ -174,7 +176,7 @@ def test_estimator_complement_is_the_lowpass_estimators_eta_wf(system):
     x = rng.standard_normal(400)
     x[0] = 0.0
     wf = [x[k] - est.filter(float(k), np.array([x[k], 0.0]), 0.0, np.zeros(3))[0][0] for k in range(400)]
-    b, a = _estimator_complement(1.0, est.omega_c)
+    b, a = estimator_complement(1.0, est.omega_c)
     np.testing.assert_allclose(scipy.signal.lfilter(b, a, x), wf, atol=1e-12)
 
 
@@ -184,12 +186,12 @@ def test_expected_wave_features_are_the_plants_motion_at_any_heading(fpso, syste
     from tapm_opt.design.loads import mean_environmental_load
     from tapm_opt.plant.environment import Environment
 
-    sup = SeaStateSupervisor.from_scenario(system, sea_states=["storm"], gnss_std=0.0, heading_step=1e-6)
+    sup = sea_state_supervisor(system, sea_states=["storm"], gnss_std=0.0, heading_step=1e-6)
     ref = sup.references[0]
     psi = 0.35
     env = Environment(fpso, "storm", seed=0)
     t = np.arange(3600 + 80) * 1.0
-    b, a = _estimator_complement(1.0, 2 * math.pi / 40.0)
+    b, a = estimator_complement(1.0, 2 * math.pi / 40.0)
     wf = np.asarray(env.eta_wf(t, psi))
     xf, yf = (scipy.signal.sosfilt(sup.wave.sos, scipy.signal.lfilter(b, a, wf[:, i]))[80:] for i in (0, 1))
     m0 = np.mean(xf[1:] ** 2 + yf[1:] ** 2)
@@ -239,8 +241,8 @@ def test_supervisor_behind_the_ekf_finds_the_sea_state(fpso, system, sid):
     """Behind the EKF (the loop's default estimator) ``eta_wf`` is the observer's WF estimate,
     without the GNSS noise: the references of ``estimator_cutoff=None`` (noise term 0) match it,
     those with the noise term would expect 1.6x the storm's amplitude."""
-    obs = SeaStateSupervisor.from_scenario(system, estimator_cutoff=None)
-    noisy = SeaStateSupervisor.from_scenario(system, estimator_cutoff=None, gnss_std=fpso.sensors.gnss_std)
+    obs = sea_state_supervisor(system, estimator_cutoff=None)
+    noisy = sea_state_supervisor(system, estimator_cutoff=None, gnss_std=fpso.sensors.gnss_std)
     ctrl, _, _ = _run(system, obs, fpso.sea_state(sid), estimator="ekf")
     sup = ctrl.supervisor
     assert sup.sea_state == sid and sup.switches <= 1
@@ -269,7 +271,7 @@ def test_switched_tapmpid_changes_its_mode_set(runs):
 def test_a_sea_state_between_two_does_not_chatter(fpso, base, between_run):
     """Halfway between normal and storm the models put the sea state on the boundary (distances
     within the margin of each other); with hysteresis the supervisor switches at most once."""
-    sup_b = SeaStateSupervisor.from_scenario(dataclasses.replace(fpso, sea_states=(_halfway(fpso),)))
+    sup_b = sea_state_supervisor(dataclasses.replace(fpso, sea_states=(_halfway(fpso),)))
     e = sup_b.expected("between")
     d_normal, d_storm = base.distance(e, "normal"), base.distance(e, "storm")
     assert abs(d_normal - d_storm) < base.margin
@@ -360,7 +362,7 @@ def test_gain_scheduled_pid_gets_the_row_of_the_sea_state_and_the_broken_line(sy
 def test_missing_sea_state_row_falls_back_to_the_nearest(system, table):
     """A supervisor with a sea state the table lacks: the row of the table's sea state of the
     same class (storm for extreme) is used, and the fallback is logged."""
-    sup = SeaStateSupervisor.from_scenario(system, sea_states=["calm", "extreme"], features=("load",),
+    sup = sea_state_supervisor(system, sea_states=["calm", "extreme"], features=("load",),
                                            window=60.0, warm_up=60.0, initial="calm")
     ctrl = SupervisedController(GainScheduledPID(table, scenario=system), sup)
     load = sup.expected("extreme").load
@@ -439,11 +441,11 @@ def test_bad_references_and_estimates_raise(system):
     with pytest.raises(SupervisorError, match="sea_state = 'b'"):
         sup.expected("b")
     with pytest.raises(SupervisorError, match="sea_states: 'hurricane'"):
-        SeaStateSupervisor.from_scenario(system, sea_states=["hurricane"])
+        sea_state_supervisor(system, sea_states=["hurricane"])
     with pytest.raises(SupervisorError, match="estimator_cutoff = 'fast'"):
-        SeaStateSupervisor.from_scenario(system, estimator_cutoff="fast")
+        sea_state_supervisor(system, estimator_cutoff="fast")
     with pytest.raises(SupervisorError, match="gnss_std = -0.1"):
-        SeaStateSupervisor.from_scenario(system, gnss_std=-0.1)
+        sea_state_supervisor(system, gnss_std=-0.1)
 
 
 def test_bad_controller_arguments_raise(system, table):

@@ -46,6 +46,8 @@ __all__ = [
     "GainClampWarning",
     "MODES",
     "MODE_SETS",
+    "SEA_CLASSES",
+    "CLASS_MODE_SETS",
     "H_PSI",
     "H_XY",
     "PIDGains",
@@ -77,6 +79,14 @@ MODE_SETS: Mapping[str, tuple[str, ...]] = MappingProxyType({
     "extreme": ("heading", "damping", "mean"),
     "extreme_restoring": ("heading", "damping", "restoring", "mean"),
 })
+
+#: Sea-state classes, ordered from calm to extreme.
+SEA_CLASSES: tuple[str, ...] = ("calm", "normal", "extreme")
+#: Control modes of each class ([S] Table 3): calm -> heading PID only (action 1); normal ->
+#: heading + surge-sway damping + restoring (1+2+3); extreme -> all four (1+2+3+4). Keys of
+#: :data:`MODE_SETS`; the gain tables (``design.tables``) and the sea-state supervisor use them.
+CLASS_MODE_SETS: Mapping[str, str] = MappingProxyType(
+    {"calm": "calm", "normal": "normal_restoring", "extreme": "extreme_restoring"})
 
 #: Projections of [S] Table 2 onto heading and onto surge-sway.
 H_PSI = readonly(np.diag([0.0, 0.0, 1.0]))

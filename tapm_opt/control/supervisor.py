@@ -41,13 +41,15 @@ parts of that loop:
     sea state, the reported broken line and the heading) or a plain
     :class:`~tapm_opt.control.pid.TAPMPID` (``set_modes`` to the mode set of the detected sea
     state's class, [S] Table 3: calm -> heading; normal -> heading + damping + restoring;
-    extreme -> heading + damping + restoring + mean; ``design.tables.CLASS_MODE_SETS``).
+    extreme -> heading + damping + restoring + mean; ``control.pid.CLASS_MODE_SETS``).
 
-:func:`supervised_pid`
-    builds either form for a system.
+The supervisor takes its references (the expected features of each sea state) as arguments.
+Computing them runs the plant's wave and load models, which is design-time work:
+:func:`tapm_opt.design.supervisor.sea_state_supervisor` builds a supervisor for a scenario and
+:func:`tapm_opt.design.supervisor.supervised_pid` either form of the controller for a system.
 
-**Expected features** (:meth:`SeaStateSupervisor.from_scenario`) come from the models the plant
-uses, not from fitted numbers:
+**Expected features** (:func:`~tapm_opt.design.supervisor.sea_state_supervisor`) come from the
+models the plant uses, not from fitted numbers:
 
 * WF motion: the plant's first-order wave model
   (:meth:`tapm_opt.plant.environment.WaveField.eta_wf`, seed ``seed``) sampled at ``dt`` over
@@ -55,7 +57,7 @@ uses, not from fitted numbers:
   hull's surge response S_0(t)) and abeam (beta = pi/2: its sway response S_1(t)); each is
   passed through the complement of the estimator's low-pass (``eta_wf`` = measured - filtered
   pose of :class:`~tapm_opt.estimation.lowpass.LowPassEstimator`, cut-off
-  ``estimator_cutoff``) and the supervisor's band-pass, and its moments m0, m2 are taken. At
+  ``estimator_cutoff``: :func:`~tapm_opt.estimation.lowpass.estimator_complement`) and the supervisor's band-pass, and its moments m0, m2 are taken. At
   heading psi (beta = wave direction - psi) the plant's WF motion in {E} is
   ``R(psi) (cos(beta) S_0, sin(beta) S_1)``, so ``x^2 + y^2 = cos^2(beta) S_0^2 +
   sin^2(beta) S_1^2`` exactly and ``m_k(psi) = cos^2(beta) m_k,0 + sin^2(beta) m_k,1``; the
@@ -72,9 +74,7 @@ uses, not from fitted numbers:
   mean speed, Newman mean drift, current on the hull at rest) at the heading, cached per
   ``heading_step`` (5°).
 
-The models are imported when :meth:`~SeaStateSupervisor.from_scenario` runs, not with this
-module, so the control layer keeps its import direction (``control`` does not import ``design``
-at import time). ``[S]`` = seed survey-tapm-modeling-and-control.
+``[S]`` = seed survey-tapm-modeling-and-control.
 """
 
 from __future__ import annotations
@@ -82,17 +82,15 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass
-from pathlib import Path
 from types import MappingProxyType
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from ..errors import TapmError
+from .._checks import finite, vector
 from ..geometry import ssa
 from ..interfaces import ControllerStep, Estimate, FaultAware, Setpoint
-from .gain_table import GainTable, load_gain_table
-from .pid import MODE_SETS, ControlError, TAPMPID, _resolve_modes
+from .pid import CLASS_MODE_SETS, MODE_SETS, SEA_CLASSES, ControlError, TAPMPID, _resolve_modes
 from .scheduled import GainScheduledPID
 
 __all__ = [
@@ -107,6 +105,7 @@ __all__ = [
     "spectral_features",
     "SeaStateSupervisor",
     "SupervisedController",
+    "class_mode_sets",
     "supervised_pid",
 ]
 
@@ -131,26 +130,11 @@ class SupervisorError(ControlError):
 # --- small checks ---------------------------------------------------------------------------
 
 def _pos(name: str, value: Any, *, allow_zero: bool = False) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise SupervisorError(f"{name} = {value!r} must be a number") from None
-    if not math.isfinite(v) or v < 0.0 or (v == 0.0 and not allow_zero):
-        rule = ">= 0" if allow_zero else "> 0"
-        raise SupervisorError(f"{name} = {value!r} must be a finite number {rule}")
-    return v
+    return finite(name, value, lo=0.0, strict=not allow_zero, error=SupervisorError)
 
 
 def _finite_vec(name: str, value: Any, n: int) -> np.ndarray:
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise SupervisorError(f"{name} = {value!r} is not numeric") from None
-    if arr.shape != (n,):
-        raise SupervisorError(f"{name} must have shape ({n},), got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise SupervisorError(f"{name} = {arr.tolist()} is not finite")
-    return arr
+    return vector(name, value, n, error=SupervisorError)
 
 
 # --- features -------------------------------------------------------------------------------
@@ -414,47 +398,6 @@ class SeaStateReference:
                    info={"kind": "constant", **f.as_dict()})
 
 
-def _estimator_complement(dt: float, omega_c: float) -> tuple[np.ndarray, np.ndarray]:
-    """(b, a) of ``z - y`` with y the low-pass of :class:`~tapm_opt.estimation.lowpass.LowPassEstimator`
-    (critically damped, cut-off ``omega_c``, exact over dt with the new sample held): its
-    ``eta_wf``. The state-space matrices are read off the estimator's recursion itself."""
-    import scipy.signal
-
-    from ..estimation.lowpass import critically_damped_step
-
-    def step(y: float, yd: float, z: float) -> tuple[float, float]:  # the estimator's own recursion
-        return critically_damped_step(y, yd, z, omega_c, dt)
-
-    A = np.array([step(1.0, 0.0, 0.0), step(0.0, 1.0, 0.0)]).T
-    B = np.array(step(0.0, 0.0, 1.0)).reshape(2, 1)
-    C = np.array([[1.0, 0.0]])
-    # s_k = A s_{k-1} + B z_k, out_k = z_k - C s_k: state x_k = s_{k-1}
-    b, a = scipy.signal.ss2tf(A, B, -C @ A, 1.0 - C @ B)
-    return np.atleast_1d(np.squeeze(b)), np.asarray(a, float)
-
-
-class _ModelReference:
-    """``expected(psi)`` of a scenario sea state from the wave and load models."""
-
-    def __init__(self, scenario: Any, sea_state: Any, wave: dict, *, dt: float, seed: int):
-        self.scenario, self.sea_state, self.wave, self.dt, self.seed = scenario, sea_state, wave, dt, seed
-
-    def load(self, psi: float) -> float:
-        from ..design.loads import mean_environmental_load
-
-        tau = mean_environmental_load(self.scenario, self.sea_state, psi, seed=self.seed).total
-        return float(math.hypot(tau[0], tau[1]))
-
-    def __call__(self, psi: float) -> SeaStateFeatures:
-        w = self.wave
-        beta = w["wave_direction"] - psi
-        c2, s2 = math.cos(beta) ** 2, math.sin(beta) ** 2
-        m0 = c2 * w["m0"][0] + s2 * w["m0"][1] + w["noise_m0"]
-        m2 = c2 * w["m2"][0] + s2 * w["m2"][1] + w["noise_m2"]
-        A, T = spectral_features(m0, m2, self.dt)
-        return SeaStateFeatures(A, T, self.load(psi))
-
-
 # --- the supervisor -------------------------------------------------------------------------
 
 class SeaStateSupervisor:
@@ -465,7 +408,8 @@ class SeaStateSupervisor:
     ----------
     references : sequence of SeaStateReference
         The sea states to choose from (unique ids), with their expected features;
-        :meth:`from_scenario` builds them from a scenario's models.
+        :func:`tapm_opt.design.supervisor.sea_state_supervisor` builds them from a scenario's
+        models.
     dt : float
         Sample period [s]: :meth:`update` must be called every ``dt`` (the controller's period;
         the runner's control period, 1 s by default).
@@ -547,95 +491,6 @@ class SeaStateSupervisor:
         self._load = _Window(self.window, 3)  # |tau_xy|, cos psi, sin psi
         self._cache: dict[tuple[str, int], SeaStateFeatures] = {}
         self.reset()
-
-    # -- construction from a scenario ----------------------------------------------------
-    @classmethod
-    def from_scenario(cls, system: Any, *, sea_states: Sequence[str] | None = None,
-                      classes: Mapping[str, str] | None = None, seed: int = 0,
-                      estimator_cutoff: float | None | str = "default", gnss_std: float | None = None,
-                      reference_duration: float = 3600.0, dt: float = 1.0,
-                      band: tuple[float, float] | None = DEFAULT_BAND, **options: Any) -> SeaStateSupervisor:
-        """Supervisor for a scenario's sea states, their expected features from its models
-        (module docstring).
-
-        Parameters
-        ----------
-        system : System or Scenario
-        sea_states : sequence of str, optional
-            Sea-state ids to choose from (default all of the scenario's).
-        classes : mapping id -> class, optional
-            Class of each sea state (default ``design.tables.sea_state_class``: by id, else Hs).
-        seed : int
-            Seed of the wave model of the expected features (the plant's seed is unknown to the
-            supervisor; the statistics depend little on it).
-        estimator_cutoff : float, None or "default"
-            Cut-off [rad/s] of the estimator low-pass whose complement is ``eta_wf``
-            (``"default"``: that of :class:`~tapm_opt.estimation.lowpass.LowPassEstimator`,
-            2 pi / 40 s; None: ``eta_wf`` is an observer's estimate of the WF motion itself).
-        gnss_std : float, optional
-            Position noise per axis [m] in ``eta_wf`` (default the scenario's
-            ``sensors.gnss_std`` with a low-pass cut-off; 0 with ``estimator_cutoff=None``, an
-            observer's WF estimate, which filters the noise out).
-        reference_duration : float
-            Length of the model series of the WF moments [s].
-        dt, band, **options
-            As for the constructor (``window``, ``warm_up``, ``dwell``, ``margin``, ``scales``,
-            ``features``, ``initial``, ``heading_step``).
-        """
-        from ..design.tables import sea_state_class
-        from ..models.system import as_system
-
-        try:
-            scenario = as_system(system).scenario
-        except (TypeError, AttributeError, TapmError) as exc:
-            raise SupervisorError(f"system = {type(system).__name__}: not a System or Scenario ({exc})") from None
-        if sea_states is None:
-            chosen = list(scenario.sea_states)
-        else:
-            if isinstance(sea_states, str):
-                sea_states = [sea_states]
-            chosen = []
-            for sid in sea_states:
-                try:
-                    chosen.append(scenario.sea_state(str(sid)))
-                except KeyError:
-                    raise SupervisorError(f"sea_states: {sid!r} is not a sea state of scenario {scenario.name!r} "
-                                          f"({[s.id for s in scenario.sea_states]})") from None
-        if not chosen:
-            raise SupervisorError(f"scenario {scenario.name!r} has no sea states")
-        if isinstance(estimator_cutoff, str):
-            if estimator_cutoff != "default":
-                raise SupervisorError(f"estimator_cutoff = {estimator_cutoff!r} must be a cut-off [rad/s], None "
-                                      f"or 'default'")
-            from ..design.margins import ESTIMATOR_CUTOFF   # the low-pass estimator's default cut-off
-
-            estimator_cutoff = ESTIMATOR_CUTOFF
-        elif estimator_cutoff is not None:
-            estimator_cutoff = _pos("estimator_cutoff", estimator_cutoff)
-        if gnss_std is None:
-            gnss_std = scenario.sensors.gnss_std if estimator_cutoff is not None else 0.0
-        gnss = _pos("gnss_std", gnss_std, allow_zero=True)
-        dt = _pos("dt", dt)
-        duration = _pos("reference_duration", reference_duration)
-        settle = 0.0 if band is None else 2.0 * float(band[1])
-        wave_band_sos(dt, band)  # checks the band before the models run
-        from ..design.wave_reference import wave_reference  # runs the plant's wave model (design layer)
-
-        refs = []
-        for ss in chosen:
-            try:
-                cls_ = sea_state_class(ss, classes)
-            except ControlError as exc:
-                raise SupervisorError(f"classes: {exc}") from None
-            wave = wave_reference(scenario, ss, dt=dt, band=band, settle=settle,
-                                  estimator_cutoff=estimator_cutoff, gnss_std=gnss, seed=int(seed),
-                                  duration=duration)
-            info = {"kind": "model", "Hs_m": float(ss.Hs), "Tp_s": float(ss.Tp), "seed": int(seed),
-                    "estimator_cutoff_rad_s": estimator_cutoff, "gnss_std_m": gnss, **wave}
-            refs.append(SeaStateReference(sea_state=ss.id, sea_class=cls_,
-                                          expected=_ModelReference(scenario, ss, wave, dt=dt, seed=int(seed)),
-                                          info=info))
-        return cls(refs, dt=dt, band=band, **options)
 
     # -- state -----------------------------------------------------------------------------
     def reset(self) -> None:
@@ -803,10 +658,15 @@ class SeaStateSupervisor:
 
 # --- the switched controller ----------------------------------------------------------------
 
-def _class_modes(modes: Mapping[str, Any] | None) -> dict[str, tuple[str, ...]]:
-    """Mode set per class: ``modes`` over the defaults ``design.tables.CLASS_MODE_SETS``."""
-    from ..design.tables import CLASS_MODE_SETS, SEA_CLASSES
+def class_mode_sets(modes: Mapping[str, Any] | None = None) -> dict[str, tuple[str, ...]]:
+    """Mode set per class: ``modes`` (class -> mode set name or modes) over the defaults
+    :data:`~tapm_opt.control.pid.CLASS_MODE_SETS` ([S] Table 3).
 
+    Raises
+    ------
+    SupervisorError
+        ``modes`` not a mapping, an unknown class or mode set.
+    """
     out = {c: MODE_SETS[CLASS_MODE_SETS[c]] for c in SEA_CLASSES}
     if modes is None:
         return out
@@ -847,7 +707,7 @@ class SupervisedController:
       then intact; other sea states of the same class, then the nearest by the supervisor's
       distance — and logged (``"event": "missing row"``, once per request);
     * for a :class:`~tapm_opt.control.pid.TAPMPID`: ``set_modes`` to the mode set of the
-      supervisor's class (``modes``, default ``design.tables.CLASS_MODE_SETS``, [S] Table 3);
+      supervisor's class (``modes``, default ``control.pid.CLASS_MODE_SETS``, [S] Table 3);
 
     and returns the inner controller's command. A line break reaches a TAPMPID as before, through
     ``estimate.broken_lines`` (its fault-tolerant feed-forward).
@@ -890,7 +750,7 @@ class SupervisedController:
         self.heading = heading
         # the table never changes: whether it holds only weathervane rows is decided once
         self._all_weathervane = self._scheduled and all(c.weathervane for c in controller.conditions)
-        self._modes = None if self._scheduled else _class_modes(modes)
+        self._modes = None if self._scheduled else class_mode_sets(modes)
         self.period = controller.period
         self._events: list[dict] = []
         self._missing: set = set()
@@ -1026,79 +886,16 @@ class SupervisedController:
         return self.controller.modes
 
 
-# --- factory --------------------------------------------------------------------------------
+# --- moved to the design layer ----------------------------------------------------------------
 
-def supervised_pid(system: Any, *, gain_table: Any = None, modes: Mapping[str, Any] | None = None,
-                   initial_sea_state: str | None = None, pid: TAPMPID | None = None, heading: str = "auto",
-                   **supervisor_options: Any) -> SupervisedController:
-    """A sea-state supervised PID for ``system``: gain-scheduled (with ``gain_table``) or a
-    TAPMPID whose modes switch with the sea-state class.
+def supervised_pid(system: Any, **options: Any) -> SupervisedController:
+    """:func:`tapm_opt.design.supervisor.supervised_pid` (same arguments), which builds the
+    supervisor's references from the plant's models: design-time work, moved there.
 
-    Parameters
-    ----------
-    system : System or Scenario
-    gain_table : GainTable, mapping, str or Path, optional
-        The gain table (object, its JSON dict, ``gains.json`` or its folder): a
-        :class:`~tapm_opt.control.scheduled.GainScheduledPID` on it (capacity box, centre of
-        turret) is switched; the supervisor chooses among the table's sea states, with the
-        table's classes.
-    modes : mapping class -> mode set, optional
-        Without a table: the mode set of each class (default ``design.tables.CLASS_MODE_SETS``).
-    initial_sea_state : str, optional
-        Sea state before the first decision (default the table's first row, else the scenario's
-        first sea state).
-    pid : TAPMPID, optional
-        Without a table: the PID to switch (required; e.g. the study PID,
-        ``studies.controllers.build_controller(system, "pid")``).
-    heading : "auto", "setpoint" or "weathervane"
-        See :class:`SupervisedController`.
-    **supervisor_options
-        :meth:`SeaStateSupervisor.from_scenario` options (``window``, ``dwell``, ``margin``,
-        ``warm_up``, ``scales``, ``features``, ``seed``, ``dt``, ...).
+    Transitional: kept only while ``control/registry.py`` and ``studies/controllers.py`` import it
+    from here; they should import it from :mod:`tapm_opt.design.supervisor` (or be given the
+    controller built there), and then this wrapper goes (``tests/test_import_graph.py``,
+    ``ALLOWED_UPWARD``)."""
+    from ..design.supervisor import supervised_pid as build
 
-    Raises
-    ------
-    SupervisorError
-        Bad arguments (the table's own errors are :class:`~tapm_opt.control.gain_table.GainTableError`).
-    """
-    from ..models.system import as_system
-
-    for key in ("sea_states", "classes", "initial"):
-        if key in supervisor_options:
-            raise SupervisorError(f"{key} is set by supervised_pid (use initial_sea_state=, or build the "
-                                  f"SeaStateSupervisor yourself)")
-    system = as_system(system)
-    if gain_table is not None:
-        if modes is not None:
-            raise SupervisorError("modes is for the plain PID: a gain table's rows carry their own mode sets")
-        if pid is not None:
-            raise SupervisorError("give either gain_table or pid, not both")
-        if isinstance(gain_table, (str, Path)):
-            table = load_gain_table(gain_table)
-        elif isinstance(gain_table, (GainTable, Mapping)):
-            table = gain_table
-        else:
-            raise SupervisorError(f"gain_table = {gain_table!r} must be a GainTable, its dict or a path to gains.json")
-        ctrl = GainScheduledPID(table, scenario=system)
-        conds = ctrl.conditions
-        states = list(dict.fromkeys(c.sea_state for c in conds))
-        classes = {c.sea_state: c.sea_class for c in conds}
-        initial = states[0] if initial_sea_state is None else initial_sea_state
-        if initial not in states:
-            raise SupervisorError(f"initial_sea_state = {initial!r} is not a sea state of the gain table {states}")
-        sup = SeaStateSupervisor.from_scenario(system, sea_states=states, classes=classes, initial=initial,
-                                               **supervisor_options)
-        return SupervisedController(ctrl, sup, heading=heading)
-    if pid is not None and not isinstance(pid, TAPMPID):
-        raise SupervisorError(f"pid must be a TAPMPID, got {type(pid).__name__}")
-    _class_modes(modes)  # check before anything is built
-    ids = [s.id for s in system.scenario.sea_states]
-    initial = (ids[0] if ids else None) if initial_sea_state is None else initial_sea_state
-    if initial not in ids:
-        raise SupervisorError(f"initial_sea_state = {initial!r} is not a sea state of scenario "
-                              f"{system.scenario.name!r} ({ids})")
-    if pid is None:
-        raise SupervisorError("pid is missing: give the TAPMPID to switch (e.g. "
-                              "tapm_opt.studies.controllers.build_controller(system, 'pid')) or a gain_table")
-    sup = SeaStateSupervisor.from_scenario(system, initial=initial, **supervisor_options)
-    return SupervisedController(pid, sup, modes=modes, heading=heading)
+    return build(system, **options)

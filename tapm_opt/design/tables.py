@@ -44,7 +44,9 @@ from ..control.gain_table import (
     LQRRow,
     PIDRow,
 )
-from ..control.pid import MODE_SETS, GainClampWarning
+# the sea-state classes and their mode sets ([S] Table 3) are the controllers' (the supervisor
+# switches with them); re-exported here with the tables built on them
+from ..control.pid import CLASS_MODE_SETS, MODE_SETS, SEA_CLASSES, GainClampWarning
 from ..control.pid_design import check_integral_ratio, closed_loop, design_gains
 from ..errors import TapmError
 from ..geometry import ssa
@@ -69,12 +71,6 @@ __all__ = [
 
 _X, _Y, _PSI = 0, 1, 2
 
-#: Sea-state classes, ordered from calm to extreme.
-SEA_CLASSES: tuple[str, ...] = ("calm", "normal", "extreme")
-#: Control modes of each class ([S] Table 3): calm -> heading PID only (action 1); normal ->
-#: heading + surge-sway damping + restoring (1+2+3); extreme -> all four (1+2+3+4).
-CLASS_MODE_SETS: Mapping[str, str] = MappingProxyType(
-    {"calm": "calm", "normal": "normal_restoring", "extreme": "extreme_restoring"})
 #: Sea-state ids recognised as a class without a ``classes`` mapping.
 _ID_CLASSES = MappingProxyType({"calm": "calm", "normal": "normal", "extreme": "extreme",
                                 "storm": "extreme"})

@@ -2,7 +2,8 @@
 (:mod:`tapm_opt.control.supervisor`), from the plant's own wave model: the hull's head-on and
 abeam responses and the GNSS noise through the estimator's complement and the supervisor's wave
 band. Here, in the design layer, because it runs the plant's :class:`~tapm_opt.plant.environment.Environment`;
-the supervisor imports it when it builds its references.
+:func:`tapm_opt.design.supervisor.sea_state_supervisor` builds the supervisor's references with it
+and passes them in.
 """
 
 from __future__ import annotations
@@ -12,7 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from ..control.supervisor import _estimator_complement, wave_band_sos
+from ..control.supervisor import wave_band_sos
+from ..estimation.lowpass import estimator_complement
 from ..plant.environment import Environment
 
 __all__ = ["wave_reference"]
@@ -26,7 +28,7 @@ def wave_reference(scenario: Any, sea_state: Any, *, dt: float, band: Any, settl
     import scipy.signal
 
     sos = wave_band_sos(dt, band)
-    comp = _estimator_complement(dt, estimator_cutoff) if estimator_cutoff is not None else None
+    comp = estimator_complement(dt, estimator_cutoff) if estimator_cutoff is not None else None
 
     def chain(x: np.ndarray) -> np.ndarray:
         if comp is not None:

@@ -32,7 +32,8 @@ from ..interfaces import Estimate, Measurement
 from ..models.mooring import MooringModel
 from .reliability import monitor_signals
 
-__all__ = ["LowPassEstimator", "TrueStateEstimator", "EstimationError", "critically_damped_step"]
+__all__ = ["LowPassEstimator", "TrueStateEstimator", "EstimationError", "critically_damped_step",
+           "estimator_complement"]
 
 
 class EstimationError(TapmError, ValueError):
@@ -215,6 +216,26 @@ def critically_damped_step(y: Any, yd: Any, z: Any, w: float, dt: float) -> tupl
     # critically damped: e(t) = (e0 + (ed0 + w e0) t) exp(-w t)
     c1 = yd + w * e
     return z + (e + c1 * dt) * ex, (c1 - w * (e + c1 * dt)) * ex
+
+
+def estimator_complement(dt: float, omega_c: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(b, a)`` of ``z - y`` with y the low-pass of :class:`LowPassEstimator` (critically
+    damped, cut-off ``omega_c`` [rad/s], exact over ``dt`` [s] with the new sample held): the
+    transfer function (``scipy.signal.lfilter`` coefficients) of its ``eta_wf``. The state-space
+    matrices are read off the estimator's recursion (:func:`critically_damped_step`) itself. The
+    sea-state supervisor's expected wave-frequency features (``design.wave_reference``) pass the
+    plant's wave motion through it."""
+    import scipy.signal
+
+    def step(y: float, yd: float, z: float) -> tuple[float, float]:  # the estimator's own recursion
+        return critically_damped_step(y, yd, z, omega_c, dt)
+
+    A = np.array([step(1.0, 0.0, 0.0), step(0.0, 1.0, 0.0)]).T
+    B = np.array(step(0.0, 0.0, 1.0)).reshape(2, 1)
+    C = np.array([[1.0, 0.0]])
+    # s_k = A s_{k-1} + B z_k, out_k = z_k - C s_k: state x_k = s_{k-1}
+    b, a = scipy.signal.ss2tf(A, B, -C @ A, 1.0 - C @ B)
+    return np.atleast_1d(np.squeeze(b)), np.asarray(a, float)
 
 
 class TrueStateEstimator(_WithDetectorAndMonitor):
