@@ -4,12 +4,47 @@ files is printed through :func:`terminal_text` (from :mod:`tapm_opt._text`, re-e
 from __future__ import annotations
 
 import csv
+import errno
 import io
 import json
 import os
 import tempfile
 
 from ._text import terminal_text  # noqa: F401 - re-exported for printing input text
+from .errors import TapmError
+
+
+class WriteError(TapmError, OSError):
+    """An output file could not be written (a full disk, no permission, ...).
+
+    The message names the file and the reason; ``filename`` and ``errno`` are those of the
+    underlying ``OSError``, which it remains (``except OSError`` still catches it).
+    """
+
+    def __init__(self, path: str | os.PathLike, reason: str, errno_: int | None = None):
+        self.path, self.reason = str(path), str(reason)
+        super().__init__(f"cannot write {self.path}: {self.reason}")
+        self.errno, self.strerror, self.filename = errno_, self.reason, self.path
+
+    def __str__(self) -> str:
+        return str(self.args[0])
+
+    def __reduce__(self):   # rebuilt from its fields when sent back from a worker process
+        return (type(self), (self.path, self.reason, self.errno))
+
+
+def write_error(path: str | os.PathLike, exc: OSError) -> WriteError:
+    """The :class:`WriteError` of ``exc`` raised while writing ``path``."""
+    if isinstance(exc, WriteError):
+        return exc
+    reason = exc.strerror or str(exc) or type(exc).__name__
+    if exc.errno == errno.ENOSPC:
+        reason += " (the disk is full: free some space, then run the same command again)"
+    elif exc.errno is not None and exc.errno == getattr(errno, "EDQUOT", None):
+        reason += " (over the disk quota: free some space, then run the same command again)"
+    elif exc.filename is not None and str(exc.filename) != str(path):
+        reason += f" ({exc.filename})"
+    return WriteError(path, reason, exc.errno)
 
 
 def _umask() -> int:
@@ -31,18 +66,29 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
 
     A reader (or a crash, even ``kill -9``) never sees a partly written file; the file gets the
     permissions of a normally created one.
+
+    Raises
+    ------
+    WriteError
+        The file cannot be written (a full disk, no permission, ...): the message names ``path``
+        and the reason; the old file, if any, is left as it was.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as exc:
+        raise write_error(path, exc) from exc
     try:
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
             fh.flush()
             os.fsync(fh.fileno())
         publish(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         Path(tmp).unlink(missing_ok=True)
+        if isinstance(exc, OSError):
+            raise write_error(path, exc) from exc
         raise
     return path
 

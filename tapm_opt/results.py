@@ -100,11 +100,16 @@ class Result:
 
     # -- persistence -----------------------------------------------------------------------
     def save(self, path: str | Path) -> Path:
-        """Write the result to ``path`` (``.npz`` appended if missing), atomically."""
+        """Write the result to ``path`` (``.npz`` appended if missing), atomically.
+
+        Raises
+        ------
+        WriteError
+            The file cannot be written (a full disk, ...); the message names it.
+        """
         path = Path(path)
         if path.suffix != ".npz":
             path = path.with_name(path.name + ".npz")
-        path.parent.mkdir(parents=True, exist_ok=True)
         buf = io.BytesIO()
         np.savez_compressed(buf, time=self.time, data=self.data, channels=np.array(self.channels, dtype=str),
                             units=np.array(self.units, dtype=str),
