@@ -1,0 +1,56 @@
+"""Controllers and their layers: the controller-kind registry (:func:`build` makes what ``tapm
+simulate`` runs), the TAPM PID modes, linear and nonlinear MPC, QP thrust allocation, setpoint
+layers, the sea-state supervisor, gain scheduling and winch (line-tension) control.
+
+    from tapm_opt.control import build
+    ctrl = build(system, "lmpc")
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+#: Each public name and the module that defines it (imported on first use, so importing the
+#: package stays cheap and free of cycles).
+_EXPORTS = {
+    "build": ".registry",
+    "kinds": ".registry",
+    "kind": ".registry",
+    "register": ".registry",
+    "ControllerKind": ".registry",
+    "ControllerSpecError": ".registry",
+    "Dimension": ".registry",
+    "BuildContext": ".registry",
+    "TAPMPID": ".pid",
+    "MODE_SETS": ".pid",
+    "design_from_scenario": ".pid_design",
+    "design_gains": ".pid_design",
+    "LinearMPC": ".mpc",
+    "NonlinearMPC": ".mpc",
+    "MPCSettings": ".mpc_problem",
+    "ThrustAllocator": ".allocation",
+    "FixedSetpoint": ".setpoint",
+    "HeadingChasing": ".setpoint",
+    "SetpointChasing": ".setpoint",
+    "OptimalSetpoint": ".setpoint_opt",
+    "SetpointOptions": ".setpoint_opt",
+    "supervised_pid": ".supervisor",
+    "SeaStateSupervisor": ".supervisor",
+    "GainScheduledPID": ".scheduled",
+    "WinchTensionController": ".winch",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str) -> Any:
+    if name in _EXPORTS:
+        value = getattr(importlib.import_module(_EXPORTS[name], __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_EXPORTS))

@@ -1,0 +1,39 @@
+"""Design-time analyses: capability envelopes, PID and LQR gain tables per sea state and mooring
+condition, and the static optimal setpoints.
+
+    from tapm_opt.design import capability, gain_table
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+#: Each public name and the module that defines it (imported on first use, so importing the
+#: package stays cheap and free of cycles).
+_EXPORTS = {
+    "capability": ".capability",
+    "CapabilityOptions": ".capability",
+    "CapabilityResult": ".capability",
+    "gain_table": ".tables",
+    "weathervane_heading": ".tables",
+    "sea_state_class": ".tables",
+    "LQRWeights": ".tables",
+    "static_setpoint": ".setpoint",
+    "reliability_map": ".setpoint",
+    "StaticSetpoint": ".setpoint",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str) -> Any:
+    if name in _EXPORTS:
+        value = getattr(importlib.import_module(_EXPORTS[name], __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_EXPORTS))

@@ -1,0 +1,38 @@
+"""The FEM plant, the truth controllers are validated against: the vessel with its
+wave-frequency motion, the lumped-mass mooring lines, thrusters, sensors and faults; and
+forced-motion analysis.
+
+    from tapm_opt.plant import Plant, run_open_loop
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+#: Each public name and the module that defines it (imported on first use, so importing the
+#: package stays cheap and free of cycles).
+_EXPORTS = {
+    "Plant": ".simulator",
+    "ThrusterCommand": ".simulator",
+    "run_open_loop": ".simulator",
+    "PlantError": ".simulator",
+    "SimulationDiverged": ".simulator",
+    "forced_motion": ".forced_motion",
+    "identify_mooring_damping": ".forced_motion",
+    "ForcedMotionResult": ".forced_motion",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str) -> Any:
+    if name in _EXPORTS:
+        value = getattr(importlib.import_module(_EXPORTS[name], __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_EXPORTS))

@@ -1,0 +1,45 @@
+"""Studies: one recipe for a closed-loop case (:func:`run_case_on`), the KPIs, and study files
+run in parallel, resumable.
+
+    from tapm_opt.studies import ClosedLoopSettings, run_case_on
+    run = run_case_on(system, "lmpc", ClosedLoopSettings(duration=600.0), sea_state="storm")
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+#: Each public name and the module that defines it (imported on first use, so importing the
+#: package stays cheap and free of cycles).
+_EXPORTS = {
+    "run_case_on": ".recipe",
+    "CaseRun": ".recipe",
+    "ClosedLoopSettings": ".closed_loop",
+    "run_closed_loop": ".closed_loop",
+    "build_controller": ".controllers",
+    "case_kpis": ".kpis",
+    "KPIS": ".kpi_catalogue",
+    "kpi": ".kpi_catalogue",
+    "load_study": ".spec",
+    "study_from_dict": ".spec",
+    "expand_cases": ".spec",
+    "Study": ".spec",
+    "Case": ".spec",
+    "run_study": ".runner",
+    "StudySummary": ".runner",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str) -> Any:
+    if name in _EXPORTS:
+        value = getattr(importlib.import_module(_EXPORTS[name], __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_EXPORTS))
