@@ -31,6 +31,7 @@ its line number and the item: the ``tapm`` command prints it on one line.
 
 from __future__ import annotations
 
+import difflib
 import math
 import re
 import tomllib
@@ -171,6 +172,9 @@ class MoorDynModel:
     lines: tuple[MDLine, ...]
     options: dict[str, tuple[str, int]]
     notes: tuple[str, ...] = ()
+    #: ``max_strain`` (and its line number) of line types whose tapm_opt front-matter comment
+    #: (written by :func:`moordyn_text`) gives one; MoorDyn itself has no such property.
+    max_strain: dict[str, tuple[float, int]] = field(default_factory=dict)
 
     # -- derived -------------------------------------------------------------------------
     def option(self, *names: str) -> tuple[str, int] | None:
@@ -534,6 +538,38 @@ def _nonzero(text: str) -> bool:
     return False
 
 
+#: OPTIONS names MoorDyn-C and MoorDyn-F read (lower case; MoorDyn docs/inputs.rst, "Options"),
+#: with the spelling used in messages. The numeric ones must hold a number; WtrDpth may also be a
+#: bathymetry file (refused below), tScheme, SeafloorFile and WaterKin are text.
+_OPTION_CASE = {n.lower(): n for n in (
+    "writeLog", "dtM", "CFL", "tScheme", "g", "gravity", "rho", "WtrDnsty", "rhoW", "WtrDpth", "depth", "WaterDepth",
+    "kBot", "kb", "cBot", "cb", "dtIC", "TmaxIC", "CdScaleIC", "threshIC", "WaveKin", "dtWave", "waveKin_rampT",
+    "Currents", "UnifyCurrentGrid", "WriteUnits", "FrictionCoefficient", "FricDamp", "StatDynFricScale", "dtOut",
+    "SeafloorFile", "ICgenDynamic", "disableOutput", "disableOutTime", "WaterKin", "MU_KT", "MU_KA", "MC", "CV",
+    "inertialF", "inertialF_rampT", "OutSwitch", "Echo")}
+_KNOWN_OPTIONS = frozenset(_OPTION_CASE)
+_NUMERIC_OPTIONS = _KNOWN_OPTIONS - {"tscheme", "seafloorfile", "waterkin", "wtrdpth", "depth", "waterdepth",
+                                     "echo"}
+#: A line type's tapm_opt-only properties in the front matter written by :func:`moordyn_text`.
+_FRONT_MATTER_TYPE = re.compile(r"^Line type (\S+): tapm_opt .*?, max_strain ([-+]?[0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\.?\s*$")
+
+
+def _front_matter_max_strain(text: str) -> dict[str, tuple[float, int]]:
+    """``max_strain`` of each line type named in a front matter written by tapm_opt (line number
+    too); MoorDyn has no such property, so the export keeps it in that comment."""
+    out: dict[str, tuple[float, int]] = {}
+    for i, raw in enumerate(text.splitlines(), start=1):
+        if "---" in raw and _section_of(raw) is not None:
+            break  # the front matter ends at the first section
+        m = _FRONT_MATTER_TYPE.match(raw.strip())
+        if m:
+            try:
+                out[m.group(1)] = (float(m.group(2)), i)
+            except ValueError:
+                pass
+    return out
+
+
 def parse_moordyn(text: str, *, source: str = "") -> MoorDynModel:
     """Parse MoorDyn v2 input text; unsupported features raise :class:`MoorDynError`.
 
@@ -555,9 +591,25 @@ def parse_moordyn(text: str, *, source: str = "") -> MoorDynModel:
     points = rd.points(sec.get("points", []), len(bodies))
     lines = rd.lines(sec.get("lines", []), types, points)
     options: dict[str, tuple[str, int]] = {}
+    spelled: dict[str, str] = {}
     for i, t in sec.get("options", []):
         if len(t) >= 2:
             options.setdefault(t[1].lower(), (t[0], i))
+            spelled.setdefault(t[1].lower(), t[1])
+        else:
+            rd.notes.append(f"OPTIONS row {t[0]!r} (line {i}) has a value but no option name: ignored")
+    for name, (val, i) in options.items():
+        if name not in _KNOWN_OPTIONS:
+            hint = difflib.get_close_matches(name, sorted(_KNOWN_OPTIONS), n=1)
+            rd.notes.append(f"option {spelled[name]} = {val} (line {i}) is not a MoorDyn option" +
+                            (f" (did you mean {_OPTION_CASE.get(hint[0], hint[0])}?)" if hint else "") + ": ignored")
+        elif name in _NUMERIC_OPTIONS:
+            try:
+                ok = math.isfinite(float(val))
+            except ValueError:
+                ok = False
+            if not ok:
+                raise rd.err(f"option {_OPTION_CASE.get(name, name)} = {val!r} must be a finite number", i)
     if "seafloorfile" in options:
         raise rd.err("option SeafloorFile: a 3D seafloor is not supported (tapm_opt has a flat seabed)",
                      options["seafloorfile"][1])
@@ -569,7 +621,8 @@ def parse_moordyn(text: str, *, source: str = "") -> MoorDynModel:
         rd.notes.append(f"option rhoW (line {options['rhow'][1]}) is read as the water density, as MoorDyn-F does; "
                         "MoorDyn-C 2.7 reads only 'rho' or 'WtrDnsty' and would run with 1025 kg/m^3")
     model = MoorDynModel(source=source, line_types=tuple(types), bodies=tuple(bodies), points=tuple(points),
-                         lines=tuple(lines), options=options, notes=tuple(rd.notes))
+                         lines=tuple(lines), options=options, notes=tuple(rd.notes),
+                         max_strain=_front_matter_max_strain(text))
     # options that must be numbers
     model.gravity, model.water_density  # noqa: B018 - raise early on a bad value
     wd = model.option("wtrdpth", "depth", "waterdepth")
@@ -818,7 +871,8 @@ def moordyn_text(scenario: Scenario, *, segments: int | None = None, dtM: float 
     for lt in scenario.line_types:
         w(f"Line type {lt.id}: tapm_opt d = {_f(lt.diameter)} m, w = {_f(lt.w(env))} N/m, C_DN {_f(lt.Cd_normal)}, "
           f"C_DT {_f(lt.Cd_tangential)} (on d), C_MN {_f(lt.Ca_normal)}, C_MT {_f(lt.Ca_tangential)}, "
-          f"axial_damping_ratio {_f(getattr(lt, 'axial_damping_ratio', 0.0))}, MBS {_f(lt.MBS)} N.")
+          f"axial_damping_ratio {_f(getattr(lt, 'axial_damping_ratio', 0.0))}, MBS {_f(lt.MBS)} N"
+          + (f", max_strain {_f(lt.max_strain)}" if lt.max_strain is not None else "") + ".")
     w("---------------------- LINE TYPES -----------------------------------------------------")
     w("TypeName   Diam    Mass/m    EA     BA/-zeta    EI      Cd     Ca     CdAx    CaAx")
     w("(name)     (m)     (kg/m)    (N)    (N-s/-)   (N-m^2)   (-)    (-)    (-)     (-)")
@@ -985,6 +1039,10 @@ def scenario_data_from_moordyn(model: MoorDynModel, vessel_data: dict, *, mbs: M
             "MBS": MBS, "MBS_std": mbs_cov * MBS, "Cd_normal": lt.Cd, "Cd_tangential": math.pi * lt.CdAx,
             "Ca_normal": lt.Ca, "Ca_tangential": lt.CaAx, "seabed_friction": mu, "axial_damping_ratio": zeta,
         }
+        if lt.name in model.max_strain:
+            eps, at = model.max_strain[lt.name]
+            item["max_strain"] = eps
+            notes.append(f"line type {lt.name!r}: max_strain {eps:g} from the file's tapm_opt front matter (line {at})")
         line_types.append(item)
         comments[("line_types", k)] = [
             f"MoorDyn {lt.name} ({src}:{lt.lineno}): Diam {lt.d:g} m, Mass/m {lt.mass:g} kg/m, EA {lt.EA:g} N, "
