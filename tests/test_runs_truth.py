@@ -75,3 +75,48 @@ def test_study_run_on_a_full_disk_exits_2_naming_the_path(capsys, tmp_path, full
     code, _, err = run(capsys, "study", "run", str(TINY), "--out", str(out), "--workers", "0", "--no-progress")
     assert code == 2
     assert "No space left on device" in err and str(out / "study.toml") in err, err
+
+
+# -- the report: user text in report.md, result files too large to read --------------------------
+
+
+def _study_dir(root: Path, *, name: str = "s", description: str = "", case_names=("a", "b"),
+               controllers=("PID", "MPC")) -> Path:
+    """A study directory with finished cases of small results, written by hand (no simulation)."""
+    root.mkdir(parents=True)
+    cases = []
+    for k, (cname, ctrl) in enumerate(zip(case_names, controllers)):
+        cid = f"c{k:011d}"
+        labels = {"scenario": "fpso", "sea_state": "storm", "controller": ctrl, "condition": "intact", "seed": 1}
+        entry = {"id": cid, "name": cname, "labels": labels, "inputs": {"sea_state": "storm", "seed": 1}}
+        cases.append(entry)
+        d = root / "cases" / cid
+        d.mkdir(parents=True)
+        t = np.arange(0.0, 120.0)
+        Result(time=t, data=np.column_stack([np.sin(t / 9), np.cos(t / 7), 0.01 * t]), channels=("x", "y", "psi"),
+               units=("m", "m", "rad"), meta={}).save(d / "result.npz")
+        (d / "kpis.json").write_text(json.dumps({"offset_max": 1.0 + k, "duration": 120.0}))
+        (d / "case.json").write_text(json.dumps({**entry, "started": "2024-01-01T00:00:00",
+                                                 "finished": "2024-01-01T00:01:00", "wall_time": 1.0}))
+    (root / "study.json").write_text(json.dumps({"name": name, "description": description, "cases": cases}))
+    return root
+
+
+def test_markdown_report_escapes_user_text(tmp_path):
+    from tapm_opt.report import write_report
+
+    d = _study_dir(tmp_path / "s", name="<script>alert(1)</script>", description="see <img src=x onerror=alert(2)>",
+                   case_names=("<img src=x onerror=alert(3)> | col\nnext", "B & <b>C</b>"),
+                   controllers=("PID<script>", "MPC"))
+    html_path, md_path = write_report(d)
+    md = md_path.read_text()
+    for raw in ("<script", "<img", "<b>"):
+        assert raw not in md, raw
+    assert "# Study report: &lt;script&gt;alert(1)&lt;/script&gt;" in md
+    assert "see &lt;img src=x onerror=alert(2)&gt;" in md and "B &amp; &lt;b&gt;C&lt;/b&gt;" in md
+    # the case list keeps its columns: the pipe and the line break of a name do not split the row
+    header = next(ln for ln in md.splitlines() if ln.startswith("| id | name |"))
+    row = next(ln for ln in md.splitlines() if ln.startswith("| `c00000000000` |"))
+    cells = lambda ln: len(ln.replace("\\|", "").split("|"))  # noqa: E731
+    assert cells(row) == cells(header) and "\\| col next" in row
+    assert "<script" not in html_path.read_text()   # the HTML report escapes it too

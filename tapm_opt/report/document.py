@@ -89,8 +89,21 @@ def _fmt_text(s: str) -> str:
 
 # Markdown rendering
 
+def _md_html(s: str) -> str:
+    """``&``, ``<`` and ``>`` as character references: text from the study (study, case and
+    condition names, descriptions, error messages) shows as written and never becomes HTML in
+    report.md, as report.html escapes it too."""
+    return s.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+
+
+def _md_line(s: str) -> str:
+    """Text that must stay on one line (a heading, a caption): HTML escaped, line breaks as spaces."""
+    return _md_html(" ".join(s.splitlines()))
+
+
 def _md_escape(s: str) -> str:
-    return s.replace("\\", "\\\\").replace("|", "\\|").replace("\n", " ")
+    """A table cell or header: one line, pipes and backslashes escaped, HTML escaped."""
+    return _md_html(s.replace("\\", "\\\\").replace("|", "\\|").replace("\r", " ").replace("\n", " "))
 
 
 def _md_cell(c: Cell) -> str:
@@ -115,9 +128,9 @@ def render_markdown(blocks: Sequence[Any], fig_dir_rel: str) -> str:
     out: list[str] = []
     for b in blocks:
         if isinstance(b, Heading):
-            out.append("#" * b.level + " " + b.text)
+            out.append("#" * b.level + " " + _md_line(b.text))
         elif isinstance(b, Para):
-            out.append(b.text)
+            out.append(_md_html(b.text))
         elif isinstance(b, Pre):
             fence = "```"
             while fence in b.text:
@@ -127,15 +140,33 @@ def render_markdown(blocks: Sequence[Any], fig_dir_rel: str) -> str:
             fence = "```"
             while fence in b.text:
                 fence += "`"
-            out.append(f"{b.summary}:\n\n{fence}\n{b.text.rstrip()}\n{fence}")
+            out.append(f"{_md_line(b.summary)}:\n\n{fence}\n{b.text.rstrip()}\n{fence}")
         elif isinstance(b, Table):
             out.append(_md_table(b))
         elif isinstance(b, Fig):
-            out.append(f"![{_md_escape(b.caption)}]({fig_dir_rel}/{b.name}.png)\n\n*{b.caption}*")
+            alt = _md_line(b.caption).replace("[", "&#91;").replace("]", "&#93;")
+            out.append(f"![{alt}]({fig_dir_rel}/{b.name}.png)\n\n*{_md_line(b.caption)}*")
         elif isinstance(b, RawMarkdown):
-            out.append(_demote_md_headings(b.text.strip(), 2))
+            out.append(_demote_md_headings(_md_html_outside_fences(b.text.strip()), 2))
         out.append("")
     return "\n".join(out).rstrip() + "\n"
+
+
+def _md_html_outside_fences(text: str) -> str:
+    """:func:`_md_html` on every line of Markdown text except inside fenced code blocks (shown verbatim)."""
+    out, fence = [], ""
+    for ln in text.splitlines():
+        m = re.match(r"^\s*(`{3,}|~{3,})", ln)
+        if fence:
+            if m and m.group(1)[0] == fence[0] and len(m.group(1)) >= len(fence):
+                fence = ""
+            out.append(ln)
+        elif m:
+            fence = m.group(1)
+            out.append(ln)
+        else:
+            out.append(_md_html(ln))
+    return "\n".join(out)
 
 
 def _demote_md_headings(text: str, by: int) -> str:
