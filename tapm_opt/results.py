@@ -24,6 +24,11 @@ __all__ = ["Result", "ResultError", "ResultBuilder"]
 
 FORMAT = "tapm_opt.result/1"
 
+#: Most bytes :meth:`Result.load` reads from one file by default, all its arrays together: the
+#: largest log a run may write (``tapm_opt.config.loader.MAX_LOG_BYTES``, 1 GiB) and its time,
+#: names and metadata. Larger arrays are refused before anything is decompressed.
+MAX_LOAD_BYTES = 2**31
+
 
 class ResultError(TapmError, ValueError):
     """A result file is missing, unreadable or inconsistent, or a channel does not exist."""
@@ -118,11 +123,30 @@ class Result:
         return path
 
     @classmethod
-    def load(cls, path: str | Path) -> "Result":
-        """Read a result written by :meth:`save`."""
+    def load(cls, path: str | Path, *, max_bytes: int = MAX_LOAD_BYTES) -> "Result":
+        """Read a result written by :meth:`save`.
+
+        Parameters
+        ----------
+        path : path
+            The ``.npz`` file (``.npz`` appended if missing).
+        max_bytes : int
+            Most bytes the file's arrays may hold together once decompressed
+            (:data:`MAX_LOAD_BYTES` by default). Each array's size is read from its ``.npy``
+            header (shape and dtype) and from the zip member's size before any data is
+            decompressed, so a small file that would inflate beyond it costs neither time nor
+            memory.
+
+        Raises
+        ------
+        ResultError
+            The file is missing, unreadable or not a tapm_opt result, or its arrays would hold
+            more than ``max_bytes`` (the message names the file, the array and the limit).
+        """
         path = Path(path)
         if not path.exists() and path.with_name(path.name + ".npz").exists():
             path = path.with_name(path.name + ".npz")
+        _check_npz_size(path, max_bytes)
         try:
             with np.load(path, allow_pickle=False) as z:
                 meta = json.loads(str(z["meta"]))
@@ -144,6 +168,52 @@ class Result:
         rows = (tuple(map(float, (t, *self.data[i, cols]))) for i, t in enumerate(self.time))
         units = "units: s, " + ", ".join(self.units[c] for c in cols)
         return atomic_write_text(path, csv_text(header, rows, comments=[units]))
+
+
+def _size_text(n: float) -> str:
+    for unit, k in (("GiB", 2**30), ("MiB", 2**20), ("KiB", 2**10)):
+        if n >= k:
+            return f"{n / k:.3g} {unit}"
+    return f"{int(n)} bytes"
+
+
+def _check_npz_size(path: Path, max_bytes: int) -> None:
+    """Raise :class:`ResultError` when the arrays of the ``.npz`` file ``path`` would hold more
+    than ``max_bytes`` once decompressed. Reads only the zip directory and each ``.npy`` header."""
+    import math
+    import zipfile
+
+    from numpy.lib import format as npy
+
+    limit = f"the limit of {_size_text(max_bytes)} for reading one result"
+    try:
+        zf = zipfile.ZipFile(path)
+    except FileNotFoundError:
+        raise ResultError(f"cannot read result {path}: no such file") from None
+    except (OSError, zipfile.BadZipFile, ValueError) as exc:
+        raise ResultError(f"cannot read result {path}: {exc}") from None
+    total = 0
+    with zf:
+        for zi in zf.infolist():
+            name = zi.filename.removesuffix(".npy")
+            if total + zi.file_size > max_bytes:
+                raise ResultError(f"{path}: array {name!r} is {_size_text(zi.file_size)} once decompressed "
+                                  f"({_size_text(zi.compress_size)} in the file), above {limit}: not read")
+            try:
+                with zf.open(zi) as fh:
+                    version = npy.read_magic(fh)
+                    reader = {(1, 0): npy.read_array_header_1_0, (2, 0): npy.read_array_header_2_0}.get(version)
+                    shape, _, dtype = (reader(fh) if reader is not None
+                                       else npy._read_array_header(fh, version))   # a newer .npy version
+            except Exception as exc:  # noqa: BLE001 - any damage of the member: not a result we read
+                raise ResultError(f"cannot read result {path}: array {name!r}: {exc}") from None
+            nbytes = math.prod(int(n) for n in shape) * int(dtype.itemsize)
+            total += max(nbytes, zi.file_size)
+            if total > max_bytes:
+                raise ResultError(f"{path}: array {name!r} of shape {tuple(shape)} and dtype {dtype} holds "
+                                  f"{_size_text(nbytes)}" + ("" if total == nbytes else
+                                                             f" ({_size_text(total)} with the arrays before it)")
+                                  + f", above {limit}: not read")
 
 
 def _json_default(o: Any) -> Any:

@@ -120,3 +120,45 @@ def test_markdown_report_escapes_user_text(tmp_path):
     cells = lambda ln: len(ln.replace("\\|", "").split("|"))  # noqa: E731
     assert cells(row) == cells(header) and "\\| col next" in row
     assert "<script" not in html_path.read_text()   # the HTML report escapes it too
+
+
+def _inflating_result(path: Path, nbytes: int) -> None:
+    """A result.npz of zeros: small on disk, ``nbytes`` once decompressed."""
+    n = nbytes // 8 // 3
+    np.savez_compressed(path, time=np.zeros(n), data=np.zeros((n, 3)), channels=np.array(["x", "y", "psi"]),
+                        units=np.array(["m", "m", "rad"]), meta=np.array(json.dumps({"format": "tapm_opt.result/1"})))
+
+
+def test_result_load_refuses_arrays_beyond_the_limit_before_decompressing(tmp_path, monkeypatch):
+    from tapm_opt.results import ResultError
+
+    f = tmp_path / "result.npz"
+    _inflating_result(f, 48 * 2**20)
+    assert f.stat().st_size < 2**20
+    inflated = []
+    import numpy.lib.format as npy
+
+    real = npy.read_array
+    monkeypatch.setattr(npy, "read_array", lambda *a, **k: inflated.append(1) or real(*a, **k))
+    with pytest.raises(ResultError) as ei:
+        Result.load(f, max_bytes=32 * 2**20)      # time: 16 MiB, data: 48 MiB
+    msg = str(ei.value)
+    assert str(f) in msg and "array 'data'" in msg and "48 MiB" in msg and "limit of 32 MiB" in msg, msg
+    assert not inflated                                    # nothing was decompressed
+    assert len(Result.load(f, max_bytes=128 * 2**20)) == 48 * 2**20 // 24   # within the limit: read
+
+
+def test_report_names_a_result_too_large_and_draws_the_others(tmp_path, monkeypatch):
+    import tapm_opt.report.data as data_mod
+    from tapm_opt.report import write_report
+
+    monkeypatch.setattr(data_mod, "MAX_RESULT_BYTES", 32 * 2**20)
+    d = _study_dir(tmp_path / "s")
+    bomb = d / "cases" / "c00000000000" / "result.npz"
+    _inflating_result(bomb, 64 * 2**20)              # time: 21 MiB, data: 64 MiB
+    _, md_path = write_report(d)
+    md = md_path.read_text()
+    problems = md.split("Problems met while writing this report", 1)[1]
+    assert f"case c00000000000: {bomb}: array 'data'" in problems and "limit of 32 MiB" in problems, problems
+    assert md.count("Result not readable") == 1      # the other case is read and drawn
+    assert "case c00000000001: motion figure not drawn" in problems   # read: only its figure lacks a scenario

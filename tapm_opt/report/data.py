@@ -29,6 +29,11 @@ __all__ = ["ReportError", "StudyData", "CaseInfo", "read_study"]
 
 _ID_RE = re.compile(r"^[A-Za-z0-9_.\-]+$")
 
+#: Most bytes the report reads from one case's ``result.npz`` (all its arrays, decompressed):
+#: 256 MiB, about four days of an fpso log at ``dt_log = 1`` s. A larger result is refused before
+#: it is decompressed and named under the report's problems; the other cases are drawn.
+MAX_RESULT_BYTES = 256 * 2**20
+
 
 class ReportError(TapmError, ValueError):
     """The study directory is missing or invalid, so no report can be written."""
@@ -62,8 +67,9 @@ class CaseInfo:
         return str(c)
 
     def load_result(self) -> Result:
-        """The saved closed-loop :class:`Result` (raises ``ResultError`` if unreadable)."""
-        return Result.load(self.folder / "result.npz")
+        """The saved closed-loop :class:`Result` (raises ``ResultError`` if unreadable, or if its
+        arrays would hold more than :data:`MAX_RESULT_BYTES`)."""
+        return Result.load(self.folder / "result.npz", max_bytes=MAX_RESULT_BYTES)
 
     def scenario(self):
         """The case's scenario rebuilt from ``inputs["scenario"]`` (raises ``ScenarioError``)."""

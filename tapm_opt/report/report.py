@@ -65,7 +65,8 @@ def _case_section(c: CaseInfo, blocks: list, figures_out: list[Fig], problems: l
     try:
         result = c.load_result()
     except Exception as exc:  # noqa: BLE001 - one unreadable case must not stop the report
-        msg = f"case {c.id}: cannot read {c.folder / 'result.npz'}: {exc}"
+        npz = c.folder / "result.npz"
+        msg = f"case {c.id}: {exc}" if str(npz) in str(exc) else f"case {c.id}: cannot read {npz}: {exc}"
         problems.append(msg)
         blocks.append(Para(f"**Result not readable:** {exc}", css="error"))
         return
