@@ -95,16 +95,15 @@ def finite(name: str, v: Any, *, lo: float | None = None, hi: float | None = Non
     error
         ``v`` is not a number, not finite, or out of bounds.
     """
-    allowed = rule(lo=lo, hi=hi, strict=strict)
-    if numbers_only and not is_number(v):
-        raise error(f"{name}{eq}{v!r} must be {allowed}{_unit_after(unit)}")
     try:
         x = float(v)
+        if numbers_only and not is_number(v):
+            raise TypeError
     except (TypeError, ValueError):
-        raise error(f"{name}{eq}{v!r} must be {allowed}{_unit_after(unit)}") from None
+        raise error(f"{name}{eq}{v!r} must be {rule(lo=lo, hi=hi, strict=strict)}{_unit_after(unit)}") from None
     if (not math.isfinite(x) or (lo is not None and (x <= lo if strict else x < lo))
             or (hi is not None and x > hi)):
-        raise error(f"{name}{eq}{v!r}{' ' + unit if unit else ''} must be {allowed}")
+        raise error(f"{name}{eq}{v!r}{' ' + unit if unit else ''} must be {rule(lo=lo, hi=hi, strict=strict)}")
     return x
 
 
@@ -130,7 +129,7 @@ def vector(name: str, v: Any, n: int, *, lo: float | None = None, hi: float | No
     what : str
         What the entries are, shown after the count (``"(x [m], y [m], psi [rad])"``).
     broadcast : bool
-        Also take one number for all ``n`` entries.
+        Also take one number (or a one-entry sequence) for all ``n`` entries.
     note : str
         Appended to the message of a non-finite or out-of-bounds entry (what the caller will not
         do with it, where to look).
@@ -141,24 +140,26 @@ def vector(name: str, v: Any, n: int, *, lo: float | None = None, hi: float | No
         Not numeric, another shape, or an entry that is not finite or out of bounds (the message
         shows the whole vector and the first bad entry).
     """
-    count = f"one or {n}" if broadcast else f"{n}"
-    allowed = (f"{count} {rule(lo=lo, hi=hi, strict=strict, plural=True)}" + (f" {what}" if what else "")
-               + _unit_after(unit))
+    def allowed() -> str:  # built only for a message
+        count = f"one or {n}" if broadcast else f"{n}"
+        return (f"{count} {rule(lo=lo, hi=hi, strict=strict, plural=True)}" + (f" {what}" if what else "")
+                + _unit_after(unit))
+
     try:
         a = np.array(v, dtype=float)
     except (TypeError, ValueError):
-        raise error(f"{name}{eq}{v!r} must be {allowed}") from None
-    if broadcast and a.ndim == 0:
-        a = np.full(n, float(a))
+        raise error(f"{name}{eq}{v!r} must be {allowed()}") from None
+    if broadcast and a.shape != (n,) and a.size == 1 and a.ndim <= 1:
+        a = np.full(n, float(a.reshape(())))  # as numpy broadcasts () and (1,) to (n,)
     if a.shape != (n,):
         shown = a.tolist() if a.ndim else v
-        raise error(f"{name} must have shape ({n},), got shape {a.shape}: {name}{eq}{shown!r} must be {allowed}")
-    bad = ~np.isfinite(a)
+        raise error(f"{name} must have shape ({n},), got shape {a.shape}: {name}{eq}{shown!r} must be {allowed()}")
+    ok = np.isfinite(a)
     if lo is not None:
-        bad |= (a <= lo) if strict else (a < lo)
+        ok &= (a > lo) if strict else (a >= lo)
     if hi is not None:
-        bad |= a > hi
-    if bad.any():
-        i = int(np.flatnonzero(bad)[0])
-        raise error(f"{name}{eq}{a.tolist()!r} must be {allowed} ({name}[{i}] is not)" + (f"; {note}" if note else ""))
+        ok &= a <= hi
+    if not ok.all():
+        i = int(np.flatnonzero(~ok)[0])
+        raise error(f"{name}{eq}{a.tolist()!r} must be {allowed()} ({name}[{i}] is not)" + (f"; {note}" if note else ""))
     return a

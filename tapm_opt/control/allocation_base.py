@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from .._checks import finite, positive
 from ..errors import TapmError
 
 __all__ = ["AllocationError", "AllocationResult", "pseudo_inverse"]
@@ -146,17 +147,8 @@ def _result_view(out, slices, status, t_solve, it, message) -> AllocationResult:
 
 
 def _finite(name: str, v: Any) -> float:
-    try:
-        x = float(v)
-    except (TypeError, ValueError):
-        raise AllocationError(f"{name}={v!r} is not a number") from None
-    if not math.isfinite(x):
-        raise AllocationError(f"{name}={v!r} must be finite")
-    return x
+    return finite(name, v, error=AllocationError, eq="=")
 
 
 def _positive(name: str, v: Any) -> float:
-    x = _finite(name, v)
-    if x <= 0.0:
-        raise AllocationError(f"{name}={v!r} must be > 0")
-    return x
+    return positive(name, v, error=AllocationError, eq="=")

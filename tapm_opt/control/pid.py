@@ -35,6 +35,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from .._checks import vector
 from .._io import readonly
 from ..errors import TapmError
 from ..geometry import rot_z, ssa, turret_offset
@@ -191,16 +192,8 @@ def _limit(name: str, value: Any, *, allow_zero: bool) -> np.ndarray | None:
 
 
 def _vec3(name: str, value: Any) -> np.ndarray:
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ControlError(f"{name}={value!r} is not numeric") from None
-    if arr.shape != (3,):
-        raise ControlError(f"{name} must have shape (3,), got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ControlError(f"{name}={arr.tolist()} is not finite; the controller will not "
-                           f"command thrust from it (check the observer/sensors)")
-    return arr
+    return vector(name, value, 3, error=ControlError, eq="=",
+                  note="the controller will not command thrust from it (check the observer/sensors)")
 
 
 class TAPMPID:

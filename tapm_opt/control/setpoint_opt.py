@@ -70,6 +70,7 @@ from typing import Any, Iterable, Literal, Mapping
 import casadi as ca
 import numpy as np
 
+from .._checks import finite
 from ..errors import TapmError
 from ..estimation.lowpass import first_order_step
 from ..estimation.reliability import RISER_BOTTOM, RISER_TOP, line_signal
@@ -94,13 +95,7 @@ class SetpointOptError(TapmError, ValueError):
 
 
 def _num(name: str, v: Any, *, lo: float | None = None, strict: bool = False) -> float:
-    ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-    if ok and lo is not None:
-        ok = v > lo if strict else v >= lo
-    if not ok:
-        bound = "" if lo is None else (f" > {lo:g}" if strict else f" >= {lo:g}")
-        raise SetpointOptError(f"{name} = {v!r} must be a finite number{bound}")
-    return float(v)
+    return finite(name, v, lo=lo, strict=strict, error=SetpointOptError, numbers_only=True)
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -50,6 +50,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from .._checks import finite, vector
 from .._io import readonly
 from ..errors import TapmError
 from ..geometry import rot_z
@@ -71,24 +72,11 @@ class WinchError(TapmError, ValueError):
 
 
 def _finite(name: str, v: Any, *, lo: float | None = None, strict: bool = False, unit: str = "") -> float:
-    try:
-        x = float(v)
-    except (TypeError, ValueError):
-        raise WinchError(f"{name} = {v!r} must be a number{' [' + unit + ']' if unit else ''}") from None
-    if not math.isfinite(x) or (lo is not None and (x <= lo if strict else x < lo)):
-        bound = "" if lo is None else (f" > {lo:g}" if strict else f" >= {lo:g}")
-        raise WinchError(f"{name} = {v!r}{' ' + unit if unit else ''} must be a finite number{bound}")
-    return x
+    return finite(name, v, lo=lo, strict=strict, unit=unit, error=WinchError)
 
 
 def _vec(name: str, v: Any, n: int, unit: str) -> np.ndarray:
-    a = np.asarray(v, dtype=float) if v is not None else None
-    if a is None or a.shape != (n,):
-        raise WinchError(f"{name} = {v!r} must have {n} entries [{unit}]")
-    bad = np.flatnonzero(~np.isfinite(a))
-    if bad.size:
-        raise WinchError(f"{name}[{int(bad[0])}] = {a[bad[0]]!r} {unit} must be finite")
-    return a
+    return vector(name, v, n, unit=unit, error=WinchError)
 
 
 def configuration_matrix(model: Any, eta: Any = None) -> np.ndarray:

@@ -34,6 +34,7 @@ import numpy as np
 import scipy.optimize
 
 from .. import __version__
+from .._checks import vector
 from .._io import readonly
 from ..control.gain_table import (
     FORMAT,
@@ -96,13 +97,8 @@ DEFAULT_INTEGRAL_RATIO: Mapping[str, float] = MappingProxyType(
 
 
 def _vec(name: str, value: Any, n: int = 3, *, positive: bool = False) -> np.ndarray:
-    try:
-        arr = np.broadcast_to(np.asarray(value, dtype=float), (n,)).copy()
-    except (TypeError, ValueError):
-        raise GainTableError(f"{name}={value!r} must be a number or {n} numbers") from None
-    if not np.all(np.isfinite(arr)) or (positive and np.any(arr <= 0.0)):
-        rule = "finite and > 0" if positive else "finite"
-        raise GainTableError(f"{name}={arr.tolist()} must be {rule}")
+    arr = vector(name, value, n, lo=0.0 if positive else None, strict=True, broadcast=True, error=GainTableError,
+                 eq="=")
     arr.flags.writeable = False
     return arr
 

@@ -47,6 +47,7 @@ from typing import Any
 import numpy as np
 from scipy.linalg import expm
 
+from .._checks import finite
 from .._io import atomic_write_bytes
 from ..errors import TapmError
 from ..models import catenary
@@ -72,14 +73,7 @@ class AnchorSlamError(TapmError, ValueError):
 
 
 def _finite(name: str, v: Any, *, lo: float | None = None, strict: bool = True, unit: str = "") -> float:
-    try:
-        x = float(v)
-    except (TypeError, ValueError):
-        raise AnchorSlamError(f"{name} = {v!r} is not a number{' [' + unit + ']' if unit else ''}") from None
-    if not math.isfinite(x) or (lo is not None and (x <= lo if strict else x < lo)):
-        rel = "" if lo is None else f" {'>' if strict else '>='} {lo:g}"
-        raise AnchorSlamError(f"{name} = {v!r}{' ' + unit if unit else ''} must be a finite number{rel}")
-    return x
+    return finite(name, v, lo=lo, strict=strict, unit=unit, error=AnchorSlamError)
 
 
 def table4_initial_anchors(anchors: np.ndarray) -> np.ndarray:

@@ -101,6 +101,7 @@ from typing import Any
 import numpy as np
 from scipy.linalg import expm
 
+from .._checks import vector
 from ..errors import TapmError
 from ..interfaces import Estimate, Measurement
 from ..models.mooring import MooringModel
@@ -145,16 +146,8 @@ def _number(name: str, v: Any, *, lo: float | None = None, hi: float | None = No
 
 def _vec3(name: str, v: Any, *, lo: float = 0.0, strict: bool = True, unit: str = "") -> np.ndarray:
     """A scalar or 3 numbers as a float (3,) array, each ``> lo`` (``>= lo`` if not strict)."""
-    try:
-        a = np.broadcast_to(np.asarray(v, dtype=float), (3,)).copy()
-    except (TypeError, ValueError):
-        raise EstimationError(f"{name} = {v!r} must be a number or 3 numbers (x, y, psi){' [' + unit + ']' if unit else ''}") from None
-    bad = ~np.isfinite(a) | ((a <= lo) if strict else (a < lo))
-    if bad.any():
-        i = int(np.flatnonzero(bad)[0])
-        raise EstimationError(f"{name}[{i}] = {a[i]!r}{' ' + unit if unit else ''} must be a finite number "
-                              f"{'>' if strict else '>='} {lo:g} (got {name} = {a.tolist()})")
-    return a
+    return vector(name, v, 3, lo=lo, strict=strict, unit=unit, what="(x, y, psi)", broadcast=True,
+                  error=EstimationError)
 
 
 def wave_filter_matrices(omega_0: float, lam: float = 0.1) -> tuple[np.ndarray, np.ndarray]:

@@ -63,6 +63,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from .._checks import positive
 from .._io import readonly
 from ..errors import TapmError
 
@@ -251,13 +252,7 @@ class _Fifo:
 # -- the estimator -------------------------------------------------------------------------------
 
 def _positive(name: str, v: Any) -> float:
-    try:
-        f = float(v)
-    except (TypeError, ValueError):
-        raise ReliabilityError(f"{name} = {v!r} s must be a positive number") from None
-    if not (math.isfinite(f) and f > 0):
-        raise ReliabilityError(f"{name} = {v!r} s must be a positive number")
-    return f
+    return positive(name, v, unit="s", error=ReliabilityError)
 
 
 class ReliabilityMonitor:

@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from .._checks import finite
 from .._io import readonly
 from ..config import schema
 from ..errors import ModelError
@@ -43,27 +44,14 @@ __all__ = ["CurrentProfile", "HullWindLoad"]
 
 
 def _nonneg(name: str, value: Any, *, strict: bool = False) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ModelError(f"{name}={value!r} is not a number") from None
-    if not math.isfinite(v) or v < 0.0 or (strict and v == 0.0):
-        raise ModelError(f"{name}={value!r} must be finite and {'>' if strict else '>='} 0")
-    return v
+    return finite(name, value, lo=0.0, strict=strict, error=ModelError, eq="=")
 
 
 def finite_number(name: str, value: Any, *, lo: float = -math.inf, strict: bool = False, unit: str = "",
                   error: type[Exception] = ModelError) -> float:
     """``value`` as a float, finite and >= ``lo`` (> with ``strict``), else ``error`` naming
-    ``name``, the value and its unit."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise error(f"{name}={value!r} is not a number") from None
-    if not math.isfinite(v) or v < lo or (strict and v == lo):
-        bound = f" and {'>' if strict else '>='} {lo:g}" if lo > -math.inf else ""
-        raise error(f"{name}={value!r}{' ' + unit if unit else ''} must be finite{bound}")
-    return v
+    ``name``, the value and its unit (:func:`tapm_opt._checks.finite`)."""
+    return finite(name, value, lo=None if lo == -math.inf else lo, strict=strict, unit=unit, error=error, eq="=")
 
 
 def finite_array(name: str, x: Any, unit: str, lo: float = 0.0, *, error: type[Exception] = ModelError) -> np.ndarray:

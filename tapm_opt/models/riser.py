@@ -82,6 +82,7 @@ import casadi as ca
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve
 
+from .._checks import finite, vector
 from .. import _backend as bk
 from .._io import readonly
 from ..errors import ModelError
@@ -107,26 +108,11 @@ def _drag_velocity(vx: Any, vy: Any) -> tuple[Any, Any]:
 
 
 def _finite(name: str, value: Any, *, lo: float | None = None, strict: bool = False, unit: str = "") -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ModelError(f"{name}={value!r} is not a number") from None
-    bad = not math.isfinite(v) or (lo is not None and (v < lo or (strict and v == lo)))
-    if bad:
-        bound = "" if lo is None else f" and {'>' if strict else '>='} {lo:g}"
-        raise ModelError(f"{name}={value!r}{' ' + unit if unit else ''} must be finite{bound}")
-    return v
+    return finite(name, value, lo=lo, strict=strict, unit=unit, error=ModelError, eq="=")
 
 
 def _vec2(name: str, value: Any, unit: str) -> np.ndarray:
-    try:
-        a = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ModelError(f"{name}={value!r} must be 2 numbers (x, y) in {{E}} [{unit}]") from None
-    if a.shape != (2,) or not np.isfinite(a).all():
-        shown = a.tolist() if a.ndim else value
-        raise ModelError(f"{name}={shown!r} must be 2 finite numbers (x, y) in {{E}} [{unit}]")
-    return a
+    return vector(name, value, 2, what="(x, y) in {E}", unit=unit, error=ModelError, eq="=")
 
 
 def _shape_functions(xi: np.ndarray, l: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

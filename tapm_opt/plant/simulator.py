@@ -34,6 +34,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
+from .._checks import vector
 from ..geometry import rot_z
 from ..interfaces import Measurement, ThrusterCommand, Truth
 from ..models.riser import RiserModel
@@ -442,10 +443,7 @@ def _sea_state(scenario: Any, sea_state: Any):
 
 
 def _vec3(name: str, v: Any) -> np.ndarray:
-    a = np.asarray(v, dtype=float)
-    if a.shape != (3,) or not np.all(np.isfinite(a)):
-        raise PlantError(f"{name} = {v!r} must be 3 finite numbers (x [m], y [m], psi [rad])")
-    return a
+    return vector(name, v, 3, what="(x [m], y [m], psi [rad])", error=PlantError)
 
 
 def run_open_loop(plant: Plant, duration: float, *, thruster_cmd: ThrusterCommand | Callable[[float], ThrusterCommand] | None = None,
