@@ -8,7 +8,6 @@ tests compare the QP with) and the allocator's small helpers (argument checks, r
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any
 
