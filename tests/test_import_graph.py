@@ -26,9 +26,10 @@ ROOT = pathlib.Path(__file__).resolve().parents[1] / "tapm_opt"
 #: of the cycle search (it closes a cycle with the import it points back along).
 ALLOWED_UPWARD: dict[tuple[str, str], str] = {
     ("tapm_opt.control.supervisor", "tapm_opt.design.supervisor"):
-        "transitional wrapper control.supervisor.supervised_pid: control/registry.py and studies/controllers.py "
-        "import supervised_pid from control.supervisor; once they import it from tapm_opt.design.supervisor "
-        "(or are given the controller built there), delete the wrapper and this entry",
+        "transitional wrapper control.supervisor.supervised_pid: control/registry.py (the 'pid' kind's build) "
+        "and control/__init__.py's export still take supervised_pid from control.supervisor; once the supervised "
+        "build is registered from design/ or studies/ (which may import tapm_opt.design.supervisor) and the "
+        "export is dropped, delete the wrapper and this entry",
     # studies/runner.py is edited elsewhere: write_study_capability computes the envelopes (design) and
     # writes their figures (report); the study should store the CapabilityResult's data and report/ or
     # cli/ draw it, or the function move to report/ (which may import studies and design)

@@ -892,9 +892,9 @@ def supervised_pid(system: Any, **options: Any) -> SupervisedController:
     """:func:`tapm_opt.design.supervisor.supervised_pid` (same arguments), which builds the
     supervisor's references from the plant's models: design-time work, moved there.
 
-    Transitional: kept only while ``control/registry.py`` and ``studies/controllers.py`` import it
-    from here; they should import it from :mod:`tapm_opt.design.supervisor` (or be given the
-    controller built there), and then this wrapper goes (``tests/test_import_graph.py``,
+    Transitional: kept only while the controller registry (``control/registry.py``) and the
+    package's exports (``control/__init__.py``) take it from here; once the supervised build is
+    registered from the design or studies layer, this wrapper goes (``tests/test_import_graph.py``,
     ``ALLOWED_UPWARD``)."""
     from ..design.supervisor import supervised_pid as build
 
