@@ -162,3 +162,95 @@ def test_report_names_a_result_too_large_and_draws_the_others(tmp_path, monkeypa
     assert f"case c00000000000: {bomb}: array 'data'" in problems and "limit of 32 MiB" in problems, problems
     assert md.count("Result not readable") == 1      # the other case is read and drawn
     assert "case c00000000001: motion figure not drawn" in problems   # read: only its figure lacks a scenario
+
+
+# -- a scheduler address that is not a Dask scheduler -------------------------------------------
+
+
+class _Peer:
+    """A TCP service on 127.0.0.1 that is not a Dask scheduler: ``http`` answers whatever it gets
+    with an HTTP error, ``silent`` accepts connections and says nothing."""
+
+    def __init__(self, kind: str):
+        import socket
+        import threading
+
+        self.kind, self.conns = kind, []
+        self.sock = socket.create_server(("127.0.0.1", 0))
+        self.address = f"tcp://127.0.0.1:{self.sock.getsockname()[1]}"
+        threading.Thread(target=self._serve, daemon=True).start()
+
+    def _serve(self) -> None:
+        while True:
+            try:
+                conn, _ = self.sock.accept()
+            except OSError:   # closed
+                return
+            self.conns.append(conn)
+            if self.kind == "http":
+                try:
+                    conn.recv(65536)
+                    conn.sendall(b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\nConnection: close\r\n\r\n")
+                finally:
+                    conn.close()
+
+    def close(self) -> None:
+        self.sock.close()
+        for c in self.conns:
+            c.close()
+
+
+@pytest.fixture(params=["http", "silent"])
+def peer(request):
+    p = _Peer(request.param)
+    yield p
+    p.close()
+
+
+def _bounded(fn, limit: float = 60.0):
+    """Run ``fn`` in a thread; (finished, exception). A call that hangs is reported, not waited for."""
+    import threading
+
+    got: dict = {}
+
+    def target():
+        try:
+            got["value"] = fn()
+        except BaseException as exc:  # noqa: BLE001
+            got["exc"] = exc
+
+    th = threading.Thread(target=target, daemon=True)
+    th.start()
+    th.join(limit)
+    return not th.is_alive(), got.get("exc")
+
+
+def test_a_service_that_is_not_a_scheduler_is_named(peer, monkeypatch):
+    pytest.importorskip("dask.distributed", reason="dask[distributed] is not installed (extra 'dask')")
+    from tapm_opt.studies import executors
+    from tapm_opt.studies.store import StudyRunError
+
+    monkeypatch.setattr(executors, "SCHEDULER_TIMEOUT", 1.0, raising=False)
+    finished, exc = _bounded(lambda: executors.dask_client(peer.address))
+    assert finished, f"connecting to a {peer.kind} service did not end"
+    assert isinstance(exc, StudyRunError), repr(exc)
+    msg = str(exc)
+    assert peer.address in msg and "out of memory" not in msg
+    if peer.kind == "http":
+        assert "does not speak Dask's protocol" in msg and "impossible size" in msg, msg
+    else:
+        assert "accepted the connection but sent nothing within 1 s" in msg, msg
+
+
+def test_study_run_at_an_http_server_exits_2_naming_the_address(capsys, tmp_path):
+    pytest.importorskip("dask.distributed", reason="dask[distributed] is not installed (extra 'dask')")
+    p = _Peer("http")
+    try:
+        code, _, err = run(capsys, "study", "run", str(TINY), "--out", str(tmp_path / "run"), "--no-progress",
+                           "--scheduler", p.address)
+    finally:
+        p.close()
+    assert code == 2
+    assert f"error: Dask scheduler {p.address!r}: the service there does not speak Dask's protocol" in err, err
+    assert "out of memory" not in err and "FEM" not in err
+    assert not (tmp_path / "run").exists()

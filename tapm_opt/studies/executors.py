@@ -41,13 +41,18 @@ from .jobs import case_payload, error_info, local_case_job, record_failure, stor
 from .spec import Case
 from .store import StudyRunError
 
-__all__ = ["run_inline", "run_local", "run_dask", "dask_client", "PARENT_POLL", "USE_PDEATHSIG"]
+__all__ = ["run_inline", "run_local", "run_dask", "dask_client", "check_scheduler", "PARENT_POLL", "USE_PDEATHSIG",
+           "SCHEDULER_TIMEOUT"]
 
 #: Interval [s] at which a local worker checks that the process that started it is still there.
 PARENT_POLL = 0.5
 
 #: Ask the Linux kernel to kill a worker whose parent dies (else only the polling thread does it).
 USE_PDEATHSIG = True
+
+#: Time [s] a scheduler address is given to connect and answer Dask's handshake before the run
+#: is refused (:func:`dask_client`).
+SCHEDULER_TIMEOUT = 10.0
 
 
 class Progress(Protocol):
@@ -203,7 +208,10 @@ def dask_client(scheduler: Any) -> tuple[Any, bool]:
     ------
     StudyRunError
         Dask is not installed (the message names the extra), the scheduler cannot be reached, or
-        ``scheduler`` is none of the above.
+        ``scheduler`` is none of the above. An address is checked first
+        (:func:`check_scheduler`, :data:`SCHEDULER_TIMEOUT` seconds at most): a service that refuses
+        the connection, stays silent or answers in another protocol (an HTTP server, ...) is named
+        with what it did.
     """
     try:
         from dask.distributed import Client
@@ -213,12 +221,92 @@ def dask_client(scheduler: Any) -> tuple[Any, bool]:
     if isinstance(scheduler, Client):
         return scheduler, False
     if isinstance(scheduler, str) or hasattr(scheduler, "scheduler_address"):
+        if isinstance(scheduler, str):
+            check_scheduler(scheduler)
         try:
-            return Client(scheduler), True
-        except (OSError, TimeoutError, ValueError) as exc:
-            raise StudyRunError(f"cannot connect to the Dask scheduler {scheduler!r}: {exc}") from None
+            return Client(scheduler, timeout=max(SCHEDULER_TIMEOUT, 1.0)), True
+        except Exception as exc:  # noqa: BLE001 - whatever the connection gives back, named with the address
+            raise StudyRunError(f"cannot connect to the Dask scheduler {scheduler!r}: "
+                                f"{type(exc).__name__}: {exc}") from None
     raise StudyRunError(f"scheduler = {scheduler!r} must be a scheduler address ('tcp://host:port'), a "
                      "dask.distributed.Client or a cluster object")
+
+
+def check_scheduler(address: str, timeout: float | None = None) -> None:
+    """Check that ``address`` is a Dask scheduler: connect and exchange Dask's handshake within
+    ``timeout`` seconds (default :data:`SCHEDULER_TIMEOUT`), then close.
+
+    Only ``tcp://`` addresses (and a bare ``host:port``) are checked here; other protocols (``tls://``,
+    ``ws://``, ...) need their connection options and are left to ``Client``.
+
+    Raises
+    ------
+    StudyRunError
+        Naming the address and what happened: no connection (refused, unknown host, nothing within
+        the time), a peer that accepts but says nothing within the time, or one that answers in
+        another protocol (an HTTP server, ...).
+    """
+    import asyncio
+    import concurrent.futures as cf
+
+    from distributed.comm.addressing import parse_address
+
+    timeout = float(SCHEDULER_TIMEOUT if timeout is None else timeout)
+    try:
+        scheme, loc = parse_address(address)
+    except (ValueError, TypeError) as exc:
+        raise StudyRunError(f"scheduler = {address!r} is not a scheduler address ('tcp://host:port'): {exc}") from None
+    if scheme != "tcp":
+        return
+    what = f"Dask scheduler {address!r}"
+    with cf.ThreadPoolExecutor(1, thread_name_prefix="tapm-scheduler-check") as ex:   # a loop of its own
+        fut = ex.submit(asyncio.run, _handshake(scheme, loc, timeout))
+        try:
+            problem = fut.result(timeout=3 * timeout + 5)
+        except cf.TimeoutError:   # pragma: no cover - each step is bounded by wait_for
+            problem = f"no answer within {3 * timeout:g} s"
+    if problem is not None:
+        raise StudyRunError(f"{what}: {problem}")
+
+
+async def _handshake(scheme: str, loc: str, timeout: float) -> str | None:
+    """Connect to ``scheme://loc`` and exchange Dask's handshake, each step within ``timeout``
+    seconds; None when a Dask scheduler answered, else what went wrong."""
+    import asyncio
+
+    from distributed.comm.registry import get_backend
+
+    try:
+        comm = await asyncio.wait_for(get_backend(scheme).get_connector().connect(loc, deserialize=False), timeout)
+    except (TimeoutError, asyncio.TimeoutError):
+        return f"no connection within {timeout:g} s (is the host up and the port open?)"
+    except Exception as exc:  # noqa: BLE001 - refused, unknown host, ...
+        return f"cannot connect: {_reason(exc)} (is a scheduler running there? `dask scheduler` starts one)"
+    try:
+        await asyncio.wait_for(comm.write(comm.handshake_info()), timeout)
+        reply = await asyncio.wait_for(comm.read(), timeout)
+    except (TimeoutError, asyncio.TimeoutError):
+        return (f"the service there accepted the connection but sent nothing within {timeout:g} s: not a Dask "
+                "scheduler, which answers at once (another service, or one that hangs?)")
+    except Exception as exc:  # noqa: BLE001 - MemoryError from a nonsense length, closed stream, ...
+        return (f"the service there does not speak Dask's protocol ({_reason(exc)}): an HTTP server or the "
+                "dashboard's port? A scheduler listens on port 8786 unless told otherwise")
+    finally:
+        comm.abort()
+    if not (isinstance(reply, dict) and "compression" in reply and "python" in reply):
+        return f"the service there answered, but not with Dask's handshake ({reply!r:.120})"
+    return None
+
+
+def _reason(exc: BaseException) -> str:
+    """What an exception of the check says, short: the underlying error of a closed comm, no object reprs."""
+    import re
+
+    if isinstance(exc, MemoryError):   # a length read from bytes that are not Dask's framing
+        return "its reply announces a message of an impossible size"
+    text = re.sub(r"^in <[^>]*>: ", "", str(exc))[:200]
+    return text if text.startswith(("ConnectionRefusedError", "OSError", "TimeoutError")) else \
+        (f"{type(exc).__name__}: {text}" if text else type(exc).__name__)
 
 
 def run_dask(todo: Sequence[Case], out: Path, client: Any, bar: Progress, outcomes: dict) -> None:
