@@ -912,7 +912,7 @@ def test_study_spec_takes_the_linear_mpc_qp_solver_and_bounds_the_polytope(fpso)
     from tapm_opt.studies.controllers import ControllerSpecError, build_controller
 
     assert build_controller(fpso, {"type": "lmpc", "horizon": 3, "qp_solver": "osqp"}).qp_solver == "osqp"
-    assert build_controller(fpso, {"type": "lmpc", "horizon": 3}).qp_solver == "piqp"
+    assert build_controller(fpso, {"type": "lmpc", "horizon": 3}).qp_solver == "daqp"   # the fast default (control.registry)
     with pytest.raises(ControllerSpecError, match="qp_solver"):
         build_controller(fpso, {"type": "mpc", "horizon": 3, "qp_solver": "osqp"})  # the NLP has its solver
     with pytest.raises(ControllerSpecError, match="qp_solver = 'qrqp'"):

@@ -434,10 +434,7 @@ def build_problem(system: Any, settings: MPCSettings, *, linear: bool = False,
              ("T_lim", n_lines), ("riser", 6 if use_riser else 0), ("dead_band", 1 if s.dead_band > 0 else 0)]
     if linear:
         sizes += [("x_op", 6), ("u_op", n_u), ("b_op", 3)]
-    p_idx, at = {}, 0
-    for name, n in sizes:
-        p_idx[name] = slice(at, at + n)
-        at += n
+    p_idx, at = _layout(sizes)
     p = Sym.sym("p", at)
     x0, u_prev, eta_d, b_E = (p[p_idx[k]] for k in ("x0", "u_prev", "eta_d", "b"))
 
@@ -500,13 +497,11 @@ def build_problem(system: Any, settings: MPCSettings, *, linear: bool = False,
     block_of = block_index(s.move_blocks, N)
     M = int(block_of[-1]) + 1
     nX, nU = 6 * (N + 1), n_u * M
-    z = Sym.sym("z", nX + nU + 4 * N)
-    X = ca.reshape(z[:nX], 6, N + 1)
-    U = ca.reshape(z[nX:nX + nU], n_u, M)
-    S_db = z[nX + nU:nX + nU + N]
-    S_safe = z[nX + nU + N:nX + nU + 2 * N]
-    S_T = z[nX + nU + 2 * N:nX + nU + 3 * N]
-    S_R = z[nX + nU + 3 * N:nX + nU + 4 * N]
+    idx, n_z = _layout([("X", nX), ("U", nU), ("S_db", N), ("S_safe", N), ("S_T", N), ("S_R", N)])
+    z = Sym.sym("z", n_z)
+    X = ca.reshape(z[idx["X"]], 6, N + 1)
+    U = ca.reshape(z[idx["U"]], n_u, M)
+    S_db, S_safe, S_T, S_R = (z[idx[k]] for k in ("S_db", "S_safe", "S_T", "S_R"))
     Dx, Du = ca.DM(x_ref), ca.DM(u_ref)
     T_lim = p[p_idx["T_lim"]]
     if use_riser:
@@ -621,19 +616,23 @@ def build_problem(system: Any, settings: MPCSettings, *, linear: bool = False,
     lbz = np.concatenate([np.full(nX, -np.inf), np.tile(u_lo_s, M), np.zeros(4 * N)])
     ubz = np.concatenate([np.full(nX, np.inf), np.tile(u_hi_s, M), np.full(4 * N, np.inf)])
     # slacks of constraints that are not there are held at zero
-    if s.dead_band <= 0:
-        ubz[nX + nU:nX + nU + N] = 0.0
-    if R_safe is None:
-        ubz[nX + nU + N:nX + nU + 2 * N] = 0.0
-    if not use_riser:
-        ubz[nX + nU + 3 * N:nX + nU + 4 * N] = 0.0
-    idx = {"X": slice(0, nX), "U": slice(nX, nX + nU), "S_db": slice(nX + nU, nX + nU + N),
-           "S_safe": slice(nX + nU + N, nX + nU + 2 * N), "S_T": slice(nX + nU + 2 * N, nX + nU + 3 * N),
-           "S_R": slice(nX + nU + 3 * N, nX + nU + 4 * N)}
+    for block, absent in (("S_db", s.dead_band <= 0), ("S_safe", R_safe is None), ("S_R", not use_riser)):
+        if absent:
+            ubz[idx[block]] = 0.0
     scale = {"x": x_ref, "u": u_ref, "T_allow": T_allow, "R_safe": R_safe, "p_cot_B": p_cot}
     return _Problem(z=z, p=p, f=cost, g=g, lbz=lbz, ubz=ubz, lbg=np.array(lbg, float), ubg=np.array(ubg, float),
                     idx=idx, scale=scale, n_u=n_u, B_thr=Bu if s.decision == "thrusters" else None, r=r,
                     p_idx=p_idx, n_poly=n_poly, linear=linear, block_of=block_of)
+
+
+def _layout(blocks: list[tuple[str, int]]) -> tuple[dict[str, slice], int]:
+    """Named consecutive blocks of a vector (the decision vector ``z``, the parameters ``p``):
+    ``({name: slice}, total length)``."""
+    out, at = {}, 0
+    for name, n in blocks:
+        out[name] = slice(at, at + int(n))
+        at += int(n)
+    return out, at
 
 
 def block_index(move_blocks: tuple[int, ...] | None, horizon: int) -> np.ndarray:
