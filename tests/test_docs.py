@@ -73,7 +73,7 @@ def test_readme_python_example_runs(tmp_path, monkeypatch):
     text = (ROOT / "README.md").read_text(encoding="utf-8")
     part = text.split("From Python:", 1)[1]
     code = part.split("```python", 1)[1].split("```", 1)[0]
-    assert "from tapm_opt.control import build" in code and "run_case_on" in code   # the public surface
+    assert "from tapm_opt.design import build" in code and "run_case_on" in code   # the public surface
     monkeypatch.chdir(tmp_path)
     (tmp_path / "out").mkdir()
     ns: dict = {}

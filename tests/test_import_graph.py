@@ -25,11 +25,6 @@ ROOT = pathlib.Path(__file__).resolve().parents[1] / "tapm_opt"
 #: (importer, imported) -> why the upward import is still there. An allowed edge is also left out
 #: of the cycle search (it closes a cycle with the import it points back along).
 ALLOWED_UPWARD: dict[tuple[str, str], str] = {
-    ("tapm_opt.control.supervisor", "tapm_opt.design.supervisor"):
-        "transitional wrapper control.supervisor.supervised_pid: control/registry.py (the 'pid' kind's build) "
-        "and control/__init__.py's export still take supervised_pid from control.supervisor; once the supervised "
-        "build is registered from design/ or studies/ (which may import tapm_opt.design.supervisor) and the "
-        "export is dropped, delete the wrapper and this entry",
     # studies/runner.py is edited elsewhere: write_study_capability computes the envelopes (design) and
     # writes their figures (report); the study should store the CapabilityResult's data and report/ or
     # cli/ draw it, or the function move to report/ (which may import studies and design)
@@ -38,15 +33,6 @@ ALLOWED_UPWARD: dict[tuple[str, str], str] = {
 }
 #: (importer, defining module, name) -> why the private name is still imported.
 ALLOWED_PRIVATE: dict[tuple[str, str, str], str] = {
-    # studies/_checks.py, studies/spec.py and config/loader.py are edited elsewhere; the public names are
-    # tapm_opt._checks.fmt and tapm_opt._checks.is_number (same code): import those instead
-    ("tapm_opt.studies._checks", "tapm_opt.config.loader", "_fmt"): "use tapm_opt._checks.fmt",
-    ("tapm_opt.studies._checks", "tapm_opt.config.loader", "_is_number"): "use tapm_opt._checks.is_number",
-    ("tapm_opt.studies.spec", "tapm_opt.config.loader", "_fmt"): "use tapm_opt._checks.fmt",
-    # studies/anchor_network.py is edited elsewhere: tapm_opt._checks.finite(name, v, lo=0.0, strict=True,
-    # unit=..., error=AnchorSlamError) is the same check
-    ("tapm_opt.studies.anchor_network", "tapm_opt.estimation.anchor_slam", "_finite"):
-        "use tapm_opt._checks.finite(..., strict=True, error=AnchorSlamError)",
 }
 
 

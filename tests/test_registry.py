@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from tapm_opt.cli import main
-from tapm_opt.control import registry
-from tapm_opt.control.registry import (ControllerKind, ControllerSpecError, Dimension, auto_move_blocks, build, kind,
+from tapm_opt.design import registry
+from tapm_opt.design.registry import (ControllerKind, ControllerSpecError, Dimension, auto_move_blocks, build, kind,
                                        register, unregister)
 from tapm_opt.interfaces import ControllerStep
 from tapm_opt.models.system import System
@@ -205,7 +205,7 @@ def test_a_kind_from_an_installed_entry_point(tmp_path, monkeypatch, capsys):
     (pkg / "tapm_hold_plugin.py").write_text(textwrap.dedent('''
         import dataclasses
         import numpy as np
-        from tapm_opt.control.registry import ControllerKind
+        from tapm_opt.design.registry import ControllerKind
         from tapm_opt.interfaces import ControllerStep
 
         @dataclasses.dataclass(frozen=True)
@@ -255,7 +255,7 @@ def test_docs_controller_table_is_the_registry():
     begin, end = "<!-- registry table: begin -->", "<!-- registry table: end -->"
     assert begin in doc and end in doc
     table = doc.split(begin, 1)[1].split(end, 1)[0].strip()
-    assert table == registry.markdown_table().strip(), "regenerate with python -m tapm_opt.control.registry"
+    assert table == registry.markdown_table().strip(), "regenerate with python -m tapm_opt.design.registry"
 
 
 @pytest.mark.slow

@@ -27,18 +27,18 @@ class State:
 
 
 class ControllerKindChoice(click.ParamType):
-    """``--controller``: a registered controller kind (:mod:`tapm_opt.control.registry`), read
+    """``--controller``: a registered controller kind (:mod:`tapm_opt.design.registry`), read
     when the option is parsed, so an installed plugin's kind is a choice too."""
 
     name = "kind"
 
     def get_metavar(self, param: click.Parameter, ctx: click.Context | None = None) -> str:
-        from ..control.registry import kind_names
+        from ..design.registry import kind_names
 
         return "[" + "|".join(kind_names()) + "]"
 
     def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> str:
-        from ..control.registry import ControllerSpecError, kind
+        from ..design.registry import ControllerSpecError, kind
 
         try:
             return kind(value, where="--controller").name

@@ -18,6 +18,7 @@ from typing import Any, Literal, get_args, get_origin, get_type_hints
 
 import numpy as np
 
+from .._checks import fmt as _fmt, is_number as _is_number  # one definition for every layer
 from ..errors import ScenarioError, ScenarioIssue
 from ..geometry import fairleads_B, merge_sectors
 from .schema import Scenario
@@ -57,18 +58,6 @@ def file_key(f: dataclasses.Field) -> str:
     """Key of a field in the scenario file (``<name>_deg`` for angles)."""
     unit = f.metadata.get("unit", "")
     return {"deg": f"{f.name}_deg", "deg/s": f"{f.name}_deg_s"}.get(unit, f.name)
-
-
-def _fmt(v: Any) -> str:
-    if isinstance(v, float):
-        return f"{v:g}"
-    if isinstance(v, str):
-        return repr(v)
-    return str(v)
-
-
-def _is_number(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
 def _unwrap_optional(tp: Any) -> tuple[Any, bool]:

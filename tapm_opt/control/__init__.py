@@ -1,8 +1,9 @@
-"""Controllers and their layers: the controller-kind registry (:func:`build` makes what ``tapm
-simulate`` runs), the TAPM PID modes, linear and nonlinear MPC, QP thrust allocation, setpoint
-layers, the sea-state supervisor, gain scheduling and winch (line-tension) control.
+"""Controllers and their layers: the TAPM PID modes, linear and nonlinear MPC, QP thrust
+allocation, setpoint layers, the sea-state supervisor, gain scheduling and winch (line-tension)
+control. A controller from a specification, as ``tapm simulate`` builds it, comes from the
+controller-kind registry (:mod:`tapm_opt.design.registry`)::
 
-    from tapm_opt.control import build
+    from tapm_opt.design import build
     ctrl = build(system, "lmpc")
 """
 
@@ -14,14 +15,6 @@ from typing import Any
 #: Each public name and the module that defines it (imported on first use, so importing the
 #: package stays cheap and free of cycles).
 _EXPORTS = {
-    "build": ".registry",
-    "kinds": ".registry",
-    "kind": ".registry",
-    "register": ".registry",
-    "ControllerKind": ".registry",
-    "ControllerSpecError": ".registry",
-    "Dimension": ".registry",
-    "BuildContext": ".registry",
     "TAPMPID": ".pid",
     "MODE_SETS": ".pid",
     "design_from_scenario": ".pid_design",
@@ -35,7 +28,6 @@ _EXPORTS = {
     "SetpointChasing": ".setpoint",
     "OptimalSetpoint": ".setpoint_opt",
     "SetpointOptions": ".setpoint_opt",
-    "supervised_pid": ".supervisor",
     "SeaStateSupervisor": ".supervisor",
     "GainScheduledPID": ".scheduled",
     "WinchTensionController": ".winch",

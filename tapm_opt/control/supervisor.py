@@ -106,7 +106,6 @@ __all__ = [
     "SeaStateSupervisor",
     "SupervisedController",
     "class_mode_sets",
-    "supervised_pid",
 ]
 
 #: The supervisor's features, in the order of :class:`SeaStateFeatures`.
@@ -884,18 +883,3 @@ class SupervisedController:
     def modes(self) -> tuple[str, ...]:
         """The inner controller's enabled modes."""
         return self.controller.modes
-
-
-# --- moved to the design layer ----------------------------------------------------------------
-
-def supervised_pid(system: Any, **options: Any) -> SupervisedController:
-    """:func:`tapm_opt.design.supervisor.supervised_pid` (same arguments), which builds the
-    supervisor's references from the plant's models: design-time work, moved there.
-
-    Transitional: kept only while the controller registry (``control/registry.py``) and the
-    package's exports (``control/__init__.py``) take it from here; once the supervised build is
-    registered from the design or studies layer, this wrapper goes (``tests/test_import_graph.py``,
-    ``ALLOWED_UPWARD``)."""
-    from ..design.supervisor import supervised_pid as build
-
-    return build(system, **options)

@@ -1,4 +1,5 @@
-"""Design-time analyses: capability envelopes, PID and LQR gain tables per sea state and mooring
+"""Design: the controller-kind registry (:func:`build` makes the controller ``tapm simulate``
+runs, with its tuned defaults and search space), the supervised PID, capability envelopes, PID and LQR gain tables per sea state and mooring
 condition, and the static optimal setpoints.
 
     from tapm_opt.design import capability, gain_table
@@ -12,6 +13,16 @@ from typing import Any
 #: Each public name and the module that defines it (imported on first use, so importing the
 #: package stays cheap and free of cycles).
 _EXPORTS = {
+    "build": ".registry",
+    "kinds": ".registry",
+    "kind": ".registry",
+    "register": ".registry",
+    "ControllerKind": ".registry",
+    "ControllerSpecError": ".registry",
+    "Dimension": ".registry",
+    "BuildContext": ".registry",
+    "supervised_pid": ".supervisor",
+    "sea_state_supervisor": ".supervisor",
     "capability": ".capability",
     "CapabilityOptions": ".capability",
     "CapabilityResult": ".capability",

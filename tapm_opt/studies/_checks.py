@@ -10,7 +10,7 @@ import difflib
 import math
 from typing import Any, Mapping, Sequence
 
-from ..config.loader import _fmt, _is_number  # the scenario loader's value checks
+from .._checks import fmt as _fmt, is_number as _is_number  # the scenario loader's value checks too
 from .store import StudyIssue
 
 

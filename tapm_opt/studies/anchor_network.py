@@ -17,7 +17,8 @@ import numpy as np
 
 from .._parallel import limit_threads, worker_threads
 from ..errors import TapmError
-from ..estimation.anchor_slam import AnchorSlamError, VirtualVessel, VirtualVesselNetwork, _finite
+from .._checks import finite
+from ..estimation.anchor_slam import AnchorSlamError, VirtualVessel, VirtualVesselNetwork
 from ..models.mooring import MooringModel
 
 __all__ = ["random_sea_states", "generate_network", "current_tension_share", "range_bias_along"]
@@ -250,9 +251,9 @@ def generate_network(scenario: Any, n: int, *, duration: float, seed: int = 0, s
     n = int(n)
     if n < 1:
         raise AnchorSlamError(f"virtual vessels = {n!r} must be >= 1")
-    duration = _finite("duration", duration, lo=0.0, unit="s")
+    duration = finite("duration", duration, lo=0.0, strict=True, unit="s", error=AnchorSlamError)
     for name, v in (("settle", settle), ("settle_max", settle_max), ("settle_tol", settle_tol), ("dt", dt)):
-        _finite(name, v, lo=0.0)
+        finite(name, v, lo=0.0, strict=True, error=AnchorSlamError)
     envs = random_sea_states(scenario, n, seed=seed, **(env_kw or {}))
     envs += random_sea_states(scenario, 1, seed=seed + 7919, stratify=False,
                               **{"min_offset": 0.0, **(env_kw or {})})      # the live vessel

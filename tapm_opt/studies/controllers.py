@@ -1,7 +1,7 @@
 """Controllers from a plain specification, for ``tapm simulate`` and study files.
 
 The kinds, their options, tuned defaults and search spaces are defined once, in
-:mod:`tapm_opt.control.registry` (``docs/controllers.md`` lists them); this module gives the
+:mod:`tapm_opt.design.registry` (``docs/controllers.md`` lists them); this module gives the
 study side its entry point, :func:`build_controller`, with the closed loop's context (control
 period, estimator, winch control) as keywords.
 """
@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import Any, Mapping
 
-from ..control.registry import (DEAD_BAND_DAMAGED_FRACTION, DEAD_BAND_FRACTION, ControllerSpecError, build, kind,
+from ..design.registry import (DEAD_BAND_DAMAGED_FRACTION, DEAD_BAND_FRACTION, ControllerSpecError, build, kind,
                                 kind_names)
 
 __all__ = ["build_controller", "controller_types", "ControllerSpecError", "MPC_DEFAULTS", "MPC_DEAD_BAND",
@@ -34,7 +34,7 @@ def build_controller(system: Any, spec: Mapping[str, Any] | str, *, where: str =
                      dt_control: float = 1.0, estimator: str | None = None,
                      winch: Mapping[str, Any] | None = None) -> Any:
     """A :class:`~tapm_opt.interfaces.Controller` from a specification
-    (:func:`tapm_opt.control.registry.build`).
+    (:func:`tapm_opt.design.registry.build`).
 
     Parameters
     ----------

@@ -63,7 +63,7 @@ def run_case_on(system: Any, controller: Mapping[str, Any] | str, settings: Clos
     system : System
         Built once (``System.from_scenario``), faults included in its scenario.
     controller : mapping or str
-        A controller specification (:func:`tapm_opt.control.registry.build`).
+        A controller specification (:func:`tapm_opt.design.registry.build`).
     settings : ClosedLoopSettings
         Duration, control and log periods, setpoint, heading, estimation, winch control.
     sea_state : str, SeaState or None

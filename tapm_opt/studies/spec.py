@@ -17,12 +17,13 @@ from typing import Any, Mapping
 
 from .._io import toml_key, toml_value
 from ..config import Fault, builtin_scenarios, load_scenario, scenario_from_dict, scenario_to_dict
-from ..config.loader import BUILTIN_DIR, _fmt  # the scenario loader's value checks
+from .._checks import fmt as _fmt  # the scenario loader's value checks too
+from ..config.loader import BUILTIN_DIR
 from ..config.loader import fem_size_issues, log_size_issues
 from ..errors import ScenarioError
 from . import store
 from ._checks import Checker
-from ..control.registry import kind as _controller_kind, kind_names as _controller_kinds
+from ..design.registry import kind as _controller_kind, kind_names as _controller_kinds
 from .controllers import ControllerSpecError, build_controller
 from .store import StudyError
 
@@ -144,7 +145,7 @@ def _resolve_scenario(value: str, base_dir: Path) -> str | Path:
 
 def _normalise_spec(kind: str, opts: dict) -> dict:
     """Numbers in the form the controller takes them (``35`` and ``35.0`` give one case id): the
-    kind's own ``normalise`` (:mod:`tapm_opt.control.registry`)."""
+    kind's own ``normalise`` (:mod:`tapm_opt.design.registry`)."""
     k = _controller_kind(kind)
     return {"type": kind, **(k.normalise(opts) if k.normalise is not None else dict(opts))}
 
@@ -511,13 +512,68 @@ def _parse_listed(ck: Checker, data: Mapping, out: _Parsed) -> None:
             out.listed.append((p, *picked, seed, dur, cname))
 
 
+#: Most cases one study may hold; a larger one is refused when its file is read, before any case
+#: is built. Each case is a folder with its own copy of its inputs, a row of the KPI tables and a
+#: section of the report: split a larger design space into several studies.
+MAX_CASES = 10_000
+
+#: Most bytes of one case's inputs as JSON (the scenario, the controller with any embedded gain
+#: table, the settings: about 7 kB for fpso), which ``cases/<id>/case.json`` stores in full.
+MAX_CASE_INPUT_BYTES = 16 * 2**20
+
+#: Most bytes of the inputs of all the cases of a study together (what the ``case.json`` files
+#: of a run hold together, before indentation): 1 GiB.
+MAX_STUDY_INPUT_BYTES = 2**30
+
+
+def _mib(n: float) -> str:
+    return f"{n / 2**20:.3g} MiB" if n >= 2**20 else f"{n / 2**10:.3g} KiB"
+
+
+def _count_issue(P: _Parsed, n: int) -> str:
+    """What the study's case count is made of, and the limit (the count is above it)."""
+    def many(k: int, what: str) -> str:
+        return f"{k} {what}" + ("" if k == 1 else "s")
+
+    parts = []
+    if P.mode == "product":
+        parts.append(" x ".join((many(len(P.sea_states), "sea state"), many(len(P.controllers), "controller"),
+                                 many(len(P.conditions), "condition"), many(len(P.seeds), "seed"))))
+    if P.listed:
+        parts.append(many(len(P.listed), "listed case"))
+    return (f"the study has {n} cases ({' + '.join(parts)}); at most {MAX_CASES} cases are allowed in one study: "
+            "give fewer seeds, sea states, controllers or conditions, or split it into several studies (each "
+            "with its own --out)")
+
+
+def _inputs_size_issue(name: str, inputs: dict, size: int) -> str:
+    """A case's inputs are above :data:`MAX_CASE_INPUT_BYTES`: say which part is large."""
+    parts = []
+    for k, v in (inputs.get("scenario") or {}).items():
+        parts.append((len(store.canonical_json(v)), f"scenario.{k}"))
+    for k, v in inputs.items():
+        if k != "scenario":
+            parts.append((len(store.canonical_json(v)), k))
+    big, where = max(parts) if parts else (size, "inputs")
+    return (f"case {name!r}: its inputs are {_mib(size)} of JSON, above the {_mib(MAX_CASE_INPUT_BYTES)} one case "
+            f"may hold (every case stores them in full in cases/<id>/case.json); the largest part is {where}, "
+            f"{_mib(big)}")
+
+
 def _expand(ck: Checker, P: _Parsed) -> list[Case]:
     sc, duration = P.sc, float(P.duration)
     wanted = []
     if P.mode == "product":
+        n = len(P.sea_states) * len(P.controllers) * len(P.conditions) * len(P.seeds)
+        if n + len(P.listed) > MAX_CASES:   # counted, not built
+            ck.err("cases", _count_issue(P, n + len(P.listed)))
+            return []
         wanted = [("", a, b, c, s, duration, None) for a in range(len(P.sea_states))
                   for b in range(len(P.controllers)) for c in range(len(P.conditions)) for s in P.seeds]
     wanted += [(p, a, b, c, s, duration if d is None else d, n) for p, a, b, c, s, d, n in P.listed]
+    if len(wanted) > MAX_CASES:
+        ck.err("cases", _count_issue(P, len(wanted)))
+        return []
     for p, dur in sorted({(p, d) for p, _, _, _, _, d, _ in wanted}):  # the size of each run's log
         for iss in log_size_issues(sc, dur, P.closed_loop["dt_log"], where=f"{p}.duration" if p else "study.duration",
                                    dt_name="study.dt_log"):
@@ -532,6 +588,7 @@ def _expand(ck: Checker, P: _Parsed) -> list[Case]:
     candidates += [ss for sid, ss in study_ss.items() if sid not in {s.id for s in sc.sea_states}]
     cases: list[Case] = []
     where: dict[str, str] = {}
+    total = 0
     for p, i_ss, i_ctrl, i_cond, seed, dur, cname in wanted:
         sid, ss = P.sea_states[i_ss]
         ctrl_name, spec = P.controllers[i_ctrl]
@@ -553,7 +610,16 @@ def _expand(ck: Checker, P: _Parsed) -> list[Case]:
                   "seed": int(seed)}
         name = cname or (f"{sid}, {ctrl_name}, {labels['condition']}, seed {seed}"
                          + (f", {dur:g} s" if dur != duration else ""))
-        cid = store.case_id(inputs)
+        cid, size = store.case_id_and_size(inputs)
+        total += size
+        if size > MAX_CASE_INPUT_BYTES:
+            ck.err(p or "study.scenario", _inputs_size_issue(name, inputs, size))
+            return cases
+        if total > MAX_STUDY_INPUT_BYTES:
+            ck.err("cases", f"the inputs of the study's cases are above {_mib(MAX_STUDY_INPUT_BYTES)} of JSON "
+                   f"together at its case {len(cases) + 1} of {len(wanted)} ({_mib(size)} each; every case stores "
+                   "them in full in cases/<id>/case.json): give fewer cases or a smaller scenario")
+            return cases
         here = p or f"sea_states[{i_ss}] x controllers[{i_ctrl}] x conditions[{i_cond}] x seed {seed}"
         if cid in where:
             if p and next(c for c in cases if c.id == cid).labels == labels:
@@ -563,8 +629,9 @@ def _expand(ck: Checker, P: _Parsed) -> list[Case]:
             continue
         where[cid] = here
         cases.append(Case(id=cid, name=name, labels=labels, inputs=inputs))
-    names = [c.name for c in cases]
-    for n in sorted({n for n in names if names.count(n) > 1}):
+    from collections import Counter
+
+    for n in sorted(n for n, k in Counter(c.name for c in cases).items() if k > 1):
         ck.err("cases", f"two cases are named {n!r}; give them distinct names")
     if not cases and not ck.issues:
         ck.err("cases", "the study has no case")

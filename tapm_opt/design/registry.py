@@ -6,7 +6,7 @@ Every place that makes a controller from a specification reads this table: ``tap
 dry build, :func:`tapm_opt.studies.controllers.build_controller`, the docs' controller table
 (``docs/controllers.md``, checked by ``tests/test_registry.py``) and a Python user::
 
-    from tapm_opt.control import build
+    from tapm_opt.design import build
     ctrl = build(system, "lmpc")                       # exactly what `tapm simulate --controller lmpc` runs
     ctrl = build(system, {"type": "mpc", "horizon": 30})
 
@@ -48,7 +48,7 @@ import numpy as np
 
 from ..errors import TapmError
 from ..estimation import DEFAULT_ESTIMATOR
-from .pid import MODE_SETS
+from ..control.pid import MODE_SETS
 
 __all__ = ["ControllerKind", "Dimension", "BuildContext", "ControllerSpecError", "PIDOptions", "MPCOptions",
            "LMPCOptions", "register", "unregister", "kinds", "kind", "kind_names", "build", "options_from_spec",
@@ -266,7 +266,7 @@ def _dp_force_limit(system: Any, winch: Mapping[str, Any] | None, where: str) ->
             "can push in surge, sway and yaw (give the scenario [[thrusters]], or an explicit tau_limit)")
     if winch is None:
         return box
-    from .winch import WinchError, WinchTensionController
+    from ..control.winch import WinchError, WinchTensionController
 
     try:
         r = WinchTensionController(system, winch).force_capacity()
@@ -276,8 +276,8 @@ def _dp_force_limit(system: Any, winch: Mapping[str, Any] | None, where: str) ->
 
 
 def _build_pid(system: Any, o: PIDOptions, ctx: BuildContext) -> Any:
-    from .pid import TAPMPID
-    from .pid_design import design_from_scenario
+    from ..control.pid import TAPMPID
+    from ..control.pid_design import design_from_scenario
 
     where = ctx.where
     if isinstance(o.modes, str) and o.modes not in tuple(MODE_SETS):
@@ -381,7 +381,7 @@ def auto_move_blocks(horizon: int) -> tuple[int, ...] | None:
 def _mpc_options_class(name: str, doc: str, overrides: Mapping[str, Any], extra: list[tuple]) -> type:
     """A frozen options dataclass: every ``MPCSettings`` field with the study's ``overrides`` of
     its defaults, plus ``extra`` fields (name, type, field)."""
-    from .mpc_problem import MPCSettings
+    from ..control.mpc_problem import MPCSettings
 
     doc_lines = _settings_docs(MPCSettings.__doc__ or "")
     specs = []
@@ -454,7 +454,7 @@ _NOT_SETTINGS = ("period", "qp_solver")
 
 
 def _mpc_settings(system: Any, o: Any, where: str) -> Any:
-    from .mpc_problem import MPCSettings
+    from ..control.mpc_problem import MPCSettings
 
     s = {k: getattr(o, k) for k in (f.name for f in dataclasses.fields(o)) if k not in _NOT_SETTINGS}
     if s["dead_band"] is None:
@@ -497,7 +497,7 @@ def _period(o: Any, where: str) -> float | None:
 
 
 def _build_mpc(system: Any, o: Any, ctx: BuildContext) -> Any:
-    from .mpc import NonlinearMPC
+    from ..control.mpc import NonlinearMPC
 
     settings = _mpc_settings(system, o, ctx.where)
     qp = o.qp_solver if o.qp_solver is not None else ("daqp" if settings.solver == "rti"
@@ -506,14 +506,14 @@ def _build_mpc(system: Any, o: Any, ctx: BuildContext) -> Any:
 
 
 def _build_lmpc(system: Any, o: Any, ctx: BuildContext) -> Any:
-    from .mpc import LinearMPC
+    from ..control.mpc import LinearMPC
 
     return LinearMPC(system, _mpc_settings(system, o, ctx.where), period=_period(o, ctx.where),
                      qp_solver=o.qp_solver)
 
 
 def _normalise_mpc(spec: Mapping[str, Any]) -> dict:
-    from .mpc_problem import MPCSettings
+    from ..control.mpc_problem import MPCSettings
 
     floats = {f.name for f in dataclasses.fields(MPCSettings) if "float" in str(f.type)} | {"period"}
     return {k: float(v) if (k in floats and _is_number(v)) else v for k, v in spec.items()}
@@ -694,7 +694,7 @@ def _search_text(d: Dimension | None) -> str:
 
 def markdown_table(names: tuple[str, ...] | None = None) -> str:
     """The docs' table of controller kinds and their options (``docs/controllers.md``, checked by
-    ``tests/test_registry.py``; ``python -m tapm_opt.control.registry`` prints it)."""
+    ``tests/test_registry.py``; ``python -m tapm_opt.design.registry`` prints it)."""
     rows = ["| kind | option | default | unit | tuning search space | meaning |", "|---|---|---|---|---|---|"]
     for n in names or tuple(k.name for k in _BUILTIN):
         k = _KINDS[n]
