@@ -432,7 +432,8 @@ class MooringModel:
         the yaw moment ``tau_moor[N] + tau_env[N]`` at that pose is left to the thrusters.
         Solved by :func:`~tapm_opt.models.statics.solve_equilibrium` (Powell, exact
         :meth:`stiffness` as Jacobian, load continuation if the direct solve fails) on the
-        residual scaled by ``max(|tau_env|, 1 kN)`` over the balanced components.
+        residual scaled by ``max(|tau_env|, sum of the lines' horizontal tensions at the start, 1 kN)``
+        over the balanced components.
 
         Parameters
         ----------
@@ -461,8 +462,12 @@ class MooringModel:
             raise ModelError(f"tau_env = {np.ravel(tau_env).tolist()} must be 3 finite numbers "
                              f"(X [N], Y [N], N [N m])")
         guess = self._check_eta(eta_guess)
+        # the residual's scale: the load, or the lines' own pull where it is larger (their tensions
+        # round at 1e-16 of themselves, so a residual relative to 1 kN alone cannot reach tol on
+        # a mooring of MN lines that is not balanced at the start), at least 1 kN
+        pull = float(np.sum(np.abs(self.solve_lines(guess if psi is None else np.r_[guess[:2], float(psi)]).HF)))
         if psi is None:
-            scale = max(float(np.max(np.abs(tau_env))), 1.0e3)
+            scale = max(float(np.max(np.abs(tau_env))), pull, 1.0e3)
 
             def residual(eta, s):
                 return (self.force(eta) + s * tau_env) / scale
@@ -473,7 +478,7 @@ class MooringModel:
             start = guess
         else:
             psi = float(psi)
-            scale = max(float(np.max(np.abs(tau_env[:2]))), 1.0e3)
+            scale = max(float(np.max(np.abs(tau_env[:2]))), pull, 1.0e3)
 
             def residual(xy, s):
                 return (self.force(np.r_[xy, psi])[:2] + s * tau_env[:2]) / scale
