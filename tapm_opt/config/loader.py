@@ -2,6 +2,9 @@
 
 Parsing is driven by the field metadata of :mod:`tapm_opt.config.schema`; every problem is
 collected with its field path (``lines[3].length``) so a user sees all of them at once.
+
+Size: one module on purpose — the metadata-driven parser, its cross-field rules and the
+size and plausibility checks all read the same field paths and issue lists.
 """
 
 from __future__ import annotations

@@ -27,6 +27,9 @@ Conventions (all of them, with the evidence, in ``docs/moordyn.md``):
 
 Every problem is a :class:`MoorDynError` (a :class:`~tapm_opt.errors.TapmError`) naming the file,
 its line number and the item: the ``tapm`` command prints it on one line.
+
+Size: one module on purpose — reading and writing MoorDyn files share one table of conventions
+(frames, line types, options) so the round trip stays exact (``docs/moordyn.md``).
 """
 
 from __future__ import annotations

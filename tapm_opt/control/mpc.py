@@ -28,6 +28,10 @@ or OSQP; nothing is rebuilt in the loop. With ``qp_solver="daqp"`` the linear MP
 real-time iteration's Gauss–Newton QP, are condensed for the dense active-set solver DAQP
 (module ``mpc_condensed``). On a failed solve both apply the shifted previous plan and say so in
 their diagnostics.
+
+Size: one module on purpose — both controllers share the per-step machinery (parameters, fault
+tolerance, the dead band's budget, warm start, diagnostics); the problem itself is in
+``mpc_problem`` and the condensed QPs in ``mpc_condensed``.
 """
 
 from __future__ import annotations

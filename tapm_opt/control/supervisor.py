@@ -75,6 +75,9 @@ models the plant uses, not from fitted numbers:
   ``heading_step`` (5°).
 
 ``[S]`` = seed survey-tapm-modeling-and-control.
+
+Size: one module on purpose — the three parts of the supervisor's loop (features, the switching
+logic, the switched controller) share the sea-state classes and the hysteresis state.
 """
 
 from __future__ import annotations

@@ -68,6 +68,9 @@ too (the failure happens in that environment), so intact is never below them;
 (a broken leeward line). A, B are the lowest Beaufort numbers of ``intact`` within
 :data:`DESIGN_SECTOR_DEG` of the design direction and over every direction; C, D the same over
 the single-failure cases computed.
+
+Size: one module on purpose — the envelope search, its Beaufort table and the thrust and mooring
+loads it balances are one method (``docs/capability.md``); its figures are in ``report.capability``.
 """
 
 from __future__ import annotations

@@ -34,6 +34,9 @@ Pieces
   position reference from tensions (and the heading) when GNSS drops out (anchors known, or the
   SLAM's estimates with their covariance).
 * :func:`run_anchor_slam` -- replays a network through the EKF and scores it against the truth.
+
+Size: one module on purpose — the seed's §3–§5 are one estimator: the tension-to-range map, the
+virtual-vessel records and the EKF-SLAM over them share the line model and its corrections.
 """
 
 from __future__ import annotations
