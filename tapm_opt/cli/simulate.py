@@ -8,6 +8,7 @@ from pathlib import Path
 import click
 
 from .._io import atomic_write_text
+from .._text import terminal_text
 from ..config.loader import fem_size_issues, log_size_issues
 from ._common import ControllerKindChoice, check_issues, cli, key_values, load, out_path
 
@@ -123,10 +124,10 @@ def simulate(scenario_name: str, controller: str, duration: float, out_dir: str,
                "sea_state": run.sea_state, "seed": seed, "duration": duration, "kpis": k,
                "diagnostics": res.meta.get("diagnostics", {}), "events": run.events, "wall_time": run.wall_time,
                "settle": {"time": run.settle_time, "wall_time": run.settle_wall_time}}
-    click.echo(f"{sc.name}, {controller}, {run.sea_state} sea, {duration:g} s (wall "
+    click.echo(f"{terminal_text(sc.name)}, {controller}, {run.sea_state} sea, {duration:g} s (wall "
                f"{run.wall_time:.1f} s, of which {run.settle_wall_time:.1f} s settling the lines)")
     for t, what in run.events:   # line breaks and thruster failures, as the plant logged them
-        click.echo(f"  t = {t:.1f} s: {what}")
+        click.echo(f"  t = {t:.1f} s: {terminal_text(what)}")
     click.echo(f"  offset max {k['offset_max']:.1f} m, mean {k['offset_mean']:.1f} m; outside safe circle "
                f"{k['time_outside_safe']:.0f} s; heading error max {k['heading_error_max']:.1f} deg")
     n_broken = int(k.get("lines_broken", 0) or 0)

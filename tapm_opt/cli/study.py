@@ -9,6 +9,7 @@ from pathlib import Path
 import click
 
 from ..config.loader import log_size_issues
+from .._text import terminal_text
 from ._common import check_issues, cli, load, out_path
 
 
@@ -167,7 +168,7 @@ def _print_headlines(out: Path, ids: list[str]) -> None:
     nan = float("nan")
     for r in rows:
         k, labels = r.kpis, r.labels
-        name = f"{labels.get('controller')}, {labels.get('sea_state')}, {labels.get('condition')}"
+        name = terminal_text(f"{labels.get('controller')}, {labels.get('sea_state')}, {labels.get('condition')}")
         click.echo(f"  {name[:42]:42s} {k.get('offset_max', nan):8.1f} m {k.get('time_outside_safe', nan):10.0f} s "
                    f"{k.get('util_max', nan):9.3f} {k.get('delta_min', nan):9.2f} "
                    f"{k.get('thrust_energy', nan) / 3.6e9:6.2f} MWh")
