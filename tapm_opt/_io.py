@@ -17,8 +17,10 @@ from .errors import TapmError
 class WriteError(TapmError, OSError):
     """An output file could not be written (a full disk, no permission, ...).
 
-    The message names the file and the reason; ``filename`` and ``errno`` are those of the
-    underlying ``OSError``, which it remains (``except OSError`` still catches it).
+    The message names the file and the reason. What is raised is a subclass named and typed as the
+    underlying error as well (``IsADirectoryError``, ``PermissionError``, ``OSError``, ...: its
+    ``type`` in a case's ``error.json`` stays that name), with its ``errno`` and ``filename``, so
+    ``except OSError`` (or ``PermissionError``, ...) still catches it.
     """
 
     def __init__(self, path: str | os.PathLike, reason: str, errno_: int | None = None):
@@ -30,11 +32,33 @@ class WriteError(TapmError, OSError):
         return str(self.args[0])
 
     def __reduce__(self):   # rebuilt from its fields when sent back from a worker process
-        return (type(self), (self.path, self.reason, self.errno))
+        base = next(b for b in type(self).__mro__ if b is not WriteError and issubclass(b, OSError)
+                    and not issubclass(b, WriteError))
+        return (_rebuild_write_error, (base.__name__, self.path, self.reason, self.errno))
+
+
+_WRITE_ERRORS: dict[type, type] = {}
+
+
+def _write_error_class(base: type) -> type:
+    """The :class:`WriteError` subclass that is also ``base`` (an ``OSError`` class) and has its name."""
+    cls = _WRITE_ERRORS.get(base)
+    if cls is None:
+        cls = type(base.__name__, (WriteError, base), {"__module__": __name__, "__doc__": WriteError.__doc__})
+        _WRITE_ERRORS[base] = cls
+    return cls
+
+
+def _rebuild_write_error(base_name: str, path: str, reason: str, errno_: int | None) -> WriteError:
+    import builtins
+
+    base = getattr(builtins, base_name, OSError)
+    base = base if isinstance(base, type) and issubclass(base, OSError) else OSError
+    return _write_error_class(base)(path, reason, errno_)
 
 
 def write_error(path: str | os.PathLike, exc: OSError) -> WriteError:
-    """The :class:`WriteError` of ``exc`` raised while writing ``path``."""
+    """The :class:`WriteError` of ``exc`` raised while writing ``path`` (of ``exc``'s own class too)."""
     if isinstance(exc, WriteError):
         return exc
     reason = exc.strerror or str(exc) or type(exc).__name__
@@ -42,9 +66,10 @@ def write_error(path: str | os.PathLike, exc: OSError) -> WriteError:
         reason += " (the disk is full: free some space, then run the same command again)"
     elif exc.errno is not None and exc.errno == getattr(errno, "EDQUOT", None):
         reason += " (over the disk quota: free some space, then run the same command again)"
-    elif exc.filename is not None and str(exc.filename) != str(path):
-        reason += f" ({exc.filename})"
-    return WriteError(path, reason, exc.errno)
+    elif exc.filename is not None and str(exc.filename) != str(path) and \
+            not os.path.basename(str(exc.filename)).startswith(f".{os.path.basename(str(path))}."):
+        reason += f" ({exc.filename})"   # another path than the file's, nor its temporary file
+    return _write_error_class(type(exc))(path, reason, exc.errno)
 
 
 def _umask() -> int:
