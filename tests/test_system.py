@@ -305,3 +305,21 @@ def test_mpc_thrust_bounds_come_back_when_a_failure_clears():
     assert "thrust_capacity" not in ctrl.last_step().active  # a dead thruster is not a capacity limit
     ctrl.set_failed_thrusters(frozenset())
     np.testing.assert_array_equal(ctrl._prob.ubz[U], intact)
+
+
+def test_the_riser_model_is_built_once_per_sea_state_and_shared():
+    """The plant, the closed loop's setpoint layer and the MPC take the riser from the System:
+    one model per sea state (built at first use), the same object for all of them."""
+    import tapm_opt
+    from tapm_opt.design import build
+    from tapm_opt.models.system import System
+    from tapm_opt.plant import Plant
+
+    system = System.from_scenario(tapm_opt.load_scenario("fpso"))
+    storm = system.riser("storm")
+    assert storm is system.riser("storm") and storm is not system.riser(None)
+    assert Plant(system, sea_state="storm", seed=1, segments=4).riser is storm
+    assert build(system, {"type": "mpc", "reliability": True}).riser is system.riser(None)
+    assert system.with_broken(["1"]).riser("storm") is storm   # the lines changed, the riser did not
+    no_riser = System.from_scenario(tapm_opt.load_scenario("aamo4"))
+    assert no_riser.scenario.riser is None and no_riser.riser("tidal") is None

@@ -110,11 +110,7 @@ class _MPCBase:
         self._poly_box: np.ndarray | None = None  # the stand-in box when no polytope has an interior
         # reliability constraints: the riser (its angles are affine in the hang-off position; the
         # current's share is learnt from the measured angles) and the limits the indices give
-        self.riser = None
-        if settings.reliability and self.system.scenario.riser is not None:
-            from ..models.riser import RiserModel
-
-            self.riser = RiserModel.from_scenario(self.system.scenario, None)
+        self.riser = self.system.riser(None) if settings.reliability else None
         self._theta_lf: np.ndarray | None = None   # low-passed measured riser angles (4,) [rad]
         self._t_theta: float | None = None
         self._b_lf: np.ndarray | None = None       # low-passed estimated load in {E} (3,) [N, N, N m]

@@ -332,6 +332,20 @@ class System:
     p_cot_B: np.ndarray
     limits: Limits
     broken: tuple[str, ...] = ()
+    _risers: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def riser(self, sea_state: Any = None) -> Any:
+        """The quasi-static riser model (``models.riser.RiserModel``) in ``sea_state``'s current
+        (a SeaState, an id of the scenario, or None for still water), built once per sea state and
+        shared by the plant, the closed loop's setpoint layer and the MPC; None without a riser."""
+        if self.scenario.riser is None:
+            return None
+        key = getattr(sea_state, "id", sea_state)
+        if key not in self._risers:
+            from .riser import RiserModel
+
+            self._risers[key] = RiserModel.from_scenario(self.scenario, sea_state)
+        return self._risers[key]
 
     @classmethod
     def from_scenario(cls, scenario: Any) -> "System":
@@ -364,12 +378,12 @@ class System:
             return self
         return System(scenario=self.scenario, vessel=self.vessel,
                       lines=MooringModel.from_scenario(self.scenario, broken=allb), thrusters=self.thrusters,
-                      p_cot_B=self.p_cot_B, limits=self.limits, broken=allb)
+                      p_cot_B=self.p_cot_B, limits=self.limits, broken=allb, _risers=self._risers)
 
     def with_failed_thrusters(self, failed: Iterable[str | int]) -> "System":
         return System(scenario=self.scenario, vessel=self.vessel, lines=self.lines,
                       thrusters=self.thrusters.without(failed), p_cot_B=self.p_cot_B, limits=self.limits,
-                      broken=self.broken)
+                      broken=self.broken, _risers=self._risers)
 
     def turret_offset(self, eta: Any) -> Any:
         """Turret-referenced offset (x, y) [m] of pose(s) ``eta`` (``geometry.turret_offset``)."""

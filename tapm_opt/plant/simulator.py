@@ -37,7 +37,6 @@ import numpy as np
 from .._checks import vector
 from ..geometry import rot_z
 from ..interfaces import Measurement, ThrusterCommand, Truth
-from ..models.riser import RiserModel
 from ..models.system import System
 from ..models.vessel import vessel_rhs
 from ..results import Result, ResultBuilder
@@ -117,7 +116,7 @@ class Plant:
         self.thrusters = ThrusterBank.from_scenario(scenario)
         self.sensors = Sensors.from_scenario(scenario, seed=noise_seed)
         #: Quasi-static riser model (None without a riser), in the sea state's current.
-        self.riser = RiserModel.from_scenario(scenario, ss) if scenario.riser is not None else None
+        self.riser = self.system.riser(ss)
         self.vessel = self.system.vessel
         self._v_c = np.zeros(2) if current is None else np.asarray(self.env.current.surface[:2], dtype=float)
         #: True when the current direction turns in time (``sea_state.current_turn_rate``): vessel and

@@ -249,10 +249,7 @@ def optimal_setpoint_layer(system: System, method: str, sea_state: Any = None, *
     """An :class:`~tapm_opt.control.setpoint_opt.OptimalSetpoint` of ``method`` on ``system``, with
     the scenario's riser under ``sea_state``'s current (the wave-frequency statistics come with the
     estimate, from the estimator's reliability monitor)."""
-    from ..models.riser import RiserModel
-
-    sc = system.scenario
-    riser = RiserModel.from_scenario(sc, sea_state) if sc.riser is not None else None
+    riser = system.riser(sea_state)
     return OptimalSetpoint(system, method, riser=riser, options=options, eta_d=eta_d)
 
 
