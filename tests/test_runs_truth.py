@@ -254,3 +254,98 @@ def test_study_run_at_an_http_server_exits_2_naming_the_address(capsys, tmp_path
     assert f"error: Dask scheduler {p.address!r}: the service there does not speak Dask's protocol" in err, err
     assert "out of memory" not in err and "FEM" not in err
     assert not (tmp_path / "run").exists()
+
+
+# -- study size: limits stated up front, the count said, the scenario stored once ----------------
+
+
+def _study_file(tmp_path: Path, *, seeds, scenario: str = "fpso", name: str = "big") -> Path:
+    f = tmp_path / f"{name}.toml"
+    f.write_text(f'[study]\nname = "{name}"\nscenario = "{scenario}"\nduration = 60.0\nsegments = 6\n'
+                 f"seeds = {list(seeds)}\n\n[[sea_states]]\nid = \"storm\"\n\n"
+                 '[[controllers]]\nname = "PID"\ntype = "pid"\n\n[[controllers]]\nname = "MPC"\ntype = "lmpc"\n')
+    return f
+
+
+def test_too_many_seeds_are_refused_when_the_file_is_read(tmp_path):
+    from tapm_opt.studies.study import StudyError, load_study
+
+    f = _study_file(tmp_path, seeds=range(200_000))
+    finished, exc = _bounded(lambda: load_study(f))
+    assert finished, "reading a study of 200 000 seeds did not end"
+    assert isinstance(exc, StudyError), repr(exc)
+    assert "study.seeds: has 200000 seeds; a study holds at most 10000 cases" in str(exc), str(exc)
+
+
+def test_case_count_limit_names_the_count_and_what_makes_it(tmp_path, monkeypatch):
+    from tapm_opt.studies import spec
+    from tapm_opt.studies.study import StudyError, load_study
+
+    monkeypatch.setattr(spec, "MAX_CASES", 6, raising=False)
+    with pytest.raises(StudyError) as ei:
+        load_study(_study_file(tmp_path, seeds=[1, 2, 3, 4]))
+    assert ("cases: the study has 8 cases (1 sea state x 2 controllers x 1 condition x 4 seeds); at most 6 cases "
+            "are allowed in one study") in str(ei.value), str(ei.value)
+
+
+def test_inputs_too_large_for_every_case_to_store_are_refused(tmp_path, monkeypatch):
+    from tapm_opt.studies import spec
+    from tapm_opt.studies.study import StudyError, load_study
+
+    monkeypatch.setattr(spec, "MAX_CASE_INPUT_BYTES", 4 * 2**10, raising=False)   # fpso's inputs: about 7 kB
+    with pytest.raises(StudyError) as ei:
+        load_study(_study_file(tmp_path, seeds=[1]))
+    msg = str(ei.value)
+    assert "study.scenario: case 'storm, PID, intact, seed 1': its inputs are" in msg, msg
+    assert "above the 4 KiB one case may hold" in msg and "the largest part is scenario." in msg, msg
+
+
+def test_study_json_holds_the_scenario_once_and_the_count_is_said_first(tmp_path, capsys):
+    from tapm_opt.report.data import read_study
+    from tapm_opt.studies import store
+    from tapm_opt.studies.study import load_study, run_study
+
+    st = load_study(TINY)
+    out = tmp_path / "run"
+    run_study(st, out, workers=0, progress=True)
+    err = capsys.readouterr().err
+    assert err.startswith(f"study tiny: 2 cases, 2 to run -> {out}\n"), err[:300]
+
+    sj = json.loads((out / "study.json").read_text())
+    assert sj["n_cases"] == 2 and len(sj["scenarios"]) == 1
+    key, scenario = next(iter(sj["scenarios"].items()))
+    assert scenario == st.cases[0].inputs["scenario"] and scenario["meta"]["name"] == "fpso"
+    assert (out / "study.json").read_text().count('"line_types"') == 1    # not once per case
+    for c, e in zip(st.cases, sj["cases"]):
+        assert e["scenario"] == key and "scenario" not in e["inputs"] and e["labels"] == c.labels
+        cj = json.loads((out / "cases" / c.id / "case.json").read_text())   # the case folder: whole inputs
+        assert cj["inputs"] == c.inputs and cj["inputs"]["scenario"] == scenario and cj["labels"] == c.labels
+    # every reader gets whole inputs back
+    assert [r.inputs for r in store.load_study_results(out)] == [c.inputs for c in st.cases]
+    assert [c.inputs for c in read_study(out).cases] == [c.inputs for c in st.cases]
+    # resuming says so, and runs nothing
+    s = run_study(st, out, workers=0, progress=True)
+    assert capsys.readouterr().err.startswith(f"study tiny: 2 cases, 2 already finished, 0 to run -> {out}\n")
+    assert sorted(s.skipped) == sorted(c.id for c in st.cases)
+
+
+def test_cases_not_run_yet_get_their_scenario_from_study_json(tmp_path):
+    from tapm_opt.report.data import read_study
+    from tapm_opt.studies import store
+    from tapm_opt.studies.study import load_study
+
+    st = load_study(TINY)
+    out = tmp_path / "run"
+    out.mkdir()
+    store.write_json(out / "study.json", store.study_json(st.name, st.description, None, st.cases, "0"))
+    recs = store.load_study_results(out)
+    assert [r.status for r in recs] == ["missing", "missing"]
+    assert [r.inputs for r in recs] == [c.inputs for c in st.cases]
+    assert [c.inputs for c in read_study(out).cases] == [c.inputs for c in st.cases]
+    sj = json.loads((out / "study.json").read_text())
+    sj["cases"][1]["scenario"] = "sha256-0000000000000000"
+    (out / "study.json").write_text(json.dumps(sj))
+    from tapm_opt.report import ReportError
+
+    with pytest.raises(ReportError, match=r"cases\[1\] .* references scenario 'sha256-0000000000000000'"):
+        read_study(out)

@@ -143,10 +143,16 @@ def read_study(study_dir: str | Path) -> StudyData:
     if not isinstance(study, dict) or not isinstance(study.get("cases"), list):
         raise ReportError(f"{sj} is not a study description: it needs an object with a 'cases' list")
 
+    from ..studies.store import StudyError, study_cases
+
+    try:
+        entries = study_cases(study, where=sj)   # each case's scenario, stored once per study, put back
+    except StudyError as exc:
+        raise ReportError(str(exc)) from None
     problems: list[str] = []
     cases: list[CaseInfo] = []
     seen: set[str] = set()
-    for i, entry in enumerate(study["cases"]):
+    for i, entry in enumerate(entries):
         cid = entry.get("id") if isinstance(entry, dict) else None
         if not isinstance(cid, str) or not _ID_RE.match(cid) or cid in (".", ".."):
             raise ReportError(f"{sj}: cases[{i}] has no valid 'id' (got {cid!r})")

@@ -10,6 +10,7 @@ local processes or a Dask cluster (:mod:`tapm_opt.studies.executors`; each case 
 from __future__ import annotations
 
 import os
+import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -100,7 +101,7 @@ class _Progress:
 
 
 def run_study(study: Study, out_dir: str | Path, *, workers: int | None = None, scheduler: Any = None,
-              progress: bool = True) -> StudySummary:
+              progress: bool = True, announce: bool | None = None) -> StudySummary:
     """Run every case of ``study`` that is not finished in ``out_dir`` and write the tables.
 
     Parameters
@@ -121,6 +122,9 @@ def run_study(study: Study, out_dir: str | Path, *, workers: int | None = None, 
         system. Needs the ``dask`` extra (``pip install 'tapm_opt[dask]'``).
     progress : bool
         Show a progress bar (done / running / failed, ETA) on stderr.
+    announce : bool, optional
+        Before anything is written, print one line on stderr with the number of cases, how many
+        are finished already and how many will run (default: as ``progress``).
 
     Returns
     -------
@@ -161,7 +165,8 @@ def run_study(study: Study, out_dir: str | Path, *, workers: int | None = None, 
         except OSError as exc:
             raise StudyRunError(f"cannot create the study directory {out}: {exc.strerror or exc}") from None
         with store.study_lock(out):
-            outcomes, todo, skipped = _run_locked(study, out, workers, client, progress)
+            outcomes, todo, skipped = _run_locked(study, out, workers, client, progress,
+                                                  progress if announce is None else announce)
     finally:
         if own_client:
             client.close()
@@ -171,22 +176,24 @@ def run_study(study: Study, out_dir: str | Path, *, workers: int | None = None, 
                         wall_time=time.perf_counter() - t0, errors={cid: outcomes[cid]["error"] for cid in failed})
 
 
-def _run_locked(study: Study, out: Path, workers: int | None, client: Any, progress: bool):
+def _run_locked(study: Study, out: Path, workers: int | None, client: Any, progress: bool, announce: bool):
     """The body of :func:`run_study`, under the directory lock: (outcomes, cases run, ids skipped)."""
     from .. import __version__
-
-    if study.text:
-        atomic_write_text(out / store.STUDY_TOML, study.text)
-    store.write_json(out / store.STUDY_JSON, {
-        "name": study.name, "description": study.description,
-        "study_file": None if study.path is None else str(study.path),
-        "cases": [{"id": c.id, "name": c.name, "labels": c.labels, "inputs": c.inputs} for c in study.cases],
-        "tapm_opt_version": __version__})
 
     # resume: finished cases of this code version are not run again (a case run by another version
     # is, so one study never mixes results of two versions)
     skipped = [c.id for c in study.cases if store.is_finished(store.case_dir(out, c.id), version=__version__)]
     todo = [c for c in study.cases if c.id not in set(skipped)]
+    if announce:   # say what is about to happen before the first file is written
+        n = len(study.cases)
+        sys.stderr.write(f"study {study.name}: {n} case{'' if n == 1 else 's'}"
+                         + (f", {len(skipped)} already finished" if skipped else "")
+                         + f", {len(todo)} to run -> {out}\n")
+        sys.stderr.flush()
+    if study.text:
+        atomic_write_text(out / store.STUDY_TOML, study.text)
+    store.write_json(out / store.STUDY_JSON, store.study_json(
+        study.name, study.description, None if study.path is None else str(study.path), study.cases, __version__))
     bar = _Progress(len(study.cases), len(skipped), progress, study.name)
     outcomes: dict[str, dict] = {}
     try:

@@ -212,12 +212,18 @@ def _parse_study_table(ck: Checker, data: Mapping, base_dir: Path, out: _Parsed)
     if not isinstance(seeds, list) or not seeds:
         ck.err("study.seeds", f"must be a non-empty list of whole numbers, got {_fmt(seeds)}")
         seeds = []
+    if len(seeds) > MAX_CASES:   # each seed is at least one case: refused before each is checked
+        ck.err("study.seeds", f"has {len(seeds)} seeds; a study holds at most {MAX_CASES} cases, each seed at least "
+               "one: give fewer seeds, or split the study into several (each with its own --out)")
+        seeds = []
+    seen: set[int] = set()
     for i, s in enumerate(seeds):
         v = ck.integer(s, f"study.seeds[{i}]", at_least=0)
-        if v is not None and v in out.seeds:
+        if v is not None and v in seen:
             ck.err(f"study.seeds[{i}]", f"= {v} is given twice")
         elif v is not None:
             out.seeds.append(v)
+            seen.add(v)
     scen = ck.text(st["scenario"], "study.scenario") if "scenario" in st else None
     if scen is not None:
         try:
@@ -486,6 +492,10 @@ def _parse_listed(ck: Checker, data: Mapping, out: _Parsed) -> None:
     entries = ck.tables(data.get("cases", []), "cases")
     if out.mode == "list" and not entries:
         ck.err("cases", "study.mode = 'list' needs at least one [[cases]] entry")
+    if len(entries) > MAX_CASES:   # refused before each entry is checked
+        ck.err("cases", f"has {len(entries)} [[cases]] entries; a study holds at most {MAX_CASES} cases: split it "
+               "into several studies (each with its own --out)")
+        return
     choices = {"sea_state": ([s for s, _ in out.sea_states], "sea state id", "sea_states"),
                "controller": ([n for n, _ in out.controllers], "controller name", "controllers"),
                "condition": ([c.name for c in out.conditions], "condition name", "conditions")}

@@ -3,8 +3,11 @@
 A study run directory ``DIR`` (the shared contract of the study workbench)::
 
     DIR/study.toml                 copy of the study file as loaded
-    DIR/study.json                 {"name", "description", "study_file", "cases": [{"id", "name", "labels", "inputs"}],
-                                    "tapm_opt_version"}
+    DIR/study.json                 {"name", "description", "study_file", "n_cases", "scenarios": {<key>: scenario},
+                                    "cases": [{"id", "name", "labels", "scenario": <key>, "inputs"}],
+                                    "tapm_opt_version"}  (each distinct scenario once, under
+                                    :func:`scenario_key`; a case's "inputs" without it: :func:`study_cases`
+                                    gives them back whole)
     DIR/run.lock                   held (flock) by the run under way, with its pid and host: one run at a time
     DIR/cases/<id>/case.json       {"id", "name", "labels", "inputs", "tapm_opt_version", "started", "worker",
                                     "finished", "wall_time"}  ("worker": {"host", "pid"} of the process that ran
@@ -16,6 +19,10 @@ A study run directory ``DIR`` (the shared contract of the study workbench)::
 
 ``<id>`` is :func:`case_id` of the case's ``inputs``: the first 12 hex digits of the SHA-256 of their
 canonical JSON, so the same inputs always land in the same folder and a re-run finds them.
+``case.json`` holds the case's whole ``inputs`` (its scenario in ``inputs.scenario``), so a case
+folder needs nothing else; ``study.json`` lists the cases with each distinct scenario stored once
+(the cases of a study share most of it: only the sea state and the faults differ), so it grows by
+a few hundred bytes per case instead of a copy of the scenario.
 
 Every file is written atomically (temporary file in the same folder, then ``os.replace``): a reader,
 or a run killed at any instant, sees either the old file or the new one, never half of one. A case
@@ -57,6 +64,10 @@ __all__ = [
     "study_lock",
     "CaseRecord",
     "case_id",
+    "case_id_and_size",
+    "scenario_key",
+    "study_json",
+    "study_cases",
     "canonical_json",
     "case_dir",
     "write_json",
@@ -151,7 +162,71 @@ def canonical_json(obj: Any) -> str:
 
 def case_id(inputs: Mapping[str, Any]) -> str:
     """Id of a case: the first 12 hex digits of the SHA-256 of :func:`canonical_json` of ``inputs``."""
-    return hashlib.sha256(canonical_json(inputs).encode("utf-8")).hexdigest()[:12]
+    return case_id_and_size(inputs)[0]
+
+
+def case_id_and_size(inputs: Mapping[str, Any]) -> tuple[str, int]:
+    """:func:`case_id` of ``inputs`` and the size of their canonical JSON [bytes] (what
+    ``case.json`` stores of them, before its indentation)."""
+    raw = canonical_json(inputs).encode("utf-8")
+    return hashlib.sha256(raw).hexdigest()[:12], len(raw)
+
+
+def scenario_key(scenario: Mapping[str, Any]) -> str:
+    """Key of a scenario dictionary in ``study.json``'s ``scenarios``: ``sha256-`` and the first 16
+    hex digits of the SHA-256 of its :func:`canonical_json`."""
+    return "sha256-" + hashlib.sha256(canonical_json(scenario).encode("utf-8")).hexdigest()[:16]
+
+
+def study_json(name: str, description: str, study_file: str | None, cases: Any, version: str) -> dict:
+    """The content of ``study.json`` for ``cases`` (each with ``id``, ``name``, ``labels``, ``inputs``):
+    each distinct ``inputs["scenario"]`` once under ``scenarios``, referenced by its
+    :func:`scenario_key` from the case's ``"scenario"``."""
+    scenarios: dict[str, Any] = {}
+    keys: dict[int, str] = {}   # by object: the cases of a study share their scenario dictionaries
+    entries = []
+    for c in cases:
+        inputs = dict(c.inputs)
+        sc = inputs.pop("scenario", None)
+        entry = {"id": c.id, "name": c.name, "labels": c.labels}
+        if sc is not None:
+            key = keys.get(id(sc)) or scenario_key(sc)
+            keys[id(sc)] = key
+            scenarios.setdefault(key, sc)
+            entry["scenario"] = key
+        entries.append({**entry, "inputs": inputs})
+    return {"name": name, "description": description, "study_file": study_file, "n_cases": len(entries),
+            "scenarios": scenarios, "cases": entries, "tapm_opt_version": version}
+
+
+def study_cases(study: Mapping[str, Any], *, where: str | Path = STUDY_JSON) -> list[dict]:
+    """The case entries of a ``study.json`` content with their whole ``inputs``: the scenario
+    a case references (``"scenario": <key>``) put back as ``inputs["scenario"]``. An entry of an
+    older ``study.json`` (its scenario inside its inputs) is returned as it is.
+
+    Raises
+    ------
+    StudyError
+        ``cases`` is not a list, or a case references a scenario ``scenarios`` does not hold
+        (the message names ``where``, the case and the key).
+    """
+    cases = study.get("cases")
+    if not isinstance(cases, list):
+        raise StudyError(f"{where}: 'cases' is not a list")
+    scenarios = study.get("scenarios")
+    scenarios = scenarios if isinstance(scenarios, Mapping) else {}
+    out = []
+    for i, e in enumerate(cases):
+        if isinstance(e, Mapping) and isinstance(e.get("scenario"), str):
+            key = e["scenario"]
+            if key not in scenarios:
+                raise StudyError(f"{where}: cases[{i}] (id {e.get('id')!r}) references scenario {key!r}, which "
+                                 f"its 'scenarios' does not hold ({len(scenarios)} scenarios)")
+            inputs = e.get("inputs") if isinstance(e.get("inputs"), Mapping) else {}
+            e = {k: v for k, v in e.items() if k != "scenario"}
+            e["inputs"] = {**inputs, "scenario": scenarios[key]}
+        out.append(e)
+    return out
 
 
 def case_dir(out_dir: str | Path, cid: str) -> Path:
@@ -369,7 +444,7 @@ def load_study_results(out_dir: str | Path) -> list[CaseRecord]:
     if (out / STUDY_JSON).exists() and not isinstance(study, dict):
         raise StudyError(f"cannot read {out / STUDY_JSON}: not a JSON object")
     if study is not None:
-        entries = list(study.get("cases") or [])
+        entries = study_cases(study, where=out / STUDY_JSON) if study.get("cases") is not None else []
     else:
         cases_dir = out / CASES
         if not cases_dir.is_dir():
