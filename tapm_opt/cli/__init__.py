@@ -15,7 +15,7 @@ from pathlib import Path
 import click
 
 from ..errors import TapmError
-from . import analysis, scenario, simulate, study  # noqa: F401  (each registers its commands)
+from . import analysis, scenario, simulate, study, tune  # noqa: F401  (each registers its commands)
 from ._common import EXIT_USER_ERROR, State, cli
 from .capability import capability as _capability_command
 from .estimate import estimate as _estimate_group

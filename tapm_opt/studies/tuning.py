@@ -1,0 +1,1006 @@
+"""Controllers designed by optimisation: each controller of a study tuned over its kind's search
+space on the study's cases, for objectives and constraints from the KPI catalogue (``tapm tune``).
+
+The pieces, each usable alone:
+
+- :class:`Objective` and :class:`Constraint` — a KPI of the catalogue (:mod:`.kpi_catalogue`)
+  aggregated over the cases (worst case for most KPIs, the sum for the extensive ones: energy,
+  fuel), minimised or maximised as the catalogue says; a constraint ``kpi <= bound`` or
+  ``kpi >= bound`` on the aggregate is a constraint of the search, not a weight.
+- :func:`search_space` — the kind's :class:`~tapm_opt.design.registry.Dimension` s
+  (``docs/controllers.md``), minus the options the study fixes, narrowed or fixed by the
+  controller's ``tune`` table; :func:`spec_from_params` turns a trial's parameters back into a
+  controller specification.
+- :func:`optimise` — an optuna study per controller (multi-objective TPE by default, NSGA-II on
+  request, both with constraints) in a storage that is the run's memory: an SQLite file by
+  default, any database URL for several machines. Finished trials are committed as they end, so
+  a run killed at any point loses none of them and a rerun (or a second ``tapm tune`` on the same
+  storage at the same time) continues the same studies instead of repeating trials. The trials
+  run on local processes, each a loop of optuna's ``optimize`` on the shared storage, or as tasks
+  on a Dask cluster.
+- :func:`front`, :func:`select` — the non-dominated finished trials that meet the constraints, and
+  the design chosen from them (the knee, or a rule ``"min thrust_energy with offset_max <= 45"``).
+- :func:`tune_study` — the whole job for a study file, writing ``trials.csv``, ``front.csv``,
+  ``tuned/<controller>.toml`` and the held-out confirmation ``verify.csv`` (``docs/tuning.md``).
+
+Why optuna: a maintained multi-objective optimiser with constraints, a storage that several
+processes and machines share with transactions, heartbeats that fail the trials of a dead worker,
+and a dashboard (``optuna-dashboard sqlite:///DIR/tuning.db``) — the run's memory and its view
+without code of ours.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import io
+import json
+import math
+import multiprocessing
+import os
+import re
+import time
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+
+from .._io import atomic_write_text, toml_key, toml_value
+from ..design.registry import Dimension, kind as controller_kind
+from ..errors import TapmError
+from .kpi_catalogue import KPIS, UnknownKpiError, kpi as catalogue_kpi
+
+__all__ = ["TuningError", "Objective", "Constraint", "TuningSettings", "Param", "tuning_settings", "search_space",
+           "spec_from_params", "optimise", "front", "select", "dominates", "hypervolume_2d", "tune_study",
+           "DEFAULT_OBJECTIVES", "ALWAYS_REPORTED", "SUMMED_KPIS", "load_trials", "TrialRow", "write_design",
+           "DESIGN_FORMAT"]
+
+#: The objectives when ``[tuning] objectives`` is not given: the turret's largest offset (worst over
+#: the cases) and the thrust energy (summed over the cases), both minimised.
+DEFAULT_OBJECTIVES = ("offset_max", "thrust_energy")
+#: KPIs that trials.csv and front.csv always carry (aggregated as an objective would be).
+ALWAYS_REPORTED = ("offset_max", "thrust_energy", "time_outside_safe")
+#: Extensive KPIs, aggregated over the cases by their sum (the others by their worst case).
+SUMMED_KPIS = frozenset({"thrust_energy", "fuel", "winch_energy", "time_outside_safe", "time_outside_alert"})
+#: Format tag of a tuned design file.
+DESIGN_FORMAT = "tapm-design/1"
+#: Largest number of trials per controller a run may ask for.
+MAX_TRIALS = 100_000
+_AGGREGATES = ("max", "min", "sum", "mean")
+
+
+class TuningError(TapmError, ValueError):
+    """A tuning specification names an unknown KPI, parameter or storage, or a bad value."""
+
+
+# ------------------------------------------------------------------------------------------
+# objectives and constraints
+# ------------------------------------------------------------------------------------------
+
+
+def _catalogued(name: Any, where: str) -> Any:
+    if not isinstance(name, str):
+        raise TuningError(f"{where} = {name!r} must be the name of a KPI (docs/kpis.md)")
+    try:
+        k = catalogue_kpi(name)
+    except UnknownKpiError as exc:
+        raise TuningError(f"{where}: {exc}") from None
+    if k.kind == "text":
+        raise TuningError(f"{where} = {name!r} is a text KPI: it cannot be optimised")
+    return k
+
+
+def _default_aggregate(name: str, direction: str) -> str:
+    if name in SUMMED_KPIS:
+        return "sum"
+    return "min" if direction == "maximise" else "max"
+
+
+@dataclass(frozen=True)
+class Objective:
+    """A KPI aggregated over a controller's cases, minimised or maximised.
+
+    Attributes
+    ----------
+    kpi : str
+        A name of the KPI catalogue (``docs/kpis.md``).
+    direction : {"minimise", "maximise"}
+        The catalogue's direction (a KPI without one must be given it, ``maximise:name``).
+    aggregate : {"max", "min", "sum", "mean"}
+        Over the cases: the worst case by default, the sum for :data:`SUMMED_KPIS`.
+    """
+
+    kpi: str
+    direction: str
+    aggregate: str
+
+    @classmethod
+    def parse(cls, item: Any, where: str = "tuning.objectives") -> "Objective":
+        """From ``"offset_max"``, ``"sum(thrust_energy)"``, ``"maximise:delta_min"`` or
+        ``{kpi = ..., aggregate = ..., direction = ...}``."""
+        direction = aggregate = None
+        if isinstance(item, Mapping):
+            unknown = set(item) - {"kpi", "aggregate", "direction"}
+            if unknown:
+                raise TuningError(f"{where}.{sorted(unknown)[0]}: unknown key (kpi, aggregate, direction)")
+            name, aggregate, direction = item.get("kpi"), item.get("aggregate"), item.get("direction")
+        elif isinstance(item, str):
+            text = item.strip()
+            m = re.fullmatch(r"(minimise|maximise|minimize|maximize)\s*:\s*(.+)", text)
+            if m:
+                direction, text = m.group(1).replace("z", "s"), m.group(2).strip()
+            m = re.fullmatch(r"(\w+)\((\w[\w\[\]]*)\)", text)
+            if m:
+                aggregate, text = m.group(1), m.group(2)
+            name = text
+        else:
+            raise TuningError(f"{where} = {item!r} must be a KPI name, e.g. \"offset_max\" or \"sum(thrust_energy)\"")
+        k = _catalogued(name, where)
+        if direction is None:
+            direction = k.direction
+        if direction not in ("minimise", "maximise"):
+            raise TuningError(f"{where} = {name!r} has no better direction in the KPI catalogue: write "
+                              f"\"minimise:{name}\" or \"maximise:{name}\"")
+        if aggregate is None:
+            aggregate = _default_aggregate(k.name if k.per is None else name, direction)
+        if aggregate not in _AGGREGATES:
+            raise TuningError(f"{where}: aggregate {aggregate!r} is not one of {', '.join(_AGGREGATES)}")
+        return cls(kpi=name, direction=direction, aggregate=aggregate)
+
+    def value(self, per_case: Sequence[Mapping[str, float]]) -> float:
+        """The aggregate of the KPI over the cases' KPI dicts (NaN where a case lacks it)."""
+        return _aggregate(self.aggregate, [_num(k.get(self.kpi)) for k in per_case])
+
+    @property
+    def label(self) -> str:
+        return f"{self.aggregate}({self.kpi})"
+
+
+@dataclass(frozen=True)
+class Constraint:
+    """``aggregate(kpi) <= bound`` or ``>= bound`` over a controller's cases."""
+
+    kpi: str
+    op: str
+    bound: float
+    aggregate: str
+
+    @classmethod
+    def parse(cls, item: Any, where: str = "tuning.constraints") -> "Constraint":
+        """From ``"time_outside_safe <= 0"``, ``"riser_delta_min >= 2"`` or ``"sum(x) <= 1e9"``
+        (the aggregate: the worst case for the bound by default — the largest value under ``<=``,
+        the smallest under ``>=``)."""
+        if not isinstance(item, str):
+            raise TuningError(f"{where} = {item!r} must read like \"time_outside_safe <= 0\"")
+        m = re.fullmatch(r"\s*(?:(\w+)\()?\s*([\w\[\]]+)\s*\)?\s*(<=|>=)\s*([-+0-9.eE]+)\s*", item)
+        if not m:
+            raise TuningError(f"{where} = {item!r} must read like \"time_outside_safe <= 0\" (a KPI, <= or >=, "
+                              "a number)")
+        aggregate, name, op, num = m.groups()
+        _catalogued(name, where)
+        try:
+            bound = float(num)
+        except ValueError:
+            bound = math.nan
+        if not math.isfinite(bound):
+            raise TuningError(f"{where} = {item!r}: the bound {num!r} is not a finite number")
+        if aggregate is None:
+            aggregate = "max" if op == "<=" else "min"
+        if aggregate not in _AGGREGATES:
+            raise TuningError(f"{where}: aggregate {aggregate!r} is not one of {', '.join(_AGGREGATES)}")
+        return cls(kpi=name, op=op, bound=bound, aggregate=aggregate)
+
+    def value(self, per_case: Sequence[Mapping[str, float]]) -> float:
+        return _aggregate(self.aggregate, [_num(k.get(self.kpi)) for k in per_case])
+
+    def violation(self, value: float) -> float:
+        """How far ``value`` is outside the bound (<= 0: met; NaN counts as not met)."""
+        if not math.isfinite(value):
+            return math.inf
+        return value - self.bound if self.op == "<=" else self.bound - value
+
+    @property
+    def text(self) -> str:
+        return f"{self.kpi} {self.op} {self.bound:g}"
+
+
+def _num(v: Any) -> float:
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def _aggregate(how: str, values: Sequence[float]) -> float:
+    a = np.asarray(values, dtype=float)
+    if a.size == 0 or not np.all(np.isfinite(a)):
+        return math.nan
+    return float({"max": np.max, "min": np.min, "sum": np.sum, "mean": np.mean}[how](a))
+
+
+@dataclass(frozen=True)
+class TuningSettings:
+    """The ``[tuning]`` table of a study file.
+
+    Attributes
+    ----------
+    objectives : tuple of Objective
+        Default :data:`DEFAULT_OBJECTIVES`.
+    constraints : tuple of Constraint
+    trials : int
+        Finished trials per controller (``--trials`` overrides).
+    sampler : {"tpe", "nsga2"}
+        optuna's multi-objective TPE (default: it learns from few trials, which is what a
+        closed-loop case costs) or NSGA-II (populations of ``population`` trials).
+    population : int or None
+        NSGA-II's population (default ``min(50, max(8, trials // 4))``).
+    seed : int
+        The sampler's seed: one worker reproduces a run exactly; several interleave their trials
+        as they finish.
+    select : str
+        ``"knee"`` (default: the front point nearest the ideal point, each objective scaled to
+        [0, 1] over the front) or a rule ``"min KPI with KPI <= v [and KPI >= v ...]"``.
+    verify_seeds : tuple of int
+        Seeds the search never used, on which the selected designs are run again.
+    """
+
+    objectives: tuple[Objective, ...] = ()
+    constraints: tuple[Constraint, ...] = ()
+    trials: int = 30
+    sampler: str = "tpe"
+    population: int | None = None
+    seed: int = 0
+    select: str = "knee"
+    verify_seeds: tuple[int, ...] = ()
+
+    def __post_init__(self) -> None:
+        if not self.objectives:
+            object.__setattr__(self, "objectives", tuple(Objective.parse(o) for o in DEFAULT_OBJECTIVES))
+        names = [o.kpi for o in self.objectives]
+        if len(set(names)) != len(names):
+            raise TuningError(f"tuning.objectives = {names}: a KPI is named twice")
+        if not (isinstance(self.trials, int) and not isinstance(self.trials, bool) and 1 <= self.trials <= MAX_TRIALS):
+            raise TuningError(f"tuning.trials = {self.trials!r} must be a whole number from 1 to {MAX_TRIALS}")
+        if self.sampler not in ("tpe", "nsga2"):
+            raise TuningError(f"tuning.sampler = {self.sampler!r} is not one of tpe, nsga2")
+        if self.population is not None and not (isinstance(self.population, int) and self.population >= 2):
+            raise TuningError(f"tuning.population = {self.population!r} must be a whole number >= 2")
+        if not (isinstance(self.seed, int) and not isinstance(self.seed, bool) and self.seed >= 0):
+            raise TuningError(f"tuning.seed = {self.seed!r} must be a whole number >= 0")
+        _parse_rule(self.select, [o.kpi for o in self.objectives])
+        for s in self.verify_seeds:
+            if not (isinstance(s, int) and not isinstance(s, bool) and s >= 0):
+                raise TuningError(f"tuning.verify_seeds: {s!r} must be a whole number >= 0")
+
+    def reported(self) -> list[tuple[str, Any]]:
+        """``(column, Objective or Constraint)`` of every KPI written per trial: the objectives, the
+        constraints, then :data:`ALWAYS_REPORTED` not among them (aggregated as objectives)."""
+        cols: list[tuple[str, Any]] = [(o.kpi, o) for o in self.objectives]
+        for c in self.constraints:
+            if c.kpi not in dict(cols):
+                cols.append((c.kpi, c))
+        for name in ALWAYS_REPORTED:
+            if name not in dict(cols):
+                cols.append((name, Objective.parse(name)))
+        return cols
+
+
+def tuning_settings(table: Mapping[str, Any] | None, where: str = "tuning") -> TuningSettings:
+    """:class:`TuningSettings` from a study file's ``[tuning]`` table (every error names its key)."""
+    table = dict(table or {})
+    allowed = {f.name for f in dataclasses.fields(TuningSettings)}
+    for k in table:
+        if k not in allowed:
+            import difflib
+
+            hint = difflib.get_close_matches(k, sorted(allowed), n=1)
+            raise TuningError(f"{where}.{k}: unknown key" + (f"; did you mean {hint[0]!r}?" if hint else
+                                                              f"; allowed: {', '.join(sorted(allowed))}"))
+    objs = table.pop("objectives", None)
+    cons = table.pop("constraints", None)
+    if objs is not None and (not isinstance(objs, list) or not objs):
+        raise TuningError(f"{where}.objectives = {objs!r} must be a non-empty list of KPI names")
+    if cons is not None and not isinstance(cons, list):
+        raise TuningError(f"{where}.constraints = {cons!r} must be a list like [\"time_outside_safe <= 0\"]")
+    vs = table.pop("verify_seeds", ())
+    if not isinstance(vs, (list, tuple)):
+        raise TuningError(f"{where}.verify_seeds = {vs!r} must be a list of whole numbers")
+    return TuningSettings(
+        objectives=tuple(Objective.parse(o, f"{where}.objectives[{i}]") for i, o in enumerate(objs or ())),
+        constraints=tuple(Constraint.parse(c, f"{where}.constraints[{i}]") for i, c in enumerate(cons or ())),
+        verify_seeds=tuple(vs), **table)
+
+
+# ------------------------------------------------------------------------------------------
+# the search space
+# ------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Param:
+    """One sampled number of a trial: option ``option`` (component ``index`` of a vector option)."""
+
+    name: str
+    option: str
+    index: int | None
+    dim: Dimension
+
+
+def search_space(kind_name: str, base_spec: Mapping[str, Any], tune: Mapping[str, Any] | None = None,
+                 where: str = "controller") -> tuple[list[Param], dict[str, Any]]:
+    """The parameters to sample and the options fixed by ``tune``.
+
+    Starts from the kind's search space (:mod:`tapm_opt.design.registry`); an option the
+    controller's specification sets is fixed at that value. ``tune`` narrows or fixes: ``option =
+    [low, high]`` a narrower range (in the dimension's units: for ``dead_band`` a fraction of the
+    safe radius), ``option = value`` fixed, ``option = ["a", "b"]`` fewer choices.
+
+    Returns
+    -------
+    params : list of Param
+        One per sampled number (``periods`` is three: ``periods[0]`` ...).
+    fixed : dict
+        ``{option: value}`` fixed by ``tune`` (in the dimension's units, see :func:`spec_from_params`).
+    """
+    k = controller_kind(kind_name, where)
+    space = dict(k.search_space)
+    options = set(k.option_names())
+    fixed: dict[str, Any] = {}
+    for name, v in dict(tune or {}).items():
+        p = f"{where}.tune.{name}"
+        if name not in options:
+            import difflib
+
+            hint = difflib.get_close_matches(name, sorted(options), n=1)
+            raise TuningError(f"{p}: {name!r} is not an option of {k.name}" + (f"; did you mean {hint[0]!r}?"
+                                                                                 if hint else ""))
+        d = space.get(name)
+        if isinstance(v, list) and d is not None and d.choices is None:
+            if len(v) != 2 or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v):
+                raise TuningError(f"{p} = {v!r} must be a range [low, high] or one value")
+            lo, hi = float(v[0]), float(v[1])
+            if not (math.isfinite(lo) and math.isfinite(hi)) or lo > hi:
+                raise TuningError(f"{p} = {v!r} is an empty or inverted range: give [low, high] with low <= high")
+            if d.log and lo <= 0:
+                raise TuningError(f"{p} = {v!r}: {name} is searched on a log scale, so low must be > 0")
+            space[name] = dataclasses.replace(d, low=lo, high=hi)
+        elif isinstance(v, list) and d is not None and d.choices is not None:
+            bad = [x for x in v if x not in d.choices]
+            if not v or bad:
+                raise TuningError(f"{p} = {v!r}: choices must be among {', '.join(map(str, d.choices))}")
+            space[name] = dataclasses.replace(d, choices=tuple(v))
+        elif isinstance(v, list) and d is None:
+            raise TuningError(f"{p} = {v!r}: {name} has no search space in {k.name} (docs/controllers.md); fix it "
+                              "with one value")
+        else:
+            fixed[name] = v
+            space.pop(name, None)
+    for name in list(space):
+        if name in base_spec and name not in (tune or {}):
+            space.pop(name)   # the study sets it: fixed there
+    params: list[Param] = []
+    for name, d in space.items():
+        if d.size == 1:
+            params.append(Param(name, name, None, d))
+        else:
+            params += [Param(f"{name}[{i}]", name, i, d) for i in range(d.size)]
+    return params, fixed
+
+
+def _scaled(d: Dimension | None, v: Any, safe_radius: float | None) -> Any:
+    if d is not None and d.relative_to == "safe_radius" and isinstance(v, (int, float)):
+        if safe_radius is None:
+            raise TuningError(f"a value relative to the safe radius ({v!r}) needs a scenario with a safe radius")
+        return float(v) * float(safe_radius)
+    return v
+
+
+def spec_from_params(base_spec: Mapping[str, Any], params: Sequence[Param], values: Mapping[str, Any],
+                     fixed: Mapping[str, Any] | None = None, *, safe_radius: float | None = None) -> dict:
+    """The controller specification of a trial: ``base_spec`` with the fixed and sampled options
+    (vector options assembled from their components, relative ones scaled by ``safe_radius``)."""
+    spec = dict(base_spec)
+    kind_name = spec["type"]
+    space = controller_kind(kind_name).search_space
+    for name, v in dict(fixed or {}).items():
+        spec[name] = _scaled(space.get(name), v, safe_radius)
+    vectors: dict[str, dict[int, Any]] = {}
+    for p in params:
+        v = values[p.name]
+        if p.dim.integer and p.dim.choices is None:
+            v = int(round(v))
+        if p.index is None:
+            spec[p.option] = _scaled(p.dim, v, safe_radius)
+        else:
+            vectors.setdefault(p.option, {})[p.index] = float(v)
+    for name, comp in vectors.items():
+        spec[name] = [comp[i] for i in sorted(comp)]
+    return spec
+
+
+def _suggest(trial: Any, p: Param) -> Any:
+    d = p.dim
+    if d.choices is not None:
+        return trial.suggest_categorical(p.name, list(d.choices))
+    if d.integer:
+        return trial.suggest_int(p.name, int(math.ceil(d.low)), int(math.floor(d.high)), log=d.log)
+    return trial.suggest_float(p.name, float(d.low), float(d.high), log=d.log)
+
+
+# ------------------------------------------------------------------------------------------
+# the optimiser and its storage
+# ------------------------------------------------------------------------------------------
+
+
+def _storage(url: str) -> Any:
+    """optuna's RDB storage at ``url`` with heartbeats (a dead worker's trial fails, its finished
+    ones stay)."""
+    import optuna
+    from sqlalchemy.exc import ArgumentError, OperationalError
+
+    kw: dict[str, Any] = {}
+    if url.startswith("sqlite:"):
+        kw["engine_kwargs"] = {"connect_args": {"timeout": 60}}
+        path = url.split("sqlite:///", 1)[-1]
+        if path and path != url and not Path(path).parent.is_dir():
+            raise TuningError(f"--storage {url!r}: the folder {str(Path(path).parent)!r} does not exist")
+    try:
+        return optuna.storages.RDBStorage(url, heartbeat_interval=HEARTBEAT, grace_period=GRACE, **kw)
+    except (ArgumentError, OperationalError, ImportError, ValueError, ModuleNotFoundError) as exc:
+        raise TuningError(f"--storage {url!r} cannot be opened: {str(exc).splitlines()[0]}") from None
+    except Exception as exc:  # noqa: BLE001 - any database driver's error, named
+        raise TuningError(f"--storage {url!r} cannot be opened: {type(exc).__name__}: "
+                          f"{str(exc).splitlines()[0] if str(exc) else ''}") from None
+
+
+#: Seconds between a running trial's heartbeats, and after the last one before it counts as dead.
+HEARTBEAT = 10
+GRACE = 30
+
+
+def _sampler(settings: TuningSettings, constraints: bool, worker: int = 0) -> Any:
+    import optuna
+
+    cf = _constraints_of if constraints else None
+    seed = settings.seed + 7919 * worker
+    if settings.sampler == "nsga2":
+        pop = settings.population or min(50, max(8, settings.trials // 4))
+        return optuna.samplers.NSGAIISampler(population_size=pop, seed=seed, constraints_func=cf)
+    n_startup = max(5, min(10, settings.trials // 3))
+    return optuna.samplers.TPESampler(seed=seed, n_startup_trials=n_startup, multivariate=True,
+                                      constraints_func=cf)
+
+
+def _constraints_of(trial: Any) -> list[float]:
+    return list(trial.user_attrs.get("constraints", []))
+
+
+@dataclass
+class TrialEvaluator:
+    """What a trial computes: ``evaluate(spec) -> list of per-case KPI dicts`` (picklable for the
+    worker processes), the objectives and constraints read from them."""
+
+    base_spec: dict
+    params: list
+    fixed: dict
+    settings: TuningSettings
+    evaluate: Callable[[dict], list]
+    safe_radius: float | None = None
+
+    def __call__(self, trial: Any) -> Any:
+        values = {p.name: _suggest(trial, p) for p in self.params}
+        spec = spec_from_params(self.base_spec, self.params, values, self.fixed, safe_radius=self.safe_radius)
+        trial.set_user_attr("spec", spec)
+        t0 = time.perf_counter()
+        per_case = self.evaluate(spec)
+        trial.set_user_attr("wall_time", time.perf_counter() - t0)
+        reported = {name: item.value(per_case) for name, item in self.settings.reported()}
+        trial.set_user_attr("kpis", reported)
+        trial.set_user_attr("cases", per_case if len(json.dumps(per_case, default=float)) < 200_000 else [])
+        cons = [c.violation(c.value(per_case)) for c in self.settings.constraints]
+        trial.set_user_attr("constraints", cons)
+        vals = [reported[o.kpi] for o in self.settings.objectives]
+        if not all(math.isfinite(v) for v in vals):
+            raise TuningError(f"a case gave no finite value of {[o.kpi for o in self.settings.objectives]}: {vals}")
+        return vals if len(vals) > 1 else vals[0]
+
+
+@dataclass(frozen=True)
+class WorkerJob:
+    """One worker's loop: trials of ``study_name`` in ``storage`` until ``trials`` have finished."""
+
+    storage: str
+    study_name: str
+    evaluator: TrialEvaluator
+    trials: int
+    worker: int = 0
+    threads: int = 1
+
+
+class _Enough:
+    """Stop a worker's loop once the finished trials and those still running elsewhere make
+    ``n`` (so several workers do not overshoot the budget)."""
+
+    def __init__(self, n: int):
+        self.n = n
+
+    def __call__(self, study: Any, trial: Any) -> None:
+        if _count(study, ("COMPLETE", "RUNNING")) >= self.n:
+            study.stop()
+
+
+def _count(study: Any, states: Sequence[str]) -> int:
+    from optuna.trial import TrialState
+
+    return len(study.get_trials(deepcopy=False, states=tuple(TrialState[s] for s in states)))
+
+
+def run_worker(job: WorkerJob) -> int:
+    """Run trials until ``job.trials`` trials of the study have finished (counted over every
+    worker of the storage). A trial left running by a worker that died (killed, its machine
+    gone) is failed once its heartbeat is :data:`GRACE` seconds old, and the loop goes on until
+    the budget is finished. Returns the trials this worker finished."""
+    import warnings
+
+    import optuna
+
+    from .._parallel import limit_threads
+
+    limit_threads(job.threads)
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    warnings.filterwarnings("ignore", category=optuna.exceptions.ExperimentalWarning)
+    storage = _storage(job.storage)
+    ev = job.evaluator
+    study = optuna.load_study(study_name=job.study_name, storage=storage,
+                              sampler=_sampler(ev.settings, bool(ev.settings.constraints), job.worker))
+    before = _count(study, ("COMPLETE",))
+    while _count(study, ("COMPLETE",)) < job.trials:
+        if _count(study, ("COMPLETE", "RUNNING")) >= job.trials:
+            optuna.storages.fail_stale_trials(study)   # a dead worker's trial: failed after its grace
+            time.sleep(min(HEARTBEAT, 2.0))
+            continue
+        study.optimize(ev, callbacks=[_Enough(job.trials)], catch=(Exception,), gc_after_trial=False)
+    return _count(study, ("COMPLETE",)) - before
+
+
+def _worker_entry(job: WorkerJob) -> int:   # a process pool's target (module level: picklable)
+    return run_worker(job)
+
+
+def create_study(storage_url: str, study_name: str, settings: TuningSettings, meta: Mapping[str, Any]) -> Any:
+    """Create (or join) the optuna study of one controller; its settings must match a joined one's."""
+    import warnings
+
+    import optuna
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    warnings.filterwarnings("ignore", category=optuna.exceptions.ExperimentalWarning)
+    storage = _storage(storage_url)
+    directions = ["minimize" if o.direction == "minimise" else "maximize" for o in settings.objectives]
+    try:
+        study = optuna.create_study(study_name=study_name, storage=storage, directions=directions,
+                                    load_if_exists=True)
+    except Exception as exc:  # noqa: BLE001
+        raise TuningError(f"storage {storage_url!r}: the study {study_name!r} cannot be created or joined: "
+                          f"{type(exc).__name__}: {exc}") from None
+    sig = {"objectives": [o.label for o in settings.objectives], "constraints": [c.text for c in settings.constraints],
+           **{k: v for k, v in meta.items()}}
+    old = study.user_attrs.get("signature")
+    if old is None:
+        study.set_user_attr("signature", sig)
+    elif old != sig:
+        raise TuningError(f"storage {storage_url!r} holds a study {study_name!r} tuned for {old}, not {sig}: give "
+                          "another --out or --storage, or the same study file")
+    return study
+
+
+def optimise(storage_url: str, study_name: str, evaluator: TrialEvaluator, *, trials: int, workers: int = 1,
+             scheduler: Any = None, meta: Mapping[str, Any] | None = None,
+             progress: Callable[[Any], None] | None = None, poll: float = 5.0) -> Any:
+    """Run the trials of one controller until ``trials`` have finished; returns the optuna study.
+
+    ``workers`` local processes (0: in this process) or, with ``scheduler``, as many tasks on the
+    Dask cluster; each is a loop of trials on the shared storage. ``progress(study)`` is called
+    every ``poll`` seconds and at the end.
+    """
+    study = create_study(storage_url, study_name, evaluator.settings, meta or {})
+    if workers <= 0 and scheduler is None:
+        run_worker(WorkerJob(storage_url, study_name, evaluator, trials))
+        if progress:
+            progress(study)
+        return study
+    from .._parallel import worker_threads
+
+    n = max(1, workers)
+    jobs = [WorkerJob(storage_url, study_name, evaluator, trials, worker=i, threads=worker_threads(n))
+            for i in range(n)]
+    if scheduler is not None:
+        from .executors import dask_client
+
+        client, owned = dask_client(scheduler)
+        try:
+            futs = [client.submit(run_worker, j, pure=False) for j in jobs]
+            while not all(f.done() for f in futs):
+                if progress:
+                    progress(study)
+                time.sleep(poll)
+            for f in futs:
+                f.result()
+        finally:
+            if owned:
+                client.close()
+    else:
+        import concurrent.futures as cf
+
+        from .executors import PARENT_POLL, USE_PDEATHSIG, _init_worker, _kill_workers
+
+        ctx = multiprocessing.get_context("spawn")
+        ex = cf.ProcessPoolExecutor(max_workers=n, mp_context=ctx, initializer=_init_worker,
+                                    initargs=(os.getpid(), USE_PDEATHSIG, PARENT_POLL, worker_threads(n)))
+        try:
+            futs = [ex.submit(_worker_entry, j) for j in jobs]
+            while True:
+                done, _ = cf.wait(futs, timeout=poll)
+                if progress:
+                    progress(study)
+                if len(done) == len(futs):
+                    break
+            for f in futs:
+                f.result()
+        except BaseException:
+            _kill_workers(ex)
+            raise
+        ex.shutdown(wait=True)
+    if progress:
+        progress(study)
+    return study
+
+
+# ------------------------------------------------------------------------------------------
+# fronts and selection
+# ------------------------------------------------------------------------------------------
+
+
+def dominates(a: Sequence[float], b: Sequence[float]) -> bool:
+    """``a`` Pareto-dominates ``b`` (both in 'smaller is better' form)."""
+    return all(x <= y for x, y in zip(a, b)) and any(x < y for x, y in zip(a, b))
+
+
+@dataclass(frozen=True)
+class TrialRow:
+    """A trial as the outputs show it."""
+
+    controller: str
+    number: int
+    state: str
+    values: dict          # column -> aggregated KPI
+    params: dict          # the sampled parameters
+    spec: dict            # the controller specification
+    feasible: bool
+    objectives: tuple     # the objectives in 'smaller is better' form
+    cases: list = field(default_factory=list)
+
+
+def load_trials(study: Any, controller: str, settings: TuningSettings) -> list[TrialRow]:
+    """Every trial of a controller's study as :class:`TrialRow`."""
+    rows = []
+    sign = [1.0 if o.direction == "minimise" else -1.0 for o in settings.objectives]
+    for t in study.get_trials(deepcopy=False):
+        kp = dict(t.user_attrs.get("kpis", {}))
+        cons = list(t.user_attrs.get("constraints", []))
+        feasible = t.state.name == "COMPLETE" and all(c <= 0 for c in cons)
+        obj = tuple(s * float(kp.get(o.kpi, math.nan)) for s, o in zip(sign, settings.objectives))
+        rows.append(TrialRow(controller, t.number, t.state.name, kp, dict(t.params), dict(t.user_attrs.get("spec", {})),
+                             feasible, obj, list(t.user_attrs.get("cases", []))))
+    return rows
+
+
+def front(rows: Sequence[TrialRow]) -> list[TrialRow]:
+    """The non-dominated finished trials among those that meet every constraint (every finished
+    trial's if none does: then the caller says so)."""
+    pool = [r for r in rows if r.state == "COMPLETE" and r.feasible and all(math.isfinite(v) for v in r.objectives)]
+    if not pool:
+        return []
+    out = [r for r in pool if not any(dominates(o.objectives, r.objectives) for o in pool)]
+    uniq: dict[tuple, TrialRow] = {}
+    for r in sorted(out, key=lambda r: r.number):
+        uniq.setdefault(r.objectives, r)
+    return sorted(uniq.values(), key=lambda r: r.objectives)
+
+
+_RULE = re.compile(r"\s*(min|max)\s+([\w\[\]]+)(?:\s+with\s+(.+))?\s*$")
+
+
+def _parse_rule(rule: Any, objectives: Sequence[str]) -> tuple | None:
+    if rule == "knee":
+        return None
+    if not isinstance(rule, str):
+        raise TuningError(f"tuning.select = {rule!r} must be \"knee\" or a rule like \"min thrust_energy with "
+                          "offset_max <= 45\"")
+    m = _RULE.fullmatch(rule)
+    if not m:
+        raise TuningError(f"tuning.select = {rule!r} must be \"knee\" or read like \"min thrust_energy with "
+                          "offset_max <= 45\"")
+    how, target, conds = m.groups()
+    _catalogued(target, "tuning.select")
+    cs = []
+    for part in (conds.split(" and ") if conds else []):
+        c = Constraint.parse(part.strip(), "tuning.select")
+        cs.append(c)
+    return how, target, cs
+
+
+def select(rows_front: Sequence[TrialRow], settings: TuningSettings) -> TrialRow | None:
+    """The design chosen from a front: the knee (the point nearest the ideal point with each
+    objective scaled to [0, 1] over the front), or the rule of ``settings.select``."""
+    if not rows_front:
+        return None
+    rule = _parse_rule(settings.select, [o.kpi for o in settings.objectives])
+    if rule is None:
+        F = np.array([r.objectives for r in rows_front], dtype=float)
+        lo, hi = F.min(axis=0), F.max(axis=0)
+        span = np.where(hi > lo, hi - lo, 1.0)
+        d = np.linalg.norm((F - lo) / span, axis=1)
+        return rows_front[int(np.argmin(d))]
+    how, target, conds = rule
+    ok = [r for r in rows_front if all(c.violation(_num(r.values.get(c.kpi))) <= 0 for c in conds)]
+    if not ok:
+        return None
+    key = (lambda r: _num(r.values.get(target)))
+    return min(ok, key=key) if how == "min" else max(ok, key=key)
+
+
+def hypervolume_2d(points: Sequence[Sequence[float]], reference: Sequence[float]) -> float:
+    """The area dominated by ``points`` (two objectives, both smaller-is-better) and bounded by
+    ``reference``; points beyond the reference add nothing."""
+    P = sorted((float(a), float(b)) for a, b in points if a < reference[0] and b < reference[1])
+    area, best_b = 0.0, float(reference[1])
+    for a, b in P:
+        if b < best_b:
+            area += (reference[0] - a) * (best_b - b)
+            best_b = b
+    return area
+
+
+# ------------------------------------------------------------------------------------------
+# outputs
+# ------------------------------------------------------------------------------------------
+
+
+def _csv(rows: Sequence[TrialRow], settings: TuningSettings) -> str:
+    cols = [c for c, _ in settings.reported()]
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(["controller", "trial", "state", *cols, "feasible", "params"])
+    for r in rows:
+        w.writerow([r.controller, r.number, r.state, *(repr(float(r.values[c])) if c in r.values else "" for c in cols),
+                    str(r.feasible).lower(), json.dumps(r.params, sort_keys=True, default=float)])
+    return buf.getvalue()
+
+
+def write_design(path: Path, row: TrialRow, *, study: str, selected_by: str, settings: TuningSettings,
+                 command: str) -> None:
+    """A tuned design file (``tuned/<controller>.toml``): the controller's specification and the
+    KPIs it reached over the tuning cases, loadable as ``[[controllers]] design = "…"`` and
+    ``tapm simulate --option design=…``."""
+    lines = [f"# A controller design tuned by optimisation: {command}",
+             f"# Trial {row.number} of the front, selected by {selected_by}; objectives "
+             + ", ".join(o.label for o in settings.objectives)
+             + (("; constraints " + ", ".join(c.text for c in settings.constraints)) if settings.constraints else ""),
+             "", "[design]", f"format = {toml_value(DESIGN_FORMAT)}", f"name = {toml_value(row.controller)}",
+             f"study = {toml_value(study)}", f"trial = {row.number}", f"selected_by = {toml_value(selected_by)}",
+             "", "[design.controller]"]
+    for k, v in row.spec.items():
+        lines.append(f"{toml_key(k)} = {toml_value(v)}")
+    lines += ["", "[design.kpis]   # aggregated over the tuning cases"]
+    for k, v in row.values.items():
+        lines.append(f"{toml_key(k)} = {toml_value(float(v))}")
+    atomic_write_text(path, "\n".join(lines) + "\n")
+
+
+def _front_csv(fronts: Mapping[str, Sequence[TrialRow]], settings: TuningSettings) -> str:
+    return _csv([r for rows in fronts.values() for r in rows], settings)
+
+
+# ------------------------------------------------------------------------------------------
+# the whole job for a study file
+# ------------------------------------------------------------------------------------------
+
+
+def _case_kpis(inputs_list: Sequence[dict]) -> Callable[[dict], list]:
+    return _CaseRunner(list(inputs_list))
+
+
+@dataclass
+class _CaseRunner:
+    """Runs a controller specification on each case's inputs (the study's recipe); the KPIs per
+    case, with the case's labels."""
+
+    inputs: list
+    labels: list = field(default_factory=list)
+
+    def __call__(self, spec: dict) -> list:
+        from .jobs import run_case
+
+        out = []
+        for i, inp in enumerate(self.inputs):
+            _, k = run_case({**inp, "controller": spec})
+            row = {n: float(v) for n, v in k.items() if isinstance(v, (int, float)) and not isinstance(v, bool)}
+            if self.labels:
+                row["_labels"] = self.labels[i]
+            out.append(row)
+        return out
+
+
+def tune_study(path: str | Path, out_dir: str | Path, *, trials: int | None = None, workers: int = 1,
+               scheduler: Any = None, storage: str | None = None, echo: Callable[[str], None] = print,
+               poll: float = 5.0) -> dict:
+    """Tune every controller of the study file ``path`` (``tapm tune``; ``docs/tuning.md``).
+
+    Returns
+    -------
+    dict
+        ``{"storage", "controllers": {name: {"complete", "failed", "front", "selected"}}, ...}``
+        (also written as ``DIR/tuning.json``).
+    """
+    from .spec import study_from_dict
+
+    path = Path(path)
+    out = Path(out_dir)
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+        data = tomllib.loads(text)
+    except OSError as exc:
+        raise TuningError(f"{str(path)!r}: cannot read the study file: {exc.strerror or exc}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise TuningError(f"{str(path)!r}: not valid TOML: {exc}") from None
+    settings = tuning_settings(data.pop("tuning", None))
+    if trials is not None:
+        settings = dataclasses.replace(settings, trials=int(trials))
+    tunes: dict[int, Any] = {}
+    for i, e in enumerate(data.get("controllers", []) if isinstance(data.get("controllers"), list) else []):
+        if isinstance(e, dict) and "tune" in e:
+            t = e.pop("tune")
+            if not isinstance(t, dict):
+                raise TuningError(f"controllers[{i}].tune = {t!r} must be a table, e.g. tune = {{ w_thrust = [1.0, "
+                                  "100.0] }}")
+            tunes[i] = t
+    study = study_from_dict(data, base_dir=path.parent, source=str(path))
+    names = list(dict.fromkeys(c.labels["controller"] for c in study.cases))
+    entries = data.get("controllers", [])
+    out.mkdir(parents=True, exist_ok=True)
+    url = storage or f"sqlite:///{(out / 'tuning.db').resolve()}"
+    summary: dict[str, Any] = {"format": "tapm-tuning/1", "study": study.name, "storage": url,
+                               "settings": {"objectives": [o.label for o in settings.objectives],
+                                            "constraints": [c.text for c in settings.constraints],
+                                            "trials": settings.trials, "sampler": settings.sampler,
+                                            "seed": settings.seed, "select": settings.select,
+                                            "verify_seeds": list(settings.verify_seeds)},
+                               "controllers": {}}
+    all_rows: list[TrialRow] = []
+    fronts: dict[str, list[TrialRow]] = {}
+    command = f"tapm tune {path.name} --out {out.name}"
+    (out / "tuned").mkdir(exist_ok=True)
+    for ci, cname in enumerate(names):
+        cases = [c for c in study.cases if c.labels["controller"] == cname]
+        base = dict(cases[0].inputs["controller"])
+        sc_dict = cases[0].inputs["scenario"]
+        safe_radius = (sc_dict.get("limits") or {}).get("safe_radius")
+        idx = next((i for i, e in enumerate(entries) if isinstance(e, dict) and
+                    (e.get("name") == cname or (e.get("name") is None and controller_kind(e.get("type")).label == cname))),
+                   None)
+        given = {k for k in (entries[idx] if idx is not None else {}) if k not in ("name", "type")}
+        params, fixed = search_space(base["type"], {k: v for k, v in base.items() if k in given},
+                                     tunes.get(idx), where=f"controllers[{idx if idx is not None else ci}]")
+        if not params:
+            raise TuningError(f"controller {cname!r}: nothing to tune (its study entry or tune table fixes every "
+                              "option of its search space)")
+        runner = _CaseRunner([c.inputs for c in cases], [dict(c.labels) for c in cases])
+        ev = TrialEvaluator(base, params, fixed, settings, runner, safe_radius)
+        sname = f"{study.name}/{cname}"
+        echo(f"tuning {cname} ({base['type']}): {len(params)} parameters ({', '.join(p.name for p in params)}) on "
+             f"{len(cases)} case{'s' if len(cases) != 1 else ''}, {settings.trials} trials, {settings.sampler}")
+        meta = {"cases": sorted(c.id for c in cases), "params": [p.name for p in params]}
+        last = [None]
+
+        def progress(st: Any, cname: str = cname) -> None:
+            rows = load_trials(st, cname, settings)
+            done = sum(r.state == "COMPLETE" for r in rows)
+            failed = sum(r.state == "FAIL" for r in rows)
+            f = front(rows)
+            msg = (f"  {cname}: {done}/{settings.trials} trials finished" + (f", {failed} failed" if failed else "")
+                   + f"; front {len(f)} point{'s' if len(f) != 1 else ''}")
+            if f:
+                for o in settings.objectives:
+                    vals = [r.values[o.kpi] for r in f]
+                    msg += f"; {o.kpi} {_fmt_kpi(o.kpi, min(vals))}-{_fmt_kpi(o.kpi, max(vals))}"
+            if msg != last[0]:
+                echo(msg)
+                last[0] = msg
+
+        st = optimise(url, sname, ev, trials=settings.trials, workers=workers, scheduler=scheduler, meta=meta,
+                      progress=progress, poll=poll)
+        rows = load_trials(st, cname, settings)
+        all_rows += rows
+        f = front(rows)
+        fronts[cname] = f
+        chosen = select(f, settings)
+        info: dict[str, Any] = {"type": base["type"], "complete": sum(r.state == "COMPLETE" for r in rows),
+                                "failed": sum(r.state == "FAIL" for r in rows), "front": [r.number for r in f],
+                                "feasible": sum(r.feasible for r in rows), "selected": None}
+        if not f:
+            why = ("no finished trial meets the constraints " + ", ".join(c.text for c in settings.constraints)
+                   if settings.constraints and info["complete"] else "no trial finished")
+            echo(f"  {cname}: {why}; no design written")
+            info["note"] = why
+        elif chosen is None:
+            echo(f"  {cname}: no front point meets the selection rule {settings.select!r}; no design written")
+            info["note"] = f"no front point meets {settings.select!r}"
+        else:
+            write_design(out / "tuned" / f"{_file_name(cname)}.toml", chosen, study=study.name,
+                         selected_by=settings.select, settings=settings, command=command)
+            info["selected"] = chosen.number
+            info["design"] = str(Path("tuned") / f"{_file_name(cname)}.toml")
+            info["kpis"] = chosen.values
+            info["spec"] = chosen.spec
+            echo(f"  {cname}: selected trial {chosen.number}: "
+                 + ", ".join(f"{k} {_fmt_kpi(k, v)}" for k, v in chosen.values.items()) + f" -> {info['design']}")
+        summary["controllers"][cname] = info
+    atomic_write_text(out / "trials.csv", _csv(all_rows, settings))
+    atomic_write_text(out / "front.csv", _front_csv(fronts, settings))
+    if settings.verify_seeds:
+        summary["verify"] = _verify(study, summary, settings, out, echo)
+    atomic_write_text(out / "tuning.json", json.dumps(summary, indent=2, default=float))
+    echo(f"wrote {out / 'trials.csv'}, {out / 'front.csv'}, {out / 'tuned'} ({url})")
+    return summary
+
+
+def _verify(study: Any, summary: Mapping[str, Any], settings: TuningSettings, out: Path,
+            echo: Callable[[str], None]) -> dict:
+    """The selected designs on the study's cases with the seeds replaced by the held-out ones:
+    ``verify.csv`` with each objective's tuning and held-out values and their gap."""
+    seeds = list(settings.verify_seeds)
+    rows, res = [], {}
+    for cname, info in summary["controllers"].items():
+        if info.get("spec") is None:
+            continue
+        base_cases = [c for c in study.cases if c.labels["controller"] == cname]
+        used = sorted({int(c.labels["seed"]) for c in base_cases})
+        overlap = sorted(set(used) & set(seeds))
+        if overlap:
+            echo(f"  {cname}: verify_seeds {overlap} were used by the search too: not held out")
+        inputs = []
+        for c in base_cases:
+            if int(c.labels["seed"]) != used[0]:
+                continue
+            for s in seeds:
+                inputs.append({**c.inputs, "seed": int(s)})
+        per_case = _CaseRunner(inputs)(info["spec"])
+        held = {name: item.value(per_case) for name, item in settings.reported()}
+        res[cname] = {"seeds": seeds, "kpis": held}
+        for name, _ in settings.reported():
+            t, h = _num(info["kpis"].get(name)), held[name]
+            rows.append([cname, name, repr(t), repr(h), repr(h - t)])
+        echo(f"  {cname} on held-out seeds {seeds}: " + ", ".join(
+            f"{k} {_fmt_kpi(k, v)} (tuning {_fmt_kpi(k, _num(info['kpis'].get(k)))})" for k, v in held.items()))
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(["controller", "kpi", "tuning", "held_out", "gap"])
+    w.writerows(rows)
+    atomic_write_text(out / "verify.csv", buf.getvalue())
+    return res
+
+
+def _file_name(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", name).strip("._") or "controller"
+
+
+def _fmt_kpi(name: str, v: float) -> str:
+    if not math.isfinite(v):
+        return "nan"
+    unit = KPIS[name].unit if name in KPIS else ""
+    if unit == "J":
+        return f"{v / 3.6e9:.2f} MWh"
+    return f"{v:.4g}{(' ' + unit) if unit and unit != '-' else ''}"
