@@ -76,7 +76,8 @@ def study_run(study_file: str, out_dir: str, workers: int | None, scheduler: str
     if not study_file.strip():
         raise click.BadParameter(f"{study_file!r} is empty: give the study file", param_hint="STUDY.toml")
     st = load_study(study_file)
-    summary = run_study(st, out_dir, workers=workers, scheduler=scheduler, progress=not no_progress)
+    summary = run_study(st, out_dir, workers=workers, scheduler=scheduler, progress=not no_progress,
+                        announce=True)   # the case count before anything is written, with or without the bar
     click.echo(str(summary))
     _exit_if_failed(summary)
 

@@ -53,7 +53,7 @@ from ..control.pid import MODE_SETS
 __all__ = ["ControllerKind", "Dimension", "BuildContext", "ControllerSpecError", "PIDOptions", "MPCOptions",
            "LMPCOptions", "register", "unregister", "kinds", "kind", "kind_names", "build", "options_from_spec",
            "auto_move_blocks", "DEAD_BAND_FRACTION", "DEAD_BAND_DAMAGED_FRACTION", "AUTO_BLOCKS_FROM",
-           "ENTRY_POINT_GROUP", "MAX_PREDICTION_STEPS"]
+           "ENTRY_POINT_GROUP", "MAX_PREDICTION_STEPS", "load_design", "merge_design", "DESIGN_FORMAT"]
 
 #: Entry-point group of installed controller kinds.
 ENTRY_POINT_GROUP = "tapm_opt.controllers"
@@ -609,8 +609,54 @@ def kind(name: Any, where: str = "controller") -> ControllerKind:
     return ks[name]
 
 
+#: Format tag of a tuned design file (``tapm tune``'s ``tuned/<controller>.toml``).
+DESIGN_FORMAT = "tapm-design/1"
+
+
+def load_design(path: Any, where: str = "design") -> dict:
+    """The controller specification of a design file (``tapm tune``'s ``tuned/<controller>.toml``:
+    its ``[design.controller]`` table, ``type`` and options).
+
+    Raises
+    ------
+    ControllerSpecError
+        The file cannot be read, is not TOML, or is not a design file (the message names it).
+    """
+    import tomllib
+    from pathlib import Path
+
+    p = Path(str(path))
+    try:
+        data = tomllib.loads(p.read_text(encoding="utf-8-sig"))
+    except OSError as exc:
+        raise ControllerSpecError(f"{where} = {str(path)!r}: cannot read the design file: "
+                                  f"{exc.strerror or exc}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ControllerSpecError(f"{where} = {str(path)!r} is not valid TOML: {exc}") from None
+    d = data.get("design")
+    if not isinstance(d, Mapping) or d.get("format") != DESIGN_FORMAT or not isinstance(d.get("controller"), Mapping):
+        raise ControllerSpecError(f"{where} = {str(path)!r} is not a design file ([design] with format = "
+                                  f"{DESIGN_FORMAT!r} and a [design.controller] table, as tapm tune writes)")
+    spec = dict(d["controller"])
+    if "type" not in spec:
+        raise ControllerSpecError(f"{where} = {str(path)!r}: [design.controller] has no type")
+    return spec
+
+
+def merge_design(spec: Mapping[str, Any], design: Mapping[str, Any], where: str = "controller") -> dict:
+    """``spec`` on top of a design's specification: the design's kind and options, ``spec``'s own
+    options overriding them; a ``type`` in ``spec`` must be the design's."""
+    spec = dict(spec)
+    spec.pop("design", None)
+    if spec.get("type") not in (None, design["type"]):
+        raise ControllerSpecError(f"{where}.type = {spec['type']!r}, but the design is a {design['type']!r}")
+    return {**dict(design), **{k: v for k, v in spec.items() if k != "type"}}
+
+
 def options_from_spec(spec: Mapping[str, Any] | str, where: str = "controller") -> tuple[ControllerKind, Any]:
-    """The kind and its options instance from ``{"type": ..., option: value}`` (or just the type).
+    """The kind and its options instance from ``{"type": ..., option: value}`` (or just the type),
+    or ``{"design": path, ...}`` (a tuned design file, :func:`load_design`, its options overridden
+    by the others given).
 
     Unknown options are a :class:`ControllerSpecError` naming ``where.option`` with the closest
     match; values are checked when the controller is built.
@@ -620,6 +666,8 @@ def options_from_spec(spec: Mapping[str, Any] | str, where: str = "controller") 
     if not isinstance(spec, Mapping):
         raise ControllerSpecError(f"{where} = {spec!r} must be a kind name or a table with a type")
     spec = dict(spec)
+    if "design" in spec:
+        spec = merge_design(spec, load_design(spec["design"], f"{where}.design"), where)
     k = kind(spec.pop("type", None), where)
     allowed = k.option_names()
     for key in sorted(set(spec) - set(allowed), key=str):

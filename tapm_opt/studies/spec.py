@@ -98,7 +98,7 @@ _STUDY_KEYS = {"name", "description", "scenario", "duration", "segments", "break
                "dt_log", "heading",
                "setpoint", "setpoint_options", "true_state", "seeds", "mode", "estimator", "detector", "winch",
                "winch_options"}
-_TOP_KEYS = {"study", "sea_states", "controllers", "conditions", "cases", "capability"}
+_TOP_KEYS = {"study", "sea_states", "controllers", "conditions", "cases", "capability", "tuning"}
 _CONDITION_KEYS = {"name", "line_break", "thruster_failure"}
 _FAULT_KEYS = {"line_break": {"line", "time", "time_fraction"}, "thruster_failure": {"thruster", "time", "time_fraction"}}
 _CASE_KEYS = {"name", "sea_state", "controller", "condition", "seed", "duration"}
@@ -395,6 +395,51 @@ def _embedded_gain_table(ck: Checker, path: str, base_dir: Path, where: str) -> 
         return None
 
 
+def _parse_tuning(ck: Checker, data: Mapping) -> None:
+    """The ``[tuning]`` table (``tapm tune``), checked here too so a study file is checked whole."""
+    if "tuning" not in data:
+        return
+    if not isinstance(data["tuning"], Mapping):
+        ck.err("tuning", f"must be a table, got {type(data['tuning']).__name__}")
+        return
+    from .tuning import TuningError, tuning_settings
+
+    try:
+        tuning_settings(data["tuning"])
+    except TuningError as exc:
+        ck.err("", str(exc))
+
+
+def _embedded_design(ck: Checker, path: Any, base_dir: Path, where: str) -> dict | None:
+    """The controller specification of a tuned design file at ``path`` (relative to the study
+    file), embedded in the cases' inputs like a gain table; None, with the issue recorded, when it
+    cannot be read."""
+    from ..design.registry import load_design
+
+    if not isinstance(path, str) or not path.strip():
+        ck.err(where, f"= {path!r} must be the path of a design file (tapm tune's tuned/<controller>.toml)")
+        return None
+    p = Path(path)
+    try:
+        return load_design(p if p.is_absolute() else base_dir / p, where)
+    except ControllerSpecError as exc:
+        ck.err("", str(exc))
+        return None
+
+
+def _check_tune(ck: Checker, kind: str, e: Mapping, p: str) -> None:
+    """A controller's ``tune`` table (``tapm tune``: its search space narrowed or fixed)."""
+    from .tuning import TuningError, search_space
+
+    if not isinstance(e["tune"], Mapping):
+        ck.err(f"{p}.tune", f"= {e['tune']!r} must be a table, e.g. tune = {{ w_thrust = [1.0, 100.0] }}")
+        return
+    try:
+        search_space(kind, {}, e["tune"], where=p)
+    except TuningError as exc:
+        ck.err("", str(exc))
+
+
 def _parse_controllers(ck: Checker, data: Mapping, out: _Parsed) -> None:
     from .closed_loop import combination_issues
 
@@ -405,13 +450,22 @@ def _parse_controllers(ck: Checker, data: Mapping, out: _Parsed) -> None:
         ck.err("controllers", "is empty: give at least one [[controllers]]")
     for i, e in enumerate(entries):
         p = f"controllers[{i}]"
+        design = _embedded_design(ck, e["design"], out.base_dir, f"{p}.design") if "design" in e else None
+        if design is not None:
+            if "type" in e and e["type"] != design["type"]:
+                ck.err(f"{p}.type", f"= {e['type']!r}, but the design is a {design['type']!r}")
+            e = {**{k: v for k, v in design.items()}, **{k: v for k, v in e.items() if k not in ("design", "type")}}
+        elif "design" in e:
+            e = {k: v for k, v in e.items() if k != "design"}
         if "type" not in e:
-            ck.err(f"{p}.type", f"missing required field ({', '.join(_controller_kinds())})")
+            ck.err(f"{p}.type", f"missing required field ({', '.join(_controller_kinds())}), or a design")
         kind = ck.choice(e["type"], _controller_kinds(), f"{p}.type") if "type" in e else None
         cname = ck.text(e["name"], f"{p}.name") if "name" in e else (_controller_kind(kind).label if kind else None)
+        if "tune" in e and kind is not None:
+            _check_tune(ck, kind, e, p)
         opts = {k: v for k, v in e.items()
                 if k not in ("name", "type", "setpoint", "setpoint_options", "estimator", "detector", "winch",
-                             "winch_options")}
+                             "winch_options", "tune")}
         loop = {**_setpoint_fields(ck, e, p, {}, inherited=out.closed_loop.get("setpoint")),
                 **_estimation_fields(ck, e, p), **_winch_fields(ck, e, p)}
         merged = _loop(out.closed_loop, loop)
@@ -681,6 +735,7 @@ def expand_cases(data: Mapping[str, Any], *, base_dir: str | Path = ".", source:
     _parse_controllers(ck, data, parsed)
     _parse_conditions(ck, data, parsed)
     _parse_listed(ck, data, parsed)
+    _parse_tuning(ck, data)
     if not ck.issues:
         cases = _expand(ck, parsed)
     if ck.issues:

@@ -48,7 +48,7 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from .._io import atomic_write_text, toml_key, toml_value
-from ..design.registry import Dimension, kind as controller_kind
+from ..design.registry import DESIGN_FORMAT, Dimension, kind as controller_kind
 from ..errors import TapmError
 from .kpi_catalogue import KPIS, UnknownKpiError, kpi as catalogue_kpi
 
@@ -64,8 +64,6 @@ DEFAULT_OBJECTIVES = ("offset_max", "thrust_energy")
 ALWAYS_REPORTED = ("offset_max", "thrust_energy", "time_outside_safe")
 #: Extensive KPIs, aggregated over the cases by their sum (the others by their worst case).
 SUMMED_KPIS = frozenset({"thrust_energy", "fuel", "winch_energy", "time_outside_safe", "time_outside_alert"})
-#: Format tag of a tuned design file.
-DESIGN_FORMAT = "tapm-design/1"
 #: Largest number of trials per controller a run may ask for.
 MAX_TRIALS = 100_000
 _AGGREGATES = ("max", "min", "sum", "mean")
@@ -888,9 +886,7 @@ def tune_study(path: str | Path, out_dir: str | Path, *, trials: int | None = No
         base = dict(cases[0].inputs["controller"])
         sc_dict = cases[0].inputs["scenario"]
         safe_radius = (sc_dict.get("limits") or {}).get("safe_radius")
-        idx = next((i for i, e in enumerate(entries) if isinstance(e, dict) and
-                    (e.get("name") == cname or (e.get("name") is None and controller_kind(e.get("type")).label == cname))),
-                   None)
+        idx = next((i for i, e in enumerate(entries) if _entry_name(e, path.parent) == cname), None)
         given = {k for k in (entries[idx] if idx is not None else {}) if k not in ("name", "type")}
         params, fixed = search_space(base["type"], {k: v for k, v in base.items() if k in given},
                                      tunes.get(idx), where=f"controllers[{idx if idx is not None else ci}]")
@@ -991,6 +987,25 @@ def _verify(study: Any, summary: Mapping[str, Any], settings: TuningSettings, ou
     w.writerows(rows)
     atomic_write_text(out / "verify.csv", buf.getvalue())
     return res
+
+
+def _entry_name(e: Any, base_dir: Path) -> str | None:
+    """The display name a ``[[controllers]]`` entry gets in the study (its name, else its kind's
+    label, the kind read from its design file when it names one)."""
+    if not isinstance(e, dict):
+        return None
+    if e.get("name") is not None:
+        return str(e["name"])
+    kind_name = e.get("type")
+    if kind_name is None and isinstance(e.get("design"), str):
+        from ..design.registry import load_design
+
+        p = Path(e["design"])
+        kind_name = load_design(p if p.is_absolute() else base_dir / p)["type"]
+    try:
+        return controller_kind(kind_name).label
+    except Exception:  # noqa: BLE001 - a bad entry is the study parser's to report
+        return None
 
 
 def _file_name(name: str) -> str:
