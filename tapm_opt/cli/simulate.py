@@ -71,6 +71,16 @@ def simulate(scenario_name: str, controller: str, duration: float, out_dir: str,
                                  f"position-control loop) and --duration = {duration:g} s")
     dt_log = dt_control * max(1, math.ceil(1.0 / dt_control - 1e-9))  # every control step, >= 1 s apart
     spec: dict = {"type": controller, **key_values(options, "--option")}
+    if "design" in spec:   # a tuned design file: its kind unless --controller is given
+        from ..design.registry import ControllerSpecError, load_design, merge_design
+
+        if click.get_current_context().get_parameter_source("controller") != click.core.ParameterSource.COMMANDLINE:
+            spec.pop("type")
+        try:
+            spec = merge_design(spec, load_design(spec["design"], "--option design"), "--controller")
+        except ControllerSpecError as exc:
+            raise click.BadParameter(str(exc), param_hint="'--option design'") from None
+        controller = spec["type"]
     # estimation is the runner's: --option estimator=... / detector=... choose its default estimator
     estimation = {k: str(spec.pop(k)) for k in ("estimator", "detector") if k in spec}
     from ..studies.closed_loop import ClosedLoopError
