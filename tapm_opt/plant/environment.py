@@ -373,6 +373,13 @@ class Environment:
             return self.current.velocity(z)
         return np.multiply.outer(self.current.factor(np.asarray(z, dtype=float)), self.current_surface(t))
 
+    def _loads_unchecked(self, t: float, psi: float, u: float, v: float) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`loads` (wind, drift) for a finite float time t [s], heading psi [rad] and surge and
+        sway velocity u, v [m/s] in {B}, without the checks of the arguments (the plant's outer
+        step, on its own checked state): the same operations, the same numbers."""
+        wind = self.wind
+        return (wind.hull.tau(wind.speed(t), wind.direction, psi, u, v), self.waves.tau_drift(t, psi))
+
     def loads(self, t: float, eta: Any, nu: Any = None) -> dict[str, np.ndarray]:
         """Environmental loads in {B} (survey eq. 9) at time t [s], LF pose eta (3,) [m, m, rad]
         and velocity nu (3,) in {B}: ``{"tau_wind": (3,), "tau_drift": (3,)}`` [N, N, N m]."""

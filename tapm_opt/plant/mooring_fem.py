@@ -17,6 +17,7 @@ import numpy as np
 from ..errors import ModelError, TapmError
 from ..geometry import rot2_apply
 from ..models import catenary
+from ..models.environment import CurrentProfile
 from ..models.mooring import MooringModel
 from .fem import MAX_NODE_SPEED, FEMLines, LineSet, _as_f64
 
@@ -149,7 +150,12 @@ class MooringFEM:
             z = self.fem.r[:, 2]
             if not np.isfinite(z).all():
                 self.fem.check_health()
-            self._vc = self.current(z)
+            prof = getattr(self.current, "__self__", None)
+            if type(prof) is CurrentProfile and self.current.__func__ is CurrentProfile.velocity:
+                # CurrentProfile.velocity without its check of z (finite: checked above)
+                self._vc = np.multiply.outer(prof.factor(z), prof.surface)
+            else:
+                self._vc = self.current(z)
         return self._vc
 
     # -- set-up ----------------------------------------------------------------------------

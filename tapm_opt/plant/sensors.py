@@ -101,21 +101,27 @@ class Sensors:
         in {E} (LF + WF), the true fairlead tensions (n_lines,) [N] and, for a vessel with a riser,
         the true riser angles (4,) = (top_x, top_y, bottom_x, bottom_y) [rad] in {E} (None: no
         riser, and ``Measurement.riser_angles`` is None). Times must not decrease."""
-        t = _num("t", t, unit="s")
+        return Measurement(**self._fields(t, eta_total, tensions, riser_angles))
+
+    def _fields(self, t: float, eta_total: Any, tensions: Any, riser_angles: Any = None) -> dict:
+        """The fields of :meth:`sample`'s Measurement (:meth:`Plant.measure` adds the thruster
+        feedback and builds it once)."""
+        if type(t) is not float or not math.isfinite(t):   # a finite float needs no conversion
+            t = _num("t", t, unit="s")
         if t < self._t_last:
             raise PlantError(f"t={t!r} s is before the previous sample time {self._t_last!r} s")
         self._t_last = t
         eta = np.asarray(eta_total, dtype=float)
         T = np.asarray(tensions, dtype=float)
-        if eta.shape != (3,) or not np.all(np.isfinite(eta)):
+        if eta.shape != (3,) or not np.isfinite(eta).all():
             raise PlantError(f"eta_total={eta.tolist()} must be 3 finite numbers (x, y, psi)")
-        if T.shape != (self.n_lines,) or not np.all(np.isfinite(T)):
+        if T.shape != (self.n_lines,) or not np.isfinite(T).all():
             bad = [] if T.shape != (self.n_lines,) else np.flatnonzero(~np.isfinite(T)).tolist()
             raise PlantError(f"tensions (shape {T.shape}) must be {self.n_lines} finite values [N]; "
                              f"bad lines {bad}")
         if riser_angles is not None:
             theta = np.asarray(riser_angles, dtype=float)
-            if theta.shape != (4,) or not np.all(np.isfinite(theta)):
+            if theta.shape != (4,) or not np.isfinite(theta).all():
                 raise PlantError(f"riser_angles={theta.tolist()} must be 4 finite angles (top_x, top_y, bottom_x, "
                                  "bottom_y) [rad]")
         s = self.spec
@@ -131,7 +137,7 @@ class Sensors:
             if self._due(_RISER, t):
                 self._held[_RISER] = readonly(theta + s.riser_angle_std * self._rngs[_RISER].standard_normal(4))
             riser, t_riser = self._held[_RISER], self._t_held[_RISER]
-        return Measurement(t=t, position=self._held[_GNSS], heading=self._held[_HEADING],
-                           tensions=self._held[_TENSION], t_position=self._t_held[_GNSS],
-                           t_heading=self._t_held[_HEADING], t_tensions=self._t_held[_TENSION],
-                           riser_angles=riser, t_riser_angles=t_riser)
+        return dict(t=t, position=self._held[_GNSS], heading=self._held[_HEADING],
+                    tensions=self._held[_TENSION], t_position=self._t_held[_GNSS],
+                    t_heading=self._t_held[_HEADING], t_tensions=self._t_held[_TENSION],
+                    riser_angles=riser, t_riser_angles=t_riser)

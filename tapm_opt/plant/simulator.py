@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import replace
 from typing import Any, Callable, Sequence
 
 import numpy as np
@@ -152,6 +151,7 @@ class Plant:
         self.nu = np.zeros(3)
         self._cmd = ThrusterCommand(np.zeros(self.thrusters.n), self.thrusters.alpha.copy())
         self._winch = np.zeros(len(self.line_ids))
+        self._winching = False   # any(self._winch), set with it
         self._eta_wf = self._wf(0.0)
         pose = self.eta + self._eta_wf
         self.mooring.initialise(pose)
@@ -214,6 +214,7 @@ class Plant:
             self._cmd = self._check_cmd(thruster_cmd)
         if winch_cmd is not None:
             self._winch = self._check_winch(winch_cmd)
+            self._winching = bool(self._winch.any())
         n = max(1, int(math.ceil(dt / self.outer_dt - 1e-9)))
         h = dt / n
         for _ in range(n):
@@ -224,11 +225,11 @@ class Plant:
         if the scenario has a riser) and the thruster feedback (delivered thrust and azimuth,
         failure flags, the generalised thrust they give); with ``truth=True`` also the true LF
         state (:class:`~tapm_opt.interfaces.Truth`), for validation estimators only."""
-        m = self.sensors.sample(self.t, self.eta_total, self._fairlead_tension(), self._riser_angles)
+        m = self.sensors._fields(self.t, self.eta_total, self._fairlead_tension(), self._riser_angles)
         th = self.thrusters
         tr = Truth(eta=self.eta, nu=self.nu, tau_env=self.loads["tau_wind"] + self.loads["tau_drift"]) if truth else None
-        return replace(m, thruster_f=th.f, thruster_alpha=th.alpha, thruster_failed=th.failed, tau_thr=th.tau(),
-                       truth=tr)
+        return Measurement(**m, thruster_f=th.f, thruster_alpha=th.alpha, thruster_failed=th.failed, tau_thr=th.tau(),
+                           truth=tr)
 
     # -- checks ----------------------------------------------------------------------------
     def _check_cmd(self, cmd: Any) -> ThrusterCommand:
@@ -311,11 +312,13 @@ class Plant:
         m = self.mooring
         compiled = self.compiled and m.fem._kernel_fn is not None  # numba is there and the FEM uses it
         if compiled:
-            from . import fem_kernel   # loaded with the compiled FEM (numba) already
+            fem_kernel = _fem_kernel()   # loaded with the compiled FEM (numba) already
         tau_thr = self.thrusters._advance(h, self._cmd.f, self._cmd.alpha, compiled=compiled)
         if self.env is not None:
-            loads = self.env.loads(t0, self.eta, self.nu)
-            tau_wind, tau_drift = loads["tau_wind"], loads["tau_drift"]
+            # Environment.loads on the plant's own state (a finite float heading and velocity:
+            # the vessel step below checks them), without its argument checks
+            tau_wind, tau_drift = self.env._loads_unchecked(t0, float(self.eta[2]), float(self.nu[0]),
+                                                            float(self.nu[1]))
         else:
             tau_wind = tau_drift = np.zeros(3)
         tau = tau_thr + tau_wind + tau_drift + self._tau_moor
@@ -328,13 +331,13 @@ class Plant:
             nu = self.nu + h * np.asarray(nu_dot, dtype=float).ravel()
             eta = self.eta + h * (rot_z(self.eta[2]) @ nu)
             finite = np.isfinite(nu).all() and np.isfinite(eta).all()
-        if not (finite and np.hypot(eta[0], eta[1]) < 1e5):
+        if not (finite and math.hypot(eta[0], eta[1]) < 1e5):
             raise SimulationDiverged(
                 f"vessel state became unphysical at t = {t0:.2f} s (eta = {eta.tolist()}, nu = {nu.tolist()}); "
                 "check the vessel mass and damping, the thruster commands and the environmental loads",
                 time=t0)
         # winches
-        winching = bool(self._winch.any())  # new lengths change the stable step
+        winching = self._winching  # new lengths change the stable step
         if winching:
             fem = self.mooring.fem
             fem.L = np.clip(fem.L + h * self._winch, self._L_limits[:, 0], self._L_limits[:, 1])
@@ -426,6 +429,19 @@ class Plant:
             "events": [[t, e] for t, e in self.events],
             "tapm_opt_version": __version__,
         }
+
+
+def _fem_kernel():
+    """The compiled kernels' module (imported on first use: it imports numba)."""
+    global _FEM_KERNEL
+    if _FEM_KERNEL is None:
+        from . import fem_kernel
+
+        _FEM_KERNEL = fem_kernel
+    return _FEM_KERNEL
+
+
+_FEM_KERNEL: Any = None
 
 
 def _sea_state(scenario: Any, sea_state: Any):

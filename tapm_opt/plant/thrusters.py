@@ -214,8 +214,7 @@ class ThrusterBank:
             self._dt_decay, self._decay = dt, np.exp(-dt / lim.T)
             self._rate_dt, self._alpha_rate_dt = lim.rate * dt, lim.alpha_rate * dt
         if compiled:
-            from . import fem_kernel
-
+            fem_kernel = _fem_kernel()
             return fem_kernel.thruster_step(self._f, self._alpha, self._failed, f_cmd,
                                             self._f if alpha_cmd is None else alpha_cmd, alpha_cmd is not None,
                                             lim.f_min, lim.f_max, self._decay, self._rate_dt, self._alpha_rate_dt,
@@ -246,6 +245,19 @@ class ThrusterBank:
     def power(self) -> np.ndarray:
         """Shaft power of each thruster, ``k_i |f_i|^1.5``, shape (n,) [W] (module docstring)."""
         return self.limits.k_power * np.abs(self._f) ** 1.5
+
+
+def _fem_kernel():
+    """The compiled kernels' module (imported on first use: it imports numba)."""
+    global _FEM_KERNEL
+    if _FEM_KERNEL is None:
+        from . import fem_kernel
+
+        _FEM_KERNEL = fem_kernel
+    return _FEM_KERNEL
+
+
+_FEM_KERNEL: Any = None
 
 
 def _pos(name: str, v: Any) -> float:
