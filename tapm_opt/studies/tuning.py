@@ -403,7 +403,10 @@ def spec_from_params(base_spec: Mapping[str, Any], params: Sequence[Param], valu
     kind_name = spec["type"]
     space = controller_kind(kind_name).search_space
     for name, v in dict(fixed or {}).items():
-        spec[name] = _scaled(space.get(name), v, safe_radius)
+        d = space.get(name)
+        if d is not None and d.size > 1 and isinstance(v, (int, float)) and not isinstance(v, bool):
+            v = [float(v)] * d.size   # one value for every component (e.g. the PID's three dampings)
+        spec[name] = _scaled(d, v, safe_radius)
     vectors: dict[str, dict[int, Any]] = {}
     for p in params:
         v = values[p.name]
@@ -458,11 +461,15 @@ HEARTBEAT = 10
 GRACE = 30
 
 
-def _sampler(settings: TuningSettings, constraints: bool, worker: int = 0) -> Any:
+def _sampler(settings: TuningSettings, constraints: bool, worker: int = 0, resumed: int = 0) -> Any:
+    """The sampler of one worker: seeded by the study's seed, the worker's number and ``resumed``
+    (the trials the storage already holds, and the run's number on the storage), so a resumed or
+    joining run draws new parameters instead of the first run's again; a fresh one-worker run is
+    reproducible."""
     import optuna
 
     cf = _constraints_of if constraints else None
-    seed = settings.seed + 7919 * worker
+    seed = settings.seed + 7919 * worker + 104729 * resumed
     if settings.sampler == "nsga2":
         pop = settings.population or min(50, max(8, settings.trials // 4))
         return optuna.samplers.NSGAIISampler(population_size=pop, seed=seed, constraints_func=cf)
@@ -492,7 +499,11 @@ class TrialEvaluator:
         spec = spec_from_params(self.base_spec, self.params, values, self.fixed, safe_radius=self.safe_radius)
         trial.set_user_attr("spec", spec)
         t0 = time.perf_counter()
-        per_case = self.evaluate(spec)
+        try:
+            per_case = self.evaluate(spec)
+        except Exception as exc:
+            trial.set_user_attr("error", f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}")
+            raise
         trial.set_user_attr("wall_time", time.perf_counter() - t0)
         reported = {name: item.value(per_case) for name, item in self.settings.reported()}
         trial.set_user_attr("kpis", reported)
@@ -501,6 +512,7 @@ class TrialEvaluator:
         trial.set_user_attr("constraints", cons)
         vals = [reported[o.kpi] for o in self.settings.objectives]
         if not all(math.isfinite(v) for v in vals):
+            trial.set_user_attr("error", f"no finite value of {[o.kpi for o in self.settings.objectives]}: {vals}")
             raise TuningError(f"a case gave no finite value of {[o.kpi for o in self.settings.objectives]}: {vals}")
         return vals if len(vals) > 1 else vals[0]
 
@@ -535,6 +547,36 @@ def _count(study: Any, states: Sequence[str]) -> int:
     return len(study.get_trials(deepcopy=False, states=tuple(TrialState[s] for s in states)))
 
 
+def _check_failures(study: Any, trials: int) -> None:
+    """Give up on a study whose trials keep failing (more failed than :func:`max_failures` allows):
+    a :class:`TuningError` naming the count and the last failure's reason."""
+    failed = [t for t in study.get_trials(deepcopy=False) if t.state.name == "FAIL"]
+    if len(failed) > max_failures(trials):
+        last = failed[-1]
+        why = last.user_attrs.get("error") or last.system_attrs.get("fail_reason", "no reason recorded")
+        raise TuningError(f"{study.study_name}: {len(failed)} trials failed (at most {max_failures(trials)} for "
+                          f"{trials} trials); the last (trial {last.number}): {why}")
+
+
+def max_failures(trials: int) -> int:
+    """Failed trials a study may have before it is given up: 10, or the budget if larger."""
+    return max(10, int(trials))
+
+
+class _GiveUp:
+    """A worker loop's callback: stop on too many failed trials (:func:`_check_failures`)."""
+
+    def __init__(self, n: int):
+        self.n = n
+
+    def __call__(self, study: Any, trial: Any) -> None:
+        if trial.state.name == "FAIL":
+            try:
+                _check_failures(study, self.n)
+            except TuningError:
+                study.stop()
+
+
 def run_worker(job: WorkerJob) -> int:
     """Run trials until ``job.trials`` trials of the study have finished (counted over every
     worker of the storage). A trial left running by a worker that died (killed, its machine
@@ -551,15 +593,19 @@ def run_worker(job: WorkerJob) -> int:
     warnings.filterwarnings("ignore", category=optuna.exceptions.ExperimentalWarning)
     storage = _storage(job.storage)
     ev = job.evaluator
+    probe = optuna.load_study(study_name=job.study_name, storage=storage)
+    held = len(probe.get_trials(deepcopy=False)) + 1000 * (int(probe.user_attrs.get("runs", 1)) - 1)
     study = optuna.load_study(study_name=job.study_name, storage=storage,
-                              sampler=_sampler(ev.settings, bool(ev.settings.constraints), job.worker))
+                              sampler=_sampler(ev.settings, bool(ev.settings.constraints), job.worker, held))
     before = _count(study, ("COMPLETE",))
     while _count(study, ("COMPLETE",)) < job.trials:
+        _check_failures(study, job.trials)
         if _count(study, ("COMPLETE", "RUNNING")) >= job.trials:
             optuna.storages.fail_stale_trials(study)   # a dead worker's trial: failed after its grace
             time.sleep(min(HEARTBEAT, 2.0))
             continue
-        study.optimize(ev, callbacks=[_Enough(job.trials)], catch=(Exception,), gc_after_trial=False)
+        study.optimize(ev, callbacks=[_Enough(job.trials), _GiveUp(job.trials)], catch=(Exception,),
+                       gc_after_trial=False)
     return _count(study, ("COMPLETE",)) - before
 
 
@@ -586,6 +632,8 @@ def create_study(storage_url: str, study_name: str, settings: TuningSettings, me
     sig = {"objectives": [o.label for o in settings.objectives], "constraints": [c.text for c in settings.constraints],
            **{k: v for k, v in meta.items()}}
     old = study.user_attrs.get("signature")
+    runs = int(study.user_attrs.get("runs", 0))
+    study.set_user_attr("runs", runs + 1)   # this run's number: its workers' seeds differ from other runs'
     if old is None:
         study.set_user_attr("signature", sig)
     elif old != sig:

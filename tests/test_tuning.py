@@ -1,0 +1,337 @@
+"""Controllers designed by optimisation (tapm tune): the tuner reaches a known optimum, fronts are
+fronts, the storage is the run's memory (kill -9, two runs on one storage), constraints bind,
+designs reproduce their KPIs, bad input is named."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tapm_opt.cli import main
+from tapm_opt.design.registry import ControllerKind, Dimension, register, unregister
+from tapm_opt.studies.tuning import (Constraint, Objective, TrialEvaluator, TrialRow, TuningError, TuningSettings,
+                                     dominates, front, hypervolume_2d, optimise, search_space, select,
+                                     tuning_settings)
+
+# -- a plant whose optimum is known: LQR ------------------------------------------------------
+#
+# x'' = -k x - c x' + u with u = -kp x - kd x' (a PD law, the form of the PID's position loop);
+# J = integral of (q x^2 + r u^2) dt from x(0) = 1 is x0' P x0 with P from the closed loop's
+# Lyapunov equation. LQR gives the optimal kp, kd and J.
+
+M_, K_, C_, Q_, R_ = 1.0, 0.2, 0.05, 1.0, 0.5
+
+
+def _cost(kp: float, kd: float) -> float:
+    from scipy.linalg import solve_continuous_lyapunov
+
+    A = np.array([[0.0, 1.0], [-(K_ + kp) / M_, -(C_ + kd) / M_]])
+    if np.max(np.linalg.eigvals(A).real) >= 0:
+        return 1e6
+    Kg = np.array([[kp, kd]])
+    Qc = np.diag([Q_, 0.0]) + R_ * Kg.T @ Kg
+    P = solve_continuous_lyapunov(A.T, -Qc)
+    return float(P[0, 0])
+
+
+def _lqr() -> tuple[np.ndarray, float]:
+    from scipy.linalg import solve_continuous_are
+
+    A = np.array([[0.0, 1.0], [-K_ / M_, -C_ / M_]])
+    B = np.array([[0.0], [1.0 / M_]])
+    P = solve_continuous_are(A, B, np.diag([Q_, 0.0]), np.array([[R_]]))
+    return (B.T @ P / R_).ravel(), float(P[0, 0])
+
+
+@dataclasses.dataclass(frozen=True)
+class PDOptions:
+    """A PD law on a unit mass (test kind)."""
+
+    kp: float = dataclasses.field(default=1.0, metadata={"doc": "stiffness", "unit": "N/m"})
+    kd: float = dataclasses.field(default=1.0, metadata={"doc": "damping", "unit": "N s/m"})
+
+
+PD_KIND = ControllerKind("pd_test", "PD law on a unit mass (test)", "PD", PDOptions, lambda s, o, c: None,
+                         {"kp": Dimension(0.01, 20.0, log=True), "kd": Dimension(0.01, 20.0, log=True)})
+
+
+def _lqr_evaluate(spec):   # the 'cases' of this plant: one, whose 'thrust_energy' is the quadratic cost J
+    return [{"thrust_energy": _cost(spec["kp"], spec["kd"])}]
+
+
+@pytest.fixture
+def pd_kind():
+    register(PD_KIND, replace=True)
+    yield PD_KIND
+    unregister("pd_test")
+
+
+def test_tuner_reaches_the_lqr_optimum(pd_kind, tmp_path):
+    k_opt, j_opt = _lqr()
+    settings = TuningSettings(objectives=(Objective.parse("thrust_energy"),), trials=60, seed=3)
+    params, fixed = search_space("pd_test", {})
+    ev = TrialEvaluator({"type": "pd_test"}, params, fixed, settings, _lqr_evaluate)
+    st = optimise(f"sqlite:///{tmp_path / 't.db'}", "lqr", ev, trials=60, workers=0)
+    best = st.best_trial
+    assert best.value <= 1.03 * j_opt, (best.value, j_opt)
+    assert best.value >= j_opt * (1 - 1e-9)   # nothing beats the optimum
+    assert best.params["kp"] == pytest.approx(k_opt[0], rel=0.35)
+    assert best.params["kd"] == pytest.approx(k_opt[1], rel=0.35)
+
+
+# -- fronts, selection, hypervolume ------------------------------------------------------------
+
+
+def _row(n, a, b, feasible=True, state="COMPLETE"):
+    return TrialRow("C", n, state, {"offset_max": a, "thrust_energy": b}, {}, {}, feasible, (a, b))
+
+
+def test_front_is_non_dominated_and_holds_every_non_dominated_feasible_trial():
+    rng = np.random.default_rng(1)
+    rows = [_row(i, *rng.uniform(0, 1, 2), feasible=bool(rng.uniform() > 0.2)) for i in range(200)]
+    rows += [_row(500, 0.0, 0.0, feasible=False), _row(501, 0.01, 0.01, state="FAIL")]
+    f = front(rows)
+    ok = [r for r in rows if r.feasible and r.state == "COMPLETE"]
+    assert f and all(r.feasible and r.state == "COMPLETE" for r in f)   # constraints respected
+    assert not any(dominates(a.objectives, b.objectives) for a in f for b in f)
+    for r in ok:   # every non-dominated feasible finished trial is on it
+        if not any(dominates(o.objectives, r.objectives) for o in ok):
+            assert r in f
+    assert 500 not in {r.number for r in f}   # infeasible, though it dominates everything
+
+
+def test_knee_and_rule_selection():
+    f = front([_row(0, 40.0, 10.0), _row(1, 45.0, 5.0), _row(2, 60.0, 4.5), _row(3, 41.0, 9.0)])
+    s = TuningSettings()
+    assert select(f, s).number == 1   # nearest the ideal point after scaling
+    rule = dataclasses.replace(s, select="min thrust_energy with offset_max <= 44")
+    assert select(f, rule).number == 3
+    assert select(f, dataclasses.replace(s, select="min thrust_energy with offset_max <= 10")) is None
+
+
+def test_hypervolume_2d_closed_form():
+    assert hypervolume_2d([(1.0, 1.0)], (3.0, 3.0)) == pytest.approx(4.0)
+    assert hypervolume_2d([(1.0, 2.0), (2.0, 1.0)], (3.0, 3.0)) == pytest.approx(3.0)
+    assert hypervolume_2d([(1.0, 2.0), (2.0, 1.0), (2.5, 2.5)], (3.0, 3.0)) == pytest.approx(3.0)   # dominated
+    assert hypervolume_2d([(4.0, 0.0)], (3.0, 3.0)) == 0.0
+
+
+# -- bad input ----------------------------------------------------------------------------------
+
+
+def test_bad_tuning_input_is_named():
+    with pytest.raises(TuningError, match=r"unknown KPI 'ofset_max'.*offset_max"):
+        tuning_settings({"objectives": ["ofset_max"]})
+    with pytest.raises(TuningError, match="no better direction"):
+        tuning_settings({"objectives": ["duration"]})
+    with pytest.raises(TuningError, match="must read like"):
+        Constraint.parse("time_outside_safe < 0")
+    with pytest.raises(TuningError, match=r"tuning.trials = 0"):
+        tuning_settings({"trials": 0})
+    with pytest.raises(TuningError, match=r"tuning.samplr: unknown key; did you mean 'sampler'"):
+        tuning_settings({"samplr": "tpe"})
+    with pytest.raises(TuningError, match=r"tune.w_thrst: 'w_thrst' is not an option of lmpc; did you mean 'w_thrust'"):
+        search_space("lmpc", {}, {"w_thrst": [1.0, 2.0]})
+    with pytest.raises(TuningError, match=r"empty or inverted range"):
+        search_space("lmpc", {}, {"w_thrust": [10.0, 1.0]})
+    with pytest.raises(TuningError, match=r"log scale, so low must be > 0"):
+        search_space("lmpc", {}, {"w_thrust": [0.0, 1.0]})
+    with pytest.raises(TuningError, match=r"polygon_sides has no search space"):
+        search_space("lmpc", {}, {"polygon_sides": [8, 16]})
+    assert Constraint.parse("riser_delta_min >= 2").violation(1.5) == pytest.approx(0.5)
+    assert Constraint.parse("time_outside_safe <= 0").violation(0.0) == 0.0
+
+
+def test_search_space_fixes_what_the_study_sets_and_narrows_what_tune_says():
+    params, fixed = search_space("lmpc", {"w_rate": 3.0}, {"w_thrust": [2.0, 20.0], "dead_band": 0.5})
+    names = {p.name for p in params}
+    assert "w_rate" not in names and "dead_band" not in names and fixed == {"dead_band": 0.5}
+    (w,) = [p for p in params if p.name == "w_thrust"]
+    assert (w.dim.low, w.dim.high, w.dim.log) == (2.0, 20.0, True)
+    pid, _ = search_space("pid", {})
+    assert {"periods[0]", "periods[1]", "periods[2]", "modes"} <= {p.name for p in pid}
+
+
+# -- the command, on a small study -------------------------------------------------------------
+
+STUDY = """
+[study]
+name = "t"
+scenario = "fpso"
+duration = {duration}
+segments = 4
+seeds = [1]
+
+[[sea_states]]
+id = "normal"
+
+[[controllers]]
+name = "PID"
+type = "pid"
+modes = "normal_restoring"
+tune = {{ damping = 0.8, integral_ratio = 0.1, periods = [150.0, 400.0] }}
+
+[tuning]
+trials = {trials}
+{extra}
+"""
+
+
+def _study(tmp_path, trials=3, duration=40.0, extra=""):
+    p = tmp_path / "study.toml"
+    p.write_text(STUDY.format(trials=trials, duration=duration, extra=extra))
+    return p
+
+
+def _complete(db: Path, name: str = "t/PID") -> list:
+    import optuna
+
+    st = optuna.load_study(study_name=name, storage=f"sqlite:///{db}")
+    return [t for t in st.get_trials(deepcopy=False) if t.state.name == "COMPLETE"]
+
+
+def test_tune_writes_fronts_and_a_design_that_reproduces_its_kpis(tmp_path, capsys):
+    p = _study(tmp_path, trials=3, extra='constraints = ["time_outside_safe <= 0"]\nverify_seeds = [5]')
+    out = tmp_path / "tune"
+    code = main(["tune", str(p), "--out", str(out), "--workers", "0"])
+    text = capsys.readouterr()
+    assert code == 0, text.err
+    assert "PID: 3/3 trials finished" in text.out
+    import csv
+
+    trials = list(csv.DictReader(open(out / "trials.csv")))
+    assert len(trials) == 3 and {"offset_max", "thrust_energy", "time_outside_safe", "params"} <= set(trials[0])
+    fr = list(csv.DictReader(open(out / "front.csv")))
+    assert fr and all(float(r["time_outside_safe"]) <= 0 for r in fr)
+    design = out / "tuned" / "PID.toml"
+    import tomllib
+
+    d = tomllib.loads(design.read_text())["design"]
+    assert d["controller"]["type"] == "pid" and len(d["controller"]["periods"]) == 3
+    verify = list(csv.DictReader(open(out / "verify.csv")))
+    assert {r["kpi"] for r in verify} >= {"offset_max", "thrust_energy"}
+    # the design in tapm simulate: the same case (sea state, seed, duration, segments) gives its KPIs
+    code = main(["simulate", "fpso", "--option", f"design={design}", "--sea-state", "normal", "--seed", "1",
+                 "--duration", "40", "--segments", "4", "--out", str(tmp_path / "sim")])
+    assert code == 0, capsys.readouterr().err
+    k = json.loads((tmp_path / "sim" / "summary.json").read_text())["kpis"]
+    assert k["offset_max"] == pytest.approx(d["kpis"]["offset_max"], rel=1e-9)
+    assert k["thrust_energy"] == pytest.approx(d["kpis"]["thrust_energy"], rel=1e-9)
+    # and from a study file
+    s2 = tmp_path / "s2.toml"
+    s2.write_text(textwrap.dedent(f"""
+        [study]
+        name = "d"
+        scenario = "fpso"
+        duration = 40.0
+        segments = 4
+        seeds = [1]
+        [[sea_states]]
+        id = "normal"
+        [[controllers]]
+        name = "tuned"
+        design = "{design}"
+    """))
+    code = main(["study", "run", str(s2), "--out", str(tmp_path / "s2"), "--workers", "0", "--no-progress"])
+    assert code == 0, capsys.readouterr().err
+    row = next(csv.DictReader(open(tmp_path / "s2" / "kpis.csv")))
+    assert float(row["offset_max"]) == pytest.approx(d["kpis"]["offset_max"], rel=1e-9)
+
+
+def test_a_constraint_no_trial_meets_is_said(tmp_path, capsys):
+    p = _study(tmp_path, trials=2, extra='constraints = ["offset_max <= 0.001"]')
+    code = main(["tune", str(p), "--out", str(tmp_path / "o"), "--workers", "0"])
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "no finished trial meets the constraints offset_max <= 0.001; no design written" in out
+    assert not (tmp_path / "o" / "tuned" / "PID.toml").exists()
+
+
+def test_bad_command_input_is_named(tmp_path, capsys):
+    p = _study(tmp_path, extra='objectives = ["offset_maxx"]')
+    assert main(["tune", str(p), "--out", str(tmp_path / "o")]) == 2
+    assert "unknown KPI 'offset_maxx'" in capsys.readouterr().err
+    p = _study(tmp_path)
+    assert main(["tune", str(p), "--out", str(tmp_path / "o"), "--storage", "nosuchdb://x/y"]) == 2
+    assert "--storage 'nosuchdb://x/y' cannot be opened" in capsys.readouterr().err
+    bad = tmp_path / "bad.toml"
+    bad.write_text(STUDY.format(trials=2, duration=40.0, extra="").replace("periods = [150.0, 400.0]",
+                                                                          "periods = [400.0, 150.0]"))
+    assert main(["tune", str(bad), "--out", str(tmp_path / "o2")]) == 2
+    assert "empty or inverted range" in capsys.readouterr().err
+
+
+def _tune_process(study: Path, out: Path, *extra: str) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "tapm_opt", "tune", str(study), "--out", str(out),
+                             "--workers", "0", *extra], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                            start_new_session=True)
+
+
+@pytest.mark.slow
+def test_kill_9_loses_no_finished_trial_and_repeats_none(tmp_path):
+    p = _study(tmp_path, trials=4, duration=60.0)
+    out = tmp_path / "o"
+    proc = _tune_process(p, out)
+    db = out / "tuning.db"
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < 300:
+        if db.exists():
+            try:
+                if len(_complete(db)) >= 2:
+                    break
+            except Exception:  # noqa: BLE001 - the study not created yet
+                pass
+        time.sleep(0.5)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    before = {t.number: (t.params, t.values) for t in _complete(db)}
+    assert 2 <= len(before) < 4
+    proc = _tune_process(p, out)
+    assert proc.wait(timeout=600) == 0, proc.stdout.read().decode()
+    after = {t.number: (t.params, t.values) for t in _complete(db)}
+    assert len(after) == 4
+    for n, pv in before.items():   # every finished trial kept, unchanged
+        assert after[n] == pv
+    params = [json.dumps(v[0], sort_keys=True) for v in after.values()]
+    assert len(set(params)) == len(params)   # none run twice
+
+
+@pytest.mark.slow
+def test_two_runs_on_one_storage_share_the_trials(tmp_path):
+    p = _study(tmp_path, trials=4, duration=60.0)
+    url = f"sqlite:///{tmp_path / 'shared.db'}"
+    a = _tune_process(p, tmp_path / "a", "--storage", url)
+    time.sleep(1.0)
+    b = _tune_process(p, tmp_path / "b", "--storage", url)
+    assert a.wait(timeout=600) == 0, a.stdout.read().decode()
+    assert b.wait(timeout=600) == 0, b.stdout.read().decode()
+    done = _complete(tmp_path / "shared.db")
+    assert len(done) == 4   # the budget once, not once per run
+    params = [json.dumps(t.params, sort_keys=True) for t in done]
+    assert len(set(params)) == 4   # the two runs drew different parameters
+    import csv
+
+    for d in ("a", "b"):
+        rows = [r for r in csv.DictReader(open(tmp_path / d / "trials.csv")) if r["state"] == "COMPLETE"]
+        assert len(rows) == 4
+
+
+def test_trials_that_keep_failing_end_the_run_with_the_reason(tmp_path, capsys):
+    p = tmp_path / "study.toml"
+    p.write_text(STUDY.format(trials=3, duration=20.0, extra="").replace(
+        "tune = {{ damping".replace("{{", "{"), "tune = { tau_limit = -1.0, damping"))
+    code = main(["tune", str(p), "--out", str(tmp_path / "o"), "--workers", "0"])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "t/PID: 11 trials failed (at most 10 for 3 trials); the last (trial 10): ControllerSpecError" in err
+    assert "tau_limit" in err
