@@ -631,6 +631,8 @@ def create_study(storage_url: str, study_name: str, settings: TuningSettings, me
                           f"{type(exc).__name__}: {exc}") from None
     sig = {"objectives": [o.label for o in settings.objectives], "constraints": [c.text for c in settings.constraints],
            **{k: v for k, v in meta.items()}}
+    if not study.metric_names:
+        study.set_metric_names([o.kpi for o in settings.objectives])   # the dashboard names the axes
     old = study.user_attrs.get("signature")
     runs = int(study.user_attrs.get("runs", 0))
     study.set_user_attr("runs", runs + 1)   # this run's number: its workers' seeds differ from other runs'
