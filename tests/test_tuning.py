@@ -218,6 +218,11 @@ def test_tune_writes_fronts_and_a_design_that_reproduces_its_kpis(tmp_path, caps
 
     d = tomllib.loads(design.read_text())["design"]
     assert d["controller"]["type"] == "pid" and len(d["controller"]["periods"]) == 3
+    code = main(["report", str(out)])   # the tuning report: the answer first
+    assert code == 0, capsys.readouterr().err
+    md = (out / "report.md").read_text()
+    assert md.startswith("# Tuning: t") and md.index("## The answer") < md.index("## The selected designs")
+    assert "Hypervolume" in md and (out / "report_files" / "tuning_fronts.png").stat().st_size > 1000
     verify = list(csv.DictReader(open(out / "verify.csv")))
     assert {r["kpi"] for r in verify} >= {"offset_max", "thrust_energy"}
     # the design in tapm simulate: the same case (sea state, seed, duration, segments) gives its KPIs
@@ -335,3 +340,15 @@ def test_trials_that_keep_failing_end_the_run_with_the_reason(tmp_path, capsys):
     assert code == 2
     assert "t/PID: 11 trials failed (at most 10 for 3 trials); the last (trial 10): ControllerSpecError" in err
     assert "tau_limit" in err
+
+
+def test_coverage_of_one_front_over_another():
+    from tapm_opt.report.tuning import coverage
+
+    pid = [(40.0, 10.0), (45.0, 8.0), (50.0, 5.0)]
+    mpc = [(40.3, 9.0), (45.0, 8.0), (60.0, 3.0)]
+    cv = coverage(mpc, pid, tol=0.5)
+    assert cv["covered"] == pytest.approx(2 / 3)           # 40.3 <= 40.5 with less energy; 45 equal
+    assert cv["savings"] == pytest.approx([0.1, 0.0])
+    assert cv["uncovered"] == [(50.0, 5.0)]                 # where the PID is better
+    assert coverage(pid, pid, tol=0.0)["covered"] == 1.0   # a front covers itself

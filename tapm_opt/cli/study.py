@@ -20,12 +20,17 @@ from ._common import check_issues, cli, load, out_path
 @click.option("--md", "out_md", type=click.Path(dir_okay=False), default=None, callback=out_path("file"),
               help="Markdown file (default DIR/report.md).")
 def report(study_dir: str, out_html: str | None, out_md: str | None) -> None:
-    """Write the HTML and Markdown report of the study results in DIR (saved results only)."""
+    """Write the HTML and Markdown report of the study results in DIR (saved results only); of a
+    tapm tune run, the controllers' fronts compared."""
     from ..report import write_report
+    from ..report.tuning import is_tuning_dir, write_tuning_report
 
     if not study_dir.strip():
         raise click.BadParameter(f"{study_dir!r} is empty: give the study directory", param_hint="DIR")
-    html, md = write_report(study_dir, out_html=out_html, out_md=out_md)
+    if is_tuning_dir(study_dir):   # a tapm tune run: the fronts compared
+        html, md = write_tuning_report(study_dir, out_html=out_html, out_md=out_md)
+    else:
+        html, md = write_report(study_dir, out_html=out_html, out_md=out_md)
     click.echo(f"wrote {html}")
     click.echo(f"wrote {md}")
 
