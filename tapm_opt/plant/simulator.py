@@ -33,6 +33,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
+from ._kernels import fem_kernel as _fem_kernel
 from .._checks import vector
 from ..geometry import rot_z
 from ..interfaces import Measurement, ThrusterCommand, Truth
@@ -429,19 +430,6 @@ class Plant:
             "events": [[t, e] for t, e in self.events],
             "tapm_opt_version": __version__,
         }
-
-
-def _fem_kernel():
-    """The compiled kernels' module (imported on first use: it imports numba)."""
-    global _FEM_KERNEL
-    if _FEM_KERNEL is None:
-        from . import fem_kernel
-
-        _FEM_KERNEL = fem_kernel
-    return _FEM_KERNEL
-
-
-_FEM_KERNEL: Any = None
 
 
 def _sea_state(scenario: Any, sea_state: Any):

@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from ._kernels import fem_kernel as _fem_kernel
 from ..config import schema
 from ..geometry import ssa
 from ..models.thrust import configuration_matrix
@@ -245,19 +246,6 @@ class ThrusterBank:
     def power(self) -> np.ndarray:
         """Shaft power of each thruster, ``k_i |f_i|^1.5``, shape (n,) [W] (module docstring)."""
         return self.limits.k_power * np.abs(self._f) ** 1.5
-
-
-def _fem_kernel():
-    """The compiled kernels' module (imported on first use: it imports numba)."""
-    global _FEM_KERNEL
-    if _FEM_KERNEL is None:
-        from . import fem_kernel
-
-        _FEM_KERNEL = fem_kernel
-    return _FEM_KERNEL
-
-
-_FEM_KERNEL: Any = None
 
 
 def _pos(name: str, v: Any) -> float:

@@ -28,7 +28,7 @@ import numpy as np
 
 from .._io import atomic_write_bytes, atomic_write_text
 from ..studies.kpi_catalogue import KPIS
-from ..studies.tuning import hypervolume_2d
+from ..studies.tuning import format_kpi, hypervolume_2d
 from .data import ReportError
 from .document import Cell, Fig, Heading, Para, Table, render_html, render_markdown
 
@@ -89,15 +89,6 @@ def coverage(a: Sequence[tuple[float, float]], b: Sequence[tuple[float, float]],
         else:
             uncovered.append(p)
     return {"covered": covered / len(b) if b else math.nan, "savings": savings, "uncovered": uncovered}
-
-
-def _fmt_value(name: str, v: float) -> str:
-    if not math.isfinite(v):
-        return "–"
-    unit = KPIS[name].unit if name in KPIS else ""
-    if unit == "J":
-        return f"{v / 3.6e9:.2f} MWh"
-    return f"{v:.3g} {unit}".strip() if unit not in ("", "-") else f"{v:.3g}"
 
 
 def _figure(points: dict, fronts: dict, selected: dict, held: dict, names: tuple[str, str]) -> bytes:
@@ -221,13 +212,13 @@ def _build(d: Path) -> tuple[list, list[Fig], str]:
                 txt += (f", {100 * np.median(sav):.1f} % less {n1} at the median (range {100 * min(sav):.1f} to "
                         f"{100 * max(sav):.1f} %)")
             if cv["uncovered"]:
-                where = ", ".join(f"{_fmt_value(n0, s0 * u[0])} / {_fmt_value(n1, s1 * u[1])}" for u in cv["uncovered"][:6])
+                where = ", ".join(f"{format_kpi(n0, s0 * u[0])} / {format_kpi(n1, s1 * u[1])}" for u in cv["uncovered"][:6])
                 txt += f"; {b} is better at {where}" + (" …" if len(cv["uncovered"]) > 6 else "")
             lines.append(txt + ".")
     for t in lines:
         blocks.append(Para(t))
     blocks.append(Para("Hypervolume of each front (" + f"{n0} × {n1}" + ", against the common reference "
-                       f"{_fmt_value(n0, s0 * ref[0])} / {_fmt_value(n1, s1 * ref[1])}; larger is better): "
+                       f"{format_kpi(n0, s0 * ref[0])} / {format_kpi(n1, s1 * ref[1])}; larger is better): "
                        + "; ".join(f"**{c}** {hv[c]:.4g} {u0}·{u1}".rstrip("·") for c in ctrls) + "."))
     png = _figure(points, fronts, selected, held, (n0, n1))
     figs.append(Fig("tuning_fronts", png, "Each controller's finished trials (faint), front (line; colour: time "
@@ -242,10 +233,10 @@ def _build(d: Path) -> tuple[list, list[Fig], str]:
         v = info["controllers"][c]
         k = v.get("kpis") or {}
         h = held.get(c) or {}
-        rows.append([Cell(c), Cell(str(v.get("selected", "–"))), Cell(_fmt_value(n0, _num(k.get(n0)))),
-                     Cell(_fmt_value(n1, _num(k.get(n1)))), Cell(_fmt_value("time_outside_safe",
+        rows.append([Cell(c), Cell(str(v.get("selected", "–"))), Cell(format_kpi(n0, _num(k.get(n0)))),
+                     Cell(format_kpi(n1, _num(k.get(n1)))), Cell(format_kpi("time_outside_safe",
                                                                             _num(k.get("time_outside_safe")))),
-                     Cell(_fmt_value(n0, _num(h.get(n0)))), Cell(_fmt_value(n1, _num(h.get(n1)))),
+                     Cell(format_kpi(n0, _num(h.get(n0)))), Cell(format_kpi(n1, _num(h.get(n1)))),
                      Cell(v.get("design", v.get("note", "–")), code=bool(v.get("design")))])
     blocks.append(Table(head, rows, ["l", "r", "r", "r", "r", "r", "r", "l"]))
     for c in ctrls:

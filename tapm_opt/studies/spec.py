@@ -402,7 +402,7 @@ def _parse_tuning(ck: Checker, data: Mapping) -> None:
     if not isinstance(data["tuning"], Mapping):
         ck.err("tuning", f"must be a table, got {type(data['tuning']).__name__}")
         return
-    from .tuning import TuningError, tuning_settings
+    from .tuning_space import TuningError, tuning_settings
 
     try:
         tuning_settings(data["tuning"])
@@ -429,7 +429,7 @@ def _embedded_design(ck: Checker, path: Any, base_dir: Path, where: str) -> dict
 
 def _check_tune(ck: Checker, kind: str, e: Mapping, p: str) -> None:
     """A controller's ``tune`` table (``tapm tune``: its search space narrowed or fixed)."""
-    from .tuning import TuningError, search_space
+    from .tuning_space import TuningError, search_space
 
     if not isinstance(e["tune"], Mapping):
         ck.err(f"{p}.tune", f"= {e['tune']!r} must be a table, e.g. tune = {{ w_thrust = [1.0, 100.0] }}")

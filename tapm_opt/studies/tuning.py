@@ -48,378 +48,16 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from .._io import atomic_write_text, toml_key, toml_value
-from ..design.registry import DESIGN_FORMAT, Dimension, kind as controller_kind
-from ..errors import TapmError
-from .kpi_catalogue import KPIS, UnknownKpiError, kpi as catalogue_kpi
+from ..design.registry import DESIGN_FORMAT, kind as controller_kind
+from .kpi_catalogue import KPIS
+from .tuning_space import (ALWAYS_REPORTED, DEFAULT_OBJECTIVES, SUMMED_KPIS, Constraint, Objective, Param,
+                           TuningError, TuningSettings, _num, parse_rule, search_space, spec_from_params,
+                           tuning_settings)
 
 __all__ = ["TuningError", "Objective", "Constraint", "TuningSettings", "Param", "tuning_settings", "search_space",
            "spec_from_params", "optimise", "front", "select", "dominates", "hypervolume_2d", "tune_study",
            "DEFAULT_OBJECTIVES", "ALWAYS_REPORTED", "SUMMED_KPIS", "load_trials", "TrialRow", "write_design",
-           "DESIGN_FORMAT"]
-
-#: The objectives when ``[tuning] objectives`` is not given: the turret's largest offset (worst over
-#: the cases) and the thrust energy (summed over the cases), both minimised.
-DEFAULT_OBJECTIVES = ("offset_max", "thrust_energy")
-#: KPIs that trials.csv and front.csv always carry (aggregated as an objective would be).
-ALWAYS_REPORTED = ("offset_max", "thrust_energy", "time_outside_safe")
-#: Extensive KPIs, aggregated over the cases by their sum (the others by their worst case).
-SUMMED_KPIS = frozenset({"thrust_energy", "fuel", "winch_energy", "time_outside_safe", "time_outside_alert"})
-#: Largest number of trials per controller a run may ask for.
-MAX_TRIALS = 100_000
-_AGGREGATES = ("max", "min", "sum", "mean")
-
-
-class TuningError(TapmError, ValueError):
-    """A tuning specification names an unknown KPI, parameter or storage, or a bad value."""
-
-
-# ------------------------------------------------------------------------------------------
-# objectives and constraints
-# ------------------------------------------------------------------------------------------
-
-
-def _catalogued(name: Any, where: str) -> Any:
-    if not isinstance(name, str):
-        raise TuningError(f"{where} = {name!r} must be the name of a KPI (docs/kpis.md)")
-    try:
-        k = catalogue_kpi(name)
-    except UnknownKpiError as exc:
-        raise TuningError(f"{where}: {exc}") from None
-    if k.kind == "text":
-        raise TuningError(f"{where} = {name!r} is a text KPI: it cannot be optimised")
-    return k
-
-
-def _default_aggregate(name: str, direction: str) -> str:
-    if name in SUMMED_KPIS:
-        return "sum"
-    return "min" if direction == "maximise" else "max"
-
-
-@dataclass(frozen=True)
-class Objective:
-    """A KPI aggregated over a controller's cases, minimised or maximised.
-
-    Attributes
-    ----------
-    kpi : str
-        A name of the KPI catalogue (``docs/kpis.md``).
-    direction : {"minimise", "maximise"}
-        The catalogue's direction (a KPI without one must be given it, ``maximise:name``).
-    aggregate : {"max", "min", "sum", "mean"}
-        Over the cases: the worst case by default, the sum for :data:`SUMMED_KPIS`.
-    """
-
-    kpi: str
-    direction: str
-    aggregate: str
-
-    @classmethod
-    def parse(cls, item: Any, where: str = "tuning.objectives") -> "Objective":
-        """From ``"offset_max"``, ``"sum(thrust_energy)"``, ``"maximise:delta_min"`` or
-        ``{kpi = ..., aggregate = ..., direction = ...}``."""
-        direction = aggregate = None
-        if isinstance(item, Mapping):
-            unknown = set(item) - {"kpi", "aggregate", "direction"}
-            if unknown:
-                raise TuningError(f"{where}.{sorted(unknown)[0]}: unknown key (kpi, aggregate, direction)")
-            name, aggregate, direction = item.get("kpi"), item.get("aggregate"), item.get("direction")
-        elif isinstance(item, str):
-            text = item.strip()
-            m = re.fullmatch(r"(minimise|maximise|minimize|maximize)\s*:\s*(.+)", text)
-            if m:
-                direction, text = m.group(1).replace("z", "s"), m.group(2).strip()
-            m = re.fullmatch(r"(\w+)\((\w[\w\[\]]*)\)", text)
-            if m:
-                aggregate, text = m.group(1), m.group(2)
-            name = text
-        else:
-            raise TuningError(f"{where} = {item!r} must be a KPI name, e.g. \"offset_max\" or \"sum(thrust_energy)\"")
-        k = _catalogued(name, where)
-        if direction is None:
-            direction = k.direction
-        if direction not in ("minimise", "maximise"):
-            raise TuningError(f"{where} = {name!r} has no better direction in the KPI catalogue: write "
-                              f"\"minimise:{name}\" or \"maximise:{name}\"")
-        if aggregate is None:
-            aggregate = _default_aggregate(k.name if k.per is None else name, direction)
-        if aggregate not in _AGGREGATES:
-            raise TuningError(f"{where}: aggregate {aggregate!r} is not one of {', '.join(_AGGREGATES)}")
-        return cls(kpi=name, direction=direction, aggregate=aggregate)
-
-    def value(self, per_case: Sequence[Mapping[str, float]]) -> float:
-        """The aggregate of the KPI over the cases' KPI dicts (NaN where a case lacks it)."""
-        return _aggregate(self.aggregate, [_num(k.get(self.kpi)) for k in per_case])
-
-    @property
-    def label(self) -> str:
-        return f"{self.aggregate}({self.kpi})"
-
-
-@dataclass(frozen=True)
-class Constraint:
-    """``aggregate(kpi) <= bound`` or ``>= bound`` over a controller's cases."""
-
-    kpi: str
-    op: str
-    bound: float
-    aggregate: str
-
-    @classmethod
-    def parse(cls, item: Any, where: str = "tuning.constraints") -> "Constraint":
-        """From ``"time_outside_safe <= 0"``, ``"riser_delta_min >= 2"`` or ``"sum(x) <= 1e9"``
-        (the aggregate: the worst case for the bound by default — the largest value under ``<=``,
-        the smallest under ``>=``)."""
-        if not isinstance(item, str):
-            raise TuningError(f"{where} = {item!r} must read like \"time_outside_safe <= 0\"")
-        m = re.fullmatch(r"\s*(?:(\w+)\()?\s*([\w\[\]]+)\s*\)?\s*(<=|>=)\s*([-+0-9.eE]+)\s*", item)
-        if not m:
-            raise TuningError(f"{where} = {item!r} must read like \"time_outside_safe <= 0\" (a KPI, <= or >=, "
-                              "a number)")
-        aggregate, name, op, num = m.groups()
-        _catalogued(name, where)
-        try:
-            bound = float(num)
-        except ValueError:
-            bound = math.nan
-        if not math.isfinite(bound):
-            raise TuningError(f"{where} = {item!r}: the bound {num!r} is not a finite number")
-        if aggregate is None:
-            aggregate = "max" if op == "<=" else "min"
-        if aggregate not in _AGGREGATES:
-            raise TuningError(f"{where}: aggregate {aggregate!r} is not one of {', '.join(_AGGREGATES)}")
-        return cls(kpi=name, op=op, bound=bound, aggregate=aggregate)
-
-    def value(self, per_case: Sequence[Mapping[str, float]]) -> float:
-        return _aggregate(self.aggregate, [_num(k.get(self.kpi)) for k in per_case])
-
-    def violation(self, value: float) -> float:
-        """How far ``value`` is outside the bound (<= 0: met; NaN counts as not met)."""
-        if not math.isfinite(value):
-            return math.inf
-        return value - self.bound if self.op == "<=" else self.bound - value
-
-    @property
-    def text(self) -> str:
-        return f"{self.kpi} {self.op} {self.bound:g}"
-
-
-def _num(v: Any) -> float:
-    try:
-        return float(v)
-    except (TypeError, ValueError):
-        return math.nan
-
-
-def _aggregate(how: str, values: Sequence[float]) -> float:
-    a = np.asarray(values, dtype=float)
-    if a.size == 0 or not np.all(np.isfinite(a)):
-        return math.nan
-    return float({"max": np.max, "min": np.min, "sum": np.sum, "mean": np.mean}[how](a))
-
-
-@dataclass(frozen=True)
-class TuningSettings:
-    """The ``[tuning]`` table of a study file.
-
-    Attributes
-    ----------
-    objectives : tuple of Objective
-        Default :data:`DEFAULT_OBJECTIVES`.
-    constraints : tuple of Constraint
-    trials : int
-        Finished trials per controller (``--trials`` overrides).
-    sampler : {"tpe", "nsga2"}
-        optuna's multi-objective TPE (default: it learns from few trials, which is what a
-        closed-loop case costs) or NSGA-II (populations of ``population`` trials).
-    population : int or None
-        NSGA-II's population (default ``min(50, max(8, trials // 4))``).
-    seed : int
-        The sampler's seed: one worker reproduces a run exactly; several interleave their trials
-        as they finish.
-    select : str
-        ``"knee"`` (default: the front point nearest the ideal point, each objective scaled to
-        [0, 1] over the front) or a rule ``"min KPI with KPI <= v [and KPI >= v ...]"``.
-    verify_seeds : tuple of int
-        Seeds the search never used, on which the selected designs are run again.
-    """
-
-    objectives: tuple[Objective, ...] = ()
-    constraints: tuple[Constraint, ...] = ()
-    trials: int = 30
-    sampler: str = "tpe"
-    population: int | None = None
-    seed: int = 0
-    select: str = "knee"
-    verify_seeds: tuple[int, ...] = ()
-
-    def __post_init__(self) -> None:
-        if not self.objectives:
-            object.__setattr__(self, "objectives", tuple(Objective.parse(o) for o in DEFAULT_OBJECTIVES))
-        names = [o.kpi for o in self.objectives]
-        if len(set(names)) != len(names):
-            raise TuningError(f"tuning.objectives = {names}: a KPI is named twice")
-        if not (isinstance(self.trials, int) and not isinstance(self.trials, bool) and 1 <= self.trials <= MAX_TRIALS):
-            raise TuningError(f"tuning.trials = {self.trials!r} must be a whole number from 1 to {MAX_TRIALS}")
-        if self.sampler not in ("tpe", "nsga2"):
-            raise TuningError(f"tuning.sampler = {self.sampler!r} is not one of tpe, nsga2")
-        if self.population is not None and not (isinstance(self.population, int) and self.population >= 2):
-            raise TuningError(f"tuning.population = {self.population!r} must be a whole number >= 2")
-        if not (isinstance(self.seed, int) and not isinstance(self.seed, bool) and self.seed >= 0):
-            raise TuningError(f"tuning.seed = {self.seed!r} must be a whole number >= 0")
-        _parse_rule(self.select, [o.kpi for o in self.objectives])
-        for s in self.verify_seeds:
-            if not (isinstance(s, int) and not isinstance(s, bool) and s >= 0):
-                raise TuningError(f"tuning.verify_seeds: {s!r} must be a whole number >= 0")
-
-    def reported(self) -> list[tuple[str, Any]]:
-        """``(column, Objective or Constraint)`` of every KPI written per trial: the objectives, the
-        constraints, then :data:`ALWAYS_REPORTED` not among them (aggregated as objectives)."""
-        cols: list[tuple[str, Any]] = [(o.kpi, o) for o in self.objectives]
-        for c in self.constraints:
-            if c.kpi not in dict(cols):
-                cols.append((c.kpi, c))
-        for name in ALWAYS_REPORTED:
-            if name not in dict(cols):
-                cols.append((name, Objective.parse(name)))
-        return cols
-
-
-def tuning_settings(table: Mapping[str, Any] | None, where: str = "tuning") -> TuningSettings:
-    """:class:`TuningSettings` from a study file's ``[tuning]`` table (every error names its key)."""
-    table = dict(table or {})
-    allowed = {f.name for f in dataclasses.fields(TuningSettings)}
-    for k in table:
-        if k not in allowed:
-            import difflib
-
-            hint = difflib.get_close_matches(k, sorted(allowed), n=1)
-            raise TuningError(f"{where}.{k}: unknown key" + (f"; did you mean {hint[0]!r}?" if hint else
-                                                              f"; allowed: {', '.join(sorted(allowed))}"))
-    objs = table.pop("objectives", None)
-    cons = table.pop("constraints", None)
-    if objs is not None and (not isinstance(objs, list) or not objs):
-        raise TuningError(f"{where}.objectives = {objs!r} must be a non-empty list of KPI names")
-    if cons is not None and not isinstance(cons, list):
-        raise TuningError(f"{where}.constraints = {cons!r} must be a list like [\"time_outside_safe <= 0\"]")
-    vs = table.pop("verify_seeds", ())
-    if not isinstance(vs, (list, tuple)):
-        raise TuningError(f"{where}.verify_seeds = {vs!r} must be a list of whole numbers")
-    return TuningSettings(
-        objectives=tuple(Objective.parse(o, f"{where}.objectives[{i}]") for i, o in enumerate(objs or ())),
-        constraints=tuple(Constraint.parse(c, f"{where}.constraints[{i}]") for i, c in enumerate(cons or ())),
-        verify_seeds=tuple(vs), **table)
-
-
-# ------------------------------------------------------------------------------------------
-# the search space
-# ------------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class Param:
-    """One sampled number of a trial: option ``option`` (component ``index`` of a vector option)."""
-
-    name: str
-    option: str
-    index: int | None
-    dim: Dimension
-
-
-def search_space(kind_name: str, base_spec: Mapping[str, Any], tune: Mapping[str, Any] | None = None,
-                 where: str = "controller") -> tuple[list[Param], dict[str, Any]]:
-    """The parameters to sample and the options fixed by ``tune``.
-
-    Starts from the kind's search space (:mod:`tapm_opt.design.registry`); an option the
-    controller's specification sets is fixed at that value. ``tune`` narrows or fixes: ``option =
-    [low, high]`` a narrower range (in the dimension's units: for ``dead_band`` a fraction of the
-    safe radius), ``option = value`` fixed, ``option = ["a", "b"]`` fewer choices.
-
-    Returns
-    -------
-    params : list of Param
-        One per sampled number (``periods`` is three: ``periods[0]`` ...).
-    fixed : dict
-        ``{option: value}`` fixed by ``tune`` (in the dimension's units, see :func:`spec_from_params`).
-    """
-    k = controller_kind(kind_name, where)
-    space = dict(k.search_space)
-    options = set(k.option_names())
-    fixed: dict[str, Any] = {}
-    for name, v in dict(tune or {}).items():
-        p = f"{where}.tune.{name}"
-        if name not in options:
-            import difflib
-
-            hint = difflib.get_close_matches(name, sorted(options), n=1)
-            raise TuningError(f"{p}: {name!r} is not an option of {k.name}" + (f"; did you mean {hint[0]!r}?"
-                                                                                 if hint else ""))
-        d = space.get(name)
-        if isinstance(v, list) and d is not None and d.choices is None:
-            if len(v) != 2 or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v):
-                raise TuningError(f"{p} = {v!r} must be a range [low, high] or one value")
-            lo, hi = float(v[0]), float(v[1])
-            if not (math.isfinite(lo) and math.isfinite(hi)) or lo > hi:
-                raise TuningError(f"{p} = {v!r} is an empty or inverted range: give [low, high] with low <= high")
-            if d.log and lo <= 0:
-                raise TuningError(f"{p} = {v!r}: {name} is searched on a log scale, so low must be > 0")
-            space[name] = dataclasses.replace(d, low=lo, high=hi)
-        elif isinstance(v, list) and d is not None and d.choices is not None:
-            bad = [x for x in v if x not in d.choices]
-            if not v or bad:
-                raise TuningError(f"{p} = {v!r}: choices must be among {', '.join(map(str, d.choices))}")
-            space[name] = dataclasses.replace(d, choices=tuple(v))
-        elif isinstance(v, list) and d is None:
-            raise TuningError(f"{p} = {v!r}: {name} has no search space in {k.name} (docs/controllers.md); fix it "
-                              "with one value")
-        else:
-            fixed[name] = v
-            space.pop(name, None)
-    for name in list(space):
-        if name in base_spec and name not in (tune or {}):
-            space.pop(name)   # the study sets it: fixed there
-    params: list[Param] = []
-    for name, d in space.items():
-        if d.size == 1:
-            params.append(Param(name, name, None, d))
-        else:
-            params += [Param(f"{name}[{i}]", name, i, d) for i in range(d.size)]
-    return params, fixed
-
-
-def _scaled(d: Dimension | None, v: Any, safe_radius: float | None) -> Any:
-    if d is not None and d.relative_to == "safe_radius" and isinstance(v, (int, float)):
-        if safe_radius is None:
-            raise TuningError(f"a value relative to the safe radius ({v!r}) needs a scenario with a safe radius")
-        return float(v) * float(safe_radius)
-    return v
-
-
-def spec_from_params(base_spec: Mapping[str, Any], params: Sequence[Param], values: Mapping[str, Any],
-                     fixed: Mapping[str, Any] | None = None, *, safe_radius: float | None = None) -> dict:
-    """The controller specification of a trial: ``base_spec`` with the fixed and sampled options
-    (vector options assembled from their components, relative ones scaled by ``safe_radius``)."""
-    spec = dict(base_spec)
-    kind_name = spec["type"]
-    space = controller_kind(kind_name).search_space
-    for name, v in dict(fixed or {}).items():
-        d = space.get(name)
-        if d is not None and d.size > 1 and isinstance(v, (int, float)) and not isinstance(v, bool):
-            v = [float(v)] * d.size   # one value for every component (e.g. the PID's three dampings)
-        spec[name] = _scaled(d, v, safe_radius)
-    vectors: dict[str, dict[int, Any]] = {}
-    for p in params:
-        v = values[p.name]
-        if p.dim.integer and p.dim.choices is None:
-            v = int(round(v))
-        if p.index is None:
-            spec[p.option] = _scaled(p.dim, v, safe_radius)
-        else:
-            vectors.setdefault(p.option, {})[p.index] = float(v)
-    for name, comp in vectors.items():
-        spec[name] = [comp[i] for i in sorted(comp)]
-    return spec
-
+           "DESIGN_FORMAT", "format_kpi"]
 
 def _suggest(trial: Any, p: Param) -> Any:
     d = p.dim
@@ -758,34 +396,12 @@ def front(rows: Sequence[TrialRow]) -> list[TrialRow]:
     return sorted(uniq.values(), key=lambda r: r.objectives)
 
 
-_RULE = re.compile(r"\s*(min|max)\s+([\w\[\]]+)(?:\s+with\s+(.+))?\s*$")
-
-
-def _parse_rule(rule: Any, objectives: Sequence[str]) -> tuple | None:
-    if rule == "knee":
-        return None
-    if not isinstance(rule, str):
-        raise TuningError(f"tuning.select = {rule!r} must be \"knee\" or a rule like \"min thrust_energy with "
-                          "offset_max <= 45\"")
-    m = _RULE.fullmatch(rule)
-    if not m:
-        raise TuningError(f"tuning.select = {rule!r} must be \"knee\" or read like \"min thrust_energy with "
-                          "offset_max <= 45\"")
-    how, target, conds = m.groups()
-    _catalogued(target, "tuning.select")
-    cs = []
-    for part in (conds.split(" and ") if conds else []):
-        c = Constraint.parse(part.strip(), "tuning.select")
-        cs.append(c)
-    return how, target, cs
-
-
 def select(rows_front: Sequence[TrialRow], settings: TuningSettings) -> TrialRow | None:
     """The design chosen from a front: the knee (the point nearest the ideal point with each
     objective scaled to [0, 1] over the front), or the rule of ``settings.select``."""
     if not rows_front:
         return None
-    rule = _parse_rule(settings.select, [o.kpi for o in settings.objectives])
+    rule = parse_rule(settings.select, [o.kpi for o in settings.objectives])
     if rule is None:
         F = np.array([r.objectives for r in rows_front], dtype=float)
         lo, hi = F.min(axis=0), F.max(axis=0)
@@ -961,7 +577,7 @@ def tune_study(path: str | Path, out_dir: str | Path, *, trials: int | None = No
             if f:
                 for o in settings.objectives:
                     vals = [r.values[o.kpi] for r in f]
-                    msg += f"; {o.kpi} {_fmt_kpi(o.kpi, min(vals))}-{_fmt_kpi(o.kpi, max(vals))}"
+                    msg += f"; {o.kpi} {format_kpi(o.kpi, min(vals))}-{format_kpi(o.kpi, max(vals))}"
             if msg != last[0]:
                 echo(msg)
                 last[0] = msg
@@ -992,7 +608,7 @@ def tune_study(path: str | Path, out_dir: str | Path, *, trials: int | None = No
             info["kpis"] = chosen.values
             info["spec"] = chosen.spec
             echo(f"  {cname}: selected trial {chosen.number}: "
-                 + ", ".join(f"{k} {_fmt_kpi(k, v)}" for k, v in chosen.values.items()) + f" -> {info['design']}")
+                 + ", ".join(f"{k} {format_kpi(k, v)}" for k, v in chosen.values.items()) + f" -> {info['design']}")
         summary["controllers"][cname] = info
     atomic_write_text(out / "trials.csv", _csv(all_rows, settings))
     atomic_write_text(out / "front.csv", _front_csv(fronts, settings))
@@ -1030,7 +646,7 @@ def _verify(study: Any, summary: Mapping[str, Any], settings: TuningSettings, ou
             t, h = _num(info["kpis"].get(name)), held[name]
             rows.append([cname, name, repr(t), repr(h), repr(h - t)])
         echo(f"  {cname} on held-out seeds {seeds}: " + ", ".join(
-            f"{k} {_fmt_kpi(k, v)} (tuning {_fmt_kpi(k, _num(info['kpis'].get(k)))})" for k, v in held.items()))
+            f"{k} {format_kpi(k, v)} (tuning {format_kpi(k, _num(info['kpis'].get(k)))})" for k, v in held.items()))
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(["controller", "kpi", "tuning", "held_out", "gap"])
@@ -1062,7 +678,8 @@ def _file_name(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", name).strip("._") or "controller"
 
 
-def _fmt_kpi(name: str, v: float) -> str:
+def format_kpi(name: str, v: float) -> str:
+    """A KPI value with its unit for the console and reports (energy in MWh)."""
     if not math.isfinite(v):
         return "nan"
     unit = KPIS[name].unit if name in KPIS else ""
