@@ -236,7 +236,7 @@ def test_study_files_take_the_linear_mpc_qp_solver(fpso, tmp_path):
     study = load_study(path)
     assert [c for c in study.cases if c.labels["controller"] == "L"][0].inputs["controller"]["qp_solver"] == "daqp"
     for body, message in (('type = "lmpc"\nqp_solver = "qrqp"\n', "qp_solver = 'qrqp'"),
-                          ('type = "mpc"\nqp_solver = "daqp"\n', "needs solver = 'rti'")):
+                          ('type = "mpc"\nsolver = "sqp"\nqp_solver = "daqp"\n', "needs solver = 'rti'")):
         path.write_text(base + body)
         with pytest.raises(Exception, match=message.replace("[", r"\[").replace("]", r"\]")):
             load_study(path)
@@ -329,4 +329,5 @@ def test_rti_with_daqp_failure_falls_back_and_bad_options(fpso, monkeypatch):
     rti = build_controller(fpso, {"type": "mpc", "horizon": 3, "solver": "rti", "qp_solver": "daqp"})
     assert rti.qp_solver == "daqp"
     with pytest.raises(ControllerSpecError, match="needs solver = 'rti'"):
-        build_controller(fpso, {"type": "mpc", "horizon": 3, "qp_solver": "daqp"})
+        build_controller(fpso, {"type": "mpc", "horizon": 3, "solver": "sqp", "qp_solver": "daqp"})
+    assert build_controller(fpso, {"type": "mpc", "horizon": 3, "qp_solver": "daqp"}).settings.solver == "rti"   # the default
