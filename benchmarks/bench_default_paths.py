@@ -36,8 +36,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _machine import machine_info  # noqa: E402
 
 #: Median of the reference QP [ms] on the machine whose figures docs/performance.md records
-#: (measured with this script, quiet machine).
-REFERENCE_QP_MS = 0.0155
+#: (measured with this script on the 2-core AMD EPYC machine, quiet: load average 0.6).
+REFERENCE_QP_MS = 0.0088
 
 PATHS = [
     ("mpc N=20 (default: RTI + DAQP)", {"type": "mpc"}),
