@@ -25,11 +25,6 @@ ROOT = pathlib.Path(__file__).resolve().parents[1] / "tapm_opt"
 #: (importer, imported) -> why the upward import is still there. An allowed edge is also left out
 #: of the cycle search (it closes a cycle with the import it points back along).
 ALLOWED_UPWARD: dict[tuple[str, str], str] = {
-    # studies/runner.py is edited elsewhere: write_study_capability computes the envelopes (design) and
-    # writes their figures (report); the study should store the CapabilityResult's data and report/ or
-    # cli/ draw it, or the function move to report/ (which may import studies and design)
-    ("tapm_opt.studies.runner", "tapm_opt.report.capability"):
-        "studies.runner.write_study_capability draws the capability plots; move the drawing to report/ or cli/",
 }
 #: (importer, defining module, name) -> why the private name is still imported.
 ALLOWED_PRIVATE: dict[tuple[str, str, str], str] = {

@@ -39,6 +39,11 @@ class MPCSettings:
     """Settings of :class:`NonlinearMPC` and :class:`LinearMPC` (weights are dimensionless: every
     term is normalised by the reference values below).
 
+    The defaults here are the formulation's neutral ones. The tuned defaults that ``tapm simulate``
+    and study files use (dead band, thrust and rate weights, fault tolerance, the fast solver
+    paths) are stated once, in the controller-kind registry: ``tapm_opt.design.build(system,
+    "lmpc")`` gives that controller (``docs/controllers.md``).
+
     Attributes
     ----------
     horizon : int

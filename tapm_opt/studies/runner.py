@@ -215,14 +215,14 @@ def _run_locked(study: Study, out: Path, workers: int | None, client: Any, progr
 
 def write_study_capability(study: Study, out_dir: str | Path, *, workers: int = 1) -> Path | None:
     """The capability envelopes a study's ``[capability]`` table asks for, of its scenario, into
-    ``DIR/capability`` (``capability.csv``, ``.json``, polar plots; :mod:`tapm_opt.design.capability`),
-    where the report finds them. Not recomputed when ``capability.json`` holds the same options
+    ``DIR/capability`` (``capability.csv`` and ``capability.json``, :mod:`tapm_opt.design.capability`),
+    where the report finds them and draws their figures (the study writes data, the report draws). Not recomputed when ``capability.json`` holds the same options
     and scenario, computed by the same version. Returns the folder (None when the study asks for none)."""
     import json
 
     from ..config import scenario_from_dict
+    from .._io import atomic_write_text
     from ..design.capability import capability
-    from ..report.capability import write_capability
 
     if study.capability is None or study.scenario is None:
         return None
@@ -238,7 +238,9 @@ def write_study_capability(study: Study, out_dir: str | Path, *, workers: int = 
         return d
     res = capability(scenario_from_dict(study.scenario, source=f"study {study.name}"),
                      {**study.capability, "workers": workers})
-    write_capability(res, d)
+    d.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(d / "capability.csv", res.csv_text())
+    atomic_write_text(d / "capability.json", json.dumps(res.as_json(), indent=1, allow_nan=False) + "\n")
     store.write_json(d / "study_capability.json", stamp)
     return d
 
