@@ -352,3 +352,18 @@ def test_coverage_of_one_front_over_another():
     assert cv["savings"] == pytest.approx([0.1, 0.0])
     assert cv["uncovered"] == [(50.0, 5.0)]                 # where the PID is better
     assert coverage(pid, pid, tol=0.0)["covered"] == 1.0   # a front covers itself
+
+
+@pytest.mark.slow
+def test_trials_run_on_a_dask_cluster(tmp_path):
+    """--scheduler: the workers' trial loops run as tasks on the cluster, on the same storage."""
+    distributed = pytest.importorskip("distributed")
+    from tapm_opt.studies.tuning import tune_study
+
+    p = _study(tmp_path, trials=3, duration=30.0)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cl:
+        summary = tune_study(p, tmp_path / "o", workers=2, scheduler=cl.scheduler_address, echo=lambda s: None,
+                             poll=0.5)
+    assert summary["controllers"]["PID"]["complete"] == 3
+    assert len(_complete(tmp_path / "o" / "tuning.db")) == 3
+    assert (tmp_path / "o" / "tuned" / "PID.toml").is_file()
