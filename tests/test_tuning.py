@@ -367,3 +367,56 @@ def test_trials_run_on_a_dask_cluster(tmp_path):
     assert summary["controllers"]["PID"]["complete"] == 3
     assert len(_complete(tmp_path / "o" / "tuning.db")) == 3
     assert (tmp_path / "o" / "tuned" / "PID.toml").is_file()
+
+
+@pytest.mark.slow
+def test_pid_tuned_per_sea_state_and_condition_becomes_a_gain_table_that_drives_the_loop(tmp_path, capsys):
+    p = tmp_path / "per.toml"
+    p.write_text(textwrap.dedent("""
+        [study]
+        name = "per"
+        scenario = "fpso"
+        duration = 20.0
+        segments = 4
+        seeds = [1]
+        [[sea_states]]
+        id = "calm"
+        [[sea_states]]
+        id = "normal"
+        [[controllers]]
+        name = "PID"
+        type = "pid"
+        modes = "normal_restoring"
+        tune = { damping = 0.8 }
+        [[conditions]]
+        name = "intact"
+        [[conditions]]
+        line_break = { line = "1", time = 0.0 }
+        [tuning]
+        trials = 3
+        per = ["sea_state", "condition"]
+    """))
+    out = tmp_path / "tune"
+    assert main(["tune", str(p), "--out", str(out), "--workers", "0"]) == 0, capsys.readouterr().err
+    info = json.loads((out / "tuning.json").read_text())
+    assert len(info["controllers"]) == 4   # one design per sea state and condition
+    from tapm_opt.studies.tuning import gain_designs
+
+    designs = gain_designs(out)
+    assert set(designs) == {("calm", "intact"), ("calm", "1"), ("normal", "intact"), ("normal", "1")}
+    assert main(["gains", "fpso", "--designs", str(out), "--out", str(tmp_path / "g")]) == 0
+    assert "4 with the tuned PID design" in capsys.readouterr().out
+    assert main(["gains", "fpso", "--sea-states", "calm,normal", "--broken", "1", "--out", str(tmp_path / "g0")]) == 0
+    tuned = json.loads((tmp_path / "g" / "gains.json").read_text())["rows"]
+    plain = {(r["condition"]["sea_state"], r["condition"]["broken"]): r
+             for r in json.loads((tmp_path / "g0" / "gains.json").read_text())["rows"]}
+    for r in tuned:
+        key = (r["condition"]["sea_state"], r["condition"]["broken"])
+        np.testing.assert_allclose(r["pid"]["periods"], designs[key]["periods"], rtol=1e-12)
+        assert not np.allclose(r["pid"]["Kp"], plain[key]["pid"]["Kp"])   # the tuned design, not the class's
+    capsys.readouterr()
+    code = main(["simulate", "fpso", "--controller", "pid", "--option", f"gain_table={tmp_path / 'g' / 'gains.json'}",
+                 "--sea-state", "normal", "--duration", "60", "--segments", "4", "--out", str(tmp_path / "sim")])
+    assert code == 0, capsys.readouterr().err
+    k = json.loads((tmp_path / "sim" / "summary.json").read_text())["kpis"]
+    assert 0.0 < k["offset_max"] < 50.0

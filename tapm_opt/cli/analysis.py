@@ -261,12 +261,18 @@ def setpoint(scenario_name: str, sea_state: str, method: str, broken: str, headi
               help="'each' (intact plus every single line broken), 'none' (intact only), or line ids, comma-separated.")
 @click.option("--headings", default="0", show_default=True,
               help="Headings [deg], comma-separated; 'weathervane' adds the heading where the mean load has no yaw moment.")
-def gains(scenario_name: str, out_dir: str, sea_states: str | None, broken: str, headings: str) -> None:
+@click.option("--designs", default=None, metavar="TUNE_DIR",
+              help="A tapm tune run that tuned a PID per sea state and mooring condition ([tuning] per = "
+                   "[\"sea_state\", \"condition\"]): those conditions take its tuned design (docs/tuning.md).")
+def gains(scenario_name: str, out_dir: str, sea_states: str | None, broken: str, headings: str,
+          designs: str | None) -> None:
     """Gain tables of SCENARIO: PID (pole placement) and LQR gains per condition.
 
     A condition is a sea-state class x mooring intact or one line broken x heading; each is
     linearised at the offset equilibrium under that condition's mean environmental load. Every row
-    records closed-loop poles, natural periods, damping ratios and stability margins.
+    records closed-loop poles, natural periods, damping ratios and stability margins. With
+    --designs, the PID of each sea state and mooring condition a tuning run tuned takes the tuned
+    periods, damping and integral ratio (the other conditions keep their class's design).
     """
     from ..design.gains import gain_table, write_gain_tables
 
@@ -304,10 +310,26 @@ def gains(scenario_name: str, out_dir: str, sea_states: str | None, broken: str,
             hs.append(math.radians(deg))
     if not hs:
         raise click.BadParameter(f"--headings = {headings!r} names no heading")
-    table = gain_table(sc, sea_states=ss, broken=br, headings=tuple(hs))
+    row_designs = None
+    if designs is not None:
+        from ..studies.tuning import gain_designs
+
+        row_designs = gain_designs(designs)
+        known = {s.id for s in sc.sea_states}
+        lost = sorted({k[0] for k in row_designs} - known)
+        if lost:
+            raise click.BadParameter(f"{designs!r} tuned sea states scenario {sc.name!r} lacks: {', '.join(lost)}",
+                                     param_hint="'--designs'")
+        if ss is None:
+            ss = sorted({k[0] for k in row_designs}, key=[s.id for s in sc.sea_states].index)
+        if broken == "each":
+            br = sorted({k[1] for k in row_designs} - {"intact"})
+    table = gain_table(sc, sea_states=ss, broken=br, headings=tuple(hs), row_designs=row_designs)
     paths = write_gain_tables(table, out_dir)
     n = len(table.rows)
     stable = sum(1 for r in table.rows if r.pid.stable)
-    click.echo(f"{sc.name}: {n} conditions, {stable} with a stable PID loop")
+    click.echo(f"{sc.name}: {n} conditions, {stable} with a stable PID loop"
+               + (f"; {sum((r.condition.sea_state, r.condition.broken) in row_designs for r in table.rows)} with "
+                  f"the tuned PID design" if row_designs else ""))
     for p in paths:
         click.echo(f"wrote {p}")

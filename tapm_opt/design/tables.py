@@ -372,7 +372,8 @@ def gain_table(scenario: Any, *, sea_states: Sequence[str] | None = None,
                headings: Sequence[float | str] = (0.0,), periods: Any = None, damping: Any = None,
                integral_ratio: Any = None, lqr_weights: Any = None, seed: int = 0,
                D_moor: Any = None, thrust_time_constant: float | None = None,
-               estimator_cutoff: float | None = ESTIMATOR_CUTOFF) -> GainTable:
+               estimator_cutoff: float | None = ESTIMATOR_CUTOFF,
+               row_designs: Mapping[tuple[str, str], Mapping[str, Any]] | None = None) -> GainTable:
     """PID and LQR gains for every (sea state, mooring state, heading) of a scenario.
 
     Parameters
@@ -409,6 +410,11 @@ def gain_table(scenario: Any, *, sea_states: Sequence[str] | None = None,
         loops; default :data:`~tapm_opt.design.margins.ESTIMATOR_CUTOFF`, that of
         :class:`~tapm_opt.estimation.lowpass.LowPassEstimator` (2 pi / 40 s); None: no filter
         (an ideal PID on the moored vessel then usually has an infinite gain margin).
+    row_designs : mapping (sea-state id, mooring state) -> mapping, optional
+        The PID design of particular conditions — ``periods``, ``damping``, ``integral_ratio``
+        (each optional) — in place of the class's: e.g. the designs ``tapm tune`` selected per sea
+        state and mooring condition (``[tuning] per``; ``tapm gains --designs``). The mooring state
+        is ``"intact"`` or a line id.
 
     Returns
     -------
@@ -471,10 +477,13 @@ def gain_table(scenario: Any, *, sea_states: Sequence[str] | None = None,
                     loads[psi] = mean_environmental_load(scenario, ss, psi, seed=seed)
                 cond = Condition(sea_state=ss.id, sea_class=cls, mode_set=CLASS_MODE_SETS[cls],
                                  broken=b, heading=psi, weathervane=wv)
+                own = dict((row_designs or {}).get((ss.id, b), {}))
                 rows.append(_design_condition(
-                    scenario, params, thrusters, cond, loads[psi], periods=per_T[cls],
-                    damping=per_z[cls], integral_ratio=per_r[cls], lqr=per_q[cls], lag=lag,
-                    D_moor=D_moor))
+                    scenario, params, thrusters, cond, loads[psi],
+                    periods=_vec("periods", own["periods"], positive=True) if "periods" in own else per_T[cls],
+                    damping=_vec("damping", own["damping"], positive=True) if "damping" in own else per_z[cls],
+                    integral_ratio=_ratio(own["integral_ratio"]) if "integral_ratio" in own else per_r[cls],
+                    lqr=per_q[cls], lag=lag, D_moor=D_moor))
     used = sorted(set(class_of.values()), key=SEA_CLASSES.index)
     meta = {
         "format": FORMAT,
@@ -489,6 +498,9 @@ def gain_table(scenario: Any, *, sea_states: Sequence[str] | None = None,
                        "lqr_nu_ref": per_q[c].nu_ref.tolist(),
                        "lqr_tau_ref": None if per_q[c].tau_ref is None else per_q[c].tau_ref.tolist(),
                        "lqr_tau_share": per_q[c].tau_share} for c in used},
+        "row_designs": {f"{k[0]}/{k[1]}": {n: (np.asarray(v, dtype=float).tolist() if n != "integral_ratio" else float(v))
+                                           for n, v in d.items() if n in ("periods", "damping", "integral_ratio")}
+                        for k, d in (row_designs or {}).items()},
         "lqr_capacity": {"model": "tau_ref = ThrusterSet.capacity_box(tau_share) = tau_share * "
                                   "max_tau (largest |X|, |Y|, |N| each attainable alone, LP)",
                          "max_tau": thrusters.max_tau().tolist()

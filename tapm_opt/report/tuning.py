@@ -200,8 +200,9 @@ def _build(d: Path) -> tuple[list, list[Fig], str]:
     lines = []
     for a in ctrls:
         for b in ctrls:
-            if a == b or not fp[a] or not fp[b]:
-                continue
+            ia, ib = info["controllers"][a], info["controllers"][b]
+            if a == b or not fp[a] or not fp[b] or (ia.get("group") or {}) != (ib.get("group") or {}):
+                continue   # fronts compare within a sea state and condition when the run was split by them
             cv = coverage(fp[a], fp[b], tol)
             if math.isnan(cv["covered"]):
                 continue

@@ -57,7 +57,7 @@ from .tuning_space import (ALWAYS_REPORTED, DEFAULT_OBJECTIVES, SUMMED_KPIS, Con
 __all__ = ["TuningError", "Objective", "Constraint", "TuningSettings", "Param", "tuning_settings", "search_space",
            "spec_from_params", "optimise", "front", "select", "dominates", "hypervolume_2d", "tune_study",
            "DEFAULT_OBJECTIVES", "ALWAYS_REPORTED", "SUMMED_KPIS", "load_trials", "TrialRow", "write_design",
-           "DESIGN_FORMAT", "format_kpi"]
+           "DESIGN_FORMAT", "format_kpi", "gain_designs"]
 
 def _suggest(trial: Any, p: Param) -> Any:
     d = p.dim
@@ -547,8 +547,9 @@ def tune_study(path: str | Path, out_dir: str | Path, *, trials: int | None = No
     fronts: dict[str, list[TrialRow]] = {}
     command = f"tapm tune {path.name} --out {out.name}"
     (out / "tuned").mkdir(exist_ok=True)
-    for ci, cname in enumerate(names):
-        cases = [c for c in study.cases if c.labels["controller"] == cname]
+    for ci, ctrl_name in enumerate(names):
+        cases = [c for c in study.cases if c.labels["controller"] == ctrl_name]
+        cname = ctrl_name
         base = dict(cases[0].inputs["controller"])
         sc_dict = cases[0].inputs["scenario"]
         safe_radius = (sc_dict.get("limits") or {}).get("safe_radius")
@@ -559,57 +560,61 @@ def tune_study(path: str | Path, out_dir: str | Path, *, trials: int | None = No
         if not params:
             raise TuningError(f"controller {cname!r}: nothing to tune (its study entry or tune table fixes every "
                               "option of its search space)")
-        runner = _CaseRunner([c.inputs for c in cases], [dict(c.labels) for c in cases])
-        ev = TrialEvaluator(base, params, fixed, settings, runner, safe_radius)
-        sname = f"{study.name}/{cname}"
-        echo(f"tuning {cname} ({base['type']}): {len(params)} parameters ({', '.join(p.name for p in params)}) on "
-             f"{len(cases)} case{'s' if len(cases) != 1 else ''}, {settings.trials} trials, {settings.sampler}")
-        meta = {"cases": sorted(c.id for c in cases), "params": [p.name for p in params]}
-        last = [None]
+        for gkey, gcases in _groups(cases, settings.per).items():
+            cname = ctrl_name if not settings.per else f"{ctrl_name} @ {', '.join(gkey)}"
+            cases = gcases
+            runner = _CaseRunner([c.inputs for c in cases], [dict(c.labels) for c in cases])
+            ev = TrialEvaluator(base, params, fixed, settings, runner, safe_radius)
+            sname = f"{study.name}/{cname}"
+            echo(f"tuning {cname} ({base['type']}): {len(params)} parameters ({', '.join(p.name for p in params)}) on "
+                 f"{len(cases)} case{'s' if len(cases) != 1 else ''}, {settings.trials} trials, {settings.sampler}")
+            meta = {"cases": sorted(c.id for c in cases), "params": [p.name for p in params]}
+            last = [None]
 
-        def progress(st: Any, cname: str = cname) -> None:
+            def progress(st: Any, cname: str = cname) -> None:
+                rows = load_trials(st, cname, settings)
+                done = sum(r.state == "COMPLETE" for r in rows)
+                failed = sum(r.state == "FAIL" for r in rows)
+                f = front(rows)
+                msg = (f"  {cname}: {done}/{settings.trials} trials finished" + (f", {failed} failed" if failed else "")
+                       + f"; front {len(f)} point{'s' if len(f) != 1 else ''}")
+                if f:
+                    for o in settings.objectives:
+                        vals = [r.values[o.kpi] for r in f]
+                        msg += f"; {o.kpi} {format_kpi(o.kpi, min(vals))}-{format_kpi(o.kpi, max(vals))}"
+                if msg != last[0]:
+                    echo(msg)
+                    last[0] = msg
+
+            st = optimise(url, sname, ev, trials=settings.trials, workers=workers, scheduler=scheduler, meta=meta,
+                          progress=progress, poll=poll)
             rows = load_trials(st, cname, settings)
-            done = sum(r.state == "COMPLETE" for r in rows)
-            failed = sum(r.state == "FAIL" for r in rows)
+            all_rows += rows
             f = front(rows)
-            msg = (f"  {cname}: {done}/{settings.trials} trials finished" + (f", {failed} failed" if failed else "")
-                   + f"; front {len(f)} point{'s' if len(f) != 1 else ''}")
-            if f:
-                for o in settings.objectives:
-                    vals = [r.values[o.kpi] for r in f]
-                    msg += f"; {o.kpi} {format_kpi(o.kpi, min(vals))}-{format_kpi(o.kpi, max(vals))}"
-            if msg != last[0]:
-                echo(msg)
-                last[0] = msg
-
-        st = optimise(url, sname, ev, trials=settings.trials, workers=workers, scheduler=scheduler, meta=meta,
-                      progress=progress, poll=poll)
-        rows = load_trials(st, cname, settings)
-        all_rows += rows
-        f = front(rows)
-        fronts[cname] = f
-        chosen = select(f, settings)
-        info: dict[str, Any] = {"type": base["type"], "complete": sum(r.state == "COMPLETE" for r in rows),
-                                "failed": sum(r.state == "FAIL" for r in rows), "front": [r.number for r in f],
-                                "feasible": sum(r.feasible for r in rows), "selected": None}
-        if not f:
-            why = ("no finished trial meets the constraints " + ", ".join(c.text for c in settings.constraints)
-                   if settings.constraints and info["complete"] else "no trial finished")
-            echo(f"  {cname}: {why}; no design written")
-            info["note"] = why
-        elif chosen is None:
-            echo(f"  {cname}: no front point meets the selection rule {settings.select!r}; no design written")
-            info["note"] = f"no front point meets {settings.select!r}"
-        else:
-            write_design(out / "tuned" / f"{_file_name(cname)}.toml", chosen, study=study.name,
-                         selected_by=settings.select, settings=settings, command=command)
-            info["selected"] = chosen.number
-            info["design"] = str(Path("tuned") / f"{_file_name(cname)}.toml")
-            info["kpis"] = chosen.values
-            info["spec"] = chosen.spec
-            echo(f"  {cname}: selected trial {chosen.number}: "
-                 + ", ".join(f"{k} {format_kpi(k, v)}" for k, v in chosen.values.items()) + f" -> {info['design']}")
-        summary["controllers"][cname] = info
+            fronts[cname] = f
+            chosen = select(f, settings)
+            info: dict[str, Any] = {"controller": ctrl_name, "group": dict(zip(settings.per, gkey)),
+                                    "broken": _broken_lines(cases[0]), "type": base["type"], "complete": sum(r.state == "COMPLETE" for r in rows),
+                                    "failed": sum(r.state == "FAIL" for r in rows), "front": [r.number for r in f],
+                                    "feasible": sum(r.feasible for r in rows), "selected": None}
+            if not f:
+                why = ("no finished trial meets the constraints " + ", ".join(c.text for c in settings.constraints)
+                       if settings.constraints and info["complete"] else "no trial finished")
+                echo(f"  {cname}: {why}; no design written")
+                info["note"] = why
+            elif chosen is None:
+                echo(f"  {cname}: no front point meets the selection rule {settings.select!r}; no design written")
+                info["note"] = f"no front point meets {settings.select!r}"
+            else:
+                write_design(out / "tuned" / f"{_file_name(cname)}.toml", chosen, study=study.name,
+                             selected_by=settings.select, settings=settings, command=command)
+                info["selected"] = chosen.number
+                info["design"] = str(Path("tuned") / f"{_file_name(cname)}.toml")
+                info["kpis"] = chosen.values
+                info["spec"] = chosen.spec
+                echo(f"  {cname}: selected trial {chosen.number}: "
+                     + ", ".join(f"{k} {format_kpi(k, v)}" for k, v in chosen.values.items()) + f" -> {info['design']}")
+            summary["controllers"][cname] = info
     atomic_write_text(out / "trials.csv", _csv(all_rows, settings))
     atomic_write_text(out / "front.csv", _front_csv(fronts, settings))
     if settings.verify_seeds:
@@ -628,7 +633,9 @@ def _verify(study: Any, summary: Mapping[str, Any], settings: TuningSettings, ou
     for cname, info in summary["controllers"].items():
         if info.get("spec") is None:
             continue
-        base_cases = [c for c in study.cases if c.labels["controller"] == cname]
+        group = info.get("group") or {}
+        base_cases = [c for c in study.cases if c.labels["controller"] == info.get("controller", cname)
+                      and all(str(c.labels[k]) == v for k, v in group.items())]
         used = sorted({int(c.labels["seed"]) for c in base_cases})
         overlap = sorted(set(used) & set(seeds))
         if overlap:
@@ -653,6 +660,53 @@ def _verify(study: Any, summary: Mapping[str, Any], settings: TuningSettings, ou
     w.writerows(rows)
     atomic_write_text(out / "verify.csv", buf.getvalue())
     return res
+
+
+def gain_designs(tune_dir: str | Path) -> dict[tuple[str, str], dict]:
+    """The PID designs a tuning run selected per sea state and mooring condition (``[tuning] per =
+    ["sea_state", "condition"]``), as ``design.tables.gain_table``'s ``row_designs``:
+    ``{(sea-state id, "intact" or the broken line): {"periods", "damping", "integral_ratio"}}``.
+
+    Raises
+    ------
+    TuningError
+        The folder holds no tuning run, or no PID design split by sea state (a condition that
+        breaks more than one line has no gain-table row and is left out).
+    """
+    d = Path(tune_dir)
+    try:
+        info = json.loads((d / "tuning.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise TuningError(f"{str(d)!r} holds no tuning run (tuning.json: {exc})") from None
+    out: dict[tuple[str, str], dict] = {}
+    for name, v in (info.get("controllers") or {}).items():
+        spec, group = v.get("spec"), v.get("group") or {}
+        if not spec or spec.get("type") != "pid" or "sea_state" not in group or len(v.get("broken", [])) > 1:
+            continue
+        broken = v["broken"][0] if v.get("broken") else "intact"
+        key = (str(group["sea_state"]), str(broken))
+        if key in out:
+            raise TuningError(f"{str(d)!r}: two PID designs for sea state {key[0]!r} with mooring state {key[1]!r} "
+                              f"(tune one PID per study for a gain table)")
+        out[key] = {k: spec[k] for k in ("periods", "damping", "integral_ratio") if k in spec}
+    if not out:
+        raise TuningError(f"{str(d)!r}: no PID design per sea state: tune a PID with [tuning] per = [\"sea_state\", "
+                          "\"condition\"]")
+    return out
+
+
+def _groups(cases: Sequence[Any], per: Sequence[str]) -> dict[tuple, list]:
+    """A controller's cases grouped by the labels of ``per`` (one group of all without)."""
+    out: dict[tuple, list] = {}
+    for c in cases:
+        out.setdefault(tuple(str(c.labels[k]) for k in per), []).append(c)
+    return out
+
+
+def _broken_lines(case: Any) -> list[str]:
+    """The lines a case's condition breaks (its scenario's line-break faults)."""
+    faults = (case.inputs.get("scenario") or {}).get("faults") or []
+    return [str(f["line"]) for f in faults if f.get("kind") == "line_break" and f.get("line") is not None]
 
 
 def _entry_name(e: Any, base_dir: Path) -> str | None:

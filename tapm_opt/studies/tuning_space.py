@@ -20,7 +20,7 @@ from ..errors import TapmError
 from .kpi_catalogue import UnknownKpiError, kpi as catalogue_kpi
 
 __all__ = ["TuningError", "Objective", "Constraint", "TuningSettings", "Param", "tuning_settings", "search_space",
-           "spec_from_params", "DEFAULT_OBJECTIVES", "ALWAYS_REPORTED", "SUMMED_KPIS", "MAX_TRIALS", "parse_rule"]
+           "spec_from_params", "DEFAULT_OBJECTIVES", "ALWAYS_REPORTED", "SUMMED_KPIS", "MAX_TRIALS", "parse_rule", "GROUP_LABELS"]
 
 #: The objectives when ``[tuning] objectives`` is not given: the turret's largest offset (worst over
 #: the cases) and the thrust energy (summed over the cases), both minimised.
@@ -29,6 +29,8 @@ DEFAULT_OBJECTIVES = ("offset_max", "thrust_energy")
 ALWAYS_REPORTED = ("offset_max", "thrust_energy", "time_outside_safe")
 #: Extensive KPIs, aggregated over the cases by their sum (the others by their worst case).
 SUMMED_KPIS = frozenset({"thrust_energy", "fuel", "winch_energy", "time_outside_safe", "time_outside_alert"})
+#: The case labels a tuning can be split by (``[tuning] per``).
+GROUP_LABELS = ("sea_state", "condition")
 #: Largest number of trials per controller a run may ask for.
 MAX_TRIALS = 100_000
 _AGGREGATES = ("max", "min", "sum", "mean")
@@ -207,6 +209,10 @@ class TuningSettings:
         [0, 1] over the front) or a rule ``"min KPI with KPI <= v [and KPI >= v ...]"``.
     verify_seeds : tuple of int
         Seeds the search never used, on which the selected designs are run again.
+    per : tuple of {"sea_state", "condition"}
+        Tune each controller separately for each sea state, each mooring condition, or each of
+        both (default: once over all the cases): a design per group, e.g. the PID's gains per sea
+        state and mooring condition for a gain table (``tapm gains --designs``).
     """
 
     objectives: tuple[Objective, ...] = ()
@@ -217,8 +223,13 @@ class TuningSettings:
     seed: int = 0
     select: str = "knee"
     verify_seeds: tuple[int, ...] = ()
+    per: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
+        per = (self.per,) if isinstance(self.per, str) else tuple(self.per)
+        if not all(p in GROUP_LABELS for p in per) or len(set(per)) != len(per):
+            raise TuningError(f"tuning.per = {self.per!r} must be a list of {', '.join(GROUP_LABELS)} (each once)")
+        object.__setattr__(self, "per", per)
         if not self.objectives:
             object.__setattr__(self, "objectives", tuple(Objective.parse(o) for o in DEFAULT_OBJECTIVES))
         names = [o.kpi for o in self.objectives]
@@ -267,13 +278,16 @@ def tuning_settings(table: Mapping[str, Any] | None, where: str = "tuning") -> T
         raise TuningError(f"{where}.objectives = {objs!r} must be a non-empty list of KPI names")
     if cons is not None and not isinstance(cons, list):
         raise TuningError(f"{where}.constraints = {cons!r} must be a list like [\"time_outside_safe <= 0\"]")
+    per = table.pop("per", ())
+    if not isinstance(per, (list, tuple, str)):
+        raise TuningError(f"{where}.per = {per!r} must be a list of {', '.join(GROUP_LABELS)}")
     vs = table.pop("verify_seeds", ())
     if not isinstance(vs, (list, tuple)):
         raise TuningError(f"{where}.verify_seeds = {vs!r} must be a list of whole numbers")
     return TuningSettings(
         objectives=tuple(Objective.parse(o, f"{where}.objectives[{i}]") for i, o in enumerate(objs or ())),
         constraints=tuple(Constraint.parse(c, f"{where}.constraints[{i}]") for i, c in enumerate(cons or ())),
-        verify_seeds=tuple(vs), **table)
+        verify_seeds=tuple(vs), per=(per,) if isinstance(per, str) else tuple(per), **table)
 
 
 # ------------------------------------------------------------------------------------------
