@@ -51,8 +51,8 @@ class MPCSettings:
     move_blocks : tuple of int or None
         Move blocking: the lengths, in prediction steps, of the blocks over which the thrust
         decision is held (they sum to ``horizon``), e.g. ``(1, 1, 2, 4, 8, 14)`` at N = 30; None
-        (default): a move at every step. The states, the soft constraints and the cost are still
-        predicted at every step; only the thrust is held, so the thrust polytope and its rate rows
+        (this class's default; the registry's is ``"auto"``): a move at every step. The states, the
+        soft constraints and the cost are still predicted at every step; only the thrust is held, so the thrust polytope and its rate rows
         are written once per block (the change between two blocks happens in one step, so it keeps
         the per-step rate limit). Fewer moves make a long horizon cheaper: at N = 50 with 8 blocks
         the QP has 24 thrust variables instead of 150 and 8 instead of 50 sets of polytope rows.
