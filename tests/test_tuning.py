@@ -420,3 +420,36 @@ def test_pid_tuned_per_sea_state_and_condition_becomes_a_gain_table_that_drives_
     assert code == 0, capsys.readouterr().err
     k = json.loads((tmp_path / "sim" / "summary.json").read_text())["kpis"]
     assert 0.0 < k["offset_max"] < 50.0
+
+
+def test_a_trial_drawing_parameters_already_run_is_pruned_not_run(pd_kind, tmp_path):
+    """Two runs that draw the same parameters (the same seed, joining at the same moment) do not
+    evaluate them twice: the second trial is pruned before it runs."""
+    calls = []
+
+    def evaluate(spec):
+        calls.append((spec["kp"], spec["kd"]))
+        return _lqr_evaluate(spec)
+
+    settings = TuningSettings(objectives=(Objective.parse("thrust_energy"),), trials=3, seed=1)
+    params, fixed = search_space("pd_test", {})
+    url = f"sqlite:///{tmp_path / 't.db'}"
+    from tapm_opt.studies.tuning import WorkerJob, create_study, run_worker
+
+    create_study(url, "dup", settings, {})
+    job = WorkerJob(url, "dup", TrialEvaluator({"type": "pd_test"}, params, fixed, settings, evaluate), trials=3)
+    run_worker(job)
+    first = list(calls)
+    import optuna
+
+    st = optuna.load_study(study_name="dup", storage=url)
+    job2 = dataclasses.replace(job, trials=4)
+    # the second run with the first run's seed and no offset draws trial 0's parameters again
+    from unittest import mock
+
+    with mock.patch("tapm_opt.studies.tuning._sampler", lambda *a, **k: optuna.samplers.RandomSampler(seed=1)):
+        run_worker(job2)
+    states = [t.state.name for t in st.get_trials()]
+    assert states.count("COMPLETE") == 4 and "PRUNED" in states
+    assert len(set(calls)) == len(calls)   # no parameter set evaluated twice
+    assert calls[:3] == first

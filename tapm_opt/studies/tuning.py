@@ -120,6 +120,17 @@ def _constraints_of(trial: Any) -> list[float]:
     return list(trial.user_attrs.get("constraints", []))
 
 
+def _skip_repeat(trial: Any, values: Mapping[str, Any]) -> None:
+    """Prune a trial whose parameters a finished or running trial of the study has already (two
+    runs joining one storage at the same moment may draw the same ones): it is not run twice."""
+    import optuna
+    from optuna.trial import TrialState
+
+    for t in trial.study.get_trials(deepcopy=False, states=(TrialState.COMPLETE, TrialState.RUNNING)):
+        if t.number != trial.number and t.params == dict(values):
+            raise optuna.TrialPruned(f"the same parameters as trial {t.number}")
+
+
 @dataclass
 class TrialEvaluator:
     """What a trial computes: ``evaluate(spec) -> list of per-case KPI dicts`` (picklable for the
@@ -134,6 +145,7 @@ class TrialEvaluator:
 
     def __call__(self, trial: Any) -> Any:
         values = {p.name: _suggest(trial, p) for p in self.params}
+        _skip_repeat(trial, values)
         spec = spec_from_params(self.base_spec, self.params, values, self.fixed, safe_radius=self.safe_radius)
         trial.set_user_attr("spec", spec)
         t0 = time.perf_counter()
