@@ -179,6 +179,26 @@ class WorkerJob:
     threads: int = 1
 
 
+class _Budgeted:
+    """The objective of a worker's loop: a trial runs only if fewer than ``n`` trials numbered
+    before it have finished or are running; else it is pruned before it runs. Trial numbers are
+    given out by the storage in order, so workers that start trials at the same moment cannot
+    both take the last place of the budget."""
+
+    def __init__(self, evaluator: Any, n: int):
+        self.evaluator, self.n = evaluator, n
+
+    def __call__(self, trial: Any) -> Any:
+        import optuna
+        from optuna.trial import TrialState
+
+        ahead = [t for t in trial.study.get_trials(deepcopy=False, states=(TrialState.COMPLETE, TrialState.RUNNING))
+                 if t.number < trial.number]
+        if len(ahead) >= self.n:
+            raise optuna.TrialPruned(f"the budget of {self.n} trials is taken by trials before it")
+        return self.evaluator(trial)
+
+
 class _Enough:
     """Stop a worker's loop once the finished trials and those still running elsewhere make
     ``n`` (so several workers do not overshoot the budget)."""
@@ -254,8 +274,8 @@ def run_worker(job: WorkerJob) -> int:
             optuna.storages.fail_stale_trials(study)   # a dead worker's trial: failed after its grace
             time.sleep(min(HEARTBEAT, 2.0))
             continue
-        study.optimize(ev, callbacks=[_Enough(job.trials), _GiveUp(job.trials)], catch=(Exception,),
-                       gc_after_trial=False)
+        study.optimize(_Budgeted(ev, job.trials), callbacks=[_Enough(job.trials), _GiveUp(job.trials)],
+                       catch=(Exception,), gc_after_trial=False)
     return _count(study, ("COMPLETE",)) - before
 
 
