@@ -170,11 +170,12 @@ def _print_headlines(out: Path, ids: list[str]) -> None:
     rows = [r for r in load_study_results(out) if r.id in ids and r.status == "finished"]
     if not rows:
         return
-    click.echo(f"  {'case':42s} {'offset max':>10} {'outside safe':>12} {'T/MBS max':>9} {'delta min':>9} {'energy':>10}")
+    click.echo(f"  {'case':42s} {'offset max':>10} {'outside safe':>12} {'T/MBS max':>9} {'lines δ min':>11} "
+               f"{'riser δ min':>11} {'energy':>10}")
     nan = float("nan")
     for r in rows:
         k, labels = r.kpis, r.labels
         name = terminal_text(f"{labels.get('controller')}, {labels.get('sea_state')}, {labels.get('condition')}")
         click.echo(f"  {name[:42]:42s} {k.get('offset_max', nan):8.1f} m {k.get('time_outside_safe', nan):10.0f} s "
-                   f"{k.get('util_max', nan):9.3f} {k.get('delta_min', nan):9.2f} "
-                   f"{k.get('thrust_energy', nan) / 3.6e9:6.2f} MWh")
+                   f"{k.get('util_max', nan):9.3f} {k.get('delta_min', nan):11.2f} "
+                   f"{k.get('riser_delta_min', nan):11.2f} {k.get('thrust_energy', nan) / 3.6e9:6.2f} MWh")
