@@ -46,6 +46,7 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
+from .._checks import is_number as _is_number
 from ..errors import TapmError
 from ..estimation import DEFAULT_ESTIMATOR
 from ..control.pid import MODE_SETS
@@ -331,10 +332,6 @@ def _normalise_pid(spec: Mapping[str, Any]) -> dict:
             v = float(v)
         out[k] = v
     return out
-
-
-def _is_number(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
 PID_SEARCH_SPACE = {

@@ -6,7 +6,7 @@ Every other place that needs a KPI fact reads it here: the KPI module's units an
 (:mod:`tapm_opt.report.kpi_tables`), and the tables of ``docs/kpis.md`` (checked against this one
 by ``tests/test_kpi_catalogue.py``). The full definitions are in ``docs/kpis.md``.
 
-KPIs built per scenario line (``T_max[3]``) have one *pattern* entry named with the placeholder
+KPIs built per scenario line (``T_max[3]``) have one *pattern* entry named with the line-id token
 ``<id>`` (``T_max[<id>]``, ``per="line"``); :func:`kpi` resolves a concrete name to it.
 
 This module imports the standard library only (and the package's error base class), so a
@@ -35,7 +35,7 @@ __all__ = ["KpiDef", "UnknownKpiError", "KPIS", "DIRECTIONS", "KINDS", "PER_LINE
 DIRECTIONS = ("minimise", "maximise", "none")
 #: Kinds of value: a real number, a count (an integer), a 0/1 flag, a text.
 KINDS = ("real", "count", "flag", "text")
-#: The placeholder of the line id in a per-line pattern entry's name.
+#: The token that stands for the line id in a per-line pattern entry's name.
 PER_LINE_ID = "<id>"
 
 _SIGN = {"minimise": -1, "maximise": 1, "none": 0}
@@ -64,7 +64,7 @@ class KpiDef:
     ----------
     name : str
         The KPI's name as written in ``kpis.json`` (``offset_max``), or for a per-line KPI its
-        pattern with the placeholder ``<id>`` (``T_max[<id>]``).
+        pattern with the line-id token ``<id>`` (``T_max[<id>]``).
     unit : str
         Unit as written in the docs and table headers: SI symbols (``"m"``, ``"s"``, ``"N"``,
         ``"J"``, ``"W"``, ``"kg"``), ``"deg"`` for angles, ``"lines"`` for a number of lines,

@@ -496,17 +496,9 @@ def write_design(path: Path, row: TrialRow, *, study: str, selected_by: str, set
     atomic_write_text(path, "\n".join(lines) + "\n")
 
 
-def _front_csv(fronts: Mapping[str, Sequence[TrialRow]], settings: TuningSettings) -> str:
-    return _csv([r for rows in fronts.values() for r in rows], settings)
-
-
 # ------------------------------------------------------------------------------------------
 # the whole job for a study file
 # ------------------------------------------------------------------------------------------
-
-
-def _case_kpis(inputs_list: Sequence[dict]) -> Callable[[dict], list]:
-    return _CaseRunner(list(inputs_list))
 
 
 @dataclass
@@ -552,18 +544,11 @@ def tune_study(path: str | Path, out_dir: str | Path, *, trials: int | None = No
         raise TuningError(f"{str(path)!r}: cannot read the study file: {exc.strerror or exc}") from None
     except tomllib.TOMLDecodeError as exc:
         raise TuningError(f"{str(path)!r}: not valid TOML: {exc}") from None
-    settings = tuning_settings(data.pop("tuning", None))
+    study = study_from_dict(data, base_dir=path.parent, source=str(path))   # checks [tuning] and tune too
+    settings = tuning_settings(data.get("tuning"))
     if trials is not None:
         settings = dataclasses.replace(settings, trials=int(trials))
-    tunes: dict[int, Any] = {}
-    for i, e in enumerate(data.get("controllers", []) if isinstance(data.get("controllers"), list) else []):
-        if isinstance(e, dict) and "tune" in e:
-            t = e.pop("tune")
-            if not isinstance(t, dict):
-                raise TuningError(f"controllers[{i}].tune = {t!r} must be a table, e.g. tune = {{ w_thrust = [1.0, "
-                                  "100.0] }}")
-            tunes[i] = t
-    study = study_from_dict(data, base_dir=path.parent, source=str(path))
+    tunes = {i: e["tune"] for i, e in enumerate(data.get("controllers", [])) if "tune" in e}
     names = list(dict.fromkeys(c.labels["controller"] for c in study.cases))
     entries = data.get("controllers", [])
     out.mkdir(parents=True, exist_ok=True)
@@ -573,7 +558,8 @@ def tune_study(path: str | Path, out_dir: str | Path, *, trials: int | None = No
                                             "constraints": [c.text for c in settings.constraints],
                                             "trials": settings.trials, "sampler": settings.sampler,
                                             "seed": settings.seed, "select": settings.select,
-                                            "verify_seeds": list(settings.verify_seeds)},
+                                            "verify_seeds": list(settings.verify_seeds),
+                                            "per": list(settings.per)},
                                "controllers": {}}
     all_rows: list[TrialRow] = []
     fronts: dict[str, list[TrialRow]] = {}
@@ -648,7 +634,7 @@ def tune_study(path: str | Path, out_dir: str | Path, *, trials: int | None = No
                      + ", ".join(f"{k} {format_kpi(k, v)}" for k, v in chosen.values.items()) + f" -> {info['design']}")
             summary["controllers"][cname] = info
     atomic_write_text(out / "trials.csv", _csv(all_rows, settings))
-    atomic_write_text(out / "front.csv", _front_csv(fronts, settings))
+    atomic_write_text(out / "front.csv", _csv([r for rows in fronts.values() for r in rows], settings))
     if settings.verify_seeds:
         summary["verify"] = _verify(study, summary, settings, out, echo)
     atomic_write_text(out / "tuning.json", json.dumps(summary, indent=2, default=float))
