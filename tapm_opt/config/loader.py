@@ -933,11 +933,9 @@ def read_toml(path: Path, error: type[ScenarioError] | Any) -> dict[str, Any]:
     """Parse a TOML file; every failure (unreadable, not UTF-8, malformed, nested too deeply for the
     parser) raises ``error`` with a one-line message naming the file."""
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")   # a byte-order mark (some Windows editors write one) skipped
     except (OSError, UnicodeDecodeError) as exc:
         raise error(f"cannot read {path}: {exc}", source=str(path)) from None
-    if text.startswith("\ufeff"):  # a UTF-8 byte-order mark (some Windows editors write one): not TOML, skipped
-        text = text[1:]
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

@@ -565,11 +565,8 @@ def _front_matter_max_strain(text: str) -> dict[str, tuple[float, int]]:
         if "---" in raw and _section_of(raw) is not None:
             break  # the front matter ends at the first section
         m = _FRONT_MATTER_TYPE.match(raw.strip())
-        if m:
-            try:
-                out[m.group(1)] = (float(m.group(2)), i)
-            except ValueError:
-                pass
+        if m:   # the pattern matches a float's text only
+            out[m.group(1)] = (float(m.group(2)), i)
     return out
 
 
@@ -626,8 +623,6 @@ def parse_moordyn(text: str, *, source: str = "") -> MoorDynModel:
     model = MoorDynModel(source=source, line_types=tuple(types), bodies=tuple(bodies), points=tuple(points),
                          lines=tuple(lines), options=options, notes=tuple(rd.notes),
                          max_strain=_front_matter_max_strain(text))
-    # options that must be numbers
-    model.gravity, model.water_density  # noqa: B018 - raise early on a bad value
     wd = model.option("wtrdpth", "depth", "waterdepth")
     if wd is not None:
         try:

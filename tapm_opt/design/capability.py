@@ -427,6 +427,14 @@ class CapabilityResult:
                 return c
         raise CapabilityError(f"case = {name!r} is not among {[c.name for c in self.cases]}")
 
+    def data_files(self) -> dict[str, bytes]:
+        """The computation's data files: ``capability.csv`` (:meth:`csv_text`) and
+        ``capability.json`` (:meth:`as_json`); the report draws its figures from the JSON."""
+        import json
+
+        return {"capability.csv": self.csv_text().encode("utf-8"),
+                "capability.json": (json.dumps(self.as_json(), indent=1, allow_nan=False) + "\n").encode("utf-8")}
+
     def csv_text(self) -> str:
         """``capability.csv``: one row per direction and reported case (:data:`CSV_COLUMNS`)."""
         rows = []

@@ -129,7 +129,12 @@ class CurrentProfile:
 
     def velocity(self, z: Any) -> np.ndarray:
         """Current velocity in {E} at depths ``z`` [m], shape ``z.shape + (3,)`` [m/s]; v_z = 0."""
-        return np.multiply.outer(self.factor(_array("z", z, "m", -math.inf)), self.surface)
+        return self.velocity_unchecked(_array("z", z, "m", -math.inf))
+
+    def velocity_unchecked(self, z: np.ndarray) -> np.ndarray:
+        """:meth:`velocity` for depths the caller has checked (a float array of finite depths [m]):
+        the FEM plant's every step, which checks its nodes' health itself."""
+        return np.multiply.outer(self.factor(z), self.surface)
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)

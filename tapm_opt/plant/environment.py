@@ -301,15 +301,21 @@ class Wind:
     def tau_wind(self, t: float, psi: float, nu: Any = None) -> np.ndarray:
         """Wind load (X [N], Y [N], N [N m]) in {B}, shape (3,), at time t [s], LF heading psi
         [rad] and vessel velocity nu = (u, v, r) in {B} [m/s, m/s, rad/s] (None: at rest)."""
-        V = self.speed(float(t))
+        t = float(t)
         psi = _num("psi", psi, unit="rad")
         if nu is None:
-            return self.hull.tau(V, self.direction, psi)
+            return self.hull.tau(self.speed(t), self.direction, psi)
         nu = np.asarray(nu, dtype=float)
         u_v_r = nu.tolist() if nu.shape == (3,) else None  # floats: the scalar path of HullWindLoad.tau
         if u_v_r is None or not all(map(math.isfinite, u_v_r)):
             raise PlantError(f"nu={nu.tolist()} must be 3 finite numbers (u, v, r) in {{B}}")
-        return self.hull.tau(V, self.direction, psi, u_v_r[0], u_v_r[1])
+        return self.tau_wind_unchecked(t, psi, u_v_r[0], u_v_r[1])
+
+    def tau_wind_unchecked(self, t: float, psi: float, u: float, v: float) -> np.ndarray:
+        """:meth:`tau_wind` for a finite float time t [s], heading psi [rad] and surge and sway
+        velocity u, v [m/s], without the checks of the arguments (the plant's outer step, on its
+        own checked state)."""
+        return self.hull.tau(self.speed(t), self.direction, psi, u, v)
 
 
 class Environment:
@@ -377,8 +383,7 @@ class Environment:
         """:meth:`loads` (wind, drift) for a finite float time t [s], heading psi [rad] and surge and
         sway velocity u, v [m/s] in {B}, without the checks of the arguments (the plant's outer
         step, on its own checked state): the same operations, the same numbers."""
-        wind = self.wind
-        return (wind.hull.tau(wind.speed(t), wind.direction, psi, u, v), self.waves.tau_drift(t, psi))
+        return self.wind.tau_wind_unchecked(t, psi, u, v), self.waves.tau_drift(t, psi)
 
     def loads(self, t: float, eta: Any, nu: Any = None) -> dict[str, np.ndarray]:
         """Environmental loads in {B} (survey eq. 9) at time t [s], LF pose eta (3,) [m, m, rad]

@@ -17,7 +17,6 @@ import numpy as np
 from ..errors import ModelError, TapmError
 from ..geometry import rot2_apply
 from ..models import catenary
-from ..models.environment import CurrentProfile
 from ..models.mooring import MooringModel
 from .fem import MAX_NODE_SPEED, FEMLines, LineSet, _as_f64
 
@@ -150,12 +149,7 @@ class MooringFEM:
             z = self.fem.r[:, 2]
             if not np.isfinite(z).all():
                 self.fem.check_health()
-            prof = getattr(self.current, "__self__", None)
-            if type(prof) is CurrentProfile and self.current.__func__ is CurrentProfile.velocity:
-                # CurrentProfile.velocity without its check of z (finite: checked above)
-                self._vc = np.multiply.outer(prof.factor(z), prof.surface)
-            else:
-                self._vc = self.current(z)
+            self._vc = self.current(z)
         return self._vc
 
     # -- set-up ----------------------------------------------------------------------------
@@ -244,7 +238,7 @@ class MooringFEM:
                 advice = (f"; a node this fast means the explicit FEM step is unstable for these lines (step "
                           f"{dt:.3g} s, {self.safety:g} of the stability limit). From the command line, other "
                           "segment counts (--segments, or the scenario's lines[].segments) change the step; from "
-                          "Python, a smaller safety factor (Simulator(..., safety=0.5)) shortens it")
+                          "Python, a smaller safety factor (tapm_opt.plant.Plant(..., safety=0.5)) shortens it")
             raise SettlingNotConverged(head + advice, info)
         fem.v[:] = 0.0
         fem.t = 0.0

@@ -110,7 +110,9 @@ class Plant:
         self.sea_state = ss
         self.env = Environment(scenario, ss, seed=ss_seed) if ss is not None else None
         self.wave_frequency = bool(wave_frequency) and self.env is not None and ss.Hs > 0
-        current = self.env.current_at if (self.env is not None and ss.current_speed > 0) else None
+        # the FEM checks its nodes' depths itself each step: the profile's unchecked velocity
+        current = (self.env.current.velocity_unchecked if (self.env is not None and ss.current_speed > 0)
+                   else None)
         self.mooring = MooringFEM(scenario, segments=segments, current=current, safety=safety,
                                   geometry=self.system.lines)
         self.thrusters = ThrusterBank.from_scenario(scenario)

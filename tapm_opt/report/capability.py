@@ -155,8 +155,7 @@ def capability_files(result: Any) -> dict[str, bytes]:
     ``capability.json``, ``capability.png`` (:func:`capability_figure`) and ``capability_cases.png``
     (:func:`cases_figure`)."""
     data = result.as_json()
-    return {"capability.csv": result.csv_text().encode("utf-8"),
-            "capability.json": (json.dumps(data, indent=1, allow_nan=False) + "\n").encode("utf-8"),
+    return {**result.data_files(),
             "capability.png": png_bytes(capability_figure(data)),
             "capability_cases.png": png_bytes(cases_figure(data))}
 

@@ -90,10 +90,13 @@ def _fmt_text(s: str) -> str:
 # Markdown rendering
 
 def _md_html(s: str) -> str:
-    """``&``, ``<`` and ``>`` as character references: text from the study (study, case and
-    condition names, descriptions, error messages) shows as written and never becomes HTML in
-    report.md, as report.html escapes it too."""
-    return s.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+    """``&``, ``<`` and ``>`` as character references outside code spans: text from the study
+    (study, case and condition names, descriptions, error messages) shows as written and never
+    becomes HTML in report.md, as report.html escapes it too; a code span shows its text as is."""
+    parts = s.split("`")   # odd parts are code spans (Markdown shows them verbatim): not escaped
+    if len(parts) % 2 == 0:   # an unpaired backtick is literal text: escape everything
+        return html.escape(s, quote=False)
+    return "`".join(p if i % 2 else html.escape(p, quote=False) for i, p in enumerate(parts))
 
 
 def _md_line(s: str) -> str:

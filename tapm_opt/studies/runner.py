@@ -221,7 +221,7 @@ def write_study_capability(study: Study, out_dir: str | Path, *, workers: int = 
     import json
 
     from ..config import scenario_from_dict
-    from .._io import atomic_write_text
+    from .._io import atomic_write_bytes
     from ..design.capability import capability
 
     if study.capability is None or study.scenario is None:
@@ -239,8 +239,8 @@ def write_study_capability(study: Study, out_dir: str | Path, *, workers: int = 
     res = capability(scenario_from_dict(study.scenario, source=f"study {study.name}"),
                      {**study.capability, "workers": workers})
     d.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(d / "capability.csv", res.csv_text())
-    atomic_write_text(d / "capability.json", json.dumps(res.as_json(), indent=1, allow_nan=False) + "\n")
+    for name, blob in res.data_files().items():
+        atomic_write_bytes(d / name, blob)
     store.write_json(d / "study_capability.json", stamp)
     return d
 

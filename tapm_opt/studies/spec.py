@@ -811,7 +811,7 @@ def load_study(path: str | Path) -> Study:
     """
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")   # a byte-order mark, as the scenario loader
     except FileNotFoundError:
         raise StudyError(f"no study file {path}") from None
     except (OSError, UnicodeDecodeError) as exc:
