@@ -1,5 +1,6 @@
-"""The compiled kernels' module, imported on first use (it imports numba, which takes a while):
-one lookup for the plant's modules."""
+"""The compiled kernels' module for the plant's per-step calls, imported on first use (it imports
+numba, which takes a while) and then kept, so a step does not run an import statement.
+Construction-time code (``fem.FEMLines``) imports the module itself, through ``sys.modules``."""
 
 from __future__ import annotations
 

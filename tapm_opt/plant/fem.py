@@ -210,9 +210,7 @@ class FEMLines:
             raise ModelError(f"kernel = {kernel!r} must be one of {', '.join(map(repr, KERNELS))}")
         self._kernel_fn = None
         if kernel == "numba":
-            from ._kernels import fem_kernel as _fem_kernel
-
-            fem_kernel = _fem_kernel()  # numba loads only when a compiled FEM is built
+            from . import fem_kernel  # imported here: numba loads only when a compiled FEM is built
 
             if fem_kernel.AVAILABLE:
                 self._kernel_fn = fem_kernel.advance
