@@ -102,6 +102,8 @@ class _MPCBase:
         self._failed: frozenset[str] = frozenset()
         self._bounds_changed = False
         self._prob: _Problem | None = None
+        self._shift_map: tuple[np.ndarray, _Problem] | None = None   # _shift's index map and its problem
+        self._n_p: tuple[int, _Problem] | None = None                  # the parameters' number and the problem
         self._z: np.ndarray | None = None
         self._u_prev: np.ndarray | None = None
         self.diagnostics: list[MPCStep] = []
@@ -140,20 +142,22 @@ class _MPCBase:
         characteristics at the centre pose, the thrust polytope and the dead band's radius
         (``_Problem.p_idx``)."""
         eta, nu = np.asarray(est.eta, float), np.asarray(est.nu, float)
-        if eta.shape != (3,) or nu.shape != (3,) or not (np.all(np.isfinite(eta)) and np.all(np.isfinite(nu))):
+        if eta.shape != (3,) or nu.shape != (3,) or not (_finite(eta) and _finite(nu)):
             raise MPCError(f"estimate eta = {eta.tolist()}, nu = {nu.tolist()} must be finite 3-vectors")
         if not (isinstance(est.t, (int, float, np.floating)) and math.isfinite(est.t)):
             raise MPCError(f"estimate t = {est.t!r} must be a finite time [s]")
         eta_d = np.asarray(sp.eta_d, float).copy()
         tau_env = np.asarray(est.tau_env, float)
         for name, v in (("estimate tau_env", tau_env), ("setpoint eta_d", eta_d)):
-            if v.shape != (3,) or not np.all(np.isfinite(v)):
+            if v.shape != (3,) or not _finite(v):
                 raise MPCError(f"{name} = {v.tolist()} must be a finite 3-vector")
         eta_d[2] = eta[2] + ssa(eta_d[2] - eta[2])  # heading setpoint unwrapped next to the heading
         tau_env_E = rot_z(eta[2]) @ tau_env
         b_E = self._load_in_prediction(float(est.t), tau_env_E)
         pi = self._prob.p_idx
-        p = np.zeros(self._prob.p.numel())
+        if self._n_p is None or self._n_p[1] is not self._prob:
+            self._n_p = (self._prob.p.numel(), self._prob)
+        p = np.zeros(self._n_p[0])
         if self._prob.n_poly:
             if self._poly is None:
                 self._poly = self._polytope()
@@ -326,7 +330,16 @@ class _MPCBase:
     def _shift(self, z: np.ndarray) -> np.ndarray:
         """The plan ``z`` one step on (the warm start and the fallback): states, thrust and slacks
         moved by a step, the last repeated; with move blocking each block takes the shifted plan's
-        thrust at its first step."""
+        thrust at its first step. A gather of ``z`` by the index map of :meth:`_shift_reference`
+        (the same numbers, built once per problem)."""
+        perm = self._shift_map
+        if perm is None or perm[1] is not self._prob:
+            perm = self._shift_map = (self._shift_reference(np.arange(self._prob.z.numel(), dtype=float))
+                                      .astype(np.int64), self._prob)
+        return z[perm[0]]
+
+    def _shift_reference(self, z: np.ndarray) -> np.ndarray:
+        """:meth:`_shift` written out (the reference its index map is taken from)."""
         prob, N = self._prob, self.settings.horizon
         idx = prob.idx
         out = z.copy()
@@ -368,15 +381,16 @@ class _MPCBase:
         u0 = U[0]
         self._u_prev = u0.copy()
         self.plan_u = U[self._prob.block_of]   # the thrust of every prediction step
-        soft = max(float(np.max(z[idx[k]], initial=0.0)) for k in ("S_safe", "S_T", "S_R"))
+        top = {k: float(np.max(z[idx[k]], initial=0.0)) for k in ("S_safe", "S_T", "S_R", "S_db")}
+        soft = max(top[k] for k in ("S_safe", "S_T", "S_R"))
         active = []
-        if float(np.max(z[idx["S_R"]], initial=0.0)) > 1e-4:
+        if top["S_R"] > 1e-4:
             active.append("riser")
-        if float(np.max(z[idx["S_safe"]], initial=0.0)) > 1e-4:
+        if top["S_safe"] > 1e-4:
             active.append("safe_circle")
-        if float(np.max(z[idx["S_T"]], initial=0.0)) > 1e-4:
+        if top["S_T"] > 1e-4:
             active.append("tension")
-        if float(np.max(z[idx["S_db"]], initial=0.0)) > 1e-4:
+        if top["S_db"] > 1e-4:
             active.append("dead_band")
         us = z[idx["U"]][:self._n_u]
         lo, hi = self._prob.lbz[idx["U"]][:self._n_u], self._prob.ubz[idx["U"]][:self._n_u]
@@ -568,6 +582,8 @@ class NonlinearMPC(_MPCBase):
         outs = [_nonzeros(H), _nonzeros(J_eq), _nonzeros(J_in), ca.gradient(prob.f, z), g_eq, g_in, prob.f]
         (self._gn_z, self._gn_p), self._gn_data, self._gn_eval = _buffered(ca.Function("gn_qp", [z, p], outs))
         self._f_fun = ca.Function("f", [z, p], [prob.f])
+        # the same function evaluated into numpy buffers (no conversion to DM per call)
+        (self._f_z, self._f_p), (self._f_out,), self._f_eval = _buffered(self._f_fun)
         self._b_eq = prob.lbg[eq]
         patterns = [(np.array(M.sparsity().row()), np.array(M.sparsity().colind())) for M in (H, J_eq, J_in)]
         self._daqp = CondensedDAQP(CondensedQP(prob, *patterns, lb_in=prob.lbg[~eq], ub_in=prob.ubg[~eq]),
@@ -620,8 +636,15 @@ class NonlinearMPC(_MPCBase):
         ok, status, it, dz = self._condensed_solve(self._gn_eval, Hx, Ax, Gx, q, self._b_eq, g_eq, g_in,
                                                    prob.lbz - z_lin, prob.ubz - z_lin, np.zeros(self._daqp.cq.nU))
         z = z_lin + dz
-        cost = float(self._f_fun(z, p)) if ok else math.nan
+        cost = self._cost_at(z, p) if ok else math.nan
         return self._finish(t, z, ok, self.RTI_STATUS if ok else status, time.perf_counter() - t0, it, cost)
+
+    def _cost_at(self, z: np.ndarray, p: np.ndarray) -> float:
+        """The NLP's cost at ``z`` with the parameters ``p`` (``self._f_fun(z, p)`` evaluated into
+        its buffers)."""
+        self._f_z[:], self._f_p[:] = z, p
+        self._f_eval()
+        return float(self._f_out[0])
 
     def _solve(self, t: float, p: np.ndarray) -> np.ndarray:
         prob = self._prob
@@ -891,6 +914,12 @@ def budgeted_dead_band(intact: Any, damaged: Any, b_E: Any, psi: float, r_damage
         mid = 0.5 * (lo + hi)
         lo, hi = (lo, mid) if excess(mid) <= 0.0 else (mid, hi)
     return hi
+
+
+def _finite(v: np.ndarray) -> bool:
+    """True when every element of the float array ``v`` is finite (the sum first: one float for the
+    usual case; a sum that overflows is checked element by element)."""
+    return math.isfinite(float(v.sum())) or bool(np.isfinite(v).all())
 
 
 def _low_pass_step(x_lf: np.ndarray | None, t_lf: float | None, x: Any, t: float, T: float) -> np.ndarray:

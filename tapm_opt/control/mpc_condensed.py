@@ -128,12 +128,33 @@ def _csr_rows_dot(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, row
         out[i] = s
 
 
+def _first_max_per_group(v: np.ndarray, starts: np.ndarray, counts: np.ndarray, out: np.ndarray) -> bool:
+    """``out[g]`` = index into ``v`` of the first largest value of group g (``v[starts[g]:starts[g] +
+    counts[g]]``, each group non-empty). False (``out`` partly written) when a group holds a NaN."""
+    for g in range(starts.shape[0]):
+        s = starts[g]
+        best = s
+        bv = v[s]
+        if bv != bv:
+            return False
+        for i in range(s + 1, s + counts[g]):
+            x = v[i]
+            if x != x:
+                return False
+            if x > bv:
+                bv = x
+                best = i
+        out[g] = best
+    return True
+
+
 _forward_unit_lower = jit(_forward_unit_lower)
 _scatter_columns = jit(_scatter_columns)
 _sym_matmul_cols = jit(_sym_matmul_cols)
 _quad_upper = jit(_quad_upper)
 _csr_rows_times = jit(_csr_rows_times)
 _csr_rows_dot = jit(_csr_rows_dot)
+_first_max_per_group = jit(_first_max_per_group)
 
 
 class CondensedQP:
@@ -232,6 +253,15 @@ class CondensedQP:
         soft = ~fixed & ((curv > 0) | (lin > 0))
         hard = (self.row_slack < 0) | np.isin(self.row_slack, cols[fixed])
         self.hard_rows = np.flatnonzero(hard)
+        # the hard rows' nonzeros (CSR positions); when none lies in a state's column, a hard row's
+        # condensed form is its coefficients on the moves, the same at every step with the same
+        # coefficients (``_rows_of_last_step``)
+        Rp = self._Rp
+        self._hard_nz = (np.concatenate([np.arange(Rp[r], Rp[r + 1]) for r in self.hard_rows]).astype(np.int64)
+                         if len(self.hard_rows) else np.zeros(0, np.int64))
+        self._hard_in_moves = bool(np.all(self._Ri[self._hard_nz] >= self.nX))
+        self._hard_vals: np.ndarray | None = None
+        self._hard_bounds = (self.ub_in[self.hard_rows], self.lb_in[self.hard_rows])
         self.groups = cols[soft]
         self._grp_curv, self._grp_lin = curv[soft], lin[soft]
         srows = np.flatnonzero(np.isin(self.row_slack, self.groups))
@@ -240,6 +270,7 @@ class CondensedQP:
         self._starts = np.flatnonzero(np.r_[True, np.diff(self.row_slack[order]) != 0]) if len(order) else \
             np.zeros(0, np.int64)
         self._counts = np.diff(np.r_[self._starts, len(order)])
+        self._first = np.zeros(len(self._starts), np.int64)
         nU, nh, ng = self.nU, len(self.hard_rows), len(self.groups)
         self.m = nh + ng
         self.A = np.zeros((self.m, nU))
@@ -297,10 +328,21 @@ class CondensedQP:
         self.bu[:nU], self.bl[:nU] = ubz[nX:nXU], lbz[nX:nXU]
         self.sense[:nU] = np.where(self.bu[:nU] <= self.bl[:nU], 5, 0)   # a failed thruster's DOF: held
         nh = len(self.hard_rows)
-        self._set_rows(self.hard_rows, 0)
+        if self._rows_of_last_step():
+            self._set_bounds(self.hard_rows, 0)
+        else:
+            self._set_rows(self.hard_rows, 0)
+            self._hard_vals = self._Gr_vals[self._hard_nz]
         if len(self._order):
             self.chosen[:] = self._largest(self._z_of(u_pred))
             self._set_rows(self.chosen, nh)
+
+    def _rows_of_last_step(self) -> bool:
+        """True when the hard rows' condensed form (``A[:nh]`` and its buffer) is that of the last
+        step: they lie in the moves only (the moves' part of ``T`` is the identity and a zero
+        constant, fixed) and their coefficients equal the last step's (a NaN never does)."""
+        return (self._hard_in_moves and self._hard_vals is not None
+                and np.array_equal(self._Gr_vals[self._hard_nz], self._hard_vals))
 
     def rechoose(self, u: np.ndarray, tol: float = 1e-7) -> bool:
         """Choose again, on the plan of the moves ``u``, the row of each soft group that plan
@@ -336,6 +378,8 @@ class CondensedQP:
         the largest)."""
         order = self._order
         v = self._excess(order, z, self._vals)
+        if _first_max_per_group(v, self._starts, self._counts, self._first):
+            return order[self._first]
         at_max = np.flatnonzero(v >= np.repeat(np.maximum.reduceat(v, self._starts), self._counts))
         group = np.searchsorted(self._starts, at_max, side="right") - 1
         return order[at_max[np.unique(group, return_index=True)[1]]]
@@ -346,9 +390,16 @@ class CondensedQP:
         AT = self._AT[at:at + k]
         _csr_rows_times(self._Rp, self._Ri, self._Gr_vals, rows, self.nXU, self._T, AT)
         self.A[at:at + k] = AT[:, :nU]
-        const = AT[:, nU] + self._g_in[rows]
-        self.bu[nU + at:nU + at + k] = np.minimum(self.ub_in[rows] - const, DAQP_INF)
-        self.bl[nU + at:nU + at + k] = np.maximum(self.lb_in[rows] - const, -DAQP_INF)
+        self._set_bounds(rows, at)
+
+    def _set_bounds(self, rows: np.ndarray, at: int) -> None:
+        """The DAQP bounds of the rows from ``at`` on, written by :meth:`_set_rows` for the sparse
+        QP's ``rows`` (their products with ``T`` in ``_AT``) and this step's row values."""
+        nU, k = self.nU, len(rows)
+        const = self._AT[at:at + k, nU] + self._g_in[rows]
+        ub, lb = self._hard_bounds if rows is self.hard_rows else (self.ub_in[rows], self.lb_in[rows])
+        np.minimum(ub - const, DAQP_INF, out=self.bu[nU + at:nU + at + k])
+        np.maximum(lb - const, -DAQP_INF, out=self.bl[nU + at:nU + at + k])
 
     def expand(self, u: np.ndarray) -> np.ndarray:
         """The sparse QP's variables of the condensed solution ``u``: the states of the prediction,
@@ -378,6 +429,11 @@ class CondensedDAQP:
     """
 
     def __init__(self, cq: CondensedQP, settings: dict, passes: int):
+        import daqp
+
+        from .allocation import DAQP_STATUS
+
+        self._daqp_module, self._status_names = daqp, DAQP_STATUS
         self.cq, self.settings, self.passes = cq, dict(settings), int(passes)
         self._model = None
         self._sense = b""
@@ -392,10 +448,7 @@ class CondensedDAQP:
         """Condense and solve (arguments of :meth:`CondensedQP.condense`). Returns ``(ok, status,
         iterations, z)``: ``z`` the sparse QP's variables of the plan (NaN when no solve succeeded),
         ``status`` DAQP's (``allocation.DAQP_STATUS`` names)."""
-        import daqp
-
-        from .allocation import DAQP_STATUS
-
+        daqp, DAQP_STATUS = self._daqp_module, self._status_names
         cq = self.cq
         cq.condense(Hx, Aeqx, Gx, q, b_eq, g_eq, g_in, lbz, ubz, u_pred=u_pred)
         sense = cq.sense.tobytes()
