@@ -44,6 +44,35 @@ def _time(t: Any) -> float | np.ndarray:
     return _array("t", t, "s", -math.inf) if np.ndim(t) else _num("t", t, unit="s")
 
 
+#: Most outer-step times of one block of precomputed wave and wind sums (:meth:`WaveField.block`,
+#: :meth:`Wind.block`): 512 steps of 0.1 s are 51.2 s of simulated time, (512, 200) work arrays.
+BLOCK_MAX = 512
+
+
+def _rotations(omega: np.ndarray, h: float, n: int, cache: dict) -> tuple[np.ndarray, np.ndarray]:
+    """``cos(omega j h)`` and ``sin(omega j h)`` for j = 0 .. n-1, each (n, N): the rotation of
+    every component over j steps of h [s]; cached per step length (the same for every block)."""
+    tab = cache.get(h)
+    if tab is None or tab[0].shape[0] < n:
+        if len(cache) >= 4:
+            cache.clear()
+        b = np.multiply.outer(np.arange(n) * h, omega)
+        tab = cache[h] = (np.cos(b), np.sin(b))
+    return tab[0][:n], tab[1][:n]
+
+
+def _block_trig(t0: float, h: float, n: int, omega: np.ndarray, phase: np.ndarray,
+                cache: dict) -> tuple[np.ndarray, np.ndarray]:
+    """``sin theta`` and ``cos theta``, each (n, N), of ``theta = omega t + phase`` at the times
+    ``t0 + j h`` [s], j < n, by the angle sums: ``theta_0 = omega t0 + phase`` (the scalar path's
+    phase) plus ``omega j h`` (:func:`_rotations`). As accurate as the direct sines (a few units in
+    the last place of the phase, which the direct ``omega t`` has too), without n N of them."""
+    th0 = t0 * omega + phase
+    s0, c0 = np.sin(th0), np.cos(th0)
+    cb, sb = _rotations(omega, h, n, cache)
+    return s0 * cb + c0 * sb, c0 * cb - s0 * sb
+
+
 def jonswap(omega: Any, Hs: float, Tp: float, gamma: float = 3.3) -> np.ndarray:
     """JONSWAP wave spectrum S(w) [m^2 s/rad], shape of ``omega``; DNV-RP-C205 §3.5.5.
 
@@ -173,6 +202,7 @@ class WaveField:
         self._dir_cache: tuple[float, Any] | None = None
         # work arrays of the scalar-time sums (theta, sin theta, cos theta), shape (N,)
         self._th, self._sin, self._cos = np.empty(N), np.empty(N), np.empty(N)
+        self._rot_cache: dict = {}  # rotation tables of the block sums, per step length
 
     def _sums(self, t: Any) -> tuple[np.ndarray, np.ndarray]:
         """(W_sin @ sin theta, W_cos @ cos theta), shapes (3, ...) and (4, ...); last t cached."""
@@ -188,6 +218,14 @@ class WaveField:
             return S, C
         th = t[..., None] * self.omega + self.phase
         return np.moveaxis(np.sin(th) @ self._Ws.T, -1, 0), np.moveaxis(np.cos(th) @ self._Wc.T, -1, 0)
+
+    def block(self, t0: float, h: float, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """The sums of :meth:`_sums` at the n times ``t0 + j h`` [s] (j < n) at once: ``(S (n, 3),
+        C (n, 4))`` — the plant's outer steps (:class:`tapm_opt.plant.simulator.Plant`), a block
+        at a time. The same sums as the scalar path to a few units in the last place of the
+        phases (:func:`_block_trig`; the sums in another order)."""
+        sin_th, cos_th = _block_trig(float(t0), float(h), int(n), self.omega, self.phase, self._rot_cache)
+        return sin_th @ self._Ws.T, cos_th @ self._Wc.T
 
     def _dirs(self, psi: float) -> tuple[float, float, float, np.ndarray]:
         """cos beta, sin beta, sin 2beta and the drift factor c(beta) (3,) at heading psi; cached."""
@@ -211,6 +249,14 @@ class WaveField:
         if np.ndim(xb) == 0:
             return np.array([c * xb - s * yb, s * xb + c * yb, z])
         return np.stack([c * xb - s * yb, s * xb + c * yb, z], axis=-1)
+
+    def _motion_of(self, S0: float, S1: float, C0: float, psi: float) -> np.ndarray:
+        """WF motion (3,) [m, m, rad] in {E} of :meth:`_motion` from its sums ``S[0], S[1], C[0]``
+        (floats, e.g. of :meth:`block`) at the finite float heading psi [rad]."""
+        cb, sb, s2b, _ = self._dirs(psi)
+        xb, yb, z = cb * S0, sb * S1, s2b * C0
+        c, s = math.cos(psi), math.sin(psi)
+        return np.array([c * xb - s * yb, s * xb + c * yb, z])
 
     def eta_wf(self, t: Any, psi: float) -> np.ndarray:
         """WF motion (x [m], y [m], psi [rad]) in {E} at LF heading psi [rad]; shape t.shape + (3,)."""
@@ -287,6 +333,7 @@ class Wind:
         self.mean_speed = self.U10 * (1.0 + 0.0573 * math.sqrt(1.0 + 0.148 * self.U10) * math.log(p.height / 10))
         self.hull = HullWindLoad(c_x=p.c_x, c_y=p.c_y, c_n=p.c_n, A_F=A_F, A_L=A_L, L_pp=L, rho_a=rho_a)
         self._th = np.empty(df.size)  # work array of the scalar-time speed (phase, then its cosine)
+        self._rot_cache: dict = {}  # rotation tables of the block speeds, per step length
 
     def speed(self, t: Any) -> Any:
         """Wind speed V(t) at the reference height [m/s], float or shape of ``t``."""
@@ -297,6 +344,13 @@ class Wind:
             th += self.phase
             return max(self.mean_speed + float(self.amplitude @ np.cos(th, out=th)), 0.0)
         return np.maximum(self.mean_speed + np.cos(t[..., None] * self._w + self.phase) @ self.amplitude, 0.0)
+
+    def block(self, t0: float, h: float, n: int) -> list[float]:
+        """:meth:`speed` [m/s] at the n times ``t0 + j h`` [s] (j < n) at once, as floats: the
+        plant's outer steps, a block at a time (the same speeds as the scalar path to a few units
+        in the last place of the phases, :func:`_block_trig`, the sum in another order)."""
+        _, cos_th = _block_trig(float(t0), float(h), int(n), self._w, self.phase, self._rot_cache)
+        return np.maximum(self.mean_speed + cos_th @ self.amplitude, 0.0).tolist()
 
     def tau_wind(self, t: float, psi: float, nu: Any = None) -> np.ndarray:
         """Wind load (X [N], Y [N], N [N m]) in {B}, shape (3,), at time t [s], LF heading psi

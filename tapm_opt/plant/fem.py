@@ -196,6 +196,7 @@ class FEMLines:
         self.r = np.zeros((self.n_nodes, 3))
         self.v = np.zeros((self.n_nodes, 3))
         self.t = 0.0
+        self._kc: tuple | None = None  # _kernel_constants
         self._update_lengths()
 
     @property
@@ -440,11 +441,17 @@ class FEMLines:
 
     def _kernel_constants(self) -> tuple:
         """The line constants, in the order the compiled kernels take them
-        (:func:`tapm_opt.plant.fem_kernel.advance`, from ``l0`` to ``attached``)."""
-        return (self.l0, self._EA, self._c_int, self.bond_ok, self.node_weight, self.node_mass,
+        (:func:`tapm_opt.plant.fem_kernel.advance`, from ``l0`` to ``attached``): one tuple, kept
+        while the lengths (:meth:`_update_lengths`, a new ``l0``) and the attached lines
+        (:meth:`break_line`, a new ``_attached``) stay."""
+        c = self._kc
+        if c is not None and c[0] is self.l0 and c[-1] is self._attached:
+            return c
+        c = self._kc = (self.l0, self._EA, self._c_int, self.bond_ok, self.node_weight, self.node_mass,
                 self._cdn_node, self._cdt_node, self._can_half, self._cat_half, self._kb, self._cb, self._mu,
                 float(self.depth), bool(self._has_int_damping), bool(self._has_friction),
                 self.anchor_idx, self.anchors, self.fairlead_idx, self._attached)
+        return c
 
     def _friction(self, v_new: np.ndarray, dt: float) -> None:
         """Coulomb seabed friction on the new velocities ``v_new`` (in place), applied implicitly.

@@ -15,7 +15,9 @@ has three more kernels, each the compiled counterpart of a numpy path it must ma
 (``tests/test_plant_speed_equivalence.py``): :func:`thruster_step` (``ThrusterBank.step`` and
 ``tau``), :func:`vessel_step` (the rich ``vessel_rhs`` and the semi-implicit Euler update) and
 :func:`mooring_step` (the fairlead path, :func:`advance`, the fairlead accelerations, the
-overload and health flags and the load on the vessel).
+overload and health flags and the load on the vessel); :func:`plant_pre_step` runs the rest of an
+outer step (thrusters, wind and drift loads, vessel, wave-frequency pose, riser angles, current
+at the nodes) in one call before :func:`mooring_step`.
 
 The per-line constants are passed as the arrays :class:`~tapm_opt.plant.fem.FEMLines` holds (no
 copies): a winch that changes the unstretched lengths (``FEMLines._update_lengths``) is seen by
@@ -36,7 +38,7 @@ import warnings
 
 import numpy as np
 
-__all__ = ["AVAILABLE", "advance", "thruster_step", "vessel_step", "mooring_step"]
+__all__ = ["AVAILABLE", "advance", "thruster_step", "vessel_step", "mooring_step", "plant_pre_step"]
 
 from .._jit import jit as _jit, numba_available
 
@@ -588,3 +590,168 @@ def mooring_step(pose0, pose1, rate_prev, h, n_sub, p_cot, p_T, turret_angle, lo
     F[2] = Nz
     tau = np.dot(_rot_z(psi).T, F)
     return r, v, T, r_fl, rate, a_fl, tau, near, suspect
+
+
+# -- the fused outer step ----------------------------------------------------------------------
+# Two calls per plant outer step (Plant._outer_step when its inputs allow, Plant._fused_step):
+# :func:`plant_pre_step` (the thrusters, the wind and drift loads from the block sums of the
+# environment, the vessel, the wave-frequency pose, the riser angles and the current at the
+# nodes), then :func:`mooring_step` (the lines). Each is the same floating-point operations as
+# the plant's numpy path (which calls the environment's and the riser's float paths,
+# ``HullWindLoad.tau``, ``WaveField._dirs``, ``CurrentProfile.factor``, ``RiserModel.angles_at``),
+# so that the two paths keep giving the same bits.
+
+#: Layout of the packed float output of :func:`plant_pre_step`: slices of eta, nu, eta_wf,
+#: tau_thr, tau_wind, tau_drift, the total poses at the start and the end of the step, the riser
+#: angles.
+OUT_ETA, OUT_NU, OUT_WF, OUT_THR, OUT_WIND, OUT_DRIFT, OUT_POSE0, OUT_POSE1, OUT_RISER = (
+    slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), slice(12, 15), slice(15, 18), slice(18, 21),
+    slice(21, 24), slice(24, 28))
+OUT_SIZE = 28
+
+#: Kinds of the current at the nodes of :func:`plant_pre_step`: held (none: ``vc`` untouched),
+#: uniform, linear, piecewise (``CurrentProfile.kind``).
+CURRENT_HELD, CURRENT_UNIFORM, CURRENT_LINEAR, CURRENT_PIECEWISE = 0, 1, 2, 3
+
+
+@_jit
+def _interp(x, xp, fp):  # pragma: no cover - compiled
+    """``np.interp(x, xp, fp)`` of one finite value (numpy's arithmetic: the slope of the bracket,
+    ``slope (x - xp[j]) + fp[j]``, the end values held outside, the knot's value on a knot)."""
+    n = xp.shape[0]
+    if n == 1:
+        return fp[0]
+    if x < xp[0]:
+        return fp[0]
+    if x > xp[n - 1]:
+        return fp[n - 1]
+    if x == xp[n - 1]:
+        return fp[n - 1]
+    j = 0
+    while j < n - 2 and xp[j + 1] <= x:
+        j += 1
+    if xp[j] == x:
+        return fp[j]
+    slope = (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j])
+    res = slope * (x - xp[j]) + fp[j]
+    if math.isnan(res):
+        res = slope * (x - xp[j + 1]) + fp[j + 1]
+        if math.isnan(res) and fp[j] == fp[j + 1]:
+            res = fp[j]
+    return res
+
+
+@_jit
+def _current_at_nodes(r, vc, kind, clamps, depths, factors, water_depth, surface):  # pragma: no cover - compiled
+    """:meth:`CurrentProfile.velocity_unchecked <tapm_opt.models.environment.CurrentProfile.velocity_unchecked>`
+    at the node depths ``r[:, 2]`` into ``vc`` (n_nodes, 3) [m/s]; False (``vc`` untouched) when a
+    depth is not finite."""
+    n = r.shape[0]
+    for k in range(n):
+        if not math.isfinite(r[k, 2]):
+            return False
+    for k in range(n):
+        z = r[k, 2]
+        if kind == CURRENT_PIECEWISE and clamps:
+            phi = _interp(z, depths, factors)
+        else:
+            if not z > 0.0:  # np.maximum(z, 0.0), then np.minimum(., water_depth)
+                z = 0.0
+            if not z < water_depth:
+                z = water_depth
+            if kind == CURRENT_UNIFORM:
+                phi = 1.0
+            elif kind == CURRENT_LINEAR:
+                phi = 1.0 + (factors[0] - 1.0) * (z / water_depth)
+            else:
+                phi = _interp(z, depths, factors)
+        for c in range(3):
+            vc[k, c] = phi * surface[c]
+    return True
+
+
+@_jit
+def plant_pre_step(h, f, alpha, failed, f_cmd, alpha_cmd, f_min, f_max, decay, rate_dt, alpha_rate_dt, azimuth,
+                   x_thr, y_thr,
+                   has_env, V0, q0, wind_dir, hull_k, wave_dir, drift_c, wf, S0, S1, C0,
+                   eta, nu, eta_wf_prev, tau_moor_prev, v_c, M, M_A, M_inv, D_lin, d_quad,
+                   has_riser, riser_c, r, vc, cur_kind, cur_clamps, cur_depths, cur_factors, cur_depth,
+                   cur_surface):  # pragma: no cover - compiled
+    """The plant's outer step of ``h`` [s] up to its lines (``Plant._outer_step``, no winch, a
+    steady current) in one call: :func:`thruster_step` (``f`` and ``alpha`` in place), the wind
+    load (``HullWindLoad.tau`` at the wind speed ``V0`` [m/s] going to ``wind_dir`` [rad], the
+    coefficients ``hull_k``) and the wave drift (``2 q0^2`` times the drift factor of the heading,
+    ``drift_c`` the constants of ``WaveField._dirs``) at the start of the step (zero unless
+    ``has_env``), :func:`vessel_step` on their sum with the thrust and ``tau_moor_prev``, the
+    wave-frequency pose at the end (the sums ``S0, S1, C0`` of ``WaveField._motion`` there; zero
+    unless ``wf``), the total poses ``eta + eta_wf_prev`` and the new one, the riser angles at the
+    new (``riser_c``: hang-off (x, y) in {B}, wellhead (x, y), c_t, c_b, h_t, h_b, g(v_c) (x, y)
+    of ``RiserModel._affine``) and the current at the nodes ``r`` (into ``vc`` unless ``cur_kind``
+    is :data:`CURRENT_HELD`, :func:`_current_at_nodes`).
+
+    Returns
+    -------
+    status : int
+        0 done; 1 the vessel state became unphysical (non-finite or 100 km off; ``out`` holds the
+        new eta and nu, nothing else was evaluated); 2 a node depth is not finite (``vc`` untouched).
+    out : ndarray (:data:`OUT_SIZE`,)
+        The packed floats (:data:`OUT_ETA` ... :data:`OUT_RISER`).
+    """
+    out = np.zeros(OUT_SIZE)
+    tau_thr = thruster_step(f, alpha, failed, f_cmd, alpha_cmd, True, f_min, f_max, decay, rate_dt,
+                            alpha_rate_dt, azimuth, x_thr, y_thr)
+    tau = np.empty(3)
+    psi = eta[2]
+    if has_env:
+        b = wind_dir - psi  # HullWindLoad.tau, float path
+        u_rw = nu[0] - V0 * math.cos(b)
+        v_rw = nu[1] - V0 * math.sin(b)
+        V_rw = math.hypot(u_rw, v_rw)
+        out[12] = hull_k[0] * (V_rw * u_rw)
+        out[13] = hull_k[1] * (V_rw * v_rw)
+        out[14] = hull_k[2] * (u_rw * v_rw)
+        beta = wave_dir - psi  # WaveField._dirs and tau_drift
+        cbt = math.cos(beta)
+        sbt = math.sin(beta)
+        q2 = 2.0 * q0 * q0
+        out[15] = q2 * (drift_c[0] * (cbt * abs(cbt)))
+        out[16] = q2 * (drift_c[1] * (sbt * abs(sbt)))
+        out[17] = q2 * (drift_c[2] * -math.sin(2.0 * beta))
+    for i in range(3):
+        out[9 + i] = tau_thr[i]
+        tau[i] = tau_thr[i] + out[12 + i] + out[15 + i] + tau_moor_prev[i]
+    eta1, nu1, finite = vessel_step(eta, nu, tau, v_c, M, M_A, M_inv, D_lin, d_quad, h)
+    for i in range(3):
+        out[i] = eta1[i]
+        out[3 + i] = nu1[i]
+    if not (finite and math.hypot(eta1[0], eta1[1]) < 1e5):
+        return 1, out
+    if wf:  # WaveField._motion at the new heading
+        psi1 = eta1[2]
+        beta = wave_dir - psi1
+        cbt = math.cos(beta)
+        sbt = math.sin(beta)
+        s2b = math.sin(2.0 * beta)
+        xb = cbt * S0
+        yb = sbt * S1
+        c = math.cos(psi1)
+        s = math.sin(psi1)
+        out[6] = c * xb - s * yb
+        out[7] = s * xb + c * yb
+        out[8] = s2b * C0
+    for i in range(3):
+        out[18 + i] = eta[i] + eta_wf_prev[i]
+        out[21 + i] = eta1[i] + out[6 + i]
+    if has_riser:  # RiserModel.angles_at(pose1): the hang-off in {E}, then the affine map
+        c = math.cos(out[23])
+        s = math.sin(out[23])
+        dx = out[21] + c * riser_c[0] - s * riser_c[1] - riser_c[2]
+        dy = out[22] + s * riser_c[0] + c * riser_c[1] - riser_c[3]
+        out[24] = riser_c[4] * dx + riser_c[6] * riser_c[8]
+        out[25] = riser_c[4] * dy + riser_c[6] * riser_c[9]
+        out[26] = riser_c[5] * dx + riser_c[7] * riser_c[8]
+        out[27] = riser_c[5] * dy + riser_c[7] * riser_c[9]
+    if cur_kind != CURRENT_HELD:
+        if not _current_at_nodes(r, vc, cur_kind, cur_clamps, cur_depths, cur_factors, cur_depth, cur_surface):
+            return 2, out
+    return 0, out

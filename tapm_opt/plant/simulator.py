@@ -17,10 +17,21 @@ A scenario with a riser also gets its quasi-static end angles
 instantaneous hang-off (LF + wave-frequency pose) and the sea state's current, at the end of
 every outer step; the riser does not load the vessel ([R] §2.1).
 
-With numba, the thrusters, the vessel and the lines of the outer step run as compiled kernels
-(:mod:`tapm_opt.plant.fem_kernel`, :attr:`Plant.compiled`) that repeat the numpy path's operations
-in its order, so both give the same numbers; the environment (wind, waves, current) and the riser
-stay in numpy.
+The environment's random sums (the wave-frequency motion and drift sums of
+:class:`~tapm_opt.plant.environment.WaveField`, the gusts of
+:class:`~tapm_opt.plant.environment.Wind`) are functions of time alone: the plant evaluates them for
+a block of its coming outer-step times at once (:meth:`WaveField.block
+<tapm_opt.plant.environment.WaveField.block>`, :meth:`Wind.block
+<tapm_opt.plant.environment.Wind.block>`, up to
+:data:`~tapm_opt.plant.environment.BLOCK_MAX` steps) and applies the heading per step; they equal
+the scalar-time sums to a few units in the last place of the phases.
+
+With numba, an outer step without a winch or a turning current is two compiled calls
+(:mod:`tapm_opt.plant.fem_kernel`, :attr:`Plant.compiled`): ``plant_pre_step`` (thrusters, wind
+and drift loads, vessel, wave-frequency pose, riser angles, current at the nodes) and
+``mooring_step`` (the lines); otherwise the thrusters, the vessel and the lines are compiled
+apart. Either way the kernels repeat the numpy path's operations in its order, so both give the
+same numbers.
 
 The controller sees the plant only through :meth:`Plant.measure` (sensors), as a real one would.
 """
@@ -40,8 +51,8 @@ from ..interfaces import Measurement, ThrusterCommand, Truth
 from ..models.system import System
 from ..models.vessel import vessel_rhs
 from ..results import Result, ResultBuilder
-from .environment import Environment, PlantError
-from .fem import SimulationDiverged
+from .environment import BLOCK_MAX, Environment, PlantError
+from .fem import MAX_NODE_SPEED, SimulationDiverged, _as_f64
 from .mooring_fem import MooringFEM, SettleInfo
 from .sensors import Sensors
 from .thrusters import ThrusterBank
@@ -49,6 +60,11 @@ from .thrusters import ThrusterBank
 #: Fraction of a line's strength at which the plant evaluates its exact fairlead and anchor
 #: tensions for a break (``Plant._check_overload``: the bounds from the segment tensions come first).
 OVERLOAD_NEAR = 0.98
+
+#: Four units in the last place (relative): how far an outer-step time may lie from ``t0 + i h`` for
+#: the block sums of the environment (:meth:`Plant._env_block`).
+_ULP4 = 4.0 * 2.220446049250313e-16
+_EMPTY = np.zeros(1)
 
 __all__ = ["Plant", "ThrusterCommand", "run_open_loop", "PlantError", "SimulationDiverged"]
 
@@ -163,8 +179,14 @@ class Plant:
         self._riser_angles = self.riser.angles_at(pose) if self.riser is not None else None
         self._rate = np.asarray(self.env.eta_wf_dot(0.0, self.eta[2]), dtype=float) if self.wave_frequency \
             else np.zeros(3)
-        self.loads = {"tau_wind": np.zeros(3), "tau_drift": np.zeros(3), "tau_moor": self._tau_moor.copy(),
-                      "tau_thr": np.zeros(3)}
+        self._loads: Any = {"tau_wind": np.zeros(3), "tau_drift": np.zeros(3), "tau_moor": self._tau_moor.copy(),
+                            "tau_thr": np.zeros(3)}
+        # the environment's sums over blocks of outer steps (_env_sums) and the fused step's constants
+        self._blk: tuple | None = None
+        self._blk_j = -1
+        self._blk_h, self._blk_n = math.nan, 0
+        self._fused: tuple | None = None
+        self._r_last = self._v_last = None
         self._steps = 0
         self._tension_cache: tuple | None = None
         self._dt_stable: float | None = None
@@ -305,23 +327,72 @@ class Plant:
             self.events.append((self.t, f"line {lid} broke: overload, tension {T[j] / 1e6:.3g} MN = "
                                         f"{100 * T[j] / mbs:.0f} % MBS >= strength {self.strength[j] / 1e6:.3g} MN"))
 
+    def _env_block(self, t0: float, h: float) -> None:
+        """A new block of environment sums (``self._blk``) from ``t0`` [s] on: the plant's next
+        outer-step times ``t_i = round(t_{i-1} + h, 9)`` while they stay within a few units in the
+        last place of ``t0 + i h`` (:meth:`WaveField.block`, :meth:`Wind.block` evaluate there),
+        at least ``t0`` and the next time. Blocks of one step length grow from 16 to
+        :data:`~tapm_opt.plant.environment.BLOCK_MAX` steps, so outer steps of changing length
+        compute few sums they do not use."""
+        n = min(2 * self._blk_n, BLOCK_MAX) if h == self._blk_h else 16
+        self._blk_h, self._blk_n = h, n
+        times = [t0]
+        t = t0
+        for i in range(1, n):
+            t = round(t + h, 9)
+            if abs(t - (t0 + i * h)) > _ULP4 * max(abs(t), 1.0):
+                break
+            times.append(t)
+        env = self.env
+        if len(times) >= 2:
+            S, C = env.waves.block(t0, h, len(times))
+            V = env.wind.block(t0, h, len(times))
+        else:  # the next time is off the grid of h (rounding drift): the two times on their own
+            times.append(round(t0 + h, 9))
+            rows = [env.waves.block(t, h, 1) for t in times]
+            S, C = np.concatenate([r[0] for r in rows]), np.concatenate([r[1] for r in rows])
+            V = env.wind.block(times[0], h, 1) + env.wind.block(times[1], h, 1)
+        self._blk = (times, V, C[:, 1].tolist(), S[:, 0].tolist(), S[:, 1].tolist(), C[:, 0].tolist())
+        self._blk_j = 0
+
+    def _env_sums(self, t0: float, t1: float, h: float) -> tuple[float, float, float, float, float]:
+        """The environment's sums of the outer step from ``t0`` to ``t1`` [s]: the wind speed V [m/s]
+        and the drift sum q at ``t0`` (:meth:`Wind.speed`, ``WaveField._sums``), the motion sums
+        ``S[0], S[1], C[0]`` at ``t1``, from the block (a new one when the times are not its next)."""
+        j = self._blk_j
+        b = self._blk
+        if b is None or j + 1 >= len(b[0]) or b[0][j] != t0 or b[0][j + 1] != t1:
+            self._env_block(t0, h)
+            j = 0
+            b = self._blk
+        self._blk_j = j + 1
+        return b[1][j], b[2][j], b[3][j + 1], b[4][j + 1], b[5][j + 1]
+
     def _outer_step(self, h: float) -> None:
-        self._apply_faults()
+        if self._fault_i < len(self._faults):
+            self._apply_faults()
         t0 = self.t
+        t1 = round(t0 + h, 9)  # no drift from repeated addition: logged times are exact
         if self._current_turns:   # a turning current, held over the outer step
             self._v_c = self.env.current_surface(t0)[:2]
             self.mooring.current = functools.partial(self.env.current_velocity, t=t0)
         self._tension_cache = None   # the state changes below: no tension of the last instant holds
+        env = self.env
+        sums = self._env_sums(t0, t1, h) if env is not None else None
         m = self.mooring
         compiled = self.compiled and m.fem._kernel_fn is not None  # numba is there and the FEM uses it
+        if compiled and not self._winching and not self._current_turns and self._fused_ok():
+            self._fused_step(h, t0, t1, sums)
+            return
         if compiled:
             fem_kernel = _fem_kernel()   # loaded with the compiled FEM (numba) already
         tau_thr = self.thrusters._advance(h, self._cmd.f, self._cmd.alpha, compiled=compiled)
-        if self.env is not None:
-            # Environment.loads on the plant's own state (a finite float heading and velocity:
-            # the vessel step below checks them), without its argument checks
-            tau_wind, tau_drift = self.env._loads_unchecked(t0, float(self.eta[2]), float(self.nu[0]),
-                                                            float(self.nu[1]))
+        psi0 = float(self.eta[2])
+        if env is not None:
+            # the wind and drift loads at t0 on the plant's own state (a finite float heading and
+            # velocity: the vessel step below checks them) from the block's sums
+            tau_wind = env.wind.hull.tau(sums[0], env.wind.direction, psi0, float(self.nu[0]), float(self.nu[1]))
+            tau_drift = 2.0 * sums[1] * sums[1] * env.waves._dirs(psi0)[3]
         else:
             tau_wind = tau_drift = np.zeros(3)
         tau = tau_thr + tau_wind + tau_drift + self._tau_moor
@@ -335,10 +406,7 @@ class Plant:
             eta = self.eta + h * (rot_z(self.eta[2]) @ nu)
             finite = np.isfinite(nu).all() and np.isfinite(eta).all()
         if not (finite and math.hypot(eta[0], eta[1]) < 1e5):
-            raise SimulationDiverged(
-                f"vessel state became unphysical at t = {t0:.2f} s (eta = {eta.tolist()}, nu = {nu.tolist()}); "
-                "check the vessel mass and damping, the thruster commands and the environmental loads",
-                time=t0)
+            self._diverged(t0, eta, nu)
         # winches
         winching = self._winching  # new lengths change the stable step
         if winching:
@@ -347,16 +415,14 @@ class Plant:
             fem._update_lengths()
         # FEM substeps with the fairleads on the interpolated total motion
         pose0 = self.eta + self._eta_wf
-        self.t = round(t0 + h, 9)  # no drift from repeated addition: logged times are exact
+        self.t = t1
         self.eta, self.nu = eta, nu
-        self._eta_wf = self._wf(self.t)
+        if self.wave_frequency:
+            self._eta_wf = env.waves._motion_of(sums[2], sums[3], sums[4], float(eta[2]))
+        else:
+            self._eta_wf = np.zeros(3)
         pose1 = self.eta + self._eta_wf
-        if winching or self._dt_stable is None:
-            self._dt_stable = m.fem.stable_dt(m.safety)
-        if winching or h != self._h_last:
-            self._n_sub = max(1, int(math.ceil(h / self._dt_stable - 1e-9)))
-            self._h_last = h
-        n_sub = self._n_sub
+        n_sub = self._substeps(h, winching)
         self._steps += 1
         if compiled:  # substeps, fairlead accelerations and the load in one call, the same numbers
             T_bonds, rate, a_fl, tau_moor, near, suspect = m.outer_step_compiled(pose0, pose1, self._rate, h, n_sub,
@@ -382,7 +448,136 @@ class Plant:
             self._tau_moor = m.tau(pose1, a_fl)
         if self.riser is not None:
             self._riser_angles = self.riser.angles_at(pose1)
-        self.loads = {"tau_wind": tau_wind, "tau_drift": tau_drift, "tau_moor": self._tau_moor, "tau_thr": tau_thr}
+        self._loads = {"tau_wind": tau_wind, "tau_drift": tau_drift, "tau_moor": self._tau_moor, "tau_thr": tau_thr}
+
+    def _substeps(self, h: float, winching: bool) -> int:
+        """FEM substeps of an outer step of ``h`` [s] (the stable step re-evaluated after a winch)."""
+        m = self.mooring
+        if winching or self._dt_stable is None:
+            self._dt_stable = m.fem.stable_dt(m.safety)
+        if winching or h != self._h_last:
+            self._n_sub = max(1, int(math.ceil(h / self._dt_stable - 1e-9)))
+            self._h_last = h
+        return self._n_sub
+
+    def _diverged(self, t0: float, eta: np.ndarray, nu: np.ndarray) -> None:
+        raise SimulationDiverged(
+            f"vessel state became unphysical at t = {t0:.2f} s (eta = {eta.tolist()}, nu = {nu.tolist()}); "
+            "check the vessel mass and damping, the thruster commands and the environmental loads",
+            time=t0)
+
+    def _fused_ok(self) -> bool:
+        """The fused compiled outer step applies: the lines' current is none or the sea state's
+        profile (not another callable), and the per-step constants are gathered
+        (``self._fused``, rebuilt when the FEM's line constants or the strengths change)."""
+        m = self.mooring
+        fem = m.fem
+        kc, cur_fn = fem._kernel_constants(), m.current
+        f = self._fused
+        if f is not None and f[0][0] is kc and f[0][1] is cur_fn:
+            return f[1] is not None
+        key = (kc, cur_fn)
+        const = None
+        env = self.env
+        prof = env.current if env is not None else None
+        kinds = _fem_kernel()
+        if m.current is None:
+            cur = (kinds.CURRENT_HELD, False, _EMPTY, _EMPTY, 1.0, np.zeros(3))
+        elif prof is not None and m.current == prof.velocity_unchecked:
+            kind = {"uniform": kinds.CURRENT_UNIFORM, "linear": kinds.CURRENT_LINEAR,
+                    "piecewise": kinds.CURRENT_PIECEWISE}[prof.kind]
+            cur = (kind, bool(prof._interp_clamps), np.ascontiguousarray(prof._depths, dtype=float),
+                   np.ascontiguousarray(prof._factors, dtype=float), float(prof.water_depth),
+                   np.ascontiguousarray(prof.surface, dtype=float))
+        else:
+            cur = None
+        if cur is not None:
+            g = m.geometry
+            ves, th = self.vessel, self.thrusters
+            lim = th.limits
+            if env is not None:
+                w, wv = env.wind, env.waves
+                env_c = (float(w.direction), np.ascontiguousarray(w.hull.k, dtype=float), float(wv.direction),
+                         np.ascontiguousarray(wv._drift_c, dtype=float))
+            else:
+                env_c = (0.0, np.zeros(3), 0.0, np.zeros(3))
+            if self.riser is not None:
+                rz = self.riser
+                riser = (True, np.array(rz._hangoff_xy + rz._wellhead_xy + rz._cc + rz._hh + rz._g_default_xy,
+                                        dtype=float))
+            else:
+                riser = (False, np.zeros(10))
+            if m._vc.shape != (fem.n_nodes, 3) or not m._vc.flags.c_contiguous or m._vc.dtype != np.float64:
+                m._vc = np.array(np.broadcast_to(m._vc, (fem.n_nodes, 3)), dtype=float, order="C")
+            else:
+                m._vc = m._vc.copy()   # the kernel writes the current into it: the plant's own array
+            const = dict(
+                thr=(lim.f_min, lim.f_max), thr_geo=(lim.azimuth, lim.x, lim.y), env=env_c,
+                ves=(self._v_c, ves.M, ves.M_A, ves.M_inv, ves.D_lin, ves.d_quad),
+                geo=(m._p_cot, m._p_T, float(g.turret_angle), g.turret_mode == "locked", m.fairlead_z),
+                cur=cur, fem=key[0], idx=(fem.fairlead_seg, fem.anchor_seg, fem.active),
+                riser=riser)
+        self._fused = (key, const)
+        return const is not None
+
+    def _fused_step(self, h: float, t0: float, t1: float, sums) -> None:
+        """:meth:`_outer_step` in two compiled calls, :func:`~tapm_opt.plant.fem_kernel.plant_pre_step`
+        (thrusters, loads, vessel, wave-frequency pose, riser, current at the nodes) and
+        :func:`~tapm_opt.plant.fem_kernel.mooring_step` (the lines): the same operations as the
+        numpy path, for outer steps without a winch or a turning current."""
+        c = self._fused[1]
+        m = self.mooring
+        fem = m.fem
+        th = self.thrusters
+        if th._dt_decay != h:
+            th._lag(h)
+        n_sub = self._substeps(h, False)
+        r, v = fem.r, fem.v
+        if r is not self._r_last or v is not self._v_last:  # set from outside: the kernel's layout
+            shape = (fem.n_nodes, 3)
+            r, v = _as_f64(r, shape, "r"), _as_f64(v, shape, "v")
+        env_on = sums is not None
+        V0, q0, S0, S1, C0 = sums if env_on else (0.0, 0.0, 0.0, 0.0, 0.0)
+        kern = _fem_kernel()
+        status, out = kern.plant_pre_step(
+            h, th._f, th._alpha, th._failed, self._cmd.f, self._cmd.alpha, *c["thr"], th._decay, th._rate_dt,
+            th._alpha_rate_dt, *c["thr_geo"], env_on, V0, q0, *c["env"], self.wave_frequency, S0, S1, C0,
+            self.eta, self.nu, self._eta_wf, self._tau_moor, *c["ves"], *c["riser"], r, m._vc, *c["cur"])
+        if status == 1:
+            self._diverged(t0, out[0:3], out[3:6])
+        self.t = t1
+        self.eta, self.nu, self._eta_wf = out[0:3], out[3:6], out[6:9]
+        if status == 2:   # a node is no longer finite: reported as diverged
+            fem.check_health()
+            raise SimulationDiverged(f"FEM mooring state non-finite at t = {fem.t:.3f} s", time=fem.t)
+        self._steps += 1
+        m.dt = dt = h / n_sub
+        pose1 = out[21:24]
+        r, v, T_bonds, m._r_fl, self._rate, a_fl, tau_moor, near, suspect = kern.mooring_step(
+            out[18:21], pose1, self._rate, h, n_sub, *c["geo"], r, v, m._vc, *c["fem"], *c["idx"],
+            OVERLOAD_NEAR * self.strength, MAX_NODE_SPEED)
+        fem.r, fem.v = self._r_last, self._v_last = r, v
+        for _ in range(n_sub):  # the same sum as n single steps (FEMLines._advance_compiled)
+            fem.t += dt
+        if suspect and self._steps % 20 == 0:
+            fem.check_health()
+        if near:  # a line may break: the load without it
+            self._check_overload(T_bonds)
+            tau_moor = m.tau(pose1, a_fl)
+        self._tau_moor = tau_moor
+        if self.riser is not None:
+            self._riser_angles = out[24:28]
+        self._loads = out
+
+    @property
+    def loads(self) -> dict[str, np.ndarray]:
+        """The loads of the last outer step in {B} [N, N, N m], each (3,): ``tau_wind``, ``tau_drift``
+        (at its start), ``tau_moor`` (at its end), ``tau_thr``."""
+        ld = self._loads
+        if type(ld) is not dict:
+            ld = self._loads = {"tau_wind": ld[12:15], "tau_drift": ld[15:18], "tau_moor": self._tau_moor,
+                                "tau_thr": ld[9:12]}
+        return ld
 
     # -- logging ---------------------------------------------------------------------------
     def channels(self) -> list[tuple[str, str]]:

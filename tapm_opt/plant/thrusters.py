@@ -211,9 +211,8 @@ class ThrusterBank:
         :meth:`tau` (3,) [N, N, N m]. The caller checks that numba is available.
         """
         lim = self.limits
-        if self._dt_decay != dt:  # exp(-dt / T) of the first-order lag, once per step length
-            self._dt_decay, self._decay = dt, np.exp(-dt / lim.T)
-            self._rate_dt, self._alpha_rate_dt = lim.rate * dt, lim.alpha_rate * dt
+        if self._dt_decay != dt:
+            self._lag(dt)
         if compiled:
             fem_kernel = _fem_kernel()
             return fem_kernel.thruster_step(self._f, self._alpha, self._failed, f_cmd,
@@ -228,6 +227,13 @@ class ThrusterBank:
             da = np.clip(ssa(alpha_cmd - self._alpha), -self._alpha_rate_dt, self._alpha_rate_dt)
             self._alpha = np.where(lim.azimuth, ssa(self._alpha + da), self._alpha)
         return self.tau()
+
+    def _lag(self, dt: float) -> None:
+        """The factors of a step of ``dt`` [s]: ``exp(-dt / T)`` of the first-order lag, the thrust
+        and azimuth changes allowed in it [N, rad] (kept until the step length changes)."""
+        lim = self.limits
+        self._dt_decay, self._decay = dt, np.exp(-dt / lim.T)
+        self._rate_dt, self._alpha_rate_dt = lim.rate * dt, lim.alpha_rate * dt
 
     # -- outputs -----------------------------------------------------------------------------
     def T_alloc(self, alpha: Any = None) -> np.ndarray:
