@@ -246,12 +246,17 @@ class ResultBuilder:
 
     def append(self, t: float, row: np.ndarray) -> None:
         """Add one sample: time [s] and the channel values in channel order."""
+        self.next_row(t)[:] = row
+
+    def next_row(self, t: float) -> np.ndarray:
+        """Add one sample at time ``t`` [s] and return its row (m,) to fill in place, in channel
+        order (zeros until written; a caller that fills it piece by piece saves assembling it)."""
         if self._n == self._t.shape[0]:
             self._t = np.concatenate([self._t, np.zeros_like(self._t)])
             self._d = np.vstack([self._d, np.zeros_like(self._d)])
         self._t[self._n] = t
-        self._d[self._n] = row
         self._n += 1
+        return self._d[self._n - 1]
 
     def build(self, meta: Mapping[str, Any] | None = None) -> Result:
         return Result(time=self._t[: self._n].copy(), data=self._d[: self._n].copy(), channels=self.channels,

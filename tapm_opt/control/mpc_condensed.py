@@ -41,6 +41,8 @@ condensed QP pays with few moves (move blocking); the sparse kernels run compile
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -135,11 +137,11 @@ def _first_max_per_group(v: np.ndarray, starts: np.ndarray, counts: np.ndarray, 
         s = starts[g]
         best = s
         bv = v[s]
-        if bv != bv:
+        if math.isnan(bv):
             return False
         for i in range(s + 1, s + counts[g]):
             x = v[i]
-            if x != x:
+            if math.isnan(x):
                 return False
             if x > bv:
                 bv = x

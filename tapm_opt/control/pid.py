@@ -29,6 +29,7 @@ the closed-loop poles of the coupled 3-DOF model with python-control). ``[S]`` =
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Any, Mapping, Sequence
@@ -38,7 +39,7 @@ import numpy as np
 from .._checks import vector
 from .._io import readonly
 from ..errors import TapmError
-from ..geometry import rot_z, ssa, turret_offset
+from ..geometry import rot_z, ssa
 from ..interfaces import ControllerStep
 from .estimate import Estimate, Setpoint
 
@@ -196,6 +197,22 @@ def _vec3(name: str, value: Any) -> np.ndarray:
                   note="the controller will not command thrust from it (check the observer/sensors)")
 
 
+def _vec3_in(name: str, value: Any) -> np.ndarray:
+    """:func:`_vec3` of an input the controller only reads: a float64 (3,) array with finite
+    entries is taken as it is (no copy; a finite sum means finite entries), anything else checked
+    and converted by :func:`_vec3`."""
+    if (type(value) is np.ndarray and value.dtype == np.float64 and value.shape == (3,)
+            and math.isfinite(value[0] + value[1] + value[2])):
+        return value
+    return _vec3(name, value)
+
+
+def _clip(v: np.ndarray, limit: np.ndarray) -> np.ndarray:
+    """``np.clip(v, -limit, limit)`` for float (3,) arrays (the same numbers, without its
+    dispatch)."""
+    return np.minimum(np.maximum(v, -limit), limit)
+
+
 class TAPMPID:
     """TAPM PID controller: the sum of the enabled modes of [S] Table 2.
 
@@ -275,12 +292,14 @@ class TAPMPID:
         if il is None:
             il = self._tau_limit if self._tau_limit is not None else readonly(np.full(3, np.inf))
         self._integral_limit = il
+        self._integral_limited = bool(np.any(np.isfinite(il)))
         self._anti_windup = bool(anti_windup)
         self._env_ff = bool(env_feedforward)
         rp = np.asarray(reference_point, dtype=float)
         if rp.shape != (2,) or not np.all(np.isfinite(rp)):
             raise ControlError(f"reference_point={reference_point!r} must be 2 finite numbers (x, y) in {{B}} [m]")
         self._p_ref = rp
+        self._p_ref_xy = (float(rp[0]), float(rp[1]))
         if period is not None and not (np.isfinite(period) and period > 0):
             raise ControlError(f"period={period!r} must be a positive number [s] or None")
         self.period = None if period is None else float(period)
@@ -335,6 +354,7 @@ class TAPMPID:
         self._Kp = H_P @ g.Kp
         self._Kd = H_D @ g.Kd
         self._Ki_pinv = np.linalg.pinv(self._Ki)
+        self._minus_Ki_diag = -np.diag(self._Ki)
         self._mask = _integrated(self._Ki)
         self._xi = np.where(self._mask, self._xi, 0.0)
 
@@ -403,28 +423,34 @@ class TAPMPID:
             raise ControlError(f"t={t!r} must be a number [s]") from None
         if not np.isfinite(t):
             raise ControlError(f"t={t} must be finite [s]")
-        eta = _vec3("estimate.eta", getattr(estimate, "eta", None))
-        nu = _vec3("estimate.nu", getattr(estimate, "nu", None))
-        eta_d = _vec3("setpoint.eta_d", getattr(setpoint, "eta_d", None))
-        nu_d = _vec3("setpoint.nu_d", getattr(setpoint, "nu_d", None))
-        tau_env = _vec3("estimate.tau_env", estimate.tau_env) if self._env_ff else None
+        eta = _vec3_in("estimate.eta", getattr(estimate, "eta", None))
+        nu = _vec3_in("estimate.nu", getattr(estimate, "nu", None))
+        eta_d = _vec3_in("setpoint.eta_d", getattr(setpoint, "eta_d", None))
+        nu_d = _vec3_in("setpoint.nu_d", getattr(setpoint, "nu_d", None))
+        tau_env = _vec3_in("estimate.tau_env", estimate.tau_env) if self._env_ff else None
         if self._t_prev is not None and t < self._t_prev:
             raise ControlError(f"t={t} s is earlier than the previous call at {self._t_prev} s; "
                                f"call reset() to restart the controller")
 
-        # position error of the reference point (turret offset) and its velocity in {B}
-        e = np.empty(3)
-        e[:2] = np.asarray(turret_offset(eta, self._p_ref)) - eta_d[:2]
-        e[_PSI] = ssa(eta[_PSI] - eta_d[_PSI])
-        nu = nu + np.array([-nu[_PSI] * self._p_ref[1], nu[_PSI] * self._p_ref[0], 0.0])
-        Rt = rot_z(eta[_PSI]).T
+        # position error of the reference point (turret offset, geometry.turret_offset) and its
+        # velocity in {B}, written out on the components (the same operations)
+        psi = eta[_PSI]
+        c, s = np.cos(psi), np.sin(psi)
+        px, py = self._p_ref_xy
+        e = np.array([(eta[_X] + (c * px - s * py) - px) - eta_d[_X],
+                      (eta[_Y] + (s * px + c * py) - py) - eta_d[_Y],
+                      ssa(psi - eta_d[_PSI])])
+        r = nu[_PSI]
+        dnu = np.array([(nu[_X] + -r * self._p_ref[1]) - nu_d[_X], (nu[_Y] + r * self._p_ref[0]) - nu_d[_Y],
+                        (r + 0.0) - nu_d[_PSI]])
+        Rt = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]).T   # rot_z(psi).T
         e_b = Rt @ e
         if self._t_prev is not None and t > self._t_prev:
             self._integrate(e_b, Rt, t - self._t_prev)
         self._t_prev = t
-        self._psi = float(eta[_PSI])
+        self._psi = float(psi)
 
-        tau = -(self._Ki @ (Rt @ self._xi)) - self._Kp @ e_b - self._Kd @ (nu - nu_d)
+        tau = -(self._Ki @ (Rt @ self._xi)) - self._Kp @ e_b - self._Kd @ dnu
         if tau_env is not None:
             tau = tau - tau_env
         if self._ft and estimate.broken_lines:
@@ -432,7 +458,7 @@ class TAPMPID:
         self._tau_unsat = tau
         if self._tau_limit is not None:
             self._sat = np.abs(tau) > self._tau_limit
-            tau = np.clip(tau, -self._tau_limit, self._tau_limit)
+            tau = _clip(tau, self._tau_limit)
         self._last = ControllerStep(t=t, active=("saturated",) if np.any(self._sat) else ())
         return np.array(tau)
 
@@ -452,12 +478,12 @@ class TAPMPID:
         if self._anti_windup and self._tau_limit is not None:
             # the integral's own push on DOF i has the sign of -Ki_ii e_b,i: freeze a saturated
             # DOF whose integral would push further into saturation
-            push = -np.diag(self._Ki) * step_b * self._tau_unsat
+            push = self._minus_Ki_diag * step_b * self._tau_unsat
             step_b = np.where(self._sat & (push > 0.0), 0.0, step_b)
         xi = self._xi + Rt.T @ step_b
-        if self._anti_windup and np.any(np.isfinite(self._integral_limit)):
+        if self._anti_windup and self._integral_limited:
             q = self._Ki @ (Rt @ xi)
-            q_c = np.clip(q, -self._integral_limit, self._integral_limit)
-            if np.any(q_c != q):
+            q_c = _clip(q, self._integral_limit)
+            if (q_c != q).any():
                 xi = xi + Rt.T @ (self._Ki_pinv @ (q_c - q))
         self._xi = xi

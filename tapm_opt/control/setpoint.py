@@ -15,7 +15,7 @@ import numpy as np
 
 from ..errors import TapmError
 from ..estimation.lowpass import first_order_step
-from ..geometry import rot_z, ssa, turret_offset
+from ..geometry import ssa, turret_offset
 from ..interfaces import Estimate, Logged, Setpoint
 
 __all__ = ["FixedSetpoint", "SetpointChasing", "HeadingChasing", "SetpointError"]
@@ -43,9 +43,13 @@ class FixedSetpoint:
 
     def __init__(self, eta_d: Any = (0.0, 0.0, 0.0)):
         self.eta_d = _eta_d(eta_d)
+        self._sp: Setpoint | None = None   # the (frozen, read-only) setpoint of the present eta_d
 
     def update(self, t: float, estimate: Estimate) -> Setpoint:
-        return Setpoint(eta_d=self.eta_d)
+        sp = self._sp
+        if sp is None or not np.array_equal(sp.eta_d, self.eta_d):
+            sp = self._sp = Setpoint(eta_d=self.eta_d)
+        return sp
 
     def reset(self) -> None:
         pass
@@ -118,7 +122,8 @@ class HeadingChasing:
 
     def update(self, t: float, estimate: Estimate) -> Setpoint:
         sp = self.inner.update(t, estimate)
-        b_E = rot_z(estimate.eta[2]) @ np.asarray(estimate.tau_env, float)
+        c, s = np.cos(estimate.eta[2]), np.sin(estimate.eta[2])
+        b_E = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ np.asarray(estimate.tau_env, float)  # rot_z
         dt = 0.0 if self._t is None else max(t - self._t, 0.0)
         self._t = float(t)
         if math.hypot(b_E[0], b_E[1]) > self.min_force and dt > 0:

@@ -346,7 +346,9 @@ def run_closed_loop(plant: Plant, controller: Controller, settings: ClosedLoopSe
         extra += [(f"u_winch[{i}]", "m/s") for i in line_ids]
     u_winch = np.zeros(len(line_ids))
     tau_m_hat = np.zeros(3)
-    rb = ResultBuilder(plant.channels() + extra, capacity=int(s.duration / s.dt_log) + 2)
+    plant_channels = plant.channels()
+    n_plant = len(plant_channels)
+    rb = ResultBuilder(plant_channels + extra, capacity=int(s.duration / s.dt_log) + 2)
     n_steps = int(round(s.duration / s.dt_control))
     log_every = int(round(s.dt_log / s.dt_control))
     tau_cmd = np.zeros(3)
@@ -375,11 +377,18 @@ def run_closed_loop(plant: Plant, controller: Controller, settings: ClosedLoopSe
                     controller.set_failed_thrusters(failed)
                 failed_known = failed
         est = estimator.update(t, m)
-        if step % log_every == 0:
-            row = [plant.sample_row(), tau_cmd, sp.eta_d, est.eta, est.tau_env, [last["fallback"], last["slack"]]]
+        if step % log_every == 0:   # the row written in place: plant, then the runner's channels
+            row = rb.next_row(t)
+            row[:n_plant] = plant.sample_row()
+            row[n_plant:n_plant + 3] = tau_cmd
+            row[n_plant + 3:n_plant + 6] = sp.eta_d
+            row[n_plant + 6:n_plant + 9] = est.eta
+            row[n_plant + 9:n_plant + 12] = est.tau_env
+            row[n_plant + 12] = last["fallback"]
+            row[n_plant + 13] = last["slack"]
             if winch is not None:
-                row += [tau_m_hat, u_winch]
-            rb.append(t, np.concatenate(row))
+                row[n_plant + 14:n_plant + 17] = tau_m_hat
+                row[n_plant + 17:] = u_winch
         if step == n_steps:
             break
         sp = layer.update(t, est)
@@ -408,7 +417,7 @@ def run_closed_loop(plant: Plant, controller: Controller, settings: ClosedLoopSe
             alloc_times.append(time.perf_counter() - w0)
             alloc_fallbacks += int(ar.fallback)
             last["fallback"] = float(ar.fallback)
-            last["slack"] = float(np.linalg.norm(ar.slack) / max(np.linalg.norm(tau_thr_cmd), 1.0))
+            last["slack"] = float(_norm(ar.slack) / max(_norm(tau_thr_cmd), 1.0))
             cmd = ThrusterCommand(f=np.asarray(ar.f, float), alpha=np.asarray(ar.alpha, float))
         plant.step(s.dt_control, cmd, u_winch if winch is not None else None)
     wall = time.perf_counter() - t_wall0
@@ -425,6 +434,14 @@ def run_closed_loop(plant: Plant, controller: Controller, settings: ClosedLoopSe
         if isinstance(comp, Logged):   # an empty log says "nothing happened", so it is kept too
             md[f"{role}_log"] = list(comp.log())
     return rb.build(md)
+
+
+def _norm(v: Any) -> float:
+    """``np.linalg.norm`` of a vector: ``sqrt(v . v)``, as numpy computes it (the same number)."""
+    v = np.asarray(v)
+    if v.ndim == 1 and v.dtype == np.float64:
+        return math.sqrt(float(v.dot(v)))
+    return float(np.linalg.norm(v))
 
 
 def _diagnostics(steps: list[ControllerStep], ctrl_times: list, alloc_times: list, alloc_fallbacks: int) -> dict:
