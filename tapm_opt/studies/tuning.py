@@ -50,7 +50,7 @@ import numpy as np
 from .._io import atomic_write_text, toml_key, toml_value
 from ..design.registry import DESIGN_FORMAT, kind as controller_kind
 from .kpi_catalogue import KPIS
-from .tuning_space import (ALWAYS_REPORTED, DEFAULT_OBJECTIVES, SUMMED_KPIS, Constraint, Objective, Param,
+from .tuning_space import (ALWAYS_REPORTED, CONTEXT_KPIS, DEFAULT_OBJECTIVES, SUMMED_KPIS, Constraint, Objective, Param,
                            TuningError, TuningSettings, _num, parse_rule, search_space, spec_from_params,
                            tuning_settings)
 
@@ -156,6 +156,9 @@ class TrialEvaluator:
             raise
         trial.set_user_attr("wall_time", time.perf_counter() - t0)
         reported = {name: item.value(per_case) for name, item in self.settings.reported()}
+        for name in CONTEXT_KPIS:   # context the cases do not report (a scenario without a riser)
+            if name in reported and not math.isfinite(reported[name]):
+                del reported[name]
         trial.set_user_attr("kpis", reported)
         trial.set_user_attr("cases", per_case if len(json.dumps(per_case, default=float)) < 200_000 else [])
         cons = [c.violation(c.value(per_case)) for c in self.settings.constraints]
@@ -430,22 +433,32 @@ def front(rows: Sequence[TrialRow]) -> list[TrialRow]:
 
 def select(rows_front: Sequence[TrialRow], settings: TuningSettings) -> TrialRow | None:
     """The design chosen from a front: the knee (the point nearest the ideal point with each
-    objective scaled to [0, 1] over the front), or the rule of ``settings.select``."""
+    objective scaled to [0, 1] over the front), or the first rule of ``settings.select`` that a
+    front design meets (:func:`select_with`)."""
+    return select_with(rows_front, settings)[0]
+
+
+def select_with(rows_front: Sequence[TrialRow], settings: TuningSettings) -> tuple[TrialRow | None, str | None]:
+    """``(design, rule)``: the design :func:`select` chooses and the rule that chose it (None and
+    None when no rule is met or the front is empty)."""
     if not rows_front:
-        return None
-    rule = parse_rule(settings.select, [o.kpi for o in settings.objectives])
-    if rule is None:
-        F = np.array([r.objectives for r in rows_front], dtype=float)
-        lo, hi = F.min(axis=0), F.max(axis=0)
-        span = np.where(hi > lo, hi - lo, 1.0)
-        d = np.linalg.norm((F - lo) / span, axis=1)
-        return rows_front[int(np.argmin(d))]
-    how, target, conds = rule
-    ok = [r for r in rows_front if all(c.violation(_num(r.values.get(c.kpi))) <= 0 for c in conds)]
-    if not ok:
-        return None
-    key = (lambda r: _num(r.values.get(target)))
-    return min(ok, key=key) if how == "min" else max(ok, key=key)
+        return None, None
+    objectives = [o.kpi for o in settings.objectives]
+    for text in settings.rules():
+        rule = parse_rule(text, objectives)
+        if rule is None:
+            F = np.array([r.objectives for r in rows_front], dtype=float)
+            lo, hi = F.min(axis=0), F.max(axis=0)
+            span = np.where(hi > lo, hi - lo, 1.0)
+            d = np.linalg.norm((F - lo) / span, axis=1)
+            return rows_front[int(np.argmin(d))], text
+        how, target, conds = rule
+        ok = [r for r in rows_front if all(c.violation(_num(r.values.get(c.kpi))) <= 0 for c in conds)
+              and math.isfinite(_num(r.values.get(target)))]
+        if ok:
+            key = (lambda r: _num(r.values.get(target)))
+            return (min(ok, key=key) if how == "min" else max(ok, key=key)), text
+    return None, None
 
 
 def hypervolume_2d(points: Sequence[Sequence[float]], reference: Sequence[float]) -> float:
@@ -465,8 +478,13 @@ def hypervolume_2d(points: Sequence[Sequence[float]], reference: Sequence[float]
 # ------------------------------------------------------------------------------------------
 
 
+def _rules_text(settings: TuningSettings) -> str:
+    return " or ".join(repr(r) for r in settings.rules())
+
+
 def _csv(rows: Sequence[TrialRow], settings: TuningSettings) -> str:
-    cols = [c for c, _ in settings.reported()]
+    cols = [c for c, _ in settings.reported()
+            if c not in CONTEXT_KPIS or any(math.isfinite(_num(r.values.get(c))) for r in rows)]
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(["controller", "trial", "state", *cols, "feasible", "params"])
@@ -610,7 +628,7 @@ def tune_study(path: str | Path, out_dir: str | Path, *, trials: int | None = No
             all_rows += rows
             f = front(rows)
             fronts[cname] = f
-            chosen = select(f, settings)
+            chosen, rule = select_with(f, settings)
             info: dict[str, Any] = {"controller": ctrl_name, "group": dict(zip(settings.per, gkey)),
                                     "broken": _broken_lines(cases[0]), "type": base["type"], "complete": sum(r.state == "COMPLETE" for r in rows),
                                     "failed": sum(r.state == "FAIL" for r in rows), "front": [r.number for r in f],
@@ -621,12 +639,13 @@ def tune_study(path: str | Path, out_dir: str | Path, *, trials: int | None = No
                 echo(f"  {cname}: {why}; no design written")
                 info["note"] = why
             elif chosen is None:
-                echo(f"  {cname}: no front point meets the selection rule {settings.select!r}; no design written")
-                info["note"] = f"no front point meets {settings.select!r}"
+                echo(f"  {cname}: no front point meets the selection rule {_rules_text(settings)}; no design written")
+                info["note"] = f"no front point meets {_rules_text(settings)}"
             else:
                 write_design(out / "tuned" / f"{_file_name(cname)}.toml", chosen, study=study.name,
-                             selected_by=settings.select, settings=settings, command=command)
+                             selected_by=rule, settings=settings, command=command)
                 info["selected"] = chosen.number
+                info["selected_by"] = rule
                 info["design"] = str(Path("tuned") / f"{_file_name(cname)}.toml")
                 info["kpis"] = chosen.values
                 info["spec"] = chosen.spec

@@ -20,13 +20,17 @@ from ..errors import TapmError
 from .kpi_catalogue import UnknownKpiError, kpi as catalogue_kpi
 
 __all__ = ["TuningError", "Objective", "Constraint", "TuningSettings", "Param", "tuning_settings", "search_space",
-           "spec_from_params", "DEFAULT_OBJECTIVES", "ALWAYS_REPORTED", "SUMMED_KPIS", "MAX_TRIALS", "parse_rule", "GROUP_LABELS"]
+           "spec_from_params", "DEFAULT_OBJECTIVES", "ALWAYS_REPORTED", "CONTEXT_KPIS", "SUMMED_KPIS", "MAX_TRIALS", "parse_rule", "GROUP_LABELS"]
 
 #: The objectives when ``[tuning] objectives`` is not given: the turret's largest offset (worst over
 #: the cases) and the thrust energy (summed over the cases), both minimised.
 DEFAULT_OBJECTIVES = ("offset_max", "thrust_energy")
 #: KPIs that trials.csv and front.csv always carry (aggregated as an objective would be).
 ALWAYS_REPORTED = ("offset_max", "thrust_energy", "time_outside_safe")
+#: KPIs trials.csv and front.csv carry as well when the cases report them (aggregated as objectives
+#: would be): what the report reads to say where and why one front beats another, and what the
+#: riser and the lines' reliability cost.
+CONTEXT_KPIS = ("offset_mean", "util_max", "delta_min", "riser_delta_min")
 #: Extensive KPIs, aggregated over the cases by their sum (the others by their worst case).
 SUMMED_KPIS = frozenset({"thrust_energy", "fuel", "winch_energy", "time_outside_safe", "time_outside_alert"})
 #: The case labels a tuning can be split by (``[tuning] per``).
@@ -204,9 +208,12 @@ class TuningSettings:
     seed : int
         The sampler's seed: one worker reproduces a run exactly; several interleave their trials
         as they finish.
-    select : str
+    select : str or tuple of str
         ``"knee"`` (default: the front point nearest the ideal point, each objective scaled to
-        [0, 1] over the front) or a rule ``"min KPI with KPI <= v [and KPI >= v ...]"``.
+        [0, 1] over the front) or a rule ``"min KPI with KPI <= v [and KPI >= v ...]"``; a list of
+        them is tried in order, the first that a front design meets choosing (e.g. ``["min
+        thrust_energy with time_outside_safe <= 0", "knee"]``: the cheapest design inside the safe
+        circle all the time, else the knee).
     verify_seeds : tuple of int
         Seeds the search never used, on which the selected designs are run again.
     per : tuple of {"sea_state", "condition"}
@@ -221,7 +228,7 @@ class TuningSettings:
     sampler: str = "tpe"
     population: int | None = None
     seed: int = 0
-    select: str = "knee"
+    select: str | tuple[str, ...] = "knee"
     verify_seeds: tuple[int, ...] = ()
     per: tuple[str, ...] = ()
 
@@ -243,10 +250,19 @@ class TuningSettings:
             raise TuningError(f"tuning.population = {self.population!r} must be a whole number >= 2")
         if not (isinstance(self.seed, int) and not isinstance(self.seed, bool) and self.seed >= 0):
             raise TuningError(f"tuning.seed = {self.seed!r} must be a whole number >= 0")
-        parse_rule(self.select, [o.kpi for o in self.objectives])
+        if isinstance(self.select, (list, tuple)):
+            if not self.select:
+                raise TuningError("tuning.select = [] must name at least one rule")
+            object.__setattr__(self, "select", tuple(self.select))
+        for rule in self.rules():
+            parse_rule(rule, [o.kpi for o in self.objectives])
         for s in self.verify_seeds:
             if not (isinstance(s, int) and not isinstance(s, bool) and s >= 0):
                 raise TuningError(f"tuning.verify_seeds: {s!r} must be a whole number >= 0")
+
+    def rules(self) -> tuple[str, ...]:
+        """The selection rules, in the order they are tried."""
+        return self.select if isinstance(self.select, tuple) else (self.select,)
 
     def reported(self) -> list[tuple[str, Any]]:
         """``(column, Objective or Constraint)`` of every KPI written per trial: the objectives, the
@@ -256,6 +272,14 @@ class TuningSettings:
             if c.kpi not in dict(cols):
                 cols.append((c.kpi, c))
         for name in ALWAYS_REPORTED:
+            if name not in dict(cols):
+                cols.append((name, Objective.parse(name)))
+        for rule in self.rules():   # the KPIs a selection rule reads
+            parsed = parse_rule(rule, [o.kpi for o in self.objectives])
+            for name in ((parsed[1], *(c.kpi for c in parsed[2])) if parsed else ()):
+                if name not in dict(cols):
+                    cols.append((name, Objective.parse(name)))
+        for name in CONTEXT_KPIS:
             if name not in dict(cols):
                 cols.append((name, Objective.parse(name)))
         return cols
