@@ -225,6 +225,11 @@ def test_tune_writes_fronts_and_a_design_that_reproduces_its_kpis(tmp_path, caps
     assert "Hypervolume" in md and (out / "report_files" / "tuning_fronts.png").stat().st_size > 1000
     verify = list(csv.DictReader(open(out / "verify.csv")))
     assert {r["kpi"] for r in verify} >= {"offset_max", "thrust_energy"}
+    info = json.loads((out / "tuning.json").read_text())
+    assert info["limits"]["safe_radius"] == 50.0 and info["delta_s"] == 2.0
+    held = info["verify"]["PID"]
+    assert held["per_seed"]["5"]["offset_max"] == pytest.approx(held["kpis"]["offset_max"])   # one held-out seed
+    assert "## Held-out seeds" in md and "per held-out seed" in md
     # the design in tapm simulate: the same case (sea state, seed, duration, segments) gives its KPIs
     code = main(["simulate", "fpso", "--option", f"design={design}", "--sea-state", "normal", "--seed", "1",
                  "--duration", "40", "--segments", "4", "--out", str(tmp_path / "sim")])
@@ -490,3 +495,52 @@ def test_selection_rules_are_tried_in_order_and_name_the_one_that_chose():
         tuning_settings({"select": []})
     with pytest.raises(TuningError, match="tuning.select = 'cheapest'"):
         tuning_settings({"select": ["knee", "cheapest"]})
+
+
+def test_report_says_where_one_front_beats_another_and_why(tmp_path):
+    """A synthetic run: B reaches closer than A ever came, and runs cheaper than any A trial ran
+    (outside the safe circle); A covers the middle. The report's answer names each region with its
+    reason, the riser's cost and the held-out gap."""
+    from tapm_opt.report.tuning import write_tuning_report
+
+    d = tmp_path / "run"
+    d.mkdir()
+    cols = ["controller", "trial", "state", "offset_max", "thrust_energy", "time_outside_safe", "riser_delta_min",
+            "feasible", "params"]
+    mwh = 3.6e9
+    A = [(0, 45.0, 20.0, 0.0, 1.0), (1, 50.0, 15.0, 0.0, 0.5), (2, 55.0, 12.0, 300.0, -0.5), (3, 60.0, 14.0, 900.0, -1.0)]
+    B = [(0, 40.0, 30.0, 0.0, 2.5), (1, 49.9, 16.0, 0.0, 0.2), (2, 70.0, 8.0, 3500.0, -2.0)]
+    rows = [",".join(cols)]
+    for name, pts in (("A", A), ("B", B)):
+        for n, o, e, t, r in pts:
+            rows.append(f'{name},{n},COMPLETE,{o},{e * mwh},{t},{r},true,"{{}}"')
+    (d / "trials.csv").write_text("\n".join(rows) + "\n")
+    front_rows = [rows[0]] + [r for r in rows[1:] if not r.startswith("A,3,")]
+    (d / "front.csv").write_text("\n".join(front_rows) + "\n")
+    info = {"format": "tapm-tuning/1", "study": "syn", "storage": "sqlite:///x.db", "limits": {"safe_radius": 50.0},
+            "delta_s": 2.0,
+            "settings": {"objectives": ["max(offset_max)", "sum(thrust_energy)"], "constraints": [], "trials": 4,
+                         "sampler": "tpe", "seed": 0, "select": "knee", "verify_seeds": [7]},
+            "controllers": {"A": {"selected": 1, "kpis": {"offset_max": 50.0, "thrust_energy": 15.0 * mwh,
+                                                          "time_outside_safe": 0.0, "riser_delta_min": 0.5},
+                                  "spec": {"type": "pid"}, "front": [0, 1, 2], "complete": 4},
+                            "B": {"selected": 1, "kpis": {"offset_max": 49.9, "thrust_energy": 16.0 * mwh,
+                                                          "time_outside_safe": 0.0, "riser_delta_min": 0.2},
+                                  "spec": {"type": "pid"}, "front": [0, 1, 2], "complete": 3}},
+            "verify": {"A": {"seeds": [7], "kpis": {"offset_max": 52.0, "thrust_energy": 15.6 * mwh},
+                             "per_seed": {"7": {"offset_max": 52.0, "thrust_energy": 15.6 * mwh}}}}}
+    (d / "tuning.json").write_text(json.dumps(info))
+    _, md_path = write_tuning_report(d)
+    md = md_path.read_text()
+    assert "**A over B: does not cover.** For 33 % of B's 3 front designs" in md   # only B's 49.9 m / 16 MWh
+    why = md[md.index("*Where B is better than A, and why:*"):].split("\n")[0]
+    assert "B reaches offset_max 40 m (1 design), closer than any design of A came (its least offset_max is 45 m)" in why
+    assert "B runs on 8.00 MWh at offset_max 70 m (1 design), less than any trial of A spent: A's cheapest trial " \
+           "spent 12.00 MWh at 55 m" in why
+    assert "outside the 50 m safe circle for 3500 s" in why
+    assert "**B over A: does not cover.** For 0 % of A's 3 front designs" in md
+    assert ("at offset_max 45 m to 55 m (3 designs) B's front reaches the offset_max but spends more thrust_energy "
+            "(7–50 % more); A's designs there leave the turret outside the 50 m safe circle for up to 300 s") in md
+    assert "no trial kept it at 2 or above: the best reached 1.00 (trial 0, 45 m, 20.00 MWh)" in md   # A's riser
+    assert "the cheapest trial keeping it at 2 or above spends 30.00 MWh at 40 m (trial 0)" in md      # B's riser
+    assert "| A | offset_max | 50 m | 52 m | +4.0 % | seed 7: 52 m |" in md

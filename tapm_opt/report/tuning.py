@@ -22,7 +22,7 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
@@ -144,6 +144,131 @@ def _option_text(v: Any) -> str:
     return str(v)
 
 
+def _verdict(a: str, b: str, cv: dict, hv: Mapping[str, float], o0: tuple, o1: tuple, tol: float, nb: int) -> str:
+    """One pair's answer: does ``a``'s front cover ``b``'s, with at least its hypervolume?"""
+    (n0, _), (n1, _) = o0, o1
+    sav = cv["savings"]
+    covers = cv["covered"] >= 1.0 - 1e-12
+    txt = (f"**{a} over {b}: {'covers' if covers else 'does not cover'}.** For {100 * cv['covered']:.0f} % of "
+           f"{b}'s {nb} front designs {a} has a design with no more {n0}" + (f" (+{tol:g} m)" if tol else "")
+           + f" and no more {n1}")
+    if sav:
+        txt += (f", {100 * np.median(sav):.1f} % less {n1} at the median (range {100 * min(sav):.1f} to "
+                f"{100 * max(sav):.1f} %)")
+    txt += f"; hypervolume {hv[a]:.4g} against {hv[b]:.4g}"
+    if covers and hv[a] >= hv[b]:
+        txt += f": {a}'s front is at least as good as {b}'s everywhere {b} reaches."
+    elif covers:
+        txt += f": {a} covers {b}'s designs but its front spans less (smaller hypervolume)."
+    else:
+        txt += "."
+    return txt
+
+
+def _where_and_why(a: str, b: str, uncovered: Sequence[tuple[float, float]], front_a: Sequence[_Point],
+                   trials_a: Sequence[tuple[tuple[float, float], _Point]], front_b: Sequence[_Point],
+                   o0: tuple, o1: tuple, tol: float, limits: Mapping[str, Any]) -> str:
+    """Where ``b``'s front is better than ``a``'s, and why, from the run's own figures: each
+    uncovered design of ``b`` is one of (1) closer than any design of ``a`` came (``a``'s least
+    first objective is larger), (2) cheaper than any trial of ``a`` ran (``a``'s least second
+    objective over every finished trial is larger: ``a``'s search space or structure does not
+    reach so little), or (3) a stretch where ``a`` reaches the first objective but spends more;
+    with the time outside the safe circle those designs of ``b`` leave the turret out."""
+    (n0, s0), (n1, s1) = o0, o1
+    fa = sorted((s0 * _num(p.values.get(n0)), s1 * _num(p.values.get(n1))) for p in front_a)
+    ta = [q for q, _ in trials_a if all(math.isfinite(x) for x in q)]
+    min0_a = min(q[0] for q in fa)
+    cheapest = min(ta or fa, key=lambda q: q[1])
+    bpts = {(s0 * _num(p.values.get(n0)), s1 * _num(p.values.get(n1))): p for p in front_b}
+    groups: dict[str, list] = {"closer": [], "cheaper": [], "more": []}
+    for u in uncovered:
+        if u[0] + tol < min0_a:
+            groups["closer"].append(u)
+        elif u[1] < cheapest[1]:
+            groups["cheaper"].append(u)
+        else:
+            groups["more"].append(u)
+
+    def rng(pts: list, i: int, name: str, sign: float) -> str:
+        lo, hi = min(sign * p[i] for p in pts), max(sign * p[i] for p in pts)
+        lo, hi = min(lo, hi), max(lo, hi)
+        return format_kpi(name, lo) if lo == hi else f"{format_kpi(name, lo)} to {format_kpi(name, hi)}"
+
+    def outside(pts: list) -> str:
+        tout = [_num(bpts[p].values.get("time_outside_safe")) for p in pts if p in bpts]
+        tout = [t for t in tout if math.isfinite(t)]
+        r = limits.get("safe_radius")
+        if not tout or max(tout) <= 0:
+            return ""
+        where = f"the {r:g} m safe circle" if r else "the safe circle"
+        span = (f"{max(tout):.0f} s" if min(tout) == max(tout) else f"up to {max(tout):.0f} s" if min(tout) <= 0
+                else f"{min(tout):.0f}–{max(tout):.0f} s")
+        return f"; {b}'s designs there leave the turret outside {where} for {span} of the cases' time"
+
+    def plural(g: list) -> str:
+        return f"{len(g)} design{'s' * (len(g) > 1)}"
+
+    parts = []
+    if groups["closer"]:
+        g = groups["closer"]
+        parts.append(f"{b} reaches {n0} {rng(g, 0, n0, s0)} ({plural(g)}), closer than any design of {a} came "
+                     f"(its least {n0} is {format_kpi(n0, s0 * min0_a)})")
+    if groups["cheaper"]:
+        g = groups["cheaper"]
+        parts.append(f"{b} runs on {rng(g, 1, n1, s1)} at {n0} {rng(g, 0, n0, s0)} ({plural(g)}), less than any "
+                     f"trial of {a} spent: {a}'s cheapest trial spent {format_kpi(n1, s1 * cheapest[1])} at "
+                     f"{format_kpi(n0, s0 * cheapest[0])}, so its search space or its structure does not reach so "
+                     f"little {n1}" + outside(g))
+    if groups["more"]:
+        g = groups["more"]
+        extra = []
+        for u in g:
+            ok = [q for q in fa if q[0] <= u[0] + tol]
+            if ok and u[1]:
+                extra.append(min(q[1] for q in ok) / u[1] - 1.0)
+        ex = [e for e in extra if math.isfinite(e)]
+        parts.append(f"at {n0} {rng(g, 0, n0, s0)} ({plural(g)}) {a}'s front reaches the {n0} but spends more "
+                     f"{n1}" + (f" ({100 * min(ex):.0f}–{100 * max(ex):.0f} % more)" if ex else "") + outside(g))
+    return f"*Where {b} is better than {a}, and why:* " + "; ".join(parts) + "."
+
+
+def _reliability_cost(ctrls: Sequence[str], info: Mapping[str, Any], points: Mapping[str, list],
+                      fronts: Mapping[str, list], o0: tuple, o1: tuple, delta_s: float) -> list[str]:
+    """What the riser's and the lines' reliability cost: per controller, the index over its front,
+    at its selected design, and the cheapest finished trial that keeps it at ``delta_s`` or
+    above (or the best any trial reached)."""
+    (n0, _), (n1, s1) = o0, o1
+    out = []
+    for kpi, what in (("riser_delta_min", "the riser's reliability index"),
+                      ("delta_min", "the lines' reliability index")):
+        if not any(math.isfinite(_num(p.values.get(kpi))) for ps in points.values() for p in ps):
+            continue
+        for c in ctrls:
+            pts = [p for p in points.get(c, []) if math.isfinite(_num(p.values.get(kpi)))]
+            if not pts:
+                continue
+            fv = [_num(p.values.get(kpi)) for p in fronts.get(c, []) if math.isfinite(_num(p.values.get(kpi)))]
+            sel = (info["controllers"][c].get("kpis") or {}).get(kpi)
+            txt = f"**{c}**, {what} ({kpi}, its least over the cases):"
+            if fv:
+                txt += f" {min(fv):.2f} to {max(fv):.2f} over its front"
+            if sel is not None and math.isfinite(_num(sel)):
+                txt += f", {_num(sel):.2f} at the selected design"
+            ok = [p for p in pts if _num(p.values.get(kpi)) >= delta_s]
+            if ok:
+                p = min(ok, key=lambda p: s1 * _num(p.values.get(n1)))
+                txt += (f"; the cheapest trial keeping it at {delta_s:g} or above spends "
+                        f"{format_kpi(n1, _num(p.values.get(n1)))} at {format_kpi(n0, _num(p.values.get(n0)))} "
+                        f"(trial {p.trial})")
+            else:
+                p = max(pts, key=lambda p: _num(p.values.get(kpi)))
+                txt += (f"; no trial kept it at {delta_s:g} or above: the best reached {_num(p.values.get(kpi)):.2f} "
+                        f"(trial {p.trial}, {format_kpi(n0, _num(p.values.get(n0)))}, "
+                        f"{format_kpi(n1, _num(p.values.get(n1)))})")
+            out.append(txt + ".")
+    return out
+
+
 def _build(d: Path) -> tuple[list, list[Fig], str]:
     try:
         info = json.loads((d / TUNING_JSON).read_text(encoding="utf-8"))
@@ -157,7 +282,6 @@ def _build(d: Path) -> tuple[list, list[Fig], str]:
     (n0, s0), (n1, s1) = objs[0], objs[1]
     trials = _read_csv(d / "trials.csv")
     front_rows = _read_csv(d / "front.csv")
-    verify = _read_csv(d / "verify.csv")
     points: dict[str, list[_Point]] = {}
     for r in trials:
         if r.get("state") == "COMPLETE":
@@ -197,7 +321,8 @@ def _build(d: Path) -> tuple[list, list[Fig], str]:
     tol = _tolerance(n0)
     # the verdict first
     blocks.append(Heading(2, "The answer"))
-    lines = []
+    limits = info.get("limits") or {}
+    all_pts = {c: [(pair(p), p) for p in ps] for c, ps in points.items()}
     for a in ctrls:
         for b in ctrls:
             ia, ib = info["controllers"][a], info["controllers"][b]
@@ -206,21 +331,17 @@ def _build(d: Path) -> tuple[list, list[Fig], str]:
             cv = coverage(fp[a], fp[b], tol)
             if math.isnan(cv["covered"]):
                 continue
-            sav = cv["savings"]
-            txt = (f"**{a} over {b}:** for {100 * cv['covered']:.0f} % of {b}'s {len(fp[b])} front designs "
-                   f"{a} has a design with no more {n0}" + (f" (+{tol:g} m)" if tol else "") + f" and no more {n1}")
-            if sav:
-                txt += (f", {100 * np.median(sav):.1f} % less {n1} at the median (range {100 * min(sav):.1f} to "
-                        f"{100 * max(sav):.1f} %)")
+            blocks.append(Para(_verdict(a, b, cv, hv, (n0, s0), (n1, s1), tol, len(fp[b]))))
             if cv["uncovered"]:
-                where = ", ".join(f"{format_kpi(n0, s0 * u[0])} / {format_kpi(n1, s1 * u[1])}" for u in cv["uncovered"][:6])
-                txt += f"; {b} is better at {where}" + (" …" if len(cv["uncovered"]) > 6 else "")
-            lines.append(txt + ".")
-    for t in lines:
-        blocks.append(Para(t))
+                blocks.append(Para(_where_and_why(a, b, cv["uncovered"], fronts[a], all_pts.get(a, []),
+                                                  fronts[b], (n0, s0), (n1, s1), tol, limits)))
     blocks.append(Para("Hypervolume of each front (" + f"{n0} × {n1}" + ", against the common reference "
                        f"{format_kpi(n0, s0 * ref[0])} / {format_kpi(n1, s1 * ref[1])}; larger is better): "
                        + "; ".join(f"**{c}** {hv[c]:.4g} {u0}·{u1}".rstrip("·") for c in ctrls) + "."))
+    cost = _reliability_cost(ctrls, info, points, fronts, (n0, s0), (n1, s1), float(info.get("delta_s", 2.0)))
+    if cost:
+        blocks.append(Heading(3, "What the riser and the lines cost"))
+        blocks.extend(Para(t) for t in cost)
     png = _figure(points, fronts, selected, held, (n0, n1))
     figs.append(Fig("tuning_fronts", png, "Each controller's finished trials (faint), front (line; colour: time "
                                           "outside the safe circle), selected design (star) and its held-out "
@@ -256,9 +377,26 @@ def _build(d: Path) -> tuple[list, list[Fig], str]:
             for c, v in info["controllers"].items()]
     blocks.append(Table(["controller", "finished", "failed", "meeting the constraints", "on the front"], rows,
                         ["l", "r", "r", "r", "r"]))
-    if verify:
-        blocks.append(Para("Held-out seeds " + ", ".join(map(str, st.get("verify_seeds", []))) + ": the gap between "
-                           "the tuning and the held-out value of each objective is in verify.csv."))
+    if held:
+        blocks.append(Heading(2, "Held-out seeds"))
+        seeds = ", ".join(map(str, st.get("verify_seeds", [])))
+        blocks.append(Para(f"The selected designs rerun on seeds {seeds}, which the search never used (sums such as "
+                           "the energy scaled to the tuning's number of cases; worst cases over every held-out "
+                           "case). A large gap says the design was tuned to the seed's particular storm."))
+        vrows = []
+        for c in ctrls:
+            v = (info.get("verify") or {}).get(c) or {}
+            k = info["controllers"][c].get("kpis") or {}
+            for name in [n for n in (n0, n1, "time_outside_safe", "riser_delta_min") if n in (v.get("kpis") or {})]:
+                t, h = _num(k.get(name)), _num(v["kpis"].get(name))
+                per = "; ".join(f"seed {sd}: {format_kpi(name, _num(kk.get(name)))}"
+                                for sd, kk in (v.get("per_seed") or {}).items())
+                gap = (f"{100 * (h - t) / abs(t):+.1f} %" if t and math.isfinite(t) and math.isfinite(h)
+                       and name not in ("time_outside_safe", "riser_delta_min") else format_kpi(name, h - t))
+                vrows.append([Cell(c), Cell(name), Cell(format_kpi(name, t)), Cell(format_kpi(name, h)), Cell(gap),
+                              Cell(per)])
+        blocks.append(Table(["controller", "KPI", "tuning", "held-out", "gap", "per held-out seed"], vrows,
+                            ["l", "l", "r", "r", "r", "l"]))
     return blocks, figs, f"Tuning {info.get('study', '')}"
 
 

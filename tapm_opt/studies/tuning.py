@@ -50,6 +50,7 @@ import numpy as np
 from .._io import atomic_write_text, toml_key, toml_value
 from ..design.registry import DESIGN_FORMAT, kind as controller_kind
 from .kpi_catalogue import KPIS
+from .kpis import DELTA_S_DEFAULT
 from .tuning_space import (ALWAYS_REPORTED, CONTEXT_KPIS, DEFAULT_OBJECTIVES, SUMMED_KPIS, Constraint, Objective, Param,
                            TuningError, TuningSettings, _num, parse_rule, search_space, spec_from_params,
                            tuning_settings)
@@ -578,10 +579,13 @@ def tune_study(path: str | Path, out_dir: str | Path, *, trials: int | None = No
                                             "seed": settings.seed, "select": settings.select,
                                             "verify_seeds": list(settings.verify_seeds),
                                             "per": list(settings.per)},
+                               "limits": {k: (study.cases[0].inputs["scenario"].get("limits") or {}).get(k)
+                                          for k in ("safe_radius", "alert_radius")} if study.cases else {},
+                               "delta_s": DELTA_S_DEFAULT,
                                "controllers": {}}
     all_rows: list[TrialRow] = []
     fronts: dict[str, list[TrialRow]] = {}
-    command = f"tapm tune {path.name} --out {out.name}"
+    command = f"tapm tune {path.name} --out {out.name}" + (f" --trials {trials}" if trials is not None else "")
     (out / "tuned").mkdir(exist_ok=True)
     for ci, ctrl_name in enumerate(names):
         cases = [c for c in study.cases if c.labels["controller"] == ctrl_name]
@@ -677,16 +681,21 @@ def _verify(study: Any, summary: Mapping[str, Any], settings: TuningSettings, ou
         overlap = sorted(set(used) & set(seeds))
         if overlap:
             echo(f"  {cname}: verify_seeds {overlap} were used by the search too: not held out")
-        inputs = []
+        inputs, seed_of = [], []
         for c in base_cases:
             if int(c.labels["seed"]) != used[0]:
                 continue
             for s in seeds:
                 inputs.append({**c.inputs, "seed": int(s)})
+                seed_of.append(int(s))
         per_case = _CaseRunner(inputs)(info["spec"])
-        held = {name: item.value(per_case) for name, item in settings.reported()}
-        res[cname] = {"seeds": seeds, "kpis": held}
+        held = _aggregate_like(settings, per_case, len(base_cases))
+        per_seed = {str(s): _aggregate_like(settings, [k for k, si in zip(per_case, seed_of) if si == s],
+                                            len(base_cases)) for s in seeds}
+        res[cname] = {"seeds": seeds, "kpis": held, "per_seed": per_seed}
         for name, _ in settings.reported():
+            if name not in held:
+                continue
             t, h = _num(info["kpis"].get(name)), held[name]
             rows.append([cname, name, repr(t), repr(h), repr(h - t)])
         echo(f"  {cname} on held-out seeds {seeds}: " + ", ".join(
@@ -697,6 +706,21 @@ def _verify(study: Any, summary: Mapping[str, Any], settings: TuningSettings, ou
     w.writerows(rows)
     atomic_write_text(out / "verify.csv", buf.getvalue())
     return res
+
+
+def _aggregate_like(settings: TuningSettings, per_case: Sequence[Mapping[str, float]], n_tuning: int) -> dict:
+    """The reported KPIs of held-out cases aggregated as in the tuning, the sums scaled to the
+    tuning's number of cases (``n_tuning``) so that two held-out seeds of a one-seed study compare
+    with the tuning's value, not twice it; worst cases stay worst over every held-out case."""
+    out = {}
+    for name, item in settings.reported():
+        v = item.value(per_case)
+        if item.aggregate == "sum" and per_case:
+            v *= n_tuning / len(per_case)
+        if name in CONTEXT_KPIS and not math.isfinite(v):
+            continue
+        out[name] = v
+    return out
 
 
 def gain_designs(tune_dir: str | Path) -> dict[tuple[str, str], dict]:
