@@ -279,3 +279,21 @@ def test_fast_defaults_give_the_reference_paths_kpis():
         assert abs(a["offset_max"] - b["offset_max"]) <= 0.5, (fast, a["offset_max"], b["offset_max"])
         assert a["thrust_energy"] == pytest.approx(b["thrust_energy"], rel=0.01), fast
         assert a["solver_failures"] == 0
+
+
+def test_pid_capacity_fraction_scales_its_command_box(fpso_system):
+    """The PID's anti-windup box is ``capacity_fraction`` of the largest X, Y and N the thrusters
+    make each alone (0.6 by default, as before the option); it is tunable and checked."""
+    from tapm_opt.design import build
+    from tapm_opt.design.registry import ControllerSpecError, kind
+
+    top = np.asarray(fpso_system.thrusters.max_tau(), float)
+    np.testing.assert_allclose(build(fpso_system, "pid")._tau_limit, 0.6 * top, rtol=1e-12)
+    np.testing.assert_allclose(build(fpso_system, {"type": "pid", "capacity_fraction": 0.95})._tau_limit,
+                               0.95 * top, rtol=1e-12)
+    given = build(fpso_system, {"type": "pid", "capacity_fraction": 0.95, "tau_limit": [1e6, 1e6, 1e8]})
+    np.testing.assert_allclose(given._tau_limit, [1e6, 1e6, 1e8])   # an explicit box wins
+    for bad in (0.0, 1.2, "half"):
+        with pytest.raises(ControllerSpecError, match=r"controller.capacity_fraction = .* must be a number in \(0, 1\]"):
+            build(fpso_system, {"type": "pid", "capacity_fraction": bad})
+    assert kind("pid").search_space["capacity_fraction"].low == 0.4

@@ -47,6 +47,7 @@ from typing import Any, Callable, Mapping
 import numpy as np
 
 from .._checks import is_number as _is_number
+from ..models.system import CAPACITY_FRACTION
 from ..errors import TapmError
 from ..estimation import DEFAULT_ESTIMATOR
 from ..control.pid import MODE_SETS
@@ -235,9 +236,11 @@ class PIDOptions:
                       "(heading, damping, restoring, mean)", "", tuple(MODE_SETS))
     tau_limit: Any = _opt(None, "command box (X, Y, N); None: the thrusters' capacity box (plus the winches' "
                           "force with winch tension control)", "N, N, N m")
+    capacity_fraction: float = _opt(CAPACITY_FRACTION, "the capacity box (tau_limit None) as a fraction of the largest X, Y "
+                                    "and N the thrusters make each alone: the PID's anti-windup limit", "-")
     fault_tolerance: bool = _opt(True, "feed a line reported broken's load forward", "", (True, False))
     gain_table: Any = _opt(None, "gains.json (or its folder, or its dict): a gain-scheduled PID on that table, "
-                           "supervised (periods, damping, integral_ratio, modes, tau_limit and fault_tolerance "
+                           "supervised (periods, damping, integral_ratio, modes, tau_limit, capacity_fraction and fault_tolerance "
                            "unused)")
     supervisor: Any = _opt(False, "sea-state supervision (survey §4.5): true or a table of SeaStateSupervisor "
                            "options, e.g. {dwell = 600}")
@@ -255,10 +258,14 @@ def _positive_triple(value: Any, key: str, where: str, example: tuple) -> tuple:
     return tuple(float(x) for x in arr)
 
 
-def _dp_force_limit(system: Any, winch: Mapping[str, Any] | None, where: str) -> np.ndarray:
-    """The PID's default command box (X [N], Y [N], N [N m]): the thrusters' capacity box, plus
-    in X and Y the force the winches can make the mooring deliver when ``winch`` is given."""
-    box = np.array(system.thrusters.capacity_box(), dtype=float)
+def _dp_force_limit(system: Any, winch: Mapping[str, Any] | None, where: str,
+                    fraction: float = CAPACITY_FRACTION) -> np.ndarray:
+    """The PID's default command box (X [N], Y [N], N [N m]): the thrusters' capacity box
+    (``fraction`` of the largest X, Y and N each alone), plus in X and Y the force the winches can
+    make the mooring deliver when ``winch`` is given."""
+    if not (_is_number(fraction) and 0.0 < float(fraction) <= 1.0):
+        raise ControllerSpecError(f"{where}.capacity_fraction = {fraction!r} must be a number in (0, 1]")
+    box = np.array(system.thrusters.capacity_box(float(fraction)), dtype=float)
     if not np.all(box > 0):
         ids = ", ".join(t.id for t in system.scenario.thrusters) or "none"
         raise ControllerSpecError(
@@ -305,7 +312,7 @@ def _build_pid(system: Any, o: PIDOptions, ctx: BuildContext) -> Any:
             raise ControllerSpecError(f"{where}.tau_limit = {o.tau_limit!r} must be a number or 3 numbers "
                                       "(X [N], Y [N], N [N m])") from None
     else:
-        tau_limit = _dp_force_limit(system, ctx.winch, where)
+        tau_limit = _dp_force_limit(system, ctx.winch, where, o.capacity_fraction)
     ctrl = TAPMPID.from_design(design, modes=o.modes if isinstance(o.modes, str) else tuple(o.modes),
                                tau_limit=tau_limit, reference_point=system.p_cot_B, thrusters=system.thrusters,
                                line_model=system.lines, fault_tolerance=o.fault_tolerance)
@@ -328,7 +335,7 @@ def _normalise_pid(spec: Mapping[str, Any]) -> dict:
     for k, v in spec.items():
         if k in ("periods", "damping", "tau_limit") and isinstance(v, list):
             v = [float(x) if _is_number(x) else x for x in v]
-        elif k == "integral_ratio" and _is_number(v):
+        elif k in ("integral_ratio", "capacity_fraction") and _is_number(v):
             v = float(v)
         out[k] = v
     return out
@@ -338,6 +345,7 @@ PID_SEARCH_SPACE = {
     "periods": Dimension(60.0, 600.0, log=True, size=3),
     "damping": Dimension(0.4, 1.5, size=3),
     "integral_ratio": Dimension(0.0, 0.5),
+    "capacity_fraction": Dimension(0.4, 1.0),
     "modes": Dimension(choices=("normal", "normal_restoring", "extreme", "extreme_restoring")),
 }
 
@@ -518,7 +526,7 @@ def _normalise_mpc(spec: Mapping[str, Any]) -> dict:
 
 MPC_SEARCH_SPACE = {
     "horizon": Dimension(10, 50, integer=True),
-    "w_thrust": Dimension(0.3, 100.0, log=True),
+    "w_thrust": Dimension(0.3, 3000.0, log=True),
     "w_rate": Dimension(0.1, 50.0, log=True),
     "w_velocity": Dimension(0.1, 50.0, log=True),
     "w_position": Dimension(0.1, 30.0, log=True),
