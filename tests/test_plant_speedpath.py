@@ -270,3 +270,25 @@ def test_a_node_that_is_no_longer_finite_is_reported_as_diverged(fpso, compiled)
     p.mooring.fem.r = r
     with pytest.raises(SimulationDiverged, match="line"):
         p.step(0.1)
+
+
+@compiled_only
+def test_compiled_end_tensions_are_the_numpy_formulas(fpso):
+    """FEMLines.end_tensions (compiled with the numba FEM) against the numpy path of
+    fairlead_tension and anchor_tension on the same states, with a broken line."""
+    p = Plant(fpso, sea_state="storm", seed=2, segments=6,
+              faults=[schema.Fault(kind="line_break", time=1.0, line=fpso.lines[4].id)])
+    fem = p.mooring.fem
+    assert fem.kernel == "numba"
+    for k in range(40):
+        p.step(0.5, ThrusterCommand(np.full(len(fpso.thrusters), 5e5 * math.sin(k / 7)),
+                                    np.full(len(fpso.thrusters), k / 20)))
+        T_fl, T_an = fem.end_tensions()
+        fn = fem._kernel_fn
+        fem._kernel_fn = None   # the numpy path of the same methods
+        try:
+            assert_same(T_fl, fem.fairlead_tension())
+            assert_same(T_an, fem.anchor_tension())
+        finally:
+            fem._kernel_fn = fn
+    assert T_fl[4] == 0.0 and np.all(np.delete(T_fl, 4) > 0.0) and np.all(np.delete(T_an, 4) > 0.0)

@@ -542,10 +542,12 @@ class FEMLines:
         """Fairlead tension of each line [N]: magnitude of the top segment's tension vector plus
         the fairlead node's weight (the static part of :meth:`fairlead_forces`; no drag or
         inertia). 0 for a broken line."""
+        if self._kernel_fn is not None:
+            return self.end_tensions()[0]
         lv, eps, T = self.segment_state(self.r, self.v, self.fairlead_seg)
         f = -(T / eps)[:, None] * lv
         f[:, 2] += self.node_weight[self.fairlead_idx]
-        out = np.sqrt(np.einsum("ij,ij->i", f, f))
+        out = np.sqrt((f * f).sum(axis=1))
         out[~self.active] = 0.0
         return out
 
@@ -554,7 +556,22 @@ class FEMLines:
         tensions ``T`` when given, else evaluated on the bottom segments only)."""
         if T is not None:
             return T[self.anchor_seg]
+        if self._kernel_fn is not None:
+            return self.end_tensions()[1]
         return self.segment_state(self.r, self.v, self.anchor_seg)[2]
+
+    def end_tensions(self) -> tuple[np.ndarray, np.ndarray]:
+        """(:meth:`fairlead_tension`, :meth:`anchor_tension`) [N], each (n_lines,), in one pass: the
+        compiled :func:`tapm_opt.plant.fem_kernel.end_tensions` with the "numba" kernel (the same
+        operations in the same order), else the numpy path of each."""
+        if self._kernel_fn is None:
+            return self.fairlead_tension(), self.anchor_tension()
+        from . import fem_kernel  # loaded with the compiled FEM already
+
+        shape = (self.n_nodes, 3)
+        return fem_kernel.end_tensions(_as_f64(self.r, shape, "r"), _as_f64(self.v, shape, "v"), self.l0, self._EA,
+                                       self._c_int, bool(self._has_int_damping), self.node_weight, self.fairlead_seg,
+                                       self.fairlead_idx, self.anchor_seg, self.active)
 
     def energy(self) -> float:
         """Mechanical energy of the lines [J]: kinetic (structural mass) + elastic + gravitational.

@@ -38,7 +38,7 @@ import warnings
 
 import numpy as np
 
-__all__ = ["AVAILABLE", "advance", "thruster_step", "vessel_step", "mooring_step", "plant_pre_step"]
+__all__ = ["AVAILABLE", "advance", "thruster_step", "vessel_step", "mooring_step", "plant_pre_step", "end_tensions"]
 
 from .._jit import jit as _jit, numba_available
 
@@ -671,12 +671,11 @@ def _current_at_nodes(r, vc, kind, clamps, depths, factors, water_depth, surface
 
 
 @_jit
-def plant_pre_step(h, f, alpha, failed, f_cmd, alpha_cmd, f_min, f_max, decay, rate_dt, alpha_rate_dt, azimuth,
-                   x_thr, y_thr,
-                   has_env, V0, q0, wind_dir, hull_k, wave_dir, drift_c, wf, S0, S1, C0,
-                   eta, nu, eta_wf_prev, tau_moor_prev, v_c, M, M_A, M_inv, D_lin, d_quad,
-                   has_riser, riser_c, r, vc, cur_kind, cur_clamps, cur_depths, cur_factors, cur_depth,
-                   cur_surface):  # pragma: no cover - compiled
+def plant_pre_step(h, f, alpha, f_cmd, alpha_cmd, decay, rate_dt, alpha_rate_dt, V0, q0, S0, S1, C0,
+                   eta, nu, eta_wf_prev, tau_moor_prev, r, vc,
+                   failed, f_min, f_max, azimuth, x_thr, y_thr, has_env, wind_dir, hull_k, wave_dir, drift_c, wf,
+                   v_c, M, M_A, M_inv, D_lin, d_quad, has_riser, riser_c,
+                   cur_kind, cur_clamps, cur_depths, cur_factors, cur_depth, cur_surface):  # pragma: no cover - compiled
     """The plant's outer step of ``h`` [s] up to its lines (``Plant._outer_step``, no winch, a
     steady current) in one call: :func:`thruster_step` (``f`` and ``alpha`` in place), the wind
     load (``HullWindLoad.tau`` at the wind speed ``V0`` [m/s] going to ``wind_dir`` [rad], the
@@ -687,7 +686,8 @@ def plant_pre_step(h, f, alpha, failed, f_cmd, alpha_cmd, f_min, f_max, decay, r
     unless ``wf``), the total poses ``eta + eta_wf_prev`` and the new one, the riser angles at the
     new (``riser_c``: hang-off (x, y) in {B}, wellhead (x, y), c_t, c_b, h_t, h_b, g(v_c) (x, y)
     of ``RiserModel._affine``) and the current at the nodes ``r`` (into ``vc`` unless ``cur_kind``
-    is :data:`CURRENT_HELD`, :func:`_current_at_nodes`).
+    is :data:`CURRENT_HELD`, :func:`_current_at_nodes`). The arguments that change from step to
+    step come first (up to ``vc``), the plant's constants after them.
 
     Returns
     -------
@@ -755,3 +755,24 @@ def plant_pre_step(h, f, alpha, failed, f_cmd, alpha_cmd, f_min, f_max, decay, r
         if not _current_at_nodes(r, vc, cur_kind, cur_clamps, cur_depths, cur_factors, cur_depth, cur_surface):
             return 2, out
     return 0, out
+
+
+@_jit
+def end_tensions(r, v, l0, EA, c_int, has_int_damping, node_weight, fairlead_seg, fairlead_idx, anchor_seg,
+                 active):  # pragma: no cover - compiled
+    """Fairlead and anchor tension of every line [N], each (n_lines,): :meth:`FEMLines.fairlead_tension
+    <tapm_opt.plant.fem.FEMLines.fairlead_tension>` (the top segment's tension vector plus the
+    fairlead node's weight, 0 for a broken line) and :meth:`~tapm_opt.plant.fem.FEMLines.anchor_tension`
+    (the bottom segment's tension), in the numpy path's order."""
+    nl = fairlead_seg.shape[0]
+    T_fl = np.empty(nl)
+    T_an = np.empty(nl)
+    for j in range(nl):
+        lx, ly, lz, e, t = _bond(r, v, fairlead_seg[j], l0, EA, c_int, has_int_damping)
+        s = -(t / e)
+        fx = s * lx
+        fy = s * ly
+        fz = s * lz + node_weight[fairlead_idx[j]]
+        T_fl[j] = math.sqrt(0.0 + fx * fx + fy * fy + fz * fz) if active[j] else 0.0
+        T_an[j] = _bond(r, v, anchor_seg[j], l0, EA, c_int, has_int_damping)[4]
+    return T_fl, T_an

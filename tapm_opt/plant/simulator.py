@@ -65,6 +65,7 @@ OVERLOAD_NEAR = 0.98
 #: the block sums of the environment (:meth:`Plant._env_block`).
 _ULP4 = 4.0 * 2.220446049250313e-16
 _EMPTY = np.zeros(1)
+_NO_SUMS = (0.0, 0.0, 0.0, 0.0, 0.0)
 
 __all__ = ["Plant", "ThrusterCommand", "run_open_loop", "PlantError", "SimulationDiverged"]
 
@@ -199,15 +200,20 @@ class Plant:
             return np.zeros(3)
         return np.asarray(self.env.eta_wf(t, self.eta[2]), dtype=float)
 
-    def _fairlead_tension(self) -> np.ndarray:
-        """:meth:`MooringFEM.fairlead_tension` [N], evaluated once per outer step (``measure`` and
-        ``sample_row`` at the same instant share it); a copy."""
+    def _end_tensions(self) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`MooringFEM.fairlead_tension` and :meth:`~MooringFEM.anchor_tension` [N], evaluated
+        once per outer step (``measure`` and ``sample_row`` at the same instant share them; one
+        pass, :meth:`FEMLines.end_tensions`); not to be changed in place."""
         fem = self.mooring.fem
-        key = (fem.r, fem.v, fem._attached)  # a break between steps replaces _attached
         c = self._tension_cache
-        if c is None or c[0] != self._steps or any(a is not b for a, b in zip(key, c[1])):
-            c = self._tension_cache = (self._steps, key, self.mooring.fairlead_tension())
-        return c[2].copy()
+        # a break between steps replaces _attached; a state set from outside, r or v
+        if c is None or c[0] != self._steps or c[1] is not fem.r or c[2] is not fem.v or c[3] is not fem._attached:
+            c = self._tension_cache = (self._steps, fem.r, fem.v, fem._attached, fem.end_tensions())
+        return c[4]
+
+    def _fairlead_tension(self) -> np.ndarray:
+        """:meth:`MooringFEM.fairlead_tension` [N] of this outer step (:meth:`_end_tensions`); a copy."""
+        return self._end_tensions()[0].copy()
 
     @property
     def eta_total(self) -> np.ndarray:
@@ -381,9 +387,12 @@ class Plant:
         sums = self._env_sums(t0, t1, h) if env is not None else None
         m = self.mooring
         compiled = self.compiled and m.fem._kernel_fn is not None  # numba is there and the FEM uses it
-        if compiled and not self._winching and not self._current_turns and self._fused_ok():
-            self._fused_step(h, t0, t1, sums)
-            return
+        if compiled and not self._winching and not self._current_turns:
+            f = self._fused   # the constants of the fused step, while the lines' constants and current stay
+            if (f[2] is not None if f is not None and f[0] is m.fem._kernel_constants() and f[1] is m.current
+                    else self._fused_ok()):
+                self._fused_step(h, t0, t1, sums)
+                return
         if compiled:
             fem_kernel = _fem_kernel()   # loaded with the compiled FEM (numba) already
         tau_thr = self.thrusters._advance(h, self._cmd.f, self._cmd.alpha, compiled=compiled)
@@ -469,15 +478,13 @@ class Plant:
     def _fused_ok(self) -> bool:
         """The fused compiled outer step applies: the lines' current is none or the sea state's
         profile (not another callable), and the per-step constants are gathered
-        (``self._fused``, rebuilt when the FEM's line constants or the strengths change)."""
+        (``self._fused``, rebuilt when the FEM's line constants or the lines' current change)."""
         m = self.mooring
         fem = m.fem
         kc, cur_fn = fem._kernel_constants(), m.current
         f = self._fused
-        if f is not None and f[0][0] is kc and f[0][1] is cur_fn:
-            return f[1] is not None
-        key = (kc, cur_fn)
-        const = None
+        if f is not None and f[0] is kc and f[1] is cur_fn:
+            return f[2] is not None
         env = self.env
         prof = env.current if env is not None else None
         kinds = _fem_kernel()
@@ -490,59 +497,57 @@ class Plant:
                    np.ascontiguousarray(prof._factors, dtype=float), float(prof.water_depth),
                    np.ascontiguousarray(prof.surface, dtype=float))
         else:
-            cur = None
-        if cur is not None:
-            g = m.geometry
-            ves, th = self.vessel, self.thrusters
-            lim = th.limits
-            if env is not None:
-                w, wv = env.wind, env.waves
-                env_c = (float(w.direction), np.ascontiguousarray(w.hull.k, dtype=float), float(wv.direction),
-                         np.ascontiguousarray(wv._drift_c, dtype=float))
-            else:
-                env_c = (0.0, np.zeros(3), 0.0, np.zeros(3))
-            if self.riser is not None:
-                rz = self.riser
-                riser = (True, np.array(rz._hangoff_xy + rz._wellhead_xy + rz._cc + rz._hh + rz._g_default_xy,
-                                        dtype=float))
-            else:
-                riser = (False, np.zeros(10))
-            if m._vc.shape != (fem.n_nodes, 3) or not m._vc.flags.c_contiguous or m._vc.dtype != np.float64:
-                m._vc = np.array(np.broadcast_to(m._vc, (fem.n_nodes, 3)), dtype=float, order="C")
-            else:
-                m._vc = m._vc.copy()   # the kernel writes the current into it: the plant's own array
-            const = dict(
-                thr=(lim.f_min, lim.f_max), thr_geo=(lim.azimuth, lim.x, lim.y), env=env_c,
-                ves=(self._v_c, ves.M, ves.M_A, ves.M_inv, ves.D_lin, ves.d_quad),
-                geo=(m._p_cot, m._p_T, float(g.turret_angle), g.turret_mode == "locked", m.fairlead_z),
-                cur=cur, fem=key[0], idx=(fem.fairlead_seg, fem.anchor_seg, fem.active),
-                riser=riser)
-        self._fused = (key, const)
-        return const is not None
+            self._fused = (kc, cur_fn, None)
+            return False
+        g = m.geometry
+        ves, th = self.vessel, self.thrusters
+        lim = th.limits
+        if env is not None:
+            w, wv = env.wind, env.waves
+            env_c = (True, float(w.direction), np.ascontiguousarray(w.hull.k, dtype=float), float(wv.direction),
+                     np.ascontiguousarray(wv._drift_c, dtype=float))
+        else:
+            env_c = (False, 0.0, np.zeros(3), 0.0, np.zeros(3))
+        if self.riser is not None:
+            rz = self.riser
+            riser = (True, np.array(rz._hangoff_xy + rz._wellhead_xy + rz._cc + rz._hh + rz._g_default_xy, dtype=float))
+        else:
+            riser = (False, np.zeros(10))
+        if m._vc.shape != (fem.n_nodes, 3) or not m._vc.flags.c_contiguous or m._vc.dtype != np.float64:
+            m._vc = np.array(np.broadcast_to(m._vc, (fem.n_nodes, 3)), dtype=float, order="C")
+        else:
+            m._vc = m._vc.copy()   # the kernel writes the current into it: the plant's own array
+        # plant_pre_step's constants (after vc), mooring_step's geometry (before r) and lines (after vc)
+        pre = ((th._failed, lim.f_min, lim.f_max, lim.azimuth, lim.x, lim.y) + env_c + (self.wave_frequency,)
+               + (np.asarray(self._v_c, dtype=float), ves.M, ves.M_A, ves.M_inv, ves.D_lin, ves.d_quad) + riser + cur)
+        geo = (m._p_cot, m._p_T, float(g.turret_angle), g.turret_mode == "locked", m.fairlead_z)
+        lines = kc + (fem.fairlead_seg, fem.anchor_seg, fem.active)
+        self._fused = (kc, cur_fn, (pre, geo, lines))
+        return True
 
     def _fused_step(self, h: float, t0: float, t1: float, sums) -> None:
         """:meth:`_outer_step` in two compiled calls, :func:`~tapm_opt.plant.fem_kernel.plant_pre_step`
         (thrusters, loads, vessel, wave-frequency pose, riser, current at the nodes) and
         :func:`~tapm_opt.plant.fem_kernel.mooring_step` (the lines): the same operations as the
         numpy path, for outer steps without a winch or a turning current."""
-        c = self._fused[1]
+        pre, geo, lines = self._fused[2]
         m = self.mooring
         fem = m.fem
         th = self.thrusters
         if th._dt_decay != h:
             th._lag(h)
-        n_sub = self._substeps(h, False)
+        n_sub = self._n_sub if h == self._h_last and self._dt_stable is not None else self._substeps(h, False)
         r, v = fem.r, fem.v
         if r is not self._r_last or v is not self._v_last:  # set from outside: the kernel's layout
             shape = (fem.n_nodes, 3)
             r, v = _as_f64(r, shape, "r"), _as_f64(v, shape, "v")
-        env_on = sums is not None
-        V0, q0, S0, S1, C0 = sums if env_on else (0.0, 0.0, 0.0, 0.0, 0.0)
+        V0, q0, S0, S1, C0 = sums if sums is not None else _NO_SUMS
         kern = _fem_kernel()
-        status, out = kern.plant_pre_step(
-            h, th._f, th._alpha, th._failed, self._cmd.f, self._cmd.alpha, *c["thr"], th._decay, th._rate_dt,
-            th._alpha_rate_dt, *c["thr_geo"], env_on, V0, q0, *c["env"], self.wave_frequency, S0, S1, C0,
-            self.eta, self.nu, self._eta_wf, self._tau_moor, *c["ves"], *c["riser"], r, m._vc, *c["cur"])
+        vc = m._vc
+        cmd = self._cmd
+        status, out = kern.plant_pre_step(h, th._f, th._alpha, cmd.f, cmd.alpha, th._decay, th._rate_dt,
+                                          th._alpha_rate_dt, V0, q0, S0, S1, C0, self.eta, self.nu, self._eta_wf,
+                                          self._tau_moor, r, vc, *pre)
         if status == 1:
             self._diverged(t0, out[0:3], out[3:6])
         self.t = t1
@@ -554,11 +559,13 @@ class Plant:
         m.dt = dt = h / n_sub
         pose1 = out[21:24]
         r, v, T_bonds, m._r_fl, self._rate, a_fl, tau_moor, near, suspect = kern.mooring_step(
-            out[18:21], pose1, self._rate, h, n_sub, *c["geo"], r, v, m._vc, *c["fem"], *c["idx"],
-            OVERLOAD_NEAR * self.strength, MAX_NODE_SPEED)
+            out[18:21], pose1, self._rate, h, n_sub, *geo, r, v, vc, *lines, OVERLOAD_NEAR * self.strength,
+            MAX_NODE_SPEED)
         fem.r, fem.v = self._r_last, self._v_last = r, v
+        t = fem.t
         for _ in range(n_sub):  # the same sum as n single steps (FEMLines._advance_compiled)
-            fem.t += dt
+            t += dt
+        fem.t = t
         if suspect and self._steps % 20 == 0:
             fem.check_health()
         if near:  # a line may break: the load without it
@@ -600,8 +607,9 @@ class Plant:
     def sample_row(self) -> np.ndarray:
         """Current values of all :meth:`channels` (true states, not measurements)."""
         m = self.mooring
+        T_fl, T_an = self._end_tensions()
         parts = [
-            self.eta, self.nu, self._eta_wf, self._fairlead_tension(), m.anchor_tension(), m.fem.L,
+            self.eta, self.nu, self._eta_wf, T_fl, T_an, m.fem.L,
             self.thrusters.f, self.thrusters.alpha, self.thrusters.power(),
             self.loads["tau_thr"], self.loads["tau_moor"], self.loads["tau_wind"], self.loads["tau_drift"],
         ]
