@@ -218,6 +218,35 @@ class ControllerStep:
     active: tuple[str, ...] = ()
 
 
+def _trusted(cls: type, **fields: Any) -> Any:
+    """A frozen data object of ``cls`` (:class:`Measurement`, :class:`Estimate`, :class:`Setpoint`,
+    :class:`Truth`) from fields that are already what its constructor would make of them: every
+    array a new read-only float64 (bool for ``thruster_failed``) held by nobody else, ``t`` a
+    float, ``broken_lines`` a frozenset of str. For the loop's own components on their hot path;
+    the constructor's copies and conversions are skipped, the object is the same."""
+    obj = object.__new__(cls)
+    d = obj.__dict__
+    d.update(_DEFAULTS[cls])
+    d.update(fields)
+    return obj
+
+
+_DEFAULTS: dict[type, dict[str, Any]] = {
+    Measurement: {"thruster_f": None, "thruster_alpha": None, "thruster_failed": None, "tau_thr": None,
+                  "truth": None, "riser_angles": None, "t_riser_angles": None},
+    Estimate: {"tensions": None, "riser_angles": None, "broken_lines": frozenset(), "reliability": None,
+               "eta_wf": None},
+    Setpoint: {},
+    Truth: {},
+}
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    """``a`` (a new float64 or bool array nobody else holds) made read-only in place."""
+    a.flags.writeable = False
+    return a
+
+
 @runtime_checkable
 class Controller(Protocol):
     """A motion controller: generalised thrust from the estimate and the setpoint."""

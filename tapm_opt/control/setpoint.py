@@ -16,7 +16,7 @@ import numpy as np
 from ..errors import TapmError
 from ..estimation.lowpass import first_order_step
 from ..geometry import ssa, turret_offset
-from ..interfaces import Estimate, Logged, Setpoint
+from ..interfaces import Estimate, Logged, Setpoint, _frozen, _trusted
 
 __all__ = ["FixedSetpoint", "SetpointChasing", "HeadingChasing", "SetpointError"]
 
@@ -130,4 +130,7 @@ class HeadingChasing:
             target = math.atan2(-b_E[1], -b_E[0])
             a = math.exp(-dt / self.T)
             self.psi = self.psi + (1 - a) * float(ssa(target - self.psi))
-        return Setpoint(eta_d=np.array([sp.eta_d[0], sp.eta_d[1], self.psi]), nu_d=sp.nu_d)
+        eta_d = np.array([sp.eta_d[0], sp.eta_d[1], self.psi], dtype=float)
+        if type(sp) is Setpoint and not sp.nu_d.flags.writeable:   # the inner layer's read-only nu_d, shared
+            return _trusted(Setpoint, eta_d=_frozen(eta_d), nu_d=sp.nu_d)
+        return Setpoint(eta_d=eta_d, nu_d=sp.nu_d)

@@ -103,7 +103,7 @@ from scipy.linalg import expm
 
 from .._checks import vector
 from ..errors import TapmError
-from ..interfaces import Estimate, Measurement
+from ..interfaces import Estimate, Measurement, _frozen, _trusted
 from ..models.mooring import MooringModel
 from ..models.vessel import VesselParams
 from .lowpass import EstimationError, _WithDetectorAndMonitor
@@ -289,8 +289,23 @@ class _ModelObserver(_WithDetectorAndMonitor):
         tau_env = np.array([c * b[0] + s * b[1], -s * b[0] + c * b[1], b[2]])
         est = np.array([eta[0], eta[1], _wrap(psi)])
         self._eta_det = est
-        return Estimate(t=t, eta=est, nu=nu, tau_env=tau_env, tensions=m.tensions, riser_angles=m.riser_angles,
-                        broken_lines=broken, reliability=self._reliability(t, m), eta_wf=eta_wf)
+        return _estimate_of(t, est, nu, tau_env, m, broken, self._reliability(t, m), eta_wf)
+
+
+def _estimate_of(t: float, eta: np.ndarray, nu: np.ndarray, tau_env: np.ndarray, m: Measurement, broken: Any,
+                 reliability: Any, eta_wf: np.ndarray) -> Estimate:
+    """The :class:`Estimate` the constructor makes of these fields, without its copies: ``eta``,
+    ``nu``, ``tau_env``, ``eta_wf`` are new float64 (3,) arrays of the caller's (made read-only
+    here), the tensions and riser angles the measurement's read-only arrays (shared)."""
+    if type(t) is not float or not (nu.flags.owndata and eta_wf.flags.owndata and nu.dtype == eta_wf.dtype == np.float64) \
+            or type(broken) is not frozenset or not all(type(b) is str for b in broken) \
+            or (m.tensions is not None and m.tensions.flags.writeable) \
+            or (m.riser_angles is not None and m.riser_angles.flags.writeable):
+        return Estimate(t=t, eta=eta, nu=nu, tau_env=tau_env, tensions=m.tensions, riser_angles=m.riser_angles,
+                        broken_lines=broken, reliability=reliability, eta_wf=eta_wf)
+    return _trusted(Estimate, t=t, eta=_frozen(eta), nu=_frozen(nu), tau_env=_frozen(tau_env), tensions=m.tensions,
+                    riser_angles=m.riser_angles, broken_lines=broken, reliability=reliability,
+                    eta_wf=_frozen(eta_wf))
 
 
 def _implicit_damping(M_inv: np.ndarray, D: np.ndarray, dt: float) -> np.ndarray:

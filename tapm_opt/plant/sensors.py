@@ -23,7 +23,7 @@ import numpy as np
 from .._io import readonly
 from ..config import schema
 from ..geometry import ssa
-from ..interfaces import Measurement
+from ..interfaces import Measurement, _frozen
 from .environment import PlantError, _num
 
 __all__ = ["SensorSpec", "Measurement", "Sensors"]
@@ -105,39 +105,56 @@ class Sensors:
 
     def _fields(self, t: float, eta_total: Any, tensions: Any, riser_angles: Any = None) -> dict:
         """The fields of :meth:`sample`'s Measurement (:meth:`Plant.measure` adds the thruster
-        feedback and builds it once)."""
+        feedback and builds it once). The held arrays are new, read-only and held by nobody else
+        (the Measurement takes them without a copy)."""
         if type(t) is not float or not math.isfinite(t):   # a finite float needs no conversion
             t = _num("t", t, unit="s")
         if t < self._t_last:
             raise PlantError(f"t={t!r} s is before the previous sample time {self._t_last!r} s")
         self._t_last = t
-        eta = np.asarray(eta_total, dtype=float)
-        T = np.asarray(tensions, dtype=float)
-        if eta.shape != (3,) or not np.isfinite(eta).all():
+        eta = eta_total if type(eta_total) is np.ndarray and eta_total.dtype == np.float64 \
+            else np.asarray(eta_total, dtype=float)
+        T = tensions if type(tensions) is np.ndarray and tensions.dtype == np.float64 \
+            else np.asarray(tensions, dtype=float)
+        # a finite sum means every value is finite; only a non-finite one needs the element check
+        if eta.shape != (3,) or not (math.isfinite(eta[0] + eta[1] + eta[2]) or np.isfinite(eta).all()):
             raise PlantError(f"eta_total={eta.tolist()} must be 3 finite numbers (x, y, psi)")
-        if T.shape != (self.n_lines,) or not np.isfinite(T).all():
-            bad = [] if T.shape != (self.n_lines,) else np.flatnonzero(~np.isfinite(T)).tolist()
-            raise PlantError(f"tensions (shape {T.shape}) must be {self.n_lines} finite values [N]; "
+        n = self.n_lines
+        if T.shape != (n,) or not (math.isfinite(float(T.sum())) or np.isfinite(T).all()):
+            bad = [] if T.shape != (n,) else np.flatnonzero(~np.isfinite(T)).tolist()
+            raise PlantError(f"tensions (shape {T.shape}) must be {n} finite values [N]; "
                              f"bad lines {bad}")
         if riser_angles is not None:
             theta = np.asarray(riser_angles, dtype=float)
-            if theta.shape != (4,) or not np.isfinite(theta).all():
+            if theta.shape != (4,) or not (math.isfinite(float(theta.sum())) or np.isfinite(theta).all()):
                 raise PlantError(f"riser_angles={theta.tolist()} must be 4 finite angles (top_x, top_y, bottom_x, "
                                  "bottom_y) [rad]")
         s = self.spec
-        if self._due(_GNSS, t):
-            self._held[_GNSS] = readonly(eta[:2] + s.gnss_std * self._rngs[_GNSS].standard_normal(2))
-        if self._due(_HEADING, t):
-            self._held[_HEADING] = float(ssa(eta[2] + s.heading_std * self._rngs[_HEADING].standard_normal()))
-        if self._due(_TENSION, t):
-            self._held[_TENSION] = readonly(T + self.tension_std * self._rngs[_TENSION].standard_normal(self.n_lines))
+        held, t_held, nxt, rates, rngs = self._held, self._t_held, self._next, self._rates, self._rngs
+        # _due inlined: sensor i samples when t reaches its next instant k / rate
+        k = t * rates[_GNSS]
+        if k >= nxt[_GNSS] - 1e-9:
+            nxt[_GNSS] = math.floor(k + 1e-9) + 1.0
+            t_held[_GNSS] = t
+            held[_GNSS] = _frozen(eta[:2] + s.gnss_std * rngs[_GNSS].standard_normal(2))
+        k = t * rates[_HEADING]
+        if k >= nxt[_HEADING] - 1e-9:
+            nxt[_HEADING] = math.floor(k + 1e-9) + 1.0
+            t_held[_HEADING] = t
+            held[_HEADING] = float(ssa(eta[2] + s.heading_std * rngs[_HEADING].standard_normal()))
+        k = t * rates[_TENSION]
+        if k >= nxt[_TENSION] - 1e-9:
+            nxt[_TENSION] = math.floor(k + 1e-9) + 1.0
+            t_held[_TENSION] = t
+            held[_TENSION] = _frozen(T + self.tension_std * rngs[_TENSION].standard_normal(n))
         if riser_angles is None:
             riser, t_riser = None, None
         else:
             if self._due(_RISER, t):
-                self._held[_RISER] = readonly(theta + s.riser_angle_std * self._rngs[_RISER].standard_normal(4))
-            riser, t_riser = self._held[_RISER], self._t_held[_RISER]
-        return dict(t=t, position=self._held[_GNSS], heading=self._held[_HEADING],
-                    tensions=self._held[_TENSION], t_position=self._t_held[_GNSS],
-                    t_heading=self._t_held[_HEADING], t_tensions=self._t_held[_TENSION],
+                held[_RISER] = _frozen(theta + s.riser_angle_std * rngs[_RISER].standard_normal(4))
+            riser, t_riser = held[_RISER], t_held[_RISER]
+        return dict(t=t, position=held[_GNSS], heading=held[_HEADING],
+                    tensions=held[_TENSION], t_position=t_held[_GNSS],
+                    t_heading=t_held[_HEADING], t_tensions=t_held[_TENSION],
                     riser_angles=riser, t_riser_angles=t_riser)
+

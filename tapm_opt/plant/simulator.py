@@ -47,7 +47,7 @@ import numpy as np
 from ._kernels import fem_kernel as _fem_kernel
 from .._checks import vector
 from ..geometry import rot_z
-from ..interfaces import Measurement, ThrusterCommand, Truth
+from ..interfaces import Measurement, ThrusterCommand, Truth, _frozen, _trusted
 from ..models.system import System
 from ..models.vessel import vessel_rhs
 from ..results import Result, ResultBuilder
@@ -190,6 +190,7 @@ class Plant:
         self._r_last = self._v_last = None
         self._steps = 0
         self._tension_cache: tuple | None = None
+        self._T_alloc_cache: tuple | None = None
         self._dt_stable: float | None = None
         self._h_last = -1.0
         self._n_sub = 1
@@ -256,11 +257,18 @@ class Plant:
         if the scenario has a riser) and the thruster feedback (delivered thrust and azimuth,
         failure flags, the generalised thrust they give); with ``truth=True`` also the true LF
         state (:class:`~tapm_opt.interfaces.Truth`), for validation estimators only."""
-        m = self.sensors._fields(self.t, self.eta_total, self._fairlead_tension(), self._riser_angles)
+        # the sensors only read the tensions (their held sample is a new array): no copy
+        m = self.sensors._fields(self.t, self.eta + self._eta_wf, self._end_tensions()[0], self._riser_angles)
         th = self.thrusters
         tr = Truth(eta=self.eta, nu=self.nu, tau_env=self.loads["tau_wind"] + self.loads["tau_drift"]) if truth else None
-        return Measurement(**m, thruster_f=th.f, thruster_alpha=th.alpha, thruster_failed=th.failed, tau_thr=th.tau(),
-                           truth=tr)
+        f, alpha = th._f.copy(), th._alpha.copy()
+        # tau_thr = T(alpha) f, as ThrusterBank.tau computes it; T(alpha) kept while the azimuths stay
+        c = self._T_alloc_cache
+        if c is None or not np.array_equal(c[0], alpha):
+            c = self._T_alloc_cache = (alpha.copy(), th.T_alloc())
+        tau = c[1] @ th._f
+        return _trusted(Measurement, **m, thruster_f=_frozen(f), thruster_alpha=_frozen(alpha),
+                        thruster_failed=_frozen(th._failed.copy()), tau_thr=_frozen(tau), truth=tr)
 
     # -- checks ----------------------------------------------------------------------------
     def _check_cmd(self, cmd: Any) -> ThrusterCommand:
