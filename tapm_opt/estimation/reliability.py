@@ -216,6 +216,130 @@ class ReliabilityRecord:
             raise ReliabilityError(f"no signal {name!r}; signals are {', '.join(self.names)}") from None
 
 
+# -- compiled arithmetic of the monitor's step (numba; the numpy expressions' operations in their
+# order, element by element: the same numbers) ------------------------------------------------------
+
+def _integral_py(C, X, ts, j, n_hi, tau):
+    """:meth:`ReliabilityMonitor._integral` on the raw buffer's storage (``j``, ``n_hi``: storage
+    rows of the segment and of one past the newest sample)."""
+    m = C.shape[1]
+    out = np.empty(m)
+    if j + 1 >= n_hi:
+        for k in range(m):
+            out[k] = C[j, k]
+        return out
+    tj = ts[j]
+    h = ts[j + 1] - tj
+    if h <= 0:
+        for k in range(m):
+            out[k] = C[j, k]
+        return out
+    s = tau - tj            # min(max(tau - tj, 0.0), h)
+    if 0.0 > s:
+        s = 0.0
+    if h < s:
+        s = h
+    ss = s * s
+    for k in range(m):
+        xj = X[j, k]
+        slope = (X[j + 1, k] - xj) / h
+        out[k] = (C[j, k] + xj * s) + (0.5 * slope) * ss
+    return out
+
+
+def _lf_py(C, X, ts, c_new, j, n_hi, tau, W):
+    """``(C_new - integral) / W``: the trailing average."""
+    I = _integral_k(C, X, ts, j, n_hi, tau)
+    out = np.empty(I.shape[0])
+    for k in range(I.shape[0]):
+        out[k] = (C[c_new, k] - I[k]) / W
+    return out
+
+
+def _residual_py(C, X, ts, j_hi, tau_hi, j_lo, tau_lo, n_hi, q, W, zero_rel):
+    """The centred residual ``w = x_q - c`` and its zero scale ``zero_rel max(|x_q|, |c|)``."""
+    I_hi = _integral_k(C, X, ts, j_hi, n_hi, tau_hi)
+    I_lo = _integral_k(C, X, ts, j_lo, n_hi, tau_lo)
+    m = I_hi.shape[0]
+    w = np.empty(m)
+    scale = np.empty(m)
+    for k in range(m):
+        c = (I_hi[k] - I_lo[k]) / W
+        xq = X[q, k]
+        w[k] = xq - c
+        a, b = abs(xq), abs(c)
+        scale[k] = zero_rel * (a if (a >= b or a != a) else b)   # np.maximum (nan propagates)
+    return w, scale
+
+
+def _wf_terms_py(wp, w, h, negp, scale, S1, S2, cnt):
+    """:meth:`ReliabilityMonitor._push_wf`'s segment terms after the first residual; the window
+    sums updated in place."""
+    m = w.shape[0]
+    neg = np.empty(m, np.bool_)
+    up = np.empty(m, np.bool_)
+    a1 = np.empty(m)
+    a2 = np.empty(m)
+    for k in range(m):
+        ng = w[k] < -scale[k]
+        neg[k] = ng
+        a1[k] = 0.5 * (wp[k] + w[k]) * h
+        a2[k] = 0.5 * (wp[k] * wp[k] + w[k] * w[k]) * h
+        u = negp[k] and not ng
+        up[k] = u
+        S1[k] += a1[k]
+        S2[k] += a2[k]
+        if u:
+            cnt[k] += 1
+    return neg, a1, a2, up
+
+
+def _stats_py(S1, S2, cnt, span, q, floor):
+    """sigma, n and max(n, floor) of the window sums (``q = exposure / span``)."""
+    m = S1.shape[0]
+    sig = np.empty(m)
+    n = np.empty(m)
+    nf = np.empty(m)
+    for k in range(m):
+        mean = S1[k] / span
+        v = S2[k] / span - mean * mean
+        sig[k] = math.sqrt(v if (v >= 0.0 or v != v) else 0.0)
+        nk = cnt[k] * q
+        n[k] = nk
+        nf[k] = nk if (nk >= floor or nk != nk) else floor
+    return sig, n, nf
+
+
+def _delta_py(r_t, lf, k_, sig, sigma_t):
+    m = lf.shape[0]
+    out = np.empty(m)
+    for k in range(m):
+        out[k] = ((r_t[k] - lf[k]) - k_[k] * sig[k]) / sigma_t[k]
+    return out
+
+
+def _compiled_kernels() -> Any:
+    from .._jit import jit
+
+    global _integral_k
+    ik = jit(_integral_py, fallback=None)
+    if ik is None:
+        return None
+    _integral_k = ik
+    return (ik, jit(_lf_py), jit(_residual_py), jit(_wf_terms_py), jit(_stats_py), jit(_delta_py))
+
+
+_integral_k: Any = _integral_py
+_KERNELS: Any = False   # built on first use (None: no numba, the numpy expressions)
+
+
+def _kernels() -> Any:
+    global _KERNELS
+    if _KERNELS is False:
+        _KERNELS = _compiled_kernels()
+    return _KERNELS
+
+
 # -- a first-in first-out row store --------------------------------------------------------------
 
 class _Fifo:
@@ -449,21 +573,27 @@ class ReliabilityMonitor:
 
     def _push_wf(self, tw: float, w: np.ndarray, scale: np.ndarray) -> None:
         F = self._wf
-        neg = w < -scale  # |w| <= scale counts as 0 (rounding of a residual that is exactly 0)
-        if len(F):
+        kern = _kernels()
+        if len(F) and kern is not None:   # the compiled terms, the window sums updated in place
             i = F.hi - 1 - F.base
-            tp, wp = F.a["t"][i], F.a["w"][i]
-            h = tw - tp
-            a1 = 0.5 * (wp + w) * h
-            a2 = 0.5 * (wp * wp + w * w) * h
-            up = F.a["neg"][i] & ~neg
+            h = tw - F.a["t"][i]
+            neg, a1, a2, up = kern[3](F.a["w"][i], w, h, F.a["neg"][i], scale, self._S1, self._S2, self._cnt)
         else:
-            self._t_wf_first = tw
-            a1 = a2 = np.zeros(self.m)
-            up = np.zeros(self.m, bool)
-        self._S1 += a1
-        self._S2 += a2
-        self._cnt += up
+            neg = w < -scale  # |w| <= scale counts as 0 (rounding of a residual that is exactly 0)
+            if len(F):
+                i = F.hi - 1 - F.base
+                tp, wp = F.a["t"][i], F.a["w"][i]
+                h = tw - tp
+                a1 = 0.5 * (wp + w) * h
+                a2 = 0.5 * (wp * wp + w * w) * h
+                up = F.a["neg"][i] & ~neg
+            else:
+                self._t_wf_first = tw
+                a1 = a2 = np.zeros(self.m)
+                up = np.zeros(self.m, bool)
+            self._S1 += a1
+            self._S2 += a2
+            self._cnt += up
         self._steps += 1
         if F.push(t=tw, w=w, neg=neg, a1=a1, a2=a2, up=up):
             self._refresh_sums()
@@ -516,12 +646,17 @@ class ReliabilityMonitor:
         self._t_last = t
         t0 = self._t0
         eps = _REL_EPS * max(1.0, abs(t))
+        kern = _kernels()
 
         # r_m: trailing average over [t - W, t] (the record so far until it spans W)
         if t - t0 >= W - eps:
             tau = t - W
             self._p_tail = self._advance(self._p_tail, tau)
-            lf = (C_new - self._integral(self._p_tail, max(tau, t0))) / W
+            if kern is not None:
+                lf = kern[1](R.a["C"], R.a["x"], R.a["t"], R.hi - 1 - R.base, self._p_tail - R.base, R.hi - R.base,
+                             max(tau, t0), W)
+            else:
+                lf = (C_new - self._integral(self._p_tail, max(tau, t0))) / W
         elif t > t0:
             lf = (C_new - self._C0) / (t - t0)
         else:
@@ -536,9 +671,16 @@ class ReliabilityMonitor:
             if tq - half >= t0 - eps:
                 self._p_lo = self._advance(self._p_lo, tq - half)
                 self._p_hi = self._advance(max(self._p_hi, self._p_lo), tq + half)
-                c = (self._integral(self._p_hi, min(tq + half, t)) - self._integral(self._p_lo, max(tq - half, t0))) / W
-                xq = R.a["x"][self._q - R.base]
-                self._push_wf(tq, xq - c, _ZERO_REL * np.maximum(np.abs(xq), np.abs(c)))
+                if kern is not None:
+                    b = R.base
+                    w, scale = kern[2](R.a["C"], R.a["x"], R.a["t"], self._p_hi - b, min(tq + half, t),
+                                       self._p_lo - b, max(tq - half, t0), R.hi - b, self._q - b, W, _ZERO_REL)
+                    self._push_wf(tq, w, scale)
+                else:
+                    c = (self._integral(self._p_hi, min(tq + half, t))
+                         - self._integral(self._p_lo, max(tq - half, t0))) / W
+                    xq = R.a["x"][self._q - R.base]
+                    self._push_wf(tq, xq - c, _ZERO_REL * np.maximum(np.abs(xq), np.abs(c)))
             self._q += 1
             self._steps += 1
         # keep only what the averages still need (t0 until the first full window)
@@ -550,15 +692,20 @@ class ReliabilityMonitor:
             span = float(F.a["t"][F.hi - 1 - F.base] - F.a["t"][F.lo - F.base])
         else:
             span = 0.0
-        if span > 0:
-            mean = self._S1 / span
-            sig = np.sqrt(np.maximum(self._S2 / span - mean * mean, 0.0))
-            n = self._cnt * (self.exposure / span)
+        if span > 0 and kern is not None:
+            sig, n, n_floor = kern[4](self._S1, self._S2, self._cnt, span, self.exposure / span, N_MAXIMA_FLOOR)
+            k = _k_unchecked(n_floor)
+            delta = kern[5](self.r_t, lf, k, sig, self.sigma_t)
         else:
-            sig = np.zeros(self.m)
-            n = np.zeros(self.m)
-        k = _k_unchecked(np.maximum(n, N_MAXIMA_FLOOR))  # gumbel_k; the floor keeps n > 1
-        delta = (self.r_t - lf - k * sig) / self.sigma_t
+            if span > 0:
+                mean = self._S1 / span
+                sig = np.sqrt(np.maximum(self._S2 / span - mean * mean, 0.0))
+                n = self._cnt * (self.exposure / span)
+            else:
+                sig = np.zeros(self.m)
+                n = np.zeros(self.m)
+            k = _k_unchecked(np.maximum(n, N_MAXIMA_FLOOR))  # gumbel_k; the floor keeps n > 1
+            delta = (self.r_t - lf - k * sig) / self.sigma_t
         ready = bool(len(F) and (F.a["t"][F.hi - 1 - F.base] - self._t_wf_first
                                  >= self.sigma_window - _REL_EPS * max(1.0, abs(t))))
         return lf, sig, n, k, delta, span, ready
