@@ -118,23 +118,29 @@ def _compare_sea_state(sc, requested: str | None) -> tuple[str, str | None]:
 @click.option("--duration", type=float, default=None, help="Override the study's duration [s].")
 @click.option("--sea-state", "sea_state", default=None,
               help="Sea state id of SCENARIO (default: 'storm'; a scenario without one: its most severe, largest Hs).")
+@click.option("--designs", "designs", default="shipped", show_default=True, metavar="shipped|defaults|DIR",
+              help="The controllers' tunings: the designs tuned for SCENARIO and shipped in the package, the "
+                   "registry's defaults, or a tapm tune run's directory (its tuned/<controller>.toml).")
 def compare(scenario_name: str, out_dir: str, workers: int | None, duration: float | None,
-            sea_state: str | None) -> None:
+            sea_state: str | None, designs: str) -> None:
     """The main job: MPC against PID in a storm with a line break half-way, and the report.
 
     Runs the default study (tapm_opt/studies/builtin/mpc_vs_pid.toml, also studies/mpc_vs_pid.toml)
     on SCENARIO (default: the built-in fpso) in its sea state 'storm' (or --sea-state; a scenario
     with no 'storm' runs in its most severe sea state, the one with the largest Hs, and the output
-    says which), writes OUT/report.html and OUT/report.md and prints the headline KPIs. Re-running
-    resumes. Exit status 1 when any case failed.
+    says which), with each controller at the design tuned for SCENARIO and shipped in the package
+    (tapm tune studies/mpc_vs_pid.toml; --designs), writes OUT/report.html and OUT/report.md and
+    prints the headline KPIs. Re-running resumes. Exit status 1 when any case failed.
     """
     import tomllib
 
     from ..report import write_report
+    from ..studies.shipped import DesignChoiceError, compare_designs
     from ..studies.study import run_study, study_from_dict
 
     path = Path(__file__).parent.parent / "studies" / "builtin" / "mpc_vs_pid.toml"
     data = tomllib.loads(path.read_text(encoding="utf-8"))
+    data.pop("tuning", None)   # the study's tuning settings are tapm tune's, not the run's
     if duration is not None:
         if not (math.isfinite(duration) and duration > 0):
             raise click.BadParameter(f"--duration = {duration} must be a positive number of seconds")
@@ -146,6 +152,14 @@ def compare(scenario_name: str, out_dir: str, workers: int | None, duration: flo
     sid, note = _compare_sea_state(sc, sea_state)
     if note:
         click.echo(note)
+    try:
+        chosen, design_note = compare_designs(designs, sc.name, [e["name"] for e in data["controllers"]])
+    except DesignChoiceError as exc:
+        raise click.BadParameter(str(exc), param_hint="'--designs'") from None
+    for e in data["controllers"]:
+        if e["name"] in chosen:
+            e["design"] = str(chosen[e["name"]])
+    click.echo(design_note)
     ss = sc.sea_state(sid)
     brk = data["conditions"][0]["line_break"]
     data["study"]["scenario"] = scenario_name

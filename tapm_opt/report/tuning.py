@@ -228,8 +228,13 @@ def _where_and_why(a: str, b: str, uncovered: Sequence[tuple[float, float]], fro
                 extra.append(min(q[1] for q in ok) / u[1] - 1.0)
         ex = [e for e in extra if math.isfinite(e)]
         parts.append(f"at {n0} {rng(g, 0, n0, s0)} ({plural(g)}) {a}'s front reaches the {n0} but spends more "
-                     f"{n1}" + (f" ({100 * min(ex):.0f}–{100 * max(ex):.0f} % more)" if ex else "") + outside(g))
+                     f"{n1}" + (f" ({_span(ex)} % more)" if ex else "") + outside(g))
     return f"*Where {b} is better than {a}, and why:* " + "; ".join(parts) + "."
+
+
+def _span(fractions: Sequence[float]) -> str:
+    lo, hi = round(100 * min(fractions)), round(100 * max(fractions))
+    return f"{lo}" if lo == hi else f"{lo}–{hi}"
 
 
 def _reliability_cost(ctrls: Sequence[str], info: Mapping[str, Any], points: Mapping[str, list],
