@@ -585,3 +585,44 @@ def test_cli_out_must_be_a_writable_file(capsys, tmp_path, command):
     for bad, says in (("", "is empty"), (str(blocker / "x.dat"), "is a file, not a directory")):
         code, out, err = run(capsys, *head, "--out", bad)
         assert code == 2 and says in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+
+
+def test_riser_adapted_kept_or_dropped_in_another_depth(tmp_path, capsys):
+    """fpso's 982 m riser does not fit 200 m of water: auto adapts it (length and top tension
+    scaled by the hang-off-to-wellhead distance, a vertical riser from the hang-off to the seabed
+    again), keep refuses it naming the field, drop leaves it out; each is said."""
+    def at(depth: int) -> str:
+        return re.sub(r"^800(\s+)WtrDpth", rf"{depth}\1WtrDpth", HAND_WRITTEN.replace("-800.0", f"-{depth}.0"),
+                      flags=re.M)
+
+    path = _write(tmp_path, at(200), "shallow.dat")
+    fpso = load_scenario("fpso")
+    rs0 = fpso.riser
+    res = import_moordyn(path, "fpso", mbs={"poly160": 1.5e7})
+    assert res.scenario.environment.water_depth == 200.0
+    rs = res.scenario.riser
+    top = max(fpso.turret.fairlead_depth, fpso.vessel.draught)
+    k = (200.0 - top) / (1000.0 - top)   # fpso's riser hangs straight down from the turret
+    assert rs.length == pytest.approx(rs0.length * k, rel=1e-9) and rs.length == pytest.approx(200.0 - top, abs=0.6)
+    assert rs.top_tension == pytest.approx(rs0.top_tension * k, rel=1e-9)
+    assert rs.top_tension / (rs.submerged_weight * rs.length) == pytest.approx(
+        rs0.top_tension / (rs0.submerged_weight * rs0.length), rel=1e-9)   # the tensioners' ratio kept
+    assert (rs.critical_bottom_angle, rs.diameter, rs.hangoff) == (rs0.critical_bottom_angle, rs0.diameter,
+                                                                   rs0.hangoff)
+    assert any("riser is adapted to the water depth 200 m (from 1000 m" in n for n in res.notes)
+    assert import_moordyn(path, "fpso", mbs={"poly160": 1.5e7}, riser="adapt").scenario.riser == rs
+    dropped = import_moordyn(path, "fpso", mbs={"poly160": 1.5e7}, riser="drop")
+    assert dropped.scenario.riser is None and any("left out (--riser drop)" in n for n in dropped.notes)
+    with pytest.raises(MoorDynError, match=r"riser.length = 982 m is over 3 x"):
+        import_moordyn(path, "fpso", mbs={"poly160": 1.5e7}, riser="keep")
+    with pytest.raises(MoorDynError, match="riser = 'cut' must be one of auto, keep, adapt, drop"):
+        import_moordyn(path, "fpso", mbs={"poly160": 1.5e7}, riser="cut")
+    # the same depth keeps it unchanged and says nothing
+    same = import_moordyn(_write(tmp_path, at(1000), "deep.dat"), "fpso", mbs={"poly160": 1.5e7})
+    assert same.scenario.riser == rs0 and not any("riser" in n for n in same.notes)
+    # from the command line
+    out = tmp_path / "s.toml"
+    code, stdout, err = run(capsys, "scenario", "import-moordyn", str(path), "--vessel", "fpso", "--out", str(out),
+                            "--mbs", "poly160=1.5e7", "--riser", "drop")
+    assert code == 0, err and "left out (--riser drop)" in stdout
+    assert load_scenario(out).riser is None

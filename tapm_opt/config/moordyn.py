@@ -67,6 +67,7 @@ __all__ = [
     "seabed_constants",
     "scenario_toml",
     "ImportResult",
+    "RISER_CHOICES",
     "ExportInfo",
     "SEABED_PENETRATION",
     "SEABED_DAMPING_RATIO",
@@ -966,7 +967,7 @@ def _clean(v: float, nd: int = 9) -> float:
 
 def scenario_data_from_moordyn(model: MoorDynModel, vessel_data: dict, *, mbs: Mapping[str, float],
                                mbs_cov: float = 0.05, name: str | None = None,
-                               vessel_name: str = "") -> tuple[dict, list[str], dict]:
+                               vessel_name: str = "", riser: str = "auto") -> tuple[dict, list[str], dict]:
     """Scenario file dictionary: mooring from ``model``, everything else from ``vessel_data``.
 
     Returns ``(data, notes, comments)`` where ``comments[("line_types", i)]`` are comment lines
@@ -1125,9 +1126,13 @@ def scenario_data_from_moordyn(model: MoorDynModel, vessel_data: dict, *, mbs: M
                               if ss.get("current_profile_depths") else ss for ss in vessel_data["sea_states"]]
         notes.append(f"the current profile depths of the vessel scenario's sea states are scaled by {depth:g}/"
                      f"{old_depth:g} (the water depth of the MoorDyn file over the vessel scenario's)")
-    if old_depth != depth and "riser" in vessel_data:
-        notes.append(f"the vessel scenario's riser (length {vessel_data['riser'].get('length')} m) is kept as it is: "
-                     f"check it against the water depth {depth:g} m of the MoorDyn file")
+    if "riser" in vessel_data:
+        riser_data, note = _imported_riser(vessel_data, tur, depth, old_depth, riser)
+        data.pop("riser", None)
+        if riser_data is not None:
+            data["riser"] = riser_data
+        if note:
+            notes.append(note)
     env = dict(vessel_data.get("environment", {}))
     env.update({"water_depth": depth, "water_density": rho, "gravity": g})
     vname = vessel_name or str(vessel_data.get("meta", {}).get("name", "vessel"))
@@ -1162,8 +1167,47 @@ def scenario_data_from_moordyn(model: MoorDynModel, vessel_data: dict, *, mbs: M
     return data, notes, comments
 
 
+#: What the importer may do with the vessel scenario's riser (:func:`import_moordyn`).
+RISER_CHOICES = ("auto", "keep", "adapt", "drop")
+
+
+def _imported_riser(vessel_data: Mapping[str, Any], turret: Mapping[str, Any], depth: float, old_depth: float,
+                    choice: str) -> tuple[dict | None, str]:
+    """The riser table of the imported scenario and its note (empty when nothing changed)."""
+    rs = dict(vessel_data["riser"])
+    if choice == "drop":
+        return None, (f"the vessel scenario's riser (length {rs.get('length')} m) is left out (--riser drop): the "
+                      "riser's angles and reliability index are not computed")
+    if choice == "keep" or (choice == "auto" and old_depth == depth):
+        if old_depth != depth:
+            return rs, (f"the vessel scenario's riser (length {rs.get('length')} m) is kept as it is (--riser keep): "
+                        f"check it against the water depth {depth:g} m of the MoorDyn file")
+        return rs, ""
+    hang, well = rs.get("hangoff", [0.0, 0.0]), rs.get("wellhead", [0.0, 0.0])
+    horiz = math.hypot(float(well[0]) - float(hang[0]), float(well[1]) - float(hang[1]))
+    vessel = vessel_data.get("vessel", {})
+    old_turret = vessel_data.get("turret", {})
+
+    def top(fairlead_depth: Any) -> float:   # the lowest the hang-off can be, as the scenario check has it
+        return max(float(fairlead_depth or 0.0), float(vessel.get("draught", 0.0) or 0.0), 0.0)
+
+    chord_old = math.hypot(horiz, old_depth - top(old_turret.get("fairlead_depth")))
+    chord_new = math.hypot(horiz, depth - top(turret.get("fairlead_depth")))
+    if not (chord_old > 0 and chord_new > 0):
+        return None, (f"the vessel scenario's riser is left out: the MoorDyn file's water depth {depth:g} m leaves "
+                      "it no water column below its hang-off")
+    k = chord_new / chord_old
+    length, tension = float(rs["length"]), float(rs["top_tension"])
+    rs["length"] = _clean(length * k)
+    rs["top_tension"] = _clean(tension * k)
+    return rs, (f"the vessel scenario's riser is adapted to the water depth {depth:g} m (from {old_depth:g} m; "
+                f"--riser adapt): length {length:g} -> {rs['length']:g} m and top tension {tension:.4g} -> "
+                f"{rs['top_tension']:.4g} N, both x {k:.4g} (the hang-off-to-wellhead distance's ratio), the rest "
+                "kept; --riser keep or drop to choose otherwise")
+
+
 def import_moordyn(path: str | Path, vessel: str | Path, *, mbs: Mapping[str, float], mbs_cov: float = 0.05,
-                   name: str | None = None) -> ImportResult:
+                   name: str | None = None, riser: str = "auto") -> ImportResult:
     """A scenario from a MoorDyn v2 file and a vessel scenario.
 
     From the MoorDyn file: line types, lines (length, segments), anchors, fairleads, water depth,
@@ -1178,11 +1222,26 @@ def import_moordyn(path: str | Path, vessel: str | Path, *, mbs: Mapping[str, fl
     below the seabed or not below the fairleads is refused). MoorDyn files carry
     no breaking strength: ``mbs`` maps every used line type to its MBS [N]; ``MBS_std`` is
     ``mbs_cov`` times it.
+
+    ``riser`` says what becomes of the vessel scenario's riser in the file's water depth (one of
+    :data:`RISER_CHOICES`; docs/moordyn.md, "The riser"):
+
+    - ``"keep"``: as it is (an error if it does not fit the depth);
+    - ``"adapt"``: its length and top tension scaled by the ratio of the straight distances from
+      its hang-off to its wellhead in the new and the old depth (a vertical riser from the
+      fairlead depth to the seabed stays one; the top tension keeps its ratio to the riser's
+      weight, the tensioners' 1.2-2x), its other properties and critical angles kept;
+    - ``"drop"``: left out (the riser's reliability index and angles are then not computed);
+    - ``"auto"`` (default): kept if the depth is the vessel scenario's, else adapted.
+
+    Every choice but an unchanged ``keep`` is said in a note.
     """
+    if riser not in RISER_CHOICES:
+        raise MoorDynError(f"riser = {riser!r} must be one of {', '.join(RISER_CHOICES)}")
     model = read_moordyn(path)
     vdata, vname = _vessel_data(vessel)
     data, notes, comments = scenario_data_from_moordyn(model, vdata, mbs=mbs, mbs_cov=mbs_cov, name=name,
-                                                       vessel_name=vname)
+                                                       vessel_name=vname, riser=riser)
     try:
         sc = scenario_from_dict(data, source=f"(imported from {model.source})")
     except ScenarioError as exc:
