@@ -626,3 +626,20 @@ def test_riser_adapted_kept_or_dropped_in_another_depth(tmp_path, capsys):
                             "--mbs", "poly160=1.5e7", "--riser", "drop")
     assert code == 0, err and "left out (--riser drop)" in stdout
     assert load_scenario(out).riser is None
+
+
+def test_import_problems_are_all_said_in_the_files_terms(tmp_path):
+    """A large CdAx (MoorDyn's axial drag on pi d) imports up to MoorDyn's 10; beyond it, and with a
+    second bad coefficient, every problem is listed at once and named by the file's column."""
+    row = "poly160    0.16    120.0      1.2e9     -1.0       0      1.2    1.0    0.05    0.1"
+    assert row in HAND_WRITTEN
+    ok = import_moordyn(_write(tmp_path, HAND_WRITTEN.replace(row, row.replace("0.05 ", "4.0  ")), "a.dat"), "fpso",
+                        mbs={"poly160": 1.5e7})
+    assert ok.scenario.line_types[0].Cd_tangential == pytest.approx(4.0 * math.pi, rel=1e-12)
+    bad = HAND_WRITTEN.replace(row, row.replace("0.05 ", "12.0 ").replace("1.2    1.0", "1.2    40.0"))
+    with pytest.raises(MoorDynError) as exc:
+        import_moordyn(_write(tmp_path, bad, "b.dat"), "fpso", mbs={"poly160": 1.5e7})
+    msg = str(exc.value)
+    assert "(2 problems)" in msg, msg
+    assert "line type 'poly160' (file line 7): CdAx = 12 gives tapm_opt's Cd_tangential" in msg, msg
+    assert "line type 'poly160' (file line 7): Ca = 40 gives tapm_opt's Ca_normal" in msg, msg

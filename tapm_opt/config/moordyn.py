@@ -1167,6 +1167,45 @@ def scenario_data_from_moordyn(model: MoorDynModel, vessel_data: dict, *, mbs: M
     return data, notes, comments
 
 
+#: tapm_opt's line-type fields as the MoorDyn columns they come from: (column, tapm_opt value -> file value).
+_MD_COLUMNS: dict[str, tuple[str, Any]] = {
+    "Cd_tangential": ("CdAx", lambda v: v / math.pi), "Cd_normal": ("Cd", None), "Ca_normal": ("Ca", None),
+    "Ca_tangential": ("CaAx", None), "diameter": ("Diam", None), "mass_per_length": ("Mass/m", None),
+    "submerged_weight": ("Mass/m and Diam", None), "EA": ("EA", None), "axial_damping_ratio": ("BA", None),
+}
+
+
+def _in_file_terms(issue: Any, model: MoorDynModel, data: Mapping[str, Any]) -> str:
+    """A scenario problem of an imported field said in the MoorDyn file's own terms: the line
+    type or line, the file's line number and column, then tapm_opt's field and reason."""
+    m = re.fullmatch(r"(line_types|lines)\[(\d+)\]\.(\w+)", str(issue.path))
+    if not m:
+        return str(issue)
+    table, k, field_name = m.group(1), int(m.group(2)), m.group(3)
+    try:
+        item = data[table][k]
+    except (KeyError, IndexError, TypeError):
+        return str(issue)
+    if table == "lines":
+        ln = next((x for x in model.lines if str(x.id) == str(item.get("id"))), None)
+        where = f"line {item.get('id')}" + (f" (file line {ln.lineno})" if ln is not None and hasattr(ln, "lineno") else "")
+        return f"{where}: {field_name} {issue.message}"
+    name = str(item.get("id"))
+    lt = next((x for x in model.line_types if x.name == name), None)
+    col, back = _MD_COLUMNS.get(field_name, (None, None))
+    where = f"line type {name!r}" + (f" (file line {lt.lineno})" if lt is not None else "")
+    if col is None:
+        return f"{where}: {field_name} {issue.message}"
+    value = item.get(field_name)
+    shown = ""
+    if back is not None and isinstance(value, (int, float)):
+        shown = f" = {back(float(value)):g}"
+    elif lt is not None and col in ("Cd", "Ca", "CaAx", "Diam", "EA", "BA", "Mass/m"):
+        attr = {"Cd": "Cd", "Ca": "Ca", "CaAx": "CaAx", "Diam": "d", "EA": "EA", "BA": "BA", "Mass/m": "mass"}[col]
+        shown = f" = {getattr(lt, attr):g}"
+    return f"{where}: {col}{shown} gives tapm_opt's {field_name} {issue.message} (docs/moordyn.md)"
+
+
 #: What the importer may do with the vessel scenario's riser (:func:`import_moordyn`).
 RISER_CHOICES = ("auto", "keep", "adapt", "drop")
 
@@ -1245,8 +1284,9 @@ def import_moordyn(path: str | Path, vessel: str | Path, *, mbs: Mapping[str, fl
     try:
         sc = scenario_from_dict(data, source=f"(imported from {model.source})")
     except ScenarioError as exc:
-        raise MoorDynError(f"the imported scenario is invalid: {'; '.join(str(i) for i in exc.issues)}",
-                           source=model.source) from None
+        said = [_in_file_terms(i, model, data) for i in exc.issues]
+        raise MoorDynError(f"the imported scenario is invalid ({len(said)} problem{'s' * (len(said) > 1)}): "
+                           + "; ".join(said), source=model.source) from None
     header = [
         f"{data['meta']['name']} — imported by tapm scenario import-moordyn",
         f"Mooring (line types, lines, anchors, fairleads, water depth, density, gravity): MoorDyn file {model.source}",

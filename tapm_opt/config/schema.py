@@ -283,7 +283,10 @@ class LineType:
     MBS: float = spec("Minimum breaking strength (mean breaking strength in the reliability index).", "N", check=positive)
     MBS_std: float = spec("Standard deviation of the breaking strength sigma_b (survey eq. 32).", "N", check=nonneg)
     Cd_normal: float = spec("Normal drag coefficient C_DN (on diameter).", check=bounded(0.0, 10.0, _COEF))
-    Cd_tangential: float = spec("Tangential drag coefficient C_DT (on diameter).", check=bounded(0.0, 10.0, _COEF))
+    Cd_tangential: float = spec(
+        "Tangential drag coefficient C_DT (on diameter; MoorDyn's CdAx acts on pi x diameter, so C_DT = pi CdAx).",
+        check=bounded(0.0, 10.0 * math.pi, "measured coefficients of chain, wire and rope are 0-3; the bound is "
+                      "MoorDyn's CdAx <= 10 on pi x diameter"))
     Ca_normal: float = spec("Normal added-mass coefficient C_MN.", check=bounded(0.0, 10.0, _COEF))
     Ca_tangential: float = spec("Tangential added-mass coefficient.", default=0.0, check=bounded(0.0, 10.0, _COEF))
     max_strain: float | None = spec(
