@@ -18,7 +18,8 @@ EKF with the statistical tension test and the reliability monitor), ``dt_control
   ``fem_kernel.mooring_step``: every outer step's FEM substeps, fairlead kinematics and mooring
   load in one call) is printed too, and the loops' ratios to it.
 - **closed loop**: a ``Plant`` built the same way, the controller from
-  ``tapm_opt.design.build(system, kind)`` at the registry's defaults, and ``run_closed_loop``
+  ``tapm_opt.design.build(system, kind)`` at the registry's defaults (``--shipped``: at fpso's shipped
+  tuned designs, what ``tapm compare`` runs), and ``run_closed_loop``
   with the default estimator, setpoint layer and allocator, timed around the call (so the
   estimator's and the result's construction count; the plant's construction and settling and
   the controller's construction do not, as they do not in the plant-alone figure).
@@ -88,11 +89,24 @@ def plant_alone(system, settings) -> tuple[float, float]:
     return wall, fem_time[0]
 
 
+#: The shipped fpso design of each kind (``--shipped``): what ``tapm compare`` runs.
+SHIPPED = {"pid": "PID", "lmpc": "MPC", "mpc": "NMPC"}
+_use_shipped = False
+
+
+def _spec(kind: str):
+    if not _use_shipped:
+        return kind
+    from tapm_opt.studies.shipped import shipped_designs
+
+    return {"design": str(shipped_designs(SCENARIO)[SHIPPED[kind]])}
+
+
 def closed_loop(system, settings, kind: str) -> tuple[float, float, dict]:
     from tapm_opt.design import build
     from tapm_opt.studies import run_closed_loop
 
-    ctrl = build(system, kind, dt_control=settings.dt_control)
+    ctrl = build(system, _spec(kind), dt_control=settings.dt_control)
     plant = _plant(system)
     w0 = time.perf_counter()
     res = run_closed_loop(plant, ctrl, settings, system=system)
@@ -111,7 +125,12 @@ def main() -> None:
     ap.add_argument("--kinds", default="pid,lmpc,mpc", help="controller kinds, comma-separated")
     ap.add_argument("--profile", metavar="KIND", help="cProfile one closed loop of KIND instead")
     ap.add_argument("--sort", default="tottime", help="cProfile sort key (with --profile)")
+    ap.add_argument("--shipped", action="store_true",
+                    help="the controllers at fpso's shipped tuned designs (what tapm compare runs), not the registry's "
+                         "defaults")
     args = ap.parse_args()
+    global _use_shipped
+    _use_shipped = bool(args.shipped)
 
     import tapm_opt
     from tapm_opt.models.system import System
@@ -136,7 +155,7 @@ def main() -> None:
         from tapm_opt.design import build
         from tapm_opt.studies import run_closed_loop
 
-        ctrl = build(system, args.profile, dt_control=settings.dt_control)
+        ctrl = build(system, _spec(args.profile), dt_control=settings.dt_control)
         plant = _plant(system)
         pr = cProfile.Profile()
         pr.enable()
