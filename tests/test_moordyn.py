@@ -643,3 +643,44 @@ def test_import_problems_are_all_said_in_the_files_terms(tmp_path):
     assert "(2 problems)" in msg, msg
     assert "line type 'poly160' (file line 7): CdAx = 12 gives tapm_opt's Cd_tangential" in msg, msg
     assert "line type 'poly160' (file line 7): Ca = 40 gives tapm_opt's Ca_normal" in msg, msg
+
+
+def test_hull_fixed_fairleads_lock_the_turret_unless_they_form_one(tmp_path, capsys):
+    """MoorDyn's fairleads on a coupled body are fixed to the hull. On one circle about fpso's
+    centre of turret they are its turret (the vessel's free mode kept, nothing said); spread about
+    the hull origin instead they make a spread mooring: the turret locked, said in a note, and the
+    mooring's yaw stiffness is there (a free turret would have none about the COT)."""
+    turret = import_moordyn(_write(tmp_path, HAND_WRITTEN, "t.dat"), "fpso", mbs={"poly160": 1.5e7})
+    assert turret.scenario.turret.mode == "free" and not any("MoorDyn has no turret" in n for n in turret.notes)
+    spread_text = HAND_WRITTEN
+    # the whole mooring moved 91.44 m aft: the fairleads about the hull origin, the anchors with them
+    for x in ("99.4096", "99.4400", "88.0591", "87.4400", "86.8514", "1735.161", "1741.440", "-605.880",
+              "-733.560", "-854.961"):
+        spread_text = spread_text.replace(f" {x} ", f" {float(x) - 91.44:.4f} ")
+    path = _write(tmp_path, spread_text, "s.dat")
+    spread = import_moordyn(path, "fpso", mbs={"poly160": 1.5e7})
+    assert spread.scenario.turret.mode == "locked"
+    note = next(n for n in spread.notes if "MoorDyn has no turret" in n)
+    assert "not on one circle" in note and "--turret free" in note and "the vessel scenario's turret is free" in note
+    free = import_moordyn(path, "fpso", mbs={"poly160": 1.5e7}, turret="free")
+    assert free.scenario.turret.mode == "free" and any("no yaw moment" in n for n in free.notes)
+    # the hull turned 5 deg about the centre of turret, which stays put: the locked mooring resists
+    # the turn with a yaw moment about the COT, the free turret transmits none
+    p = np.asarray(spread.scenario.turret.position, float)
+    psi = math.radians(5.0)
+    R = np.array([[math.cos(psi), -math.sin(psi)], [math.sin(psi), math.cos(psi)]])
+    eta = np.array([*(p - R @ p), psi])
+
+    def moment_about_cot(sc):
+        X, Y, N = MooringModel.from_scenario(sc).force(eta)
+        return N - (p[0] * Y - p[1] * X)
+
+    m_locked, m_free = moment_about_cot(spread.scenario), moment_about_cot(free.scenario)
+    assert m_locked < -1e6 and abs(m_free) < 1e-6 * abs(m_locked), (m_locked, m_free)   # restoring
+    with pytest.raises(MoorDynError, match="turret = 'spread' must be one of auto, locked, free"):
+        import_moordyn(path, "fpso", mbs={"poly160": 1.5e7}, turret="spread")
+    out = tmp_path / "s.toml"
+    code, stdout, err = run(capsys, "scenario", "import-moordyn", str(path), "--vessel", "fpso", "--out", str(out),
+                            "--mbs", "poly160=1.5e7", "--turret", "free")
+    assert code == 0, err
+    assert load_scenario(out).turret.mode == "free"

@@ -68,6 +68,7 @@ __all__ = [
     "scenario_toml",
     "ImportResult",
     "RISER_CHOICES",
+    "TURRET_CHOICES",
     "ExportInfo",
     "SEABED_PENETRATION",
     "SEABED_DAMPING_RATIO",
@@ -967,7 +968,8 @@ def _clean(v: float, nd: int = 9) -> float:
 
 def scenario_data_from_moordyn(model: MoorDynModel, vessel_data: dict, *, mbs: Mapping[str, float],
                                mbs_cov: float = 0.05, name: str | None = None,
-                               vessel_name: str = "", riser: str = "auto") -> tuple[dict, list[str], dict]:
+                               vessel_name: str = "", riser: str = "auto",
+                               turret: str = "auto") -> tuple[dict, list[str], dict]:
     """Scenario file dictionary: mooring from ``model``, everything else from ``vessel_data``.
 
     Returns ``(data, notes, comments)`` where ``comments[("line_types", i)]`` are comment lines
@@ -1108,12 +1110,27 @@ def scenario_data_from_moordyn(model: MoorDynModel, vessel_data: dict, *, mbs: M
             gam = math.degrees(math.atan2(yT, xT))
         item["fairlead_angle_deg"] = _clean(gam % 360.0) % 360.0
         radii.append(_clean(r))
-    if max(radii) - min(radii) <= 1e-6:
+    one_circle = max(radii) - min(radii) <= 1e-6
+    if one_circle:
         tur["fairlead_radius"] = radii[0]
     else:
         tur["fairlead_radius"] = float(np.median(radii))
         for item, r in zip(lines, radii):
             item["fairlead_radius"] = r
+    vessel_mode = str(tur.get("mode", "free"))
+    # a turret's fairleads written to a file's precision still lie on one circle: 1 cm, or 0.1 % of it
+    a_turret = max(radii) - min(radii) <= max(0.01, 1e-3 * float(np.median(radii)))
+    mode = turret if turret != "auto" else (vessel_mode if a_turret else "locked")
+    tur["mode"] = mode
+    where = (f"on one circle of radius {float(np.median(radii)):g} m about the vessel's centre of turret" if a_turret else
+             f"at {min(radii):g}-{max(radii):g} m from the vessel's centre of turret, not on one circle")
+    if mode != vessel_mode or (mode == "free" and not a_turret):
+        how = {"locked": "the turret is locked to the hull at its angle (a spread mooring), as MoorDyn has them",
+               "free": "the turret is free (weathervaning): the fairleads turn about the centre of turret, so the "
+                       "mooring gives no yaw moment about it, unlike MoorDyn's hull-fixed points"}[mode]
+        other = "free" if mode == "locked" else "locked"
+        notes.append(f"MoorDyn has no turret: its fairleads on the vessel are fixed to the hull. They lie {where}; "
+                     f"{how} (--turret {other} for the other; the vessel scenario's turret is {vessel_mode})")
     tur["fairlead_depth"] = fl_depth
     order = ("id", "type", "anchor", "fairlead_angle_deg", "fairlead_radius", "length", "segments")
     lines = [{k: it[k] for k in order if k in it} for it in lines]
@@ -1208,6 +1225,8 @@ def _in_file_terms(issue: Any, model: MoorDynModel, data: Mapping[str, Any]) -> 
 
 #: What the importer may do with the vessel scenario's riser (:func:`import_moordyn`).
 RISER_CHOICES = ("auto", "keep", "adapt", "drop")
+#: How the importer sets the turret (:func:`import_moordyn`).
+TURRET_CHOICES = ("auto", "locked", "free")
 
 
 def _imported_riser(vessel_data: Mapping[str, Any], turret: Mapping[str, Any], depth: float, old_depth: float,
@@ -1246,7 +1265,7 @@ def _imported_riser(vessel_data: Mapping[str, Any], turret: Mapping[str, Any], d
 
 
 def import_moordyn(path: str | Path, vessel: str | Path, *, mbs: Mapping[str, float], mbs_cov: float = 0.05,
-                   name: str | None = None, riser: str = "auto") -> ImportResult:
+                   name: str | None = None, riser: str = "auto", turret: str = "auto") -> ImportResult:
     """A scenario from a MoorDyn v2 file and a vessel scenario.
 
     From the MoorDyn file: line types, lines (length, segments), anchors, fairleads, water depth,
@@ -1274,13 +1293,22 @@ def import_moordyn(path: str | Path, vessel: str | Path, *, mbs: Mapping[str, fl
     - ``"auto"`` (default): kept if the depth is the vessel scenario's, else adapted.
 
     Every choice but an unchanged ``keep`` is said in a note.
+
+    ``turret`` (one of :data:`TURRET_CHOICES`): MoorDyn has no turret, and its fairleads on a
+    coupled body are fixed to the hull. ``"auto"`` (default) keeps the vessel scenario's turret
+    mode when the fairleads lie on one circle about its centre of turret (a turret mooring), and
+    locks the turret to the hull otherwise (a spread mooring: the mooring's yaw stiffness kept);
+    ``"locked"`` and ``"free"`` choose. A mode that differs from the vessel scenario's, or a free
+    turret with fairleads not on one circle, is said in a note.
     """
     if riser not in RISER_CHOICES:
         raise MoorDynError(f"riser = {riser!r} must be one of {', '.join(RISER_CHOICES)}")
+    if turret not in TURRET_CHOICES:
+        raise MoorDynError(f"turret = {turret!r} must be one of {', '.join(TURRET_CHOICES)}")
     model = read_moordyn(path)
     vdata, vname = _vessel_data(vessel)
     data, notes, comments = scenario_data_from_moordyn(model, vdata, mbs=mbs, mbs_cov=mbs_cov, name=name,
-                                                       vessel_name=vname, riser=riser)
+                                                       vessel_name=vname, riser=riser, turret=turret)
     try:
         sc = scenario_from_dict(data, source=f"(imported from {model.source})")
     except ScenarioError as exc:
