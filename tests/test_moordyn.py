@@ -684,3 +684,27 @@ def test_hull_fixed_fairleads_lock_the_turret_unless_they_form_one(tmp_path, cap
                             "--mbs", "poly160=1.5e7", "--turret", "free")
     assert code == 0, err
     assert load_scenario(out).turret.mode == "free"
+
+
+def test_every_problem_in_a_file_is_said_at_once(tmp_path, capsys):
+    """A rod, a free point and a line type with bending stiffness in one file: all three named with
+    their file lines in one error, and the lines that use the refused type or point not named again."""
+    text = HAND_WRITTEN
+    for case in ("rod", "free point"):
+        text = BAD_FILES[case][0](text)
+    text = text.replace("---------------------- BODIES",
+                        "stiff      0.16    120.0      1.2e9     -1.0       1e4    1.2    1.0    0.05    0.1\n"
+                        "---------------------- BODIES", 1)
+    text = text.replace("9     poly160", "9     stiff  ")
+    path = _write(tmp_path, text)
+    with pytest.raises(MoorDynError) as exc:
+        parse_moordyn(path.read_text(), source=str(path))
+    msg = str(exc.value)
+    assert msg.startswith(f"{path}: 3 problems: "), msg
+    for needle in ("rod 1: rods are not supported", "line type 'stiff': EI = 1e4 N m^2 > 0",
+                   "point 7 is a free point ('Free')"):
+        assert needle in msg, (needle, msg)
+    # three, not more: lines 4 (on point 7) and 9 (of type 'stiff') are not named again
+    code, _, err = run(capsys, "scenario", "import-moordyn", str(path), "--vessel", "fpso", "--out",
+                       str(tmp_path / "x.toml"), "--mbs", "poly160=1.5e7")
+    assert code == 2 and err.count("\n") == 1 and "3 problems" in err, err

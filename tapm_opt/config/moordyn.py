@@ -97,7 +97,7 @@ class MoorDynError(TapmError, ValueError):
     """
 
     def __init__(self, message: str, *, source: str = "", lineno: int | None = None):
-        self.source, self.lineno = source, lineno
+        self.source, self.lineno, self.detail = source, lineno, message
         where = source
         if lineno is not None:
             where = f"{source}:{lineno}" if source else f"line {lineno}"
@@ -311,6 +311,18 @@ class _Reader:
         self.source = source
         self.rows = text.splitlines()
         self.notes: list[str] = []
+        # what the file has that cannot be imported, all of it: said at once at the end
+        self.problems: list[MoorDynError] = []
+        self.refused_types: set[str] = set()
+        self.refused_points: set[int] = set()
+
+    def raise_problems(self) -> None:
+        """One error for every refused row and section (the single one as it is)."""
+        if len(self.problems) == 1:
+            raise self.problems[0]
+        if self.problems:
+            listed = "; ".join((f"line {e.lineno}: " if e.lineno is not None else "") + e.detail for e in self.problems)
+            raise MoorDynError(f"{len(self.problems)} problems: {listed}", source=self.source)
 
     def err(self, msg: str, lineno: int | None = None) -> MoorDynError:
         return MoorDynError(msg, source=self.source, lineno=lineno)
@@ -373,56 +385,63 @@ class _Reader:
         out = []
         for i, t in rows:
             name = t[0]
-            if len(t) == 9:
-                raise self.err(f"line type {name!r} has 9 columns: the MoorDyn v1 layout (Diam MassDen EA BA Can Cat "
-                               "Cdn Cdt) is not supported; write the v2 layout (Diam Mass/m EA BA/-zeta EI Cd Ca CdAx "
-                               "CaAx)", i)
-            if len(t) not in (10, 11, 13):
-                raise self.err(f"line type {name!r} has {len(t)} columns; MoorDyn v2 takes 10 (TypeName Diam Mass/m "
-                               "EA BA/-zeta EI Cd Ca CdAx CaAx), 11 (+ Cl) or 13 (+ Cl dF cF)", i)
-            ea = t[3]
-            if ea.upper().startswith("SYROPE"):
-                raise self.err(f"line type {name!r}: the Syrope model (EA = {ea}) is not supported", i)
-            if "|" in ea:
-                raise self.err(f"line type {name!r}: viscoelastic stiffness EA = {ea} is not supported "
-                               "(tapm_opt lines are linear elastic)", i)
             try:
-                EA = float(ea)
-            except ValueError:
-                raise self.err(f"line type {name!r}: EA = {ea!r} names a nonlinear stiffness curve, which is not "
-                               "supported (tapm_opt lines are linear elastic)", i) from None
-            if "|" in t[4]:
-                raise self.err(f"line type {name!r}: static|dynamic damping BA = {t[4]} is not supported", i)
-            try:
-                BA = float(t[4])
-            except ValueError:
-                raise self.err(f"line type {name!r}: BA = {t[4]!r} names a nonlinear damping curve, which is not "
-                               "supported", i) from None
-            try:
-                EI = float(t[5])
-            except ValueError:
-                raise self.err(f"line type {name!r}: EI = {t[5]!r} names a bending stiffness curve; bending "
-                               "stiffness is not supported", i) from None
-            if EI > 0:
-                raise self.err(f"line type {name!r}: EI = {t[5]} N m^2 > 0: bending stiffness is not supported "
-                               "(tapm_opt lines are cables)", i)
-            vals = [self.num(t[k], f"line type {name!r} {col}", i)
-                    for k, col in ((1, "Diam"), (2, "Mass/m"), (6, "Cd"), (7, "Ca"), (8, "CdAx"), (9, "CaAx"))]
-            if len(t) >= 11 and self.num(t[10], f"line type {name!r} Cl", i) > 0:
-                raise self.err(f"line type {name!r}: Cl = {t[10]} > 0: vortex-induced vibration is not supported", i)
-            d, mass, Cd, Ca, CdAx, CaAx = vals
-            for col, v in (("Diam", d), ("Mass/m", mass), ("EA", EA)):
-                if not v > 0:
-                    raise self.err(f"line type {name!r}: {col} = {v:g} must be > 0", i)
-            for col, v in (("Cd", Cd), ("Ca", Ca), ("CdAx", CdAx), ("CaAx", CaAx)):
-                if v < 0:
-                    raise self.err(f"line type {name!r}: {col} = {v:g} must be >= 0", i)
-            if any(lt.name == name for lt in out):
-                raise self.err(f"line type {name!r} is defined twice", i)
-            out.append(MDLineType(name, d, mass, EA, BA, EI, Cd, Ca, CdAx, CaAx, i))
-        if not out:
+                out.append(self._line_type(name, t, i, out))
+            except MoorDynError as exc:
+                self.problems.append(exc)
+                self.refused_types.add(name)
+        if not out and not self.problems:
             raise self.err("the file defines no line type (section LINE TYPES)")
         return out
+
+    def _line_type(self, name: str, t: list[str], i: int, out: list[MDLineType]) -> MDLineType:
+        if len(t) == 9:
+            raise self.err(f"line type {name!r} has 9 columns: the MoorDyn v1 layout (Diam MassDen EA BA Can Cat "
+                           "Cdn Cdt) is not supported; write the v2 layout (Diam Mass/m EA BA/-zeta EI Cd Ca CdAx "
+                           "CaAx)", i)
+        if len(t) not in (10, 11, 13):
+            raise self.err(f"line type {name!r} has {len(t)} columns; MoorDyn v2 takes 10 (TypeName Diam Mass/m "
+                           "EA BA/-zeta EI Cd Ca CdAx CaAx), 11 (+ Cl) or 13 (+ Cl dF cF)", i)
+        ea = t[3]
+        if ea.upper().startswith("SYROPE"):
+            raise self.err(f"line type {name!r}: the Syrope model (EA = {ea}) is not supported", i)
+        if "|" in ea:
+            raise self.err(f"line type {name!r}: viscoelastic stiffness EA = {ea} is not supported "
+                           "(tapm_opt lines are linear elastic)", i)
+        try:
+            EA = float(ea)
+        except ValueError:
+            raise self.err(f"line type {name!r}: EA = {ea!r} names a nonlinear stiffness curve, which is not "
+                           "supported (tapm_opt lines are linear elastic)", i) from None
+        if "|" in t[4]:
+            raise self.err(f"line type {name!r}: static|dynamic damping BA = {t[4]} is not supported", i)
+        try:
+            BA = float(t[4])
+        except ValueError:
+            raise self.err(f"line type {name!r}: BA = {t[4]!r} names a nonlinear damping curve, which is not "
+                           "supported", i) from None
+        try:
+            EI = float(t[5])
+        except ValueError:
+            raise self.err(f"line type {name!r}: EI = {t[5]!r} names a bending stiffness curve; bending "
+                           "stiffness is not supported", i) from None
+        if EI > 0:
+            raise self.err(f"line type {name!r}: EI = {t[5]} N m^2 > 0: bending stiffness is not supported "
+                           "(tapm_opt lines are cables)", i)
+        vals = [self.num(t[k], f"line type {name!r} {col}", i)
+                for k, col in ((1, "Diam"), (2, "Mass/m"), (6, "Cd"), (7, "Ca"), (8, "CdAx"), (9, "CaAx"))]
+        if len(t) >= 11 and self.num(t[10], f"line type {name!r} Cl", i) > 0:
+            raise self.err(f"line type {name!r}: Cl = {t[10]} > 0: vortex-induced vibration is not supported", i)
+        d, mass, Cd, Ca, CdAx, CaAx = vals
+        for col, v in (("Diam", d), ("Mass/m", mass), ("EA", EA)):
+            if not v > 0:
+                raise self.err(f"line type {name!r}: {col} = {v:g} must be > 0", i)
+        for col, v in (("Cd", Cd), ("Ca", Ca), ("CdAx", CdAx), ("CaAx", CaAx)):
+            if v < 0:
+                raise self.err(f"line type {name!r}: {col} = {v:g} must be >= 0", i)
+        if any(lt.name == name for lt in out):
+            raise self.err(f"line type {name!r} is defined twice", i)
+        return MDLineType(name, d, mass, EA, BA, EI, Cd, Ca, CdAx, CaAx, i)
 
     def bodies(self, rows) -> list[MDBody]:
         out = []
@@ -460,46 +479,54 @@ class _Reader:
             pid = int(self.num(t[0], "point ID", i))
             if pid != k:
                 raise self.err(f"point ID {t[0]} is out of sequence (IDs run 1, 2, ...; expected {k})", i)
-            r = tuple(self.num(t[j], f"point {pid} {c}", i) for j, c in zip((2, 3, 4), "XYZ"))
-            M = self.num(t[5], f"point {pid} Mass", i)
-            V = self.num(t[6], f"point {pid} Volume", i)
-            if len(t) >= 12:
-                F = [self.num(t[j], f"point {pid} {c}", i) for j, c in zip((7, 8, 9), ("FX", "FY", "FZ"))]
-                CdA, Ca = self.num(t[10], f"point {pid} CdA", i), self.num(t[11], f"point {pid} Ca", i)
-            else:
-                F = [0.0, 0.0, 0.0]
-                CdA, Ca = self.num(t[7], f"point {pid} CdA", i), self.num(t[8], f"point {pid} Ca", i)
-            word, num = _word_number(t[1])
-            body = None
-            if word in _FIXED:
-                kind = "fixed"
-            elif word in _COUPLED:
-                kind = "coupled"
-            elif word == "BODY":
-                kind = "body"
-                if not num.isdigit() or not 1 <= int(num) <= n_bodies:
-                    raise self.err(f"point {pid} is attached to {t[1]!r}, but the file defines "
-                                   f"{n_bodies} coupled bod{'y' if n_bodies == 1 else 'ies'}", i)
-                body = int(num)
-            elif word in _FREE:
-                raise self.err(f"point {pid} is a free point ({t[1]!r}): line-to-line connections, clump weights "
-                               "and buoys are not supported (every line runs from a fixed anchor to the vessel)", i)
-            else:
-                raise self.err(f"point {pid}: attachment {t[1]!r} is not supported (use Fixed for anchors, Coupled or "
-                               "Body1 for fairleads)", i)
-            if kind != "fixed":
-                for what, v in (("Mass", M), ("Volume", V), ("CdA", CdA), ("Ca", Ca)):
-                    if v != 0:
-                        raise self.err(f"point {pid}: {what} = {v:g}: a fairlead point with its own mass, volume, drag "
-                                       "or added mass (clump weight or buoy) is not supported", i)
-                if any(F):
-                    raise self.err(f"point {pid}: a steady external force on a fairlead point is not supported", i)
-            out.append(MDPoint(pid, t[1], kind, body, r, i))  # type: ignore[arg-type]
+            try:
+                out.append(self._point(pid, t, i, n_bodies))
+            except MoorDynError as exc:
+                self.problems.append(exc)
+                self.refused_points.add(pid)
         return out
+
+    def _point(self, pid: int, t: list[str], i: int, n_bodies: int) -> MDPoint:
+        r = tuple(self.num(t[j], f"point {pid} {c}", i) for j, c in zip((2, 3, 4), "XYZ"))
+        M = self.num(t[5], f"point {pid} Mass", i)
+        V = self.num(t[6], f"point {pid} Volume", i)
+        if len(t) >= 12:
+            F = [self.num(t[j], f"point {pid} {c}", i) for j, c in zip((7, 8, 9), ("FX", "FY", "FZ"))]
+            CdA, Ca = self.num(t[10], f"point {pid} CdA", i), self.num(t[11], f"point {pid} Ca", i)
+        else:
+            F = [0.0, 0.0, 0.0]
+            CdA, Ca = self.num(t[7], f"point {pid} CdA", i), self.num(t[8], f"point {pid} Ca", i)
+        word, num = _word_number(t[1])
+        body = None
+        if word in _FIXED:
+            kind = "fixed"
+        elif word in _COUPLED:
+            kind = "coupled"
+        elif word == "BODY":
+            kind = "body"
+            if not num.isdigit() or not 1 <= int(num) <= n_bodies:
+                raise self.err(f"point {pid} is attached to {t[1]!r}, but the file defines "
+                               f"{n_bodies} coupled bod{'y' if n_bodies == 1 else 'ies'}", i)
+            body = int(num)
+        elif word in _FREE:
+            raise self.err(f"point {pid} is a free point ({t[1]!r}): line-to-line connections, clump weights "
+                           "and buoys are not supported (every line runs from a fixed anchor to the vessel)", i)
+        else:
+            raise self.err(f"point {pid}: attachment {t[1]!r} is not supported (use Fixed for anchors, Coupled or "
+                           "Body1 for fairleads)", i)
+        if kind != "fixed":
+            for what, v in (("Mass", M), ("Volume", V), ("CdA", CdA), ("Ca", Ca)):
+                if v != 0:
+                    raise self.err(f"point {pid}: {what} = {v:g}: a fairlead point with its own mass, volume, drag "
+                                   "or added mass (clump weight or buoy) is not supported", i)
+            if any(F):
+                raise self.err(f"point {pid}: a steady external force on a fairlead point is not supported", i)
+        return MDPoint(pid, t[1], kind, body, r, i)  # type: ignore[arg-type]
 
     def lines(self, rows, types: list[MDLineType], points: list[MDPoint]) -> list[MDLine]:
         out = []
-        names = {lt.name for lt in types}
+        names = {lt.name for lt in types} | self.refused_types
+        n_points = len(points) + len(self.refused_points)
         for k, (i, t) in enumerate(rows, start=1):
             if len(t) < 6:
                 raise self.err(f"line row has {len(t)} columns; MoorDyn v2 takes ID LineType AttachA AttachB UnstrLen "
@@ -511,13 +538,19 @@ class _Reader:
                 raise self.err(f"line {lid}: line type {t[1]!r} is not defined in LINE TYPES ({', '.join(sorted(names))})",
                                i)
             ends = []
-            for col, word in (("AttachA", t[2]), ("AttachB", t[3])):
-                if not word.isdigit():
-                    raise self.err(f"line {lid}: {col} = {word!r}: lines attached to rod ends are not supported", i)
-                pid = int(word)
-                if not 1 <= pid <= len(points):
-                    raise self.err(f"line {lid}: {col} = {pid} is not a point (the file has {len(points)})", i)
-                ends.append(pid)
+            try:
+                for col, word in (("AttachA", t[2]), ("AttachB", t[3])):
+                    if not word.isdigit():
+                        raise self.err(f"line {lid}: {col} = {word!r}: lines attached to rod ends are not supported", i)
+                    pid = int(word)
+                    if not 1 <= pid <= n_points:
+                        raise self.err(f"line {lid}: {col} = {pid} is not a point (the file has {n_points})", i)
+                    ends.append(pid)
+            except MoorDynError as exc:
+                self.problems.append(exc)
+                continue
+            if t[1] in self.refused_types or set(ends) & self.refused_points:
+                continue   # its type or a point of it is refused already: said once, there
             L = self.num(t[4], f"line {lid} UnstrLen", i)
             if not L > 0:
                 raise self.err(f"line {lid}: UnstrLen = {t[4]} must be > 0", i)
@@ -528,7 +561,7 @@ class _Reader:
             if n < 2:
                 raise self.err(f"line {lid}: NumSegs = {n}: tapm_opt needs at least 2 segments", i)
             out.append(MDLine(lid, t[1], ends[0], ends[1], L, n, i))
-        if not out:
+        if not out and not self.problems:
             raise self.err("the file defines no line (section LINES)")
         return out
 
@@ -573,7 +606,8 @@ def _front_matter_max_strain(text: str) -> dict[str, tuple[float, int]]:
 
 
 def parse_moordyn(text: str, *, source: str = "") -> MoorDynModel:
-    """Parse MoorDyn v2 input text; unsupported features raise :class:`MoorDynError`.
+    """Parse MoorDyn v2 input text; unsupported features raise :class:`MoorDynError`, every one of
+    them in the file at once (a row whose line type or point is refused is not named again).
 
     Supported: line types (linear EA, constant BA, EI = 0, no VIV), at most one coupled body (the
     vessel, roll = pitch = 0), Fixed points (anchors), Coupled and Body1 points (fairleads), lines
@@ -587,11 +621,13 @@ def parse_moordyn(text: str, *, source: str = "") -> MoorDynModel:
         if sec.get(key):
             i, t = sec[key][0]
             item = f"rod {t[0]}" if key == "rods" else f"section {key.replace('_', ' ').upper()}"
-            raise rd.err(f"{item}: {why}", i)
+            more = f" ({len(sec[key])} rows)" if key == "rods" and len(sec[key]) > 1 else ""
+            rd.problems.append(rd.err(f"{item}{more}: {why}", i))
     types = rd.line_types(sec.get("line_types", []))
     bodies = rd.bodies(sec.get("bodies", []))
     points = rd.points(sec.get("points", []), len(bodies))
     lines = rd.lines(sec.get("lines", []), types, points)
+    rd.raise_problems()
     options: dict[str, tuple[str, int]] = {}
     spelled: dict[str, str] = {}
     for i, t in sec.get("options", []):
