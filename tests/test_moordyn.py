@@ -444,7 +444,8 @@ BAD_FILES = {
     "free point": (lambda t: _edit(t, "7     Fixed      -605.880", "7     Free       -605.880"), "point 7"),
     "clump weight": (lambda t: _edit(t, "-18.0    0     0      0     0   # fairlead", "-18.0    500   0      0     0   # fairlead"),
                      "point 2: Mass = 500"),
-    "EI": (lambda t: _edit(t, "-1.0       0      1.2", "-1.0       1e4    1.2"), "'poly160': EI"),
+    "EI": (lambda t: _edit(t, "-1.0       0      1.2", "-1.0       1e12   1.2"),
+           "line type 'poly160' (file line 7): EI = 1e+12 N m^2 matters: EI / (H l^2) ="),
     "VIV": (lambda t: _edit(t, "0.05    0.1    # main leg", "0.05    0.1   0.8"), "Cl = 0.8"),
     "viscoelastic": (lambda t: _edit(t, "1.2e9     -1.0", "1.2e9|2e9     -1.0"), "viscoelastic"),
     "second body": (lambda t: _edit(t, "1     Vessel     0      0     0      0       0      0       0     0     0        0"
@@ -687,13 +688,13 @@ def test_hull_fixed_fairleads_lock_the_turret_unless_they_form_one(tmp_path, cap
 
 
 def test_every_problem_in_a_file_is_said_at_once(tmp_path, capsys):
-    """A rod, a free point and a line type with bending stiffness in one file: all three named with
+    """A rod, a free point and a line type with VIV in one file: all three named with
     their file lines in one error, and the lines that use the refused type or point not named again."""
     text = HAND_WRITTEN
     for case in ("rod", "free point"):
         text = BAD_FILES[case][0](text)
     text = text.replace("---------------------- BODIES",
-                        "stiff      0.16    120.0      1.2e9     -1.0       1e4    1.2    1.0    0.05    0.1\n"
+                        "stiff      0.16    120.0      1.2e9     -1.0       0      1.2    1.0    0.05    0.1   0.8\n"
                         "---------------------- BODIES", 1)
     text = text.replace("9     poly160", "9     stiff  ")
     path = _write(tmp_path, text)
@@ -701,10 +702,29 @@ def test_every_problem_in_a_file_is_said_at_once(tmp_path, capsys):
         parse_moordyn(path.read_text(), source=str(path))
     msg = str(exc.value)
     assert msg.startswith(f"{path}: 3 problems: "), msg
-    for needle in ("rod 1: rods are not supported", "line type 'stiff': EI = 1e4 N m^2 > 0",
+    for needle in ("rod 1: rods are not supported", "line type 'stiff': Cl = 0.8 > 0",
                    "point 7 is a free point ('Free')"):
         assert needle in msg, (needle, msg)
     # three, not more: lines 4 (on point 7) and 9 (of type 'stiff') are not named again
     code, _, err = run(capsys, "scenario", "import-moordyn", str(path), "--vessel", "fpso", "--out",
                        str(tmp_path / "x.toml"), "--mbs", "poly160=1.5e7")
     assert code == 2 and err.count("\n") == 1 and "3 problems" in err, err
+
+
+def test_bending_stiffness_is_neglected_where_it_does_not_matter(tmp_path):
+    """EI against H l^2 (H the horizontal tension at rest, l the segment length): the MHK_RM1 tidal
+    line's 0.8 N m^2 on a chain is nothing (neglected, said); a stiff pipe's is refused with the ratio.
+    The neglected line's statics are the cable's."""
+    row = "poly160    0.16    120.0      1.2e9     -1.0       0      1.2"
+    soft = import_moordyn(_write(tmp_path, HAND_WRITTEN.replace(row, row.replace(" 0      1.2", " 0.8    1.2")), "a.dat"),
+                          "fpso", mbs={"poly160": 1.5e7})
+    note = next(n for n in soft.notes if "bending stiffness EI = 0.8 N m^2" in n)
+    assert "is neglected: EI / (H l^2) is at most" in note
+    cable = import_moordyn(_write(tmp_path, HAND_WRITTEN, "b.dat"), "fpso", mbs={"poly160": 1.5e7})
+    np.testing.assert_array_equal(MooringModel.from_scenario(soft.scenario).tensions(np.zeros(3)),
+                                  MooringModel.from_scenario(cable.scenario).tensions(np.zeros(3)))
+    H = MooringModel.from_scenario(cable.scenario).solve_lines(np.zeros(3)).HF.min()
+    EI = 0.02 * H * (1900.0 / 25) ** 2     # twice the criterion on the slackest line
+    with pytest.raises(MoorDynError, match=r"EI = .* N m\^2 matters: EI / \(H l\^2\) = 0.02 on line"):
+        import_moordyn(_write(tmp_path, HAND_WRITTEN.replace(row, row.replace(" 0      1.2", f" {EI:.6e} 1.2")), "c.dat"),
+                       "fpso", mbs={"poly160": 1.5e7})

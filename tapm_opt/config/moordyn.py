@@ -68,6 +68,7 @@ __all__ = [
     "scenario_toml",
     "ImportResult",
     "RISER_CHOICES",
+    "BENDING_NEGLIGIBLE",
     "TURRET_CHOICES",
     "ExportInfo",
     "SEABED_PENETRATION",
@@ -425,9 +426,8 @@ class _Reader:
         except ValueError:
             raise self.err(f"line type {name!r}: EI = {t[5]!r} names a bending stiffness curve; bending "
                            "stiffness is not supported", i) from None
-        if EI > 0:
-            raise self.err(f"line type {name!r}: EI = {t[5]} N m^2 > 0: bending stiffness is not supported "
-                           "(tapm_opt lines are cables)", i)
+        if EI < 0:
+            raise self.err(f"line type {name!r}: EI = {t[5]} N m^2 must be >= 0", i)
         vals = [self.num(t[k], f"line type {name!r} {col}", i)
                 for k, col in ((1, "Diam"), (2, "Mass/m"), (6, "Cd"), (7, "Ca"), (8, "CdAx"), (9, "CaAx"))]
         if len(t) >= 11 and self.num(t[10], f"line type {name!r} Cl", i) > 0:
@@ -1259,6 +1259,49 @@ def _in_file_terms(issue: Any, model: MoorDynModel, data: Mapping[str, Any]) -> 
     return f"{where}: {col}{shown} gives tapm_opt's {field_name} {issue.message} (docs/moordyn.md)"
 
 
+#: Bending stiffness is neglected where ``EI / (H l^2)`` is at most this (H the line's horizontal
+#: tension at rest, l its segment length): the bending length ``sqrt(EI / H)`` is then under a tenth
+#: of a segment, shorter than anything the lumped-mass line resolves.
+BENDING_NEGLIGIBLE = 0.01
+
+
+def _bending_notes(model: MoorDynModel, sc: Any) -> list[str]:
+    """Notes for the line types with ``EI > 0`` whose bending is negligible (the criterion
+    :data:`BENDING_NEGLIGIBLE` on every line of the type, at rest at the field zero point); a
+    :class:`MoorDynError` naming the lines where it is not."""
+    stiff = {lt.name: lt for lt in model.line_types if lt.EI > 0}
+    if not stiff:
+        return []
+    from ..models.mooring import MooringModel
+
+    sol = MooringModel.from_scenario(sc).solve_lines(np.zeros(3))
+    H = np.atleast_1d(np.asarray(sol.HF, dtype=float))
+    worst: dict[str, tuple[float, str]] = {}
+    for k, ln in enumerate(sc.lines):
+        lt = stiff.get(str(ln.type))
+        if lt is None:
+            continue
+        seg = ln.length / ln.segments
+        ratio = lt.EI / (H[k] * seg * seg) if H[k] > 0 else math.inf
+        if ratio > worst.get(lt.name, (-1.0, ""))[0]:
+            worst[lt.name] = (ratio, str(ln.id))
+    notes, bad = [], []
+    for name, (ratio, lid) in worst.items():
+        lt = stiff[name]
+        if ratio <= BENDING_NEGLIGIBLE:
+            notes.append(f"line type {name!r}: bending stiffness EI = {lt.EI:g} N m^2 (line {lt.lineno}) is neglected: "
+                         f"EI / (H l^2) is at most {ratio:.2g} (line {lid}; H the horizontal tension at rest, l the "
+                         f"segment length), under {BENDING_NEGLIGIBLE:g}: the bending length sqrt(EI/H) is under a tenth "
+                         "of a segment")
+        else:
+            bad.append(f"line type {name!r} (file line {lt.lineno}): EI = {lt.EI:g} N m^2 matters: EI / (H l^2) = "
+                       f"{ratio:.3g} on line {lid} (over {BENDING_NEGLIGIBLE:g}; H the horizontal tension at rest, l the "
+                       "segment length), and tapm_opt's lines are cables without bending stiffness")
+    if bad:
+        raise MoorDynError("; ".join(bad), source=model.source)
+    return notes
+
+
 #: What the importer may do with the vessel scenario's riser (:func:`import_moordyn`).
 RISER_CHOICES = ("auto", "keep", "adapt", "drop")
 #: How the importer sets the turret (:func:`import_moordyn`).
@@ -1351,6 +1394,7 @@ def import_moordyn(path: str | Path, vessel: str | Path, *, mbs: Mapping[str, fl
         said = [_in_file_terms(i, model, data) for i in exc.issues]
         raise MoorDynError(f"the imported scenario is invalid ({len(said)} problem{'s' * (len(said) > 1)}): "
                            + "; ".join(said), source=model.source) from None
+    notes += _bending_notes(model, sc)
     header = [
         f"{data['meta']['name']} — imported by tapm scenario import-moordyn",
         f"Mooring (line types, lines, anchors, fairleads, water depth, density, gravity): MoorDyn file {model.source}",
