@@ -728,3 +728,65 @@ def test_bending_stiffness_is_neglected_where_it_does_not_matter(tmp_path):
     with pytest.raises(MoorDynError, match=r"EI = .* N m\^2 matters: EI / \(H l\^2\) = 0.02 on line"):
         import_moordyn(_write(tmp_path, HAND_WRITTEN.replace(row, row.replace(" 0      1.2", f" {EI:.6e} 1.2")), "c.dat"),
                        "fpso", mbs={"poly160": 1.5e7})
+
+
+def _moved(text: str, x0: float, y0: float, yaw_deg: float) -> str:
+    """HAND_WRITTEN with its vessel body at (x0, y0) and yaw, the anchors moved with it (MoorDyn frame)."""
+    c, s = math.cos(math.radians(yaw_deg)), math.sin(math.radians(yaw_deg))
+    out = []
+    for row in text.splitlines():
+        t = row.split()
+        if len(t) >= 9 and t[1] == "Fixed":
+            x, y = float(t[2]), float(t[3])
+            t[2], t[3] = f"{x0 + c * x - s * y:.6f}", f"{y0 + s * x + c * y:.6f}"
+            row = "  ".join(t[:9])
+        elif len(t) >= 8 and t[1] == "Vessel":
+            t[2], t[3], t[7] = f"{x0:g}", f"{y0:g}", f"{yaw_deg:g}"
+            row = "  ".join(t)
+        out.append(row)
+    return "\n".join(out) + "\n"
+
+
+def test_a_vessel_off_the_files_origin_is_moved_to_the_field_zero_point(tmp_path, capsys):
+    """The same mooring with its vessel body at (3000, -1200) m and yaw 30 deg imports as the one at the
+    origin (said in a note); --recentre no keeps the file's coordinates. A file without a body whose
+    one fairlead is 1360 m from the origin (MoorDyn's polyester test) is moved so the fairlead is at
+    the centre of turret."""
+    base = import_moordyn(_write(tmp_path, HAND_WRITTEN, "base.dat"), "fpso", mbs={"poly160": 1.5e7}).scenario
+    path = _write(tmp_path, _moved(HAND_WRITTEN, 3000.0, -1200.0, 30.0), "moved.dat")
+    res = import_moordyn(path, "fpso", mbs={"poly160": 1.5e7})
+    assert any("the vessel body 1 is at x = 3000 m, y = -1200 m, yaw 30 deg" in n for n in res.notes), res.notes
+    for a, b in zip(res.scenario.lines, base.lines):
+        assert a.anchor == pytest.approx(b.anchor, abs=1e-4)
+        assert a.fairlead_angle == pytest.approx(b.fairlead_angle, abs=1e-7)
+    assert res.scenario.turret.fairlead_radius == pytest.approx(base.turret.fairlead_radius, abs=1e-4)
+    with pytest.raises(MoorDynError, match="fairlead_radius"):
+        import_moordyn(path, "fpso", mbs={"poly160": 1.5e7}, recentre="no")
+    single = """--------------------- MoorDyn Input File ------------------------------------
+one polyester line, its fairlead far from the origin
+----------------------- LINE TYPES ------------------------------------------
+TypeName         Diam    Mass/m     EA         BA/-zeta    EI         Cd     Ca     CdAx    CaAx
+(name)           (m)     (kg/m)     (N)        (N-s/-)     (N-m^2)    (-)    (-)    (-)     (-)
+poly             0.217   52.0       3.339E+08  -1.0        0.0        1.6    1.79   0.008   0.0
+---------------------- POINT PROPERTIES --------------------------------
+ID    Type      X       Y       Z         Mass   Volume  CdA    Ca
+(#)   (-)       (m)     (m)     (m)       (kg)   (m^3)   (m^2)  (-)
+1    Fixed      0.0     0.0     -372.3    0.0    0.0     0.0    0.0
+2    Coupled    1360.0  0.0     -18.0     0.0    0.0     0.0    0.0
+---------------------- LINES ----------------------------------------
+ID   LineType         AttachA  AttachB   UnstrLen  NumSegs  LineOutputs
+(#)  (name)           (#)      (#)       (m)       (-)      (-)
+1    poly             1        2         1400.0    70       -
+---------------------- OPTIONS -----------------------------------------
+372.3         WtrDpth              water depth (m)
+------------------------- need this line --------------------------------------
+"""
+    one = import_moordyn(_write(tmp_path, single, "single.dat"), "fpso", mbs={"poly": 1e7})
+    sc = one.scenario
+    assert sc.turret.fairlead_radius == pytest.approx(0.0, abs=1e-9)
+    p = np.asarray(sc.turret.position)
+    assert sc.lines[0].anchor[:2] == pytest.approx((p[0] - 1360.0, p[1]), abs=1e-6)   # the span kept
+    assert any("moved by (-1268.56, -0) m" in n or "moved by (-1268.56, 0) m" in n for n in one.notes), one.notes
+    code, _, err = run(capsys, "scenario", "import-moordyn", str(path), "--vessel", "fpso", "--out",
+                       str(tmp_path / "x.toml"), "--mbs", "poly160=1.5e7", "--recentre", "no")
+    assert code == 2 and "fairlead_radius" in err

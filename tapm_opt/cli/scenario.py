@@ -151,8 +151,11 @@ def _type_values(items: tuple[str, ...], option: str) -> dict[str, float]:
 @click.option("--turret", type=click.Choice(["auto", "locked", "free"]), default="auto", show_default=True,
               help="MoorDyn's fairleads are hull-fixed: auto keeps the vessel's turret mode when they lie on one "
                    "circle about its centre of turret and locks the turret (spread mooring) otherwise.")
+@click.option("--recentre", type=click.Choice(["auto", "no"]), default="auto", show_default=True,
+              help="auto: move the mooring so the vessel sits at the field zero point (a vessel body off the file's "
+                   "origin, or fairleads beyond the hull about the centre of turret); no: the file's coordinates.")
 def scenario_import_moordyn(file: str, vessel: str, out: str, mbs: tuple[str, ...], mbs_cov: float,
-                            name: str | None, riser: str, turret: str) -> None:
+                            name: str | None, riser: str, turret: str, recentre: str) -> None:
     """Build a scenario from MoorDyn v2 input FILE and a vessel scenario.
 
     From FILE: line types, lines, anchors, fairleads, water depth, water density and gravity.
@@ -162,7 +165,7 @@ def scenario_import_moordyn(file: str, vessel: str, out: str, mbs: tuple[str, ..
     from ..config.moordyn import import_moordyn
 
     res = import_moordyn(file, vessel, mbs=_type_values(mbs, "--mbs"), mbs_cov=mbs_cov,
-                         name=name or Path(out).stem, riser=riser, turret=turret)
+                         name=name or Path(out).stem, riser=riser, turret=turret, recentre=recentre)
     atomic_write_text(out, res.toml)
     sc = res.scenario
     click.echo(f"wrote {out}: scenario {sc.name}, {len(sc.lines)} lines, {len(sc.line_types)} line types, depth "

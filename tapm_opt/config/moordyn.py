@@ -68,6 +68,7 @@ __all__ = [
     "scenario_toml",
     "ImportResult",
     "RISER_CHOICES",
+    "RECENTRE_CHOICES",
     "BENDING_NEGLIGIBLE",
     "TURRET_CHOICES",
     "ExportInfo",
@@ -1005,7 +1006,7 @@ def _clean(v: float, nd: int = 9) -> float:
 def scenario_data_from_moordyn(model: MoorDynModel, vessel_data: dict, *, mbs: Mapping[str, float],
                                mbs_cov: float = 0.05, name: str | None = None,
                                vessel_name: str = "", riser: str = "auto",
-                               turret: str = "auto") -> tuple[dict, list[str], dict]:
+                               turret: str = "auto", recentre: str = "auto") -> tuple[dict, list[str], dict]:
     """Scenario file dictionary: mooring from ``model``, everything else from ``vessel_data``.
 
     Returns ``(data, notes, comments)`` where ``comments[("line_types", i)]`` are comment lines
@@ -1133,6 +1134,7 @@ def scenario_data_from_moordyn(model: MoorDynModel, vessel_data: dict, *, mbs: M
             raise MoorDynError(f"point {anc.id} (anchor of line {ln.id}) is at z = {-z_anc:g} m, not below the fairleads "
                                f"at -{fl_depth:g} m: an anchor lies on the seabed (-{depth:g} m) or above it, below the "
                                "fairleads", source=src, lineno=anc.lineno)
+    fair, lines = _recentred(model, fair, lines, p_cot, vessel_data.get("vessel", {}), recentre, notes)
     radii = []
     for (fl, ln, f), item in zip(fair, lines):
         dx, dy = f[0] - p_cot[0], f[1] - p_cot[1]
@@ -1302,6 +1304,56 @@ def _bending_notes(model: MoorDynModel, sc: Any) -> list[str]:
     return notes
 
 
+#: How the importer places the file's mooring about the vessel (:func:`import_moordyn`).
+RECENTRE_CHOICES = ("auto", "no")
+
+
+def _recentred(model: MoorDynModel, fair: list, lines: list[dict], p_cot: np.ndarray, vessel: Mapping[str, Any],
+               recentre: str, notes: list[str]) -> tuple[list, list[dict]]:
+    """The fairleads ``(point, line, NED position)`` and line tables moved so that the vessel sits
+    at the field zero point (:func:`import_moordyn`, ``recentre``); unchanged with ``"no"``."""
+    if recentre == "no" or not fair:
+        return fair, lines
+    shift, turn, why = np.zeros(2), 0.0, ""
+    xy = np.array([f[:2] for _, _, f in fair], dtype=float)
+    reach = float(np.max(np.hypot(xy[:, 0] - p_cot[0], xy[:, 1] - p_cot[1])))
+    hull = max(float(vessel.get("length_pp", 0.0) or 0.0), float(vessel.get("breadth", 0.0) or 0.0))
+    if not (hull > 0 and reach > hull):
+        return fair, lines   # the fairleads fit the hull where they are (tapm_opt's own exports among them)
+    if model.bodies:
+        b = model.bodies[0]
+        x, y, _, _, _, yaw = b.pose
+        shift = ned_from_md(np.array([x, y, 0.0]))[:2]
+        turn = -math.radians(yaw)   # MoorDyn's yaw is about z up; tapm_opt's psi about z down
+        why = (f"the vessel body {b.id} is at x = {x:g} m, y = {y:g} m, yaw {yaw:g} deg in the file (line "
+               f"{b.lineno}), its fairleads up to {reach:g} m from the vessel's centre of turret, beyond its hull "
+               f"({hull:g} m): the mooring is moved and turned with the body so that the body sits at the field zero "
+               "point with heading 0 (--recentre no keeps the file's coordinates)")
+    else:
+        shift = xy.mean(axis=0) - p_cot
+        why = (f"the fairleads are up to {reach:g} m from the vessel's centre of turret at the file's origin, beyond "
+               f"its hull ({hull:g} m): the mooring is moved by ({-shift[0]:g}, {-shift[1]:g}) m (north, east) so "
+               "that their centroid is the centre of turret (--recentre no keeps the file's coordinates)")
+    if not why:
+        return fair, lines
+    c, s_ = math.cos(-turn), math.sin(-turn)
+
+    def move(x: float, y: float) -> tuple[float, float]:
+        dx, dy = x - shift[0], y - shift[1]
+        return c * dx - s_ * dy, s_ * dx + c * dy
+
+    out_fair = []
+    for (fl, ln, f) in fair:
+        fx, fy = move(f[0], f[1])
+        out_fair.append((fl, ln, np.array([fx, fy, f[2]])))
+    out_lines = []
+    for item in lines:
+        ax, ay = move(item["anchor"][0], item["anchor"][1])
+        out_lines.append({**item, "anchor": [_clean(ax), _clean(ay), item["anchor"][2]]})
+    notes.append(why)
+    return out_fair, out_lines
+
+
 #: What the importer may do with the vessel scenario's riser (:func:`import_moordyn`).
 RISER_CHOICES = ("auto", "keep", "adapt", "drop")
 #: How the importer sets the turret (:func:`import_moordyn`).
@@ -1344,7 +1396,8 @@ def _imported_riser(vessel_data: Mapping[str, Any], turret: Mapping[str, Any], d
 
 
 def import_moordyn(path: str | Path, vessel: str | Path, *, mbs: Mapping[str, float], mbs_cov: float = 0.05,
-                   name: str | None = None, riser: str = "auto", turret: str = "auto") -> ImportResult:
+                   name: str | None = None, riser: str = "auto", turret: str = "auto",
+                   recentre: str = "auto") -> ImportResult:
     """A scenario from a MoorDyn v2 file and a vessel scenario.
 
     From the MoorDyn file: line types, lines (length, segments), anchors, fairleads, water depth,
@@ -1384,10 +1437,13 @@ def import_moordyn(path: str | Path, vessel: str | Path, *, mbs: Mapping[str, fl
         raise MoorDynError(f"riser = {riser!r} must be one of {', '.join(RISER_CHOICES)}")
     if turret not in TURRET_CHOICES:
         raise MoorDynError(f"turret = {turret!r} must be one of {', '.join(TURRET_CHOICES)}")
+    if recentre not in RECENTRE_CHOICES:
+        raise MoorDynError(f"recentre = {recentre!r} must be one of {', '.join(RECENTRE_CHOICES)}")
     model = read_moordyn(path)
     vdata, vname = _vessel_data(vessel)
     data, notes, comments = scenario_data_from_moordyn(model, vdata, mbs=mbs, mbs_cov=mbs_cov, name=name,
-                                                       vessel_name=vname, riser=riser, turret=turret)
+                                                       vessel_name=vname, riser=riser, turret=turret,
+                                                       recentre=recentre)
     try:
         sc = scenario_from_dict(data, source=f"(imported from {model.source})")
     except ScenarioError as exc:
