@@ -544,3 +544,40 @@ def test_report_says_where_one_front_beats_another_and_why(tmp_path):
     assert "no trial kept it at 2 or above: the best reached 1.00 (trial 0, 45 m, 20.00 MWh)" in md   # A's riser
     assert "the cheapest trial keeping it at 2 or above spends 30.00 MWh at 40 m (trial 0)" in md      # B's riser
     assert "| A | offset_max | 50 m | 52 m | +4.0 % | seed 7: 52 m |" in md
+
+
+def test_a_new_run_starts_from_the_registry_default(tmp_path, capsys):
+    """Trial 0 of a new run is the kind's registry default (so no front is worse than the
+    hand-picked design), with the KPIs the default controller gives on the same case; a range
+    narrowed past the default, or start_from_defaults = false, starts from the sampler instead."""
+    import csv
+
+    import optuna
+
+    from tapm_opt.design.registry import kind
+
+    p = _study(tmp_path, trials=2)
+    out = tmp_path / "tune"
+    assert main(["tune", str(p), "--out", str(out), "--workers", "0"]) == 0, capsys.readouterr().err
+    t0 = optuna.load_study(study_name="t/PID", storage=f"sqlite:///{out / 'tuning.db'}").trials[0]
+    d = kind("pid").options()
+    assert t0.user_attrs.get("origin") == "registry default"
+    assert [t0.params[f"periods[{i}]"] for i in range(3)] == list(d.periods)
+    assert t0.params["capacity_fraction"] == d.capacity_fraction
+    plain = tmp_path / "plain.toml"
+    plain.write_text(STUDY.format(trials=2, duration=40.0, extra="").split("tune =")[0].replace("[tuning]", ""))
+    assert main(["study", "run", str(plain), "--out", str(tmp_path / "plain"), "--workers", "0", "--no-progress"]) == 0
+    row = next(csv.DictReader(open(tmp_path / "plain" / "kpis.csv")))
+    assert t0.user_attrs["kpis"]["offset_max"] == pytest.approx(float(row["offset_max"]), rel=1e-12)
+    assert t0.user_attrs["kpis"]["thrust_energy"] == pytest.approx(float(row["thrust_energy"]), rel=1e-12)
+    for extra, name in (("", "narrow"), ("start_from_defaults = false", "off")):
+        q = tmp_path / f"{name}.toml"
+        text = STUDY.format(trials=1, duration=40.0, extra=extra)
+        if name == "narrow":
+            text = text.replace("periods = [150.0, 400.0]", "periods = [300.0, 400.0]")   # 250 s is outside
+        q.write_text(text)
+        assert main(["tune", str(q), "--out", str(tmp_path / name), "--workers", "0"]) == 0
+        t = optuna.load_study(study_name="t/PID", storage=f"sqlite:///{tmp_path / name / 'tuning.db'}").trials[0]
+        assert "origin" not in t.user_attrs, name
+    with pytest.raises(TuningError, match="start_from_defaults = 'yes' must be true or false"):
+        tuning_settings({"start_from_defaults": "yes"})

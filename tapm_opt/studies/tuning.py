@@ -52,7 +52,8 @@ from ..design.registry import DESIGN_FORMAT, kind as controller_kind
 from .kpi_catalogue import KPIS
 from .kpis import DELTA_S_DEFAULT
 from .tuning_space import (ALWAYS_REPORTED, CONTEXT_KPIS, DEFAULT_OBJECTIVES, SUMMED_KPIS, Constraint, Objective, Param,
-                           TuningError, TuningSettings, _num, parse_rule, search_space, spec_from_params,
+                           TuningError, TuningSettings, _num, default_params, parse_rule, search_space,
+                           spec_from_params,
                            tuning_settings)
 
 __all__ = ["TuningError", "Objective", "Constraint", "TuningSettings", "Param", "tuning_settings", "search_space",
@@ -328,6 +329,10 @@ def optimise(storage_url: str, study_name: str, evaluator: TrialEvaluator, *, tr
     every ``poll`` seconds and at the end.
     """
     study = create_study(storage_url, study_name, evaluator.settings, meta or {})
+    if evaluator.settings.start_from_defaults and not study.get_trials(deepcopy=False):
+        start = default_params(evaluator.base_spec["type"], evaluator.params, evaluator.safe_radius)
+        if start is not None:   # a new run starts from the hand-picked default: its front can only be better
+            study.enqueue_trial(start, user_attrs={"origin": "registry default"})
     if workers <= 0 and scheduler is None:
         run_worker(WorkerJob(storage_url, study_name, evaluator, trials))
         if progress:

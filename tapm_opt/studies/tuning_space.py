@@ -20,7 +20,7 @@ from ..errors import TapmError
 from .kpi_catalogue import UnknownKpiError, kpi as catalogue_kpi
 
 __all__ = ["TuningError", "Objective", "Constraint", "TuningSettings", "Param", "tuning_settings", "search_space",
-           "spec_from_params", "DEFAULT_OBJECTIVES", "ALWAYS_REPORTED", "CONTEXT_KPIS", "SUMMED_KPIS", "MAX_TRIALS", "parse_rule", "GROUP_LABELS"]
+           "spec_from_params", "DEFAULT_OBJECTIVES", "ALWAYS_REPORTED", "CONTEXT_KPIS", "default_params", "SUMMED_KPIS", "MAX_TRIALS", "parse_rule", "GROUP_LABELS"]
 
 #: The objectives when ``[tuning] objectives`` is not given: the turret's largest offset (worst over
 #: the cases) and the thrust energy (summed over the cases), both minimised.
@@ -216,6 +216,9 @@ class TuningSettings:
         circle all the time, else the knee).
     verify_seeds : tuple of int
         Seeds the search never used, on which the selected designs are run again.
+    start_from_defaults : bool
+        The first trial of a new run is the kind's registry default design (where it lies in the
+        search space), so each front is at least as good as the hand-picked default (default true).
     per : tuple of {"sea_state", "condition"}
         Tune each controller separately for each sea state, each mooring condition, or each of
         both (default: once over all the cases): a design per group, e.g. the PID's gains per sea
@@ -231,6 +234,7 @@ class TuningSettings:
     select: str | tuple[str, ...] = "knee"
     verify_seeds: tuple[int, ...] = ()
     per: tuple[str, ...] = ()
+    start_from_defaults: bool = True
 
     def __post_init__(self) -> None:
         per = (self.per,) if isinstance(self.per, str) else tuple(self.per)
@@ -259,6 +263,8 @@ class TuningSettings:
         for s in self.verify_seeds:
             if not (isinstance(s, int) and not isinstance(s, bool) and s >= 0):
                 raise TuningError(f"tuning.verify_seeds: {s!r} must be a whole number >= 0")
+        if not isinstance(self.start_from_defaults, bool):
+            raise TuningError(f"tuning.start_from_defaults = {self.start_from_defaults!r} must be true or false")
 
     def rules(self) -> tuple[str, ...]:
         """The selection rules, in the order they are tried."""
@@ -388,6 +394,39 @@ def search_space(kind_name: str, base_spec: Mapping[str, Any], tune: Mapping[str
         else:
             params += [Param(f"{name}[{i}]", name, i, d) for i in range(d.size)]
     return params, fixed
+
+
+def default_params(kind_name: str, params: Sequence[Param], safe_radius: float | None) -> dict[str, Any] | None:
+    """The registry default design of ``kind_name`` as the values of ``params`` (in the search
+    space's units: a dead band as a fraction of the safe radius), or None when a default is not in
+    the space (a range ``tune`` narrowed past it, an option without a default value)."""
+    from ..design.registry import DEAD_BAND_FRACTION
+
+    opts = controller_kind(kind_name).options()
+    out: dict[str, Any] = {}
+    for p in params:
+        v = getattr(opts, p.option, None)
+        d = p.dim
+        if v is None and p.option == "dead_band":
+            v = DEAD_BAND_FRACTION            # the registry's automatic dead band, relative already
+        elif v is not None and d.relative_to == "safe_radius" and not isinstance(v, str):
+            if not safe_radius or p.index is not None:
+                return None
+            v = float(v) / float(safe_radius)
+        if v is not None and p.index is not None:
+            try:
+                v = v[p.index]
+            except (TypeError, IndexError):
+                return None
+        if d.choices is not None:
+            if v not in d.choices:
+                return None
+        else:
+            if not isinstance(v, (int, float)) or isinstance(v, bool) or not (d.low - 1e-12 <= v <= d.high + 1e-12):
+                return None
+            v = int(round(v)) if d.integer else float(v)
+        out[p.name] = v
+    return out
 
 
 def _scaled(d: Dimension | None, v: Any, safe_radius: float | None) -> Any:
