@@ -581,3 +581,19 @@ def test_a_new_run_starts_from_the_registry_default(tmp_path, capsys):
         assert "origin" not in t.user_attrs, name
     with pytest.raises(TuningError, match="start_from_defaults = 'yes' must be true or false"):
         tuning_settings({"start_from_defaults": "yes"})
+
+
+@pytest.mark.slow
+def test_the_default_trial_runs_once_before_parallel_workers(tmp_path, capsys):
+    """With two worker processes the default design is run once, before they start (two workers
+    asking at once could both take the one waiting trial, and the second could not report it)."""
+    import optuna
+
+    p = _study(tmp_path, trials=3, duration=20.0)
+    out = tmp_path / "tune"
+    assert main(["tune", str(p), "--out", str(out), "--workers", "2"]) == 0, capsys.readouterr().err
+    trials = optuna.load_study(study_name="t/PID", storage=f"sqlite:///{out / 'tuning.db'}").trials
+    done = [t for t in trials if t.state.name == "COMPLETE"]
+    assert len(done) == 3 and sum(t.user_attrs.get("origin") == "registry default" for t in trials) == 1
+    assert trials[0].user_attrs.get("origin") == "registry default" and trials[0].state.name == "COMPLETE"
+    assert len({json.dumps(t.params, sort_keys=True) for t in done}) == 3

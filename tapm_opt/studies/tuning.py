@@ -333,6 +333,10 @@ def optimise(storage_url: str, study_name: str, evaluator: TrialEvaluator, *, tr
         start = default_params(evaluator.base_spec["type"], evaluator.params, evaluator.safe_radius)
         if start is not None:   # a new run starts from the hand-picked default: its front can only be better
             study.enqueue_trial(start, user_attrs={"origin": "registry default"})
+            if workers > 0 or scheduler is not None:
+                # run here, before the workers start: two workers asking at once can both take one
+                # waiting trial from the storage, and the second then cannot report it
+                run_worker(WorkerJob(storage_url, study_name, evaluator, 1))
     if workers <= 0 and scheduler is None:
         run_worker(WorkerJob(storage_url, study_name, evaluator, trials))
         if progress:
