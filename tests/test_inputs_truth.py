@@ -303,7 +303,8 @@ def test_text_limits_hold_for_a_scenario_built_in_code():
 
 
 def test_moordyn_round_trip_keeps_max_strain(tmp_path):
-    from tapm_opt.config.moordyn import export_moordyn, import_moordyn
+    from tapm_opt.config.moordyn import export_moordyn
+    from tapm_opt.models.moordyn_import import import_moordyn
 
     sc = load_scenario("ren8")
     assert sc.line_types[0].max_strain == 0.005
@@ -324,7 +325,7 @@ def _with_options(tmp_path, extra: str) -> Path:
 
 
 def test_moordyn_unknown_options_are_reported(tmp_path):
-    from tapm_opt.config.moordyn import import_moordyn
+    from tapm_opt.models.moordyn_import import import_moordyn
 
     p = _with_options(tmp_path, "0.5  FooBar\n1  writeLogg\n7\n")
     notes = import_moordyn(p, "aamo4", mbs={"cable": 5e6}).notes
@@ -334,7 +335,8 @@ def test_moordyn_unknown_options_are_reported(tmp_path):
 
 
 def test_moordyn_non_numeric_known_option_is_an_error(tmp_path):
-    from tapm_opt.config.moordyn import MoorDynError, import_moordyn
+    from tapm_opt.config.moordyn import MoorDynError
+    from tapm_opt.models.moordyn_import import import_moordyn
 
     p = _with_options(tmp_path, "abc  CdScaleIC\n")
     with pytest.raises(MoorDynError, match=r"option CdScaleIC = 'abc' must be a finite number"):

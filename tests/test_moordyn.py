@@ -20,7 +20,6 @@ from tapm_opt.cli import main
 from tapm_opt.config import load_scenario, validate
 from tapm_opt.config.moordyn import (
     MoorDynError,
-    import_moordyn,
     moordyn_line_type,
     moordyn_text,
     moordyn_time_step,
@@ -28,6 +27,7 @@ from tapm_opt.config.moordyn import (
     seabed_constants,
 )
 from tapm_opt.geometry import fairleads_E
+from tapm_opt.models.moordyn_import import import_moordyn
 from tapm_opt.models import MooringModel
 from tapm_opt.plant.fem import FEMLines
 from tapm_opt.plant.forced_motion import forced_motion

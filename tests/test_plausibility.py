@@ -410,7 +410,8 @@ def test_real_designs_are_accepted(make):
 
 def test_spread_mooring_of_a_moordyn_import_with_fairleads_at_the_hull_ends(tmp_path):
     """A MoorDyn file whose fairleads sit at the bow and stern of a 300 m hull imports."""
-    from tapm_opt.config.moordyn import import_moordyn, moordyn_text, scenario_toml
+    from tapm_opt.config.moordyn import moordyn_text, scenario_toml
+    from tapm_opt.models.moordyn_import import import_moordyn
 
     data = design(300, 58, 20, 1000.0, radius=150.0, fairlead_depth=15.0)
     sc = scenario_from_dict(data)

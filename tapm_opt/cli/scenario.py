@@ -162,7 +162,7 @@ def scenario_import_moordyn(file: str, vessel: str, out: str, mbs: tuple[str, ..
     From --vessel: everything else. Fairleads become turret angles and radii about the vessel's
     centre of turret. Conventions: docs/moordyn.md.
     """
-    from ..config.moordyn import import_moordyn
+    from ..models.moordyn_import import import_moordyn
 
     res = import_moordyn(file, vessel, mbs=_type_values(mbs, "--mbs"), mbs_cov=mbs_cov,
                          name=name or Path(out).stem, riser=riser, turret=turret, recentre=recentre)

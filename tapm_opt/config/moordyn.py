@@ -45,8 +45,8 @@ from typing import Any, Iterable, Mapping
 import numpy as np
 
 from .._io import toml_key, toml_value
-from ..errors import ScenarioError, TapmError
-from .loader import BUILTIN_DIR, load_scenario, scenario_from_dict
+from ..errors import TapmError
+from .loader import BUILTIN_DIR, load_scenario
 from .schema import Scenario
 
 __all__ = [
@@ -58,7 +58,6 @@ __all__ = [
     "MDLine",
     "read_moordyn",
     "parse_moordyn",
-    "import_moordyn",
     "scenario_data_from_moordyn",
     "moordyn_text",
     "export_moordyn",
@@ -69,7 +68,8 @@ __all__ = [
     "ImportResult",
     "RISER_CHOICES",
     "RECENTRE_CHOICES",
-    "BENDING_NEGLIGIBLE",
+    "vessel_data_of",
+    "problem_in_file_terms",
     "TURRET_CHOICES",
     "ExportInfo",
     "SEABED_PENETRATION",
@@ -987,7 +987,7 @@ class ImportResult:
     notes: tuple[str, ...] = field(default_factory=tuple)
 
 
-def _vessel_data(vessel: str | Path) -> tuple[dict, str]:
+def vessel_data_of(vessel: str | Path) -> tuple[dict, str]:
     """The vessel scenario's file dictionary (as written, exact numbers) and its display name."""
     load_scenario(vessel)  # validates it, with the usual messages
     text = str(vessel)
@@ -1230,7 +1230,7 @@ _MD_COLUMNS: dict[str, tuple[str, Any]] = {
 }
 
 
-def _in_file_terms(issue: Any, model: MoorDynModel, data: Mapping[str, Any]) -> str:
+def problem_in_file_terms(issue: Any, model: MoorDynModel, data: Mapping[str, Any]) -> str:
     """A scenario problem of an imported field said in the MoorDyn file's own terms: the line
     type or line, the file's line number and column, then tapm_opt's field and reason."""
     m = re.fullmatch(r"(line_types|lines)\[(\d+)\]\.(\w+)", str(issue.path))
@@ -1259,49 +1259,6 @@ def _in_file_terms(issue: Any, model: MoorDynModel, data: Mapping[str, Any]) -> 
         attr = {"Cd": "Cd", "Ca": "Ca", "CaAx": "CaAx", "Diam": "d", "EA": "EA", "BA": "BA", "Mass/m": "mass"}[col]
         shown = f" = {getattr(lt, attr):g}"
     return f"{where}: {col}{shown} gives tapm_opt's {field_name} {issue.message} (docs/moordyn.md)"
-
-
-#: Bending stiffness is neglected where ``EI / (H l^2)`` is at most this (H the line's horizontal
-#: tension at rest, l its segment length): the bending length ``sqrt(EI / H)`` is then under a tenth
-#: of a segment, shorter than anything the lumped-mass line resolves.
-BENDING_NEGLIGIBLE = 0.01
-
-
-def _bending_notes(model: MoorDynModel, sc: Any) -> list[str]:
-    """Notes for the line types with ``EI > 0`` whose bending is negligible (the criterion
-    :data:`BENDING_NEGLIGIBLE` on every line of the type, at rest at the field zero point); a
-    :class:`MoorDynError` naming the lines where it is not."""
-    stiff = {lt.name: lt for lt in model.line_types if lt.EI > 0}
-    if not stiff:
-        return []
-    from ..models.mooring import MooringModel
-
-    sol = MooringModel.from_scenario(sc).solve_lines(np.zeros(3))
-    H = np.atleast_1d(np.asarray(sol.HF, dtype=float))
-    worst: dict[str, tuple[float, str]] = {}
-    for k, ln in enumerate(sc.lines):
-        lt = stiff.get(str(ln.type))
-        if lt is None:
-            continue
-        seg = ln.length / ln.segments
-        ratio = lt.EI / (H[k] * seg * seg) if H[k] > 0 else math.inf
-        if ratio > worst.get(lt.name, (-1.0, ""))[0]:
-            worst[lt.name] = (ratio, str(ln.id))
-    notes, bad = [], []
-    for name, (ratio, lid) in worst.items():
-        lt = stiff[name]
-        if ratio <= BENDING_NEGLIGIBLE:
-            notes.append(f"line type {name!r}: bending stiffness EI = {lt.EI:g} N m^2 (line {lt.lineno}) is neglected: "
-                         f"EI / (H l^2) is at most {ratio:.2g} (line {lid}; H the horizontal tension at rest, l the "
-                         f"segment length), under {BENDING_NEGLIGIBLE:g}: the bending length sqrt(EI/H) is under a tenth "
-                         "of a segment")
-        else:
-            bad.append(f"line type {name!r} (file line {lt.lineno}): EI = {lt.EI:g} N m^2 matters: EI / (H l^2) = "
-                       f"{ratio:.3g} on line {lid} (over {BENDING_NEGLIGIBLE:g}; H the horizontal tension at rest, l the "
-                       "segment length), and tapm_opt's lines are cables without bending stiffness")
-    if bad:
-        raise MoorDynError("; ".join(bad), source=model.source)
-    return notes
 
 
 #: How the importer places the file's mooring about the vessel (:func:`import_moordyn`).
@@ -1393,73 +1350,6 @@ def _imported_riser(vessel_data: Mapping[str, Any], turret: Mapping[str, Any], d
                 f"--riser adapt): length {length:g} -> {rs['length']:g} m and top tension {tension:.4g} -> "
                 f"{rs['top_tension']:.4g} N, both x {k:.4g} (the hang-off-to-wellhead distance's ratio), the rest "
                 "kept; --riser keep or drop to choose otherwise")
-
-
-def import_moordyn(path: str | Path, vessel: str | Path, *, mbs: Mapping[str, float], mbs_cov: float = 0.05,
-                   name: str | None = None, riser: str = "auto", turret: str = "auto",
-                   recentre: str = "auto") -> ImportResult:
-    """A scenario from a MoorDyn v2 file and a vessel scenario.
-
-    From the MoorDyn file: line types, lines (length, segments), anchors, fairleads, water depth,
-    water density and gravity (``g``, default 9.80665 as MoorDyn-C; ``rho`` or ``WtrDnsty``, or
-    MoorDyn-F's ``rhoW``), seabed friction. From ``vessel`` (built-in name or TOML path):
-    everything else (vessel, turret position, mode and angle, thrusters, sea states, riser,
-    faults of lines that exist, sensors, limits, plant settings).
-
-    Fairleads become turret angles and radii about the vessel's centre of turret at the field zero
-    point (turret angle alpha_t removed); all fairleads must be at one depth. An anchor (a fixed
-    point) lies on the seabed or above it, below the fairleads (a raised anchor keeps its z; one
-    below the seabed or not below the fairleads is refused). MoorDyn files carry
-    no breaking strength: ``mbs`` maps every used line type to its MBS [N]; ``MBS_std`` is
-    ``mbs_cov`` times it.
-
-    ``riser`` says what becomes of the vessel scenario's riser in the file's water depth (one of
-    :data:`RISER_CHOICES`; docs/moordyn.md, "The riser"):
-
-    - ``"keep"``: as it is (an error if it does not fit the depth);
-    - ``"adapt"``: its length and top tension scaled by the ratio of the straight distances from
-      its hang-off to its wellhead in the new and the old depth (a vertical riser from the
-      fairlead depth to the seabed stays one; the top tension keeps its ratio to the riser's
-      weight, the tensioners' 1.2-2x), its other properties and critical angles kept;
-    - ``"drop"``: left out (the riser's reliability index and angles are then not computed);
-    - ``"auto"`` (default): kept if the depth is the vessel scenario's, else adapted.
-
-    Every choice but an unchanged ``keep`` is said in a note.
-
-    ``turret`` (one of :data:`TURRET_CHOICES`): MoorDyn has no turret, and its fairleads on a
-    coupled body are fixed to the hull. ``"auto"`` (default) keeps the vessel scenario's turret
-    mode when the fairleads lie on one circle about its centre of turret (a turret mooring), and
-    locks the turret to the hull otherwise (a spread mooring: the mooring's yaw stiffness kept);
-    ``"locked"`` and ``"free"`` choose. A mode that differs from the vessel scenario's, or a free
-    turret with fairleads not on one circle, is said in a note.
-    """
-    if riser not in RISER_CHOICES:
-        raise MoorDynError(f"riser = {riser!r} must be one of {', '.join(RISER_CHOICES)}")
-    if turret not in TURRET_CHOICES:
-        raise MoorDynError(f"turret = {turret!r} must be one of {', '.join(TURRET_CHOICES)}")
-    if recentre not in RECENTRE_CHOICES:
-        raise MoorDynError(f"recentre = {recentre!r} must be one of {', '.join(RECENTRE_CHOICES)}")
-    model = read_moordyn(path)
-    vdata, vname = _vessel_data(vessel)
-    data, notes, comments = scenario_data_from_moordyn(model, vdata, mbs=mbs, mbs_cov=mbs_cov, name=name,
-                                                       vessel_name=vname, riser=riser, turret=turret,
-                                                       recentre=recentre)
-    try:
-        sc = scenario_from_dict(data, source=f"(imported from {model.source})")
-    except ScenarioError as exc:
-        said = [_in_file_terms(i, model, data) for i in exc.issues]
-        raise MoorDynError(f"the imported scenario is invalid ({len(said)} problem{'s' * (len(said) > 1)}): "
-                           + "; ".join(said), source=model.source) from None
-    notes += _bending_notes(model, sc)
-    header = [
-        f"{data['meta']['name']} — imported by tapm scenario import-moordyn",
-        f"Mooring (line types, lines, anchors, fairleads, water depth, density, gravity): MoorDyn file {model.source}",
-        f"Everything else (vessel, turret position/mode/angle, thrusters, sea states, ...): scenario {vname}",
-        "Conventions (frames, diameter, drag, damping): tapm_opt docs/moordyn.md",
-        *[f"NOTE: {n}" for n in notes],
-    ]
-    return ImportResult(scenario=sc, data=data, toml=scenario_toml(data, header=header, comments=comments),
-                        notes=tuple(notes))
 
 
 # --------------------------------------------------------------------------------------------
