@@ -15,7 +15,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ..config.loader import scenario_from_dict
+from ..config import scenario_from_dict
 from ..config.moordyn import (RECENTRE_CHOICES, RISER_CHOICES, TURRET_CHOICES, ImportResult, MoorDynError,
                               MoorDynModel, problem_in_file_terms, read_moordyn, scenario_data_from_moordyn,
                               scenario_toml, vessel_data_of)
