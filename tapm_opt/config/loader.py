@@ -540,7 +540,7 @@ def _plausibility(sc: Scenario, fl_x: np.ndarray, fl_y: np.ndarray, issues: list
 
     tur = sc.turret
     in_hull("turret.position", *tur.position, "turret")
-    hull = max(v.length_pp, v.breadth)  # a spread mooring's fairleads at the hull ends: radius about length_pp / 2
+    hull = fairlead_reach(v.length_pp, v.breadth)
 
     def radius_issue(path: str, r: float) -> None:
         if r > hull:
@@ -671,7 +671,7 @@ def _plausibility(sc: Scenario, fl_x: np.ndarray, fl_y: np.ndarray, issues: list
     if rs is not None:
         in_hull("riser.hangoff", *rs.hangoff, "riser hang-off")
         horiz = math.hypot(rs.wellhead[0] - rs.hangoff[0], rs.wellhead[1] - rs.hangoff[1])
-        top = max(tur.fairlead_depth, v.draught, 0.0)  # the lowest the hang-off can be
+        top = hangoff_depth_limit(tur.fairlead_depth, v.draught)
         shortest = math.hypot(horiz, env.water_depth - top)
         longest = MAX_RISER_LENGTH_FACTOR * (horiz + env.water_depth)
         if rs.length * 1.01 < shortest:
@@ -696,6 +696,19 @@ def _plausibility(sc: Scenario, fl_x: np.ndarray, fl_y: np.ndarray, issues: list
             issues.append(ScenarioIssue("riser.top_tension", (
                 f"= {rs.top_tension:g} N cannot hold up the riser: its submerged weight over the water column is at "
                 f"least {weight:.4g} N (submerged_weight {rs.submerged_weight:g} N/m x {env.water_depth - top:g} m)")))
+
+
+def fairlead_reach(length_pp: float, breadth: float) -> float:
+    """Largest fairlead radius about the centre of turret a scenario may have [m]: the hull's
+    length or breadth, whichever is larger (a spread mooring's fairleads at the hull ends lie about
+    length_pp / 2 out)."""
+    return max(float(length_pp), float(breadth))
+
+
+def hangoff_depth_limit(fairlead_depth: float, draught: float) -> float:
+    """The deepest a riser's hang-off is taken to be [m]: the fairlead depth or the draught,
+    whichever is larger (not above the water line). A riser must reach its wellhead from there."""
+    return max(float(fairlead_depth), float(draught), 0.0)
 
 
 def validate(sc: Scenario) -> list[ScenarioIssue]:

@@ -46,7 +46,7 @@ import numpy as np
 
 from .._io import toml_key, toml_value
 from ..errors import TapmError
-from .loader import BUILTIN_DIR, load_scenario
+from .loader import BUILTIN_DIR, fairlead_reach, hangoff_depth_limit, load_scenario
 from .schema import Scenario
 
 __all__ = [
@@ -1274,7 +1274,7 @@ def _recentred(model: MoorDynModel, fair: list, lines: list[dict], p_cot: np.nda
     shift, turn, why = np.zeros(2), 0.0, ""
     xy = np.array([f[:2] for _, _, f in fair], dtype=float)
     reach = float(np.max(np.hypot(xy[:, 0] - p_cot[0], xy[:, 1] - p_cot[1])))
-    hull = max(float(vessel.get("length_pp", 0.0) or 0.0), float(vessel.get("breadth", 0.0) or 0.0))
+    hull = fairlead_reach(vessel.get("length_pp", 0.0) or 0.0, vessel.get("breadth", 0.0) or 0.0)
     if not (hull > 0 and reach > hull):
         return fair, lines   # the fairleads fit the hull where they are (tapm_opt's own exports among them)
     if model.bodies:
@@ -1334,8 +1334,8 @@ def _imported_riser(vessel_data: Mapping[str, Any], turret: Mapping[str, Any], d
     vessel = vessel_data.get("vessel", {})
     old_turret = vessel_data.get("turret", {})
 
-    def top(fairlead_depth: Any) -> float:   # the lowest the hang-off can be, as the scenario check has it
-        return max(float(fairlead_depth or 0.0), float(vessel.get("draught", 0.0) or 0.0), 0.0)
+    def top(fairlead_depth: Any) -> float:   # as the scenario check has it
+        return hangoff_depth_limit(fairlead_depth or 0.0, vessel.get("draught", 0.0) or 0.0)
 
     chord_old = math.hypot(horiz, old_depth - top(old_turret.get("fairlead_depth")))
     chord_new = math.hypot(horiz, depth - top(turret.get("fairlead_depth")))

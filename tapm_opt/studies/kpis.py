@@ -25,6 +25,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from ..control.setpoint_opt import DELTA_S_DEFAULT
 from ..errors import TapmError
 from ..estimation.reliability import LP_WINDOW_DEFAULT, SIGMA_WINDOW_DEFAULT, causal_reliability, gumbel_k
 from ..geometry import ssa, turret_offset
@@ -53,8 +54,8 @@ SFC_DEFAULT = 0.2
 # LP_WINDOW_DEFAULT (100 s): width of the moving average that defines the low-frequency tension,
 # centred offline, trailing in the causal index; SIGMA_WINDOW_DEFAULT (600 s): trailing window of
 # the causal index's wave-frequency sigma and up-crossing count (both from estimation.reliability).
-#: Lower threshold of the reliability index (seed line-break example).
-DELTA_S_DEFAULT = 2.0
+# DELTA_S_DEFAULT, the lower threshold of the reliability index, is the setpoint layers' one
+# (tapm_opt.control.setpoint_opt; [R] §3: 2 for lines and riser), imported above.
 
 # The plant's break events: "line <id> broke" (a prescribed break) and "line <id> broke: overload,
 # tension <T> MN = <p> % MBS >= strength <S> MN" (tension and strength to 3 significant digits).
