@@ -28,6 +28,7 @@ import numpy as np
 
 from .._io import atomic_write_bytes, atomic_write_text
 from ..studies.kpi_catalogue import KPIS
+from ..studies.kpis import DELTA_S_DEFAULT
 from ..studies.tuning import format_kpi, hypervolume_2d
 from .data import ReportError
 from .document import Cell, Fig, Heading, Para, Table, render_html, render_markdown
@@ -343,7 +344,7 @@ def _build(d: Path) -> tuple[list, list[Fig], str]:
     blocks.append(Para("Hypervolume of each front (" + f"{n0} × {n1}" + ", against the common reference "
                        f"{format_kpi(n0, s0 * ref[0])} / {format_kpi(n1, s1 * ref[1])}; larger is better): "
                        + "; ".join(f"**{c}** {hv[c]:.4g} {u0}·{u1}".rstrip("·") for c in ctrls) + "."))
-    cost = _reliability_cost(ctrls, info, points, fronts, (n0, s0), (n1, s1), float(info.get("delta_s", 2.0)))
+    cost = _reliability_cost(ctrls, info, points, fronts, (n0, s0), (n1, s1), float(info.get("delta_s", DELTA_S_DEFAULT)))
     if cost:
         blocks.append(Heading(3, "What the riser and the lines cost"))
         blocks.extend(Para(t) for t in cost)

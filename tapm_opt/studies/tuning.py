@@ -157,10 +157,7 @@ class TrialEvaluator:
             trial.set_user_attr("error", f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}")
             raise
         trial.set_user_attr("wall_time", time.perf_counter() - t0)
-        reported = {name: item.value(per_case) for name, item in self.settings.reported()}
-        for name in CONTEXT_KPIS:   # context the cases do not report (a scenario without a riser)
-            if name in reported and not math.isfinite(reported[name]):
-                del reported[name]
+        reported = reported_kpis(self.settings, per_case)
         trial.set_user_attr("kpis", reported)
         trial.set_user_attr("cases", per_case if len(json.dumps(per_case, default=float)) < 200_000 else [])
         cons = [c.violation(c.value(per_case)) for c in self.settings.constraints]
@@ -698,8 +695,8 @@ def _verify(study: Any, summary: Mapping[str, Any], settings: TuningSettings, ou
                 inputs.append({**c.inputs, "seed": int(s)})
                 seed_of.append(int(s))
         per_case = _CaseRunner(inputs)(info["spec"])
-        held = _aggregate_like(settings, per_case, len(base_cases))
-        per_seed = {str(s): _aggregate_like(settings, [k for k, si in zip(per_case, seed_of) if si == s],
+        held = reported_kpis(settings, per_case, len(base_cases))
+        per_seed = {str(s): reported_kpis(settings, [k for k, si in zip(per_case, seed_of) if si == s],
                                             len(base_cases)) for s in seeds}
         res[cname] = {"seeds": seeds, "kpis": held, "per_seed": per_seed}
         for name, _ in settings.reported():
@@ -717,14 +714,17 @@ def _verify(study: Any, summary: Mapping[str, Any], settings: TuningSettings, ou
     return res
 
 
-def _aggregate_like(settings: TuningSettings, per_case: Sequence[Mapping[str, float]], n_tuning: int) -> dict:
-    """The reported KPIs of held-out cases aggregated as in the tuning, the sums scaled to the
-    tuning's number of cases (``n_tuning``) so that two held-out seeds of a one-seed study compare
-    with the tuning's value, not twice it; worst cases stay worst over every held-out case."""
+def reported_kpis(settings: TuningSettings, per_case: Sequence[Mapping[str, float]],
+                  n_tuning: int | None = None) -> dict:
+    """The KPIs a trial reports (``settings.reported()``) aggregated over its cases; the context
+    KPIs the cases do not carry (a scenario without a riser) left out. With ``n_tuning`` (held-out
+    cases) the sums are scaled to the tuning's number of cases, so that two held-out seeds of a
+    one-seed study compare with the tuning's value, not twice it; worst cases stay worst over every
+    case."""
     out = {}
     for name, item in settings.reported():
         v = item.value(per_case)
-        if item.aggregate == "sum" and per_case:
+        if n_tuning is not None and item.aggregate == "sum" and per_case:
             v *= n_tuning / len(per_case)
         if name in CONTEXT_KPIS and not math.isfinite(v):
             continue
