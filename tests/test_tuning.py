@@ -599,3 +599,36 @@ def test_the_default_trial_runs_once_before_parallel_workers(tmp_path, capsys):
     assert len(done) == 3 and sum(t.user_attrs.get("origin") == "registry default" for t in trials) == 1
     assert trials[0].user_attrs.get("origin") == "registry default" and trials[0].state.name == "COMPLETE"
     assert len({json.dumps(t.params, sort_keys=True) for t in done}) == 3
+
+
+def _open_storage(url, q):   # a process pool's target: module level
+    import warnings
+
+    from tapm_opt.studies.tuning import _storage
+
+    warnings.filterwarnings("ignore")
+    try:
+        _storage(url)
+        q.put("ok")
+    except Exception as exc:  # noqa: BLE001 - reported to the test
+        q.put(f"{type(exc).__name__}: {exc}")
+
+
+def test_processes_opening_a_new_storage_at_once_all_open_it(tmp_path):
+    """A second run joining, or a poller, may create a new SQLite storage's tables at the same
+    moment as the first run: each of them opens it (one used to fail with 'UNIQUE constraint
+    failed: alembic_version' or 'table ... already exists')."""
+    import multiprocessing
+
+    ctx = multiprocessing.get_context("spawn")
+    results = []
+    for k in range(4):
+        url = f"sqlite:///{tmp_path / f's{k}.db'}"
+        q = ctx.Queue()
+        procs = [ctx.Process(target=_open_storage, args=(url, q)) for _ in range(3)]
+        for p in procs:
+            p.start()
+        for p in procs:
+            p.join(120)
+        results += [q.get(timeout=10) for _ in procs]
+    assert results == ["ok"] * len(results), results

@@ -87,8 +87,19 @@ def _storage(url: str) -> Any:
         path = url.split("sqlite:///", 1)[-1]
         if path and path != url and not Path(path).parent.is_dir():
             raise TuningError(f"--storage {url!r}: the folder {str(Path(path).parent)!r} does not exist")
+    from sqlalchemy.exc import IntegrityError
+
     try:
-        return optuna.storages.RDBStorage(url, heartbeat_interval=HEARTBEAT, grace_period=GRACE, **kw)
+        for attempt in range(5):
+            try:
+                return optuna.storages.RDBStorage(url, heartbeat_interval=HEARTBEAT, grace_period=GRACE, **kw)
+            except (IntegrityError, OperationalError) as exc:
+                # another process (a second run joining, a dashboard) created the new database's
+                # tables at the same moment: they exist now, so open it again
+                racing = isinstance(exc, IntegrityError) or "already exists" in str(exc)
+                if attempt == 4 or not racing:
+                    raise
+                time.sleep(0.2 * (attempt + 1))
     except (ArgumentError, OperationalError, ImportError, ValueError, ModuleNotFoundError) as exc:
         raise TuningError(f"--storage {url!r} cannot be opened: {str(exc).splitlines()[0]}") from None
     except Exception as exc:  # noqa: BLE001 - any database driver's error, named
