@@ -65,13 +65,13 @@ def lines(scenario_name: str, out: str | None, half_range: float | None, points:
     if out is None:
         return
     path = Path(out)
-    from ..models.catenary import REGIMES
+    from ..models.catenary import regime_name
 
     rows = []
     for i, lid in enumerate(chars.line_ids):
         for j in range(chars.XF.shape[1]):
             rows.append((lid, float(chars.XF[i, j]), float(chars.H[i, j]), float(chars.V[i, j]),
-                         float(chars.T[i, j]), REGIMES[int(chars.regime[i, j])]))
+                         float(chars.T[i, j]), regime_name(chars.regime[i, j])))
     text_lines = csv_text(["line", "XF_m", "H_N", "V_N", "T_N", "regime"], rows,
                           comments=[f"tapm lines {sc.name}: fairlead tensions against horizontal anchor-fairlead distance"])
     rows = []

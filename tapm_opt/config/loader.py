@@ -331,7 +331,20 @@ def _metres(x: float) -> str:
 
 def _scenario_lines_ok(sc: Scenario) -> bool:
     ids = {t.id for t in sc.line_types}
-    return bool(sc.lines) and all(ln.type in ids for ln in sc.lines)
+    pids = {p.id for p in sc.point_types}
+    return bool(sc.lines) and all(s.type in ids and (s.top is None or s.top in pids)
+                                  for ln in sc.lines if ln.type is not None and ln.length is not None
+                                  for s in ln.parts) and all(ln.type is not None and ln.length is not None
+                                                             for ln in sc.lines)
+
+
+def _shared(ln: Any, n: int) -> tuple[int, ...]:
+    """Segments of each section of ``ln`` when the whole line has ``n`` (a ``--segments`` override)."""
+    if not ln.composite:
+        return (n,)
+    import dataclasses as _dc
+    return _dc.replace(ln, sections=tuple(_dc.replace(s, segments=None) for s in ln.sections),
+                       segments=n).section_segments()
 
 
 def fem_size_issues(sc: Scenario, segments: int | None = None, *, where: str | None = None) -> list[ScenarioIssue]:
@@ -357,7 +370,7 @@ def fem_size_issues(sc: Scenario, segments: int | None = None, *, where: str | N
 
     if not _scenario_lines_ok(sc):
         return []
-    n = [int(segments) if segments is not None else ln.segments for ln in sc.lines]
+    n = [int(segments) if segments is not None else int(sum(ln.section_segments())) for ln in sc.lines]
 
     def path(i: int) -> str:
         if where is not None:
@@ -376,13 +389,14 @@ def fem_size_issues(sc: Scenario, segments: int | None = None, *, where: str | N
                                        f"(about {gib(nodes * FEM_BYTES_PER_NODE)}), above the limit {MAX_FEM_NODES}")]
     steps = []
     for i, ln in enumerate(sc.lines):
-        lt = sc.line_type(ln)
-        c = math.sqrt(lt.EA / lt.mass_per_length)
-        steps.append((0.5 * ln.length / n[i] / c, i, c))
-    dt, i, c = min(steps)
+        nk = ln.section_segments() if segments is None else _shared(ln, n[i])
+        for sec, k in zip(ln.parts, nk):
+            lt = sc.line_type_by_id(sec.type)
+            c = math.sqrt(lt.EA / lt.mass_per_length)
+            steps.append((0.5 * sec.length / k / c, i, c, sec.length / k))
+    dt, i, c, seg = min(steps)
     rate = nodes / dt if dt > 0 else math.inf
     if not rate <= MAX_FEM_NODE_UPDATES:
-        seg = sc.lines[i].length / n[i]
         return [ScenarioIssue(path(i), (
             f"= {n[i]}: the FEM step would be about {dt:.3g} s (segments of {seg:.3g} m of line {sc.lines[i].id!r}, "
             f"axial wave speed sqrt(EA/m) = {c:.3g} m/s), {rate:.3g} node updates per simulated second for "
@@ -768,8 +782,51 @@ def validate(sc: Scenario) -> list[ScenarioIssue]:
     # reach check: the line must span anchor -> fairlead at the field zero point within its strain limit
     # (at eta = 0 the fairleads in {E} are those in {B}, eq. 3)
     fl_x, fl_y = fairleads_B(sc.turret.position, sc.fairleads_T, sc.turret.angle)
+    point_ids = {pt.id for pt in sc.point_types}
+    _dupes(sc.point_types, "point_types", issues)
     for i, ln in enumerate(sc.lines):
         p = f"lines[{i}]"
+        if ln.sections:
+            bad = False
+            given = [k for k, v in (("type", ln.type), ("length", ln.length)) if v is not None]
+            if ln.type != ln.sections[-1].type or not math.isclose(
+                    float(ln.length or 0.0), sum(s.length for s in ln.sections), rel_tol=1e-12):
+                issues.append(ScenarioIssue(p, (
+                    f"gives sections and {' and '.join(given)}: give either type and length (a homogeneous line) or "
+                    "sections (a composite line, whose type is its fairlead section's and length their sum)")))
+                bad = True
+            for k, sec in enumerate(ln.sections):
+                q = f"{p}.sections[{k}]"
+                if sec.type not in type_ids:
+                    hint = difflib.get_close_matches(sec.type, sorted(type_ids), n=1)
+                    issues.append(ScenarioIssue(f"{q}.type", f"= {sec.type!r} is not a line type" + (
+                        f"; did you mean {hint[0]!r}?" if hint else f"; defined: {sorted(type_ids)}")))
+                    bad = True
+                if sec.top is not None and k == len(ln.sections) - 1:
+                    issues.append(ScenarioIssue(f"{q}.top", (
+                        f"= {sec.top!r}: the last section ends at the fairlead; a point can only join two sections")))
+                    bad = True
+                elif sec.top is not None and sec.top not in point_ids:
+                    hint = difflib.get_close_matches(sec.top, sorted(point_ids), n=1)
+                    issues.append(ScenarioIssue(f"{q}.top", f"= {sec.top!r} is not a point type" + (
+                        f"; did you mean {hint[0]!r}?" if hint else f"; defined: {sorted(point_ids) or 'none'}")))
+                    bad = True
+            if any(s.segments is None for s in ln.sections) and ln.segments < len(ln.sections):
+                issues.append(ScenarioIssue(f"{p}.segments", (
+                    f"= {ln.segments} is fewer than the line's {len(ln.sections)} sections (each needs one)")))
+                bad = True
+            if ln.winch_max_rate > 0 and ln.composite:
+                issues.append(ScenarioIssue(f"{p}.winch_max_rate", (
+                    f"= {ln.winch_max_rate:g} m/s: a composite line has no winch in tapm_opt (the winch pays out a "
+                    "homogeneous line); give 0")))
+                bad = True
+            if bad:
+                continue
+        elif ln.type is None or ln.length is None:
+            missing = " and ".join(k for k, v in (("type", ln.type), ("length", ln.length)) if v is None)
+            issues.append(ScenarioIssue(f"{p}.{'type' if ln.type is None else 'length'}", (
+                f"is missing: a line gives type and length, or sections (missing: {missing})")))
+            continue
         if ln.type not in type_ids:
             hint = difflib.get_close_matches(ln.type, sorted(type_ids), n=1)
             issues.append(ScenarioIssue(
@@ -801,13 +858,14 @@ def validate(sc: Scenario) -> list[ScenarioIssue]:
         lt = sc.line_type(ln)
         dist = math.hypot(math.hypot(ln.anchor[0] - float(fl_x[i]), ln.anchor[1] - float(fl_y[i])),
                           min(z_anchor, env.water_depth) - sc.turret.fairlead_depth)
-        reach = ln.length * (1.0 + lt.strain_limit)
+        reach = sum(s.length * (1.0 + sc.line_type_by_id(s.type).strain_limit) for s in ln.parts)
         if reach < dist:
             lim = "max strain" if lt.max_strain is not None else "strain at MBS"
+            lim = "sections' strain limits" if ln.composite else f"line type's {lim}"
             issues.append(ScenarioIssue(
                 f"{p}.length",
                 f"= {ln.length:g} m cannot reach the anchor from the fairlead (distance {_metres(dist)} m) within the "
-                f"line type's {lim} {100 * lt.strain_limit:.3g} %"))
+                f"{lim}" + ("" if ln.composite else f" {100 * lt.strain_limit:.3g} %")))
 
     for i, th in enumerate(sc.thrusters):
         p = f"thrusters[{i}]"
@@ -967,6 +1025,8 @@ def scenario_to_dict(obj: Any) -> Any:
         for f in dataclasses.fields(obj):
             val = getattr(obj, f.name)
             if val is None or _has_nan(val):  # NaN only comes from an "unknown" default: omit it
+                continue
+            if val == () and f.default == ():  # an empty list that is the default (sections, points)
                 continue
             if f.metadata.get("unit") in ("deg", "deg/s"):
                 val = _deg(val)

@@ -312,12 +312,55 @@ class LineType:
 
 
 @dataclass(frozen=True, kw_only=True)
+class PointType:
+    """A connection point between two sections of a composite line that carries a clump weight or a
+    buoy (MoorDyn's point: mass, volume, CdA, Ca). Its net submerged weight is
+    ``W = (mass - rho_w volume) g`` [N], positive down (a clump), negative up (a buoy)."""
+
+    id: str = spec("Name referenced by lines[].sections[].top.", id_like=True)
+    mass: float = spec("Mass in air (clump weight, buoy hull and ballast).", "kg", default=0.0,
+                       check=bounded(0.0, 1e7, "the largest clumps and buoys weigh a few hundred tonnes"))
+    volume: float = spec("Displaced volume (buoyancy).", "m^3", default=0.0,
+                         check=bounded(0.0, 1e4, "the largest mooring buoys displace a few hundred m^3"))
+    CdA: float = spec("Drag coefficient times frontal area, isotropic (MoorDyn's CdA).", "m^2", default=0.0,
+                      check=bounded(0.0, 1e3, "a 10 m buoy has CdA of about 80 m^2"))
+    Ca: float = spec("Added-mass coefficient on the displaced volume: added mass Ca rho_w volume (MoorDyn's Ca).",
+                     default=0.0, check=bounded(0.0, 10.0, _COEF))
+
+    def net_weight(self, env: "Environment") -> float:
+        """Net submerged weight [N], positive down: ``(mass - rho_w volume) g``."""
+        return float((self.mass - env.water_density * self.volume) * env.gravity)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Section:
+    """One section of a composite line: a length of one line type. Sections run from the anchor up
+    to the fairlead; the point between a section and the next one up may carry a clump or a buoy."""
+
+    type: str = spec("Line type id (line_types[].id).", id_like=True)
+    length: float = spec("Unstretched length of the section.", "m", check=positive)
+    segments: int | None = spec(
+        "FEM segments of the section; absent: the line's segments shared by length (at least 1 each).",
+        default=None, check=positive)
+    top: str | None = spec(
+        "Point type id (point_types[].id) at the section's upper end, where it joins the next section up; "
+        "absent: a plain joint without mass. Not allowed on the last (fairlead) section.",
+        default=None, id_like=True)
+
+
+@dataclass(frozen=True, kw_only=True)
 class Line:
     """One mooring line from its lower end, the anchor (on the seabed or above it: z between the
-    fairlead depth and the water depth), to its fairlead on the turret."""
+    fairlead depth and the water depth), to its fairlead on the turret. A homogeneous line gives
+    ``type`` and ``length``; a composite line gives ``sections`` instead (from the anchor up), and
+    then ``type`` is read as the fairlead section's type and ``length`` as the total length."""
 
     id: str = spec("Line name (unique).", id_like=True)
-    type: str = spec("Line type id (line_types[].id).", id_like=True)
+    type: str | None = spec("Line type id (line_types[].id); absent when sections are given.", default=None,
+                            id_like=True)
+    sections: tuple[Section, ...] = spec(
+        "Composite line: sections in series from the anchor up to the fairlead (at least 2); absent: one "
+        "section of type and length.", default=())
     anchor: Vec = spec(
         "Lower end in {E}: (x, y) on the seabed, or (x, y, z) with z (down) between the fairlead depth and "
         "the water depth: an anchor on the seabed (z = water depth) or above it (a clump, a buoy, a slope).",
@@ -328,14 +371,56 @@ class Line:
     fairlead_radius: float | None = spec(
         "Fairlead radius r_i; absent: turret.fairlead_radius.", "m", default=None, check=nonneg
     )
-    length: float = spec("Unstretched length L.", "m", check=positive)
-    segments: int = spec("Number of FEM segments n (nodes 0..n, 0 at the anchor).", default=20, check=fem_segments)
+    length: float | None = spec("Unstretched length L; absent when sections are given (then their sum).", "m",
+                                default=None, check=positive)
+    segments: int = spec("Number of FEM segments n (nodes 0..n, 0 at the anchor); for a composite line the total "
+                         "when its sections do not give theirs.", default=20, check=fem_segments)
     winch_max_rate: float = spec("Largest winch pay-out/haul-in speed (0: no winch).", "m/s", default=0.0,
                                  check=bounded(0.0, 10.0, "mooring winches run at about 0.1-0.5 m/s"))
     min_length: float | None = spec("Shortest unstretched length the winch may haul in to; absent: length.", "m",
                                     default=None, check=positive)
     max_length: float | None = spec("Longest unstretched length the winch may pay out to; absent: length.", "m",
                                     default=None, check=positive)
+
+    def __post_init__(self) -> None:
+        # a composite line reads as its fairlead section's type and its total length where one
+        # type and one length are asked for (strain limit, MBS at the fairlead, reach checks)
+        if self.sections:
+            if self.type is None:
+                object.__setattr__(self, "type", self.sections[-1].type)
+            if self.length is None:
+                object.__setattr__(self, "length", float(sum(s.length for s in self.sections)))
+            if self.segments == 20 and all(s.segments is not None for s in self.sections):
+                object.__setattr__(self, "segments", int(sum(s.segments for s in self.sections)))
+
+    @property
+    def composite(self) -> bool:
+        """True for a line of several sections."""
+        return len(self.sections) > 1
+
+    @property
+    def parts(self) -> tuple[Section, ...]:
+        """The line's sections from the anchor up (one for a homogeneous line)."""
+        if self.sections:
+            return self.sections
+        return (Section(type=self.type or "", length=float(self.length or 0.0), segments=self.segments),)
+
+    def section_segments(self) -> tuple[int, ...]:
+        """FEM segments of each section: the sections' own, or the line's ``segments`` shared in
+        proportion to length (at least 1 each; largest remainders first)."""
+        parts = self.parts
+        if all(s.segments is not None for s in parts):
+            return tuple(int(s.segments) for s in parts)
+        L = np.array([s.length for s in parts], float)
+        fixed = np.array([s.segments or 0 for s in parts])
+        free = np.array([s.segments is None for s in parts])
+        left = max(int(self.segments) - int(fixed.sum()), int(free.sum()))
+        share = left * L * free / max(float(np.sum(L[free])), 1e-300)
+        n = np.where(free, np.maximum(np.floor(share), 1), fixed).astype(int)
+        for j in np.argsort(-(share - np.floor(share)))[: max(left - int(n[free].sum()), 0)]:
+            if free[j]:
+                n[j] += 1
+        return tuple(int(k) for k in n)
 
     @property
     def length_limits(self) -> tuple[float, float]:
@@ -518,6 +603,8 @@ class Scenario:
     turret: Turret = spec("Turret and fairlead circle.")
     line_types: tuple[LineType, ...] = spec("Line materials.")
     lines: tuple[Line, ...] = spec("Mooring lines.")
+    point_types: tuple[PointType, ...] = spec("Clump weights and buoys at the joints of composite lines.",
+                                              default=())
     thrusters: tuple[Thruster, ...] = spec("Thrusters.", default=())
     sea_states: tuple[SeaState, ...] = spec("Sea states; the first is the default.", default=())
     riser: Riser | None = spec("Optional riser.", default=None)
@@ -538,6 +625,13 @@ class Scenario:
             if lt.id == line.type:
                 return lt
         raise KeyError(line.type)
+
+    def line_type_by_id(self, type_id: str) -> LineType:
+        """The :class:`LineType` with id ``type_id``; ``KeyError`` if there is none."""
+        for lt in self.line_types:
+            if lt.id == type_id:
+                return lt
+        raise KeyError(type_id)
 
     def line_index(self, line_id: str | int) -> int:
         """Index of the line with id ``line_id``; ``KeyError`` if there is none."""
@@ -575,22 +669,75 @@ class Scenario:
     @cached_property
     def line_arrays(self) -> dict[str, np.ndarray]:
         """Per-line properties as arrays of shape (n_lines,): L, EA, w, CB, MBS, MBS_std, d, segments,
-        and h_A, the height of the anchor above the seabed [m] (water depth - anchor z; 0 for an
+        and h_A. For a composite line (:attr:`line_sections`) L is the total length, EA the series
+        stiffness ``L / sum(L_k / EA_k)``, w the mean submerged weight with the points' net weights,
+        ``(sum w_k L_k + sum W_j) / L``, CB the bottom section's friction, and MBS, MBS_std, d and the
+        strain limit the fairlead section's (its type is the line's ``type``); the composite-line
+        models read the sections themselves. h_A is the height of the anchor above the seabed [m] (water depth - anchor z; 0 for an
         anchor given as (x, y) or with |z - water depth| <= 1e-6 water depth, on the seabed as the
         file check has it)."""
         env = self.environment
         types = [self.line_type(ln) for ln in self.lines]
+        secs = self.line_sections
         out = {
             "L": [ln.length for ln in self.lines],
-            "EA": [t.EA for t in types],
-            "w": [t.w(env) for t in types],
-            "CB": [t.seabed_friction for t in types],
+            "EA": [float(sc["L"].sum() / np.sum(sc["L"] / sc["EA"])) for sc in secs],
+            "w": [float((np.sum(sc["w"] * sc["L"]) + np.sum(sc["W"])) / sc["L"].sum()) for sc in secs],
+            "CB": [float(sc["CB"][0]) for sc in secs],
             "MBS": [t.MBS for t in types],
             "MBS_std": [t.MBS_std for t in types],
             "d": [t.diameter for t in types],
             "strain_limit": [t.strain_limit for t in types],
-            "segments": [ln.segments for ln in self.lines],
+            "segments": [int(sum(ln.section_segments())) for ln in self.lines],
             "h_A": [0.0 if len(ln.anchor) < 3 or abs(env.water_depth - ln.anchor[2]) <= 1e-6 * env.water_depth
                     else env.water_depth - ln.anchor[2] for ln in self.lines],
         }
         return {k: readonly(v) for k, v in out.items()}
+
+    def point_type(self, point_id: str) -> PointType:
+        """The :class:`PointType` with id ``point_id``; ``KeyError`` if there is none."""
+        for pt in self.point_types:
+            if pt.id == point_id:
+                return pt
+        raise KeyError(point_id)
+
+    @cached_property
+    def line_sections(self) -> tuple[dict[str, np.ndarray], ...]:
+        """Per line, its sections from the anchor up and the points between them, as arrays.
+
+        Section arrays, shape (n_sections,): ``L`` [m], ``EA`` [N], ``w`` submerged weight [N/m],
+        ``mass`` [kg/m], ``d`` [m], ``Cdn``, ``Cdt``, ``Can``, ``Cat``, ``CB``, ``damping_ratio``,
+        ``MBS`` [N], ``segments``. Point arrays, shape (n_sections - 1,), point j joining section j
+        to section j + 1: ``W`` net submerged weight [N] (positive down), ``point_mass`` [kg],
+        ``point_volume`` [m^3], ``point_CdA`` [m^2], ``point_Ca`` [-] (zeros for a plain joint).
+        A homogeneous line is the one-section case."""
+        env = self.environment
+        types = {t.id: t for t in self.line_types}
+        points = {p.id: p for p in self.point_types}
+        out = []
+        for ln in self.lines:
+            parts = ln.parts
+            ts = [types[s.type] for s in parts]
+            pts = [points[s.top] if s.top is not None else None for s in parts[:-1]]
+            d = {
+                "L": [s.length for s in parts],
+                "EA": [t.EA for t in ts],
+                "w": [t.w(env) for t in ts],
+                "mass": [t.mass_per_length for t in ts],
+                "d": [t.diameter for t in ts],
+                "Cdn": [t.Cd_normal for t in ts],
+                "Cdt": [t.Cd_tangential for t in ts],
+                "Can": [t.Ca_normal for t in ts],
+                "Cat": [t.Ca_tangential for t in ts],
+                "CB": [t.seabed_friction for t in ts],
+                "damping_ratio": [t.axial_damping_ratio for t in ts],
+                "MBS": [t.MBS for t in ts],
+                "segments": list(ln.section_segments()),
+                "W": [p.net_weight(env) if p else 0.0 for p in pts],
+                "point_mass": [p.mass if p else 0.0 for p in pts],
+                "point_volume": [p.volume if p else 0.0 for p in pts],
+                "point_CdA": [p.CdA if p else 0.0 for p in pts],
+                "point_Ca": [p.Ca if p else 0.0 for p in pts],
+            }
+            out.append({k: readonly(np.asarray(v, dtype=int if k == "segments" else float)) for k, v in d.items()})
+        return tuple(out)

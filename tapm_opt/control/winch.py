@@ -54,7 +54,6 @@ from .._checks import finite, vector
 from .._io import readonly
 from ..errors import TapmError
 from ..geometry import rot_z
-from ..models import catenary
 
 __all__ = ["WinchError", "WinchSettings", "WinchTensionController", "configuration_matrix", "horizontal_force",
            "AF_KC", "CEILING_MARGIN"]
@@ -284,7 +283,7 @@ class WinchTensionController:
         m = self.model
         eta = _vec("eta", eta, 3, "m, m, rad")
         _, _, XF = m.spans(eta)
-        sol = catenary.solve(np.asarray(XF, float), m.ZF, self._L, m.EA, m.w, CB=m.CB, h_A=m.h_A)
+        sol = m.solve_xf(np.asarray(XF, float), L=self._L)
         HF, TF = np.asarray(sol.HF, float), np.asarray(sol.TF, float)
         T = TF.copy() if tensions is None else _vec("estimate.tensions", tensions, len(self.line_ids), "N")
         H = np.maximum(T, 0.0) * np.where(TF > 0, HF / np.where(TF > 0, TF, 1.0), 0.0)

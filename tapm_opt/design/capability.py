@@ -697,7 +697,6 @@ class _Engine:
     def table(self, broken: str | None, psi: float) -> _Table:
         """The mooring on the offset grid at heading ``psi`` (free turret: computed once at
         heading 0, the {E} force rotated into {B}; locked: per heading)."""
-        from ..models import catenary
 
         model, Tlim = self.mooring(broken)
         key0 = ("grid", broken, 0.0 if self.free else round(psi, 12))
@@ -707,8 +706,7 @@ class _Engine:
             bx, by = body_from_turret(self.P.T, psi0, self.p_cot)
             etas = np.column_stack([bx, by, np.full(len(bx), psi0)])
             XF = np.stack([model.spans(e)[2] for e in etas])
-            sol = catenary.solve(XF, model.ZF[None, :], model.L[None, :], model.EA[None, :], model.w[None, :],
-                                 CB=model.CB[None, :], h_A=model.h_A[None, :])
+            sol = model.solve_xf(XF)
             tau = np.stack([model.force_fast(e) for e in etas])   # the tabulated catenary (within 1e-9)
             ratio = sol.TF / Tlim[None, :]
             base = (tau, ratio.max(axis=1), ratio.argmax(axis=1))

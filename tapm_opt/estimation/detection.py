@@ -257,8 +257,6 @@ class _TensionTable:
 
     def __init__(self, model: Any, *, max_offset: float | None = None, rtol: float = 1e-6,
                  tables: dict | None = None):
-        from ..models import catenary
-
         self.model = model
         self.exact_calls = 0
         tables = {} if tables is None else tables
@@ -269,8 +267,7 @@ class _TensionTable:
             max_offset = 0.3 * float(np.max(model.ZF + model.h_A))
         reach = (float(max_offset) + 2.0 * float(np.hypot(*model.p_cot_B))
                  + 2.0 * np.hypot(model.p_T[:, 0], model.p_T[:, 1]))
-        cfg = np.stack([model.ZF, model.L, model.EA, model.w, model.CB, model.h_A], axis=1)
-        keys = [tuple(float(v) for v in row) for row in cfg]
+        keys = [model.line_key(i) for i in range(model.n_lines)]
         n = len(keys)
         geo = np.zeros((n, 8))
         geo[:, 0:2] = model.anchors
@@ -282,12 +279,11 @@ class _TensionTable:
             if tkey not in tables:
                 a = max(float(np.min(XF0[mine] - reach[mine])), 0.0)
                 b = float(np.max(XF0[mine] + reach[mine]))
-                ZF, L, EA, w, CB, h_A = key
+                ZF, L, EA, w = key[:4]
                 if not math.isfinite(EA):
                     b = min(b, math.sqrt(max(L * L - ZF * ZF, 0.0)) * (1.0 - 1e-9))
                 T_ref = float(np.max(T0[mine])) or w * L or 1.0
-                tables[tkey] = self._table(lambda x: catenary.solve(x, ZF, L, EA, w, CB=CB, h_A=h_A),
-                                           a, b, rtol, T_ref)
+                tables[tkey] = self._table(model.line_solver(int(np.argmax(mine))), a, b, rtol, T_ref)
             x0, dx, T, K = tables[tkey]
             geo[mine, 4:8] = (x0, dx, start, T.size - 1)
             parts.append(np.column_stack([T, K]))

@@ -97,6 +97,7 @@ from ..errors import CatenaryError
 __all__ = [
     "REGIMES",
     "CatenarySolution",
+    "regime_name",
     "closure",
     "hanging_length",
     "solve",
@@ -288,8 +289,16 @@ class CatenarySolution:
         return (self.HF * self.dHF_dXF + self.VF * self.dVF_dXF) / np.maximum(self.TF, 1e-300)
 
     def regime_names(self) -> np.ndarray:
-        """Regime names as a string array of the same shape."""
-        return np.asarray(REGIMES, dtype=object)[self.regime]
+        """Regime names as a string array of the same shape (a composite line's code reads
+        "composite")."""
+        return np.vectorize(regime_name, otypes=[object])(self.regime)
+
+
+def regime_name(code: int) -> str:
+    """Name of a regime code: one of :data:`REGIMES`, or "composite" for the combined code of a
+    composite line's sections (:func:`tapm_opt.models.composite.solve`)."""
+    code = int(code)
+    return REGIMES[code] if 0 <= code < len(REGIMES) else "composite"
 
 
 def _check_inputs(**arrays: np.ndarray) -> None:

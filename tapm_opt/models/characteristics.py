@@ -17,7 +17,6 @@ from typing import Any
 import numpy as np
 
 from ..errors import ModelError
-from . import catenary
 
 __all__ = ["LineCharacteristics", "OffsetCurves", "TabulatedMooringLoad", "line_characteristics", "offset_curves"]
 
@@ -73,10 +72,9 @@ def line_characteristics(model: Any, *, half_range: float, n_points: int = 41) -
     _, _, XF0 = model.spans(np.zeros(3))
     grid = np.linspace(-half_range, half_range, n_points)
     XF = np.maximum(XF0[:, None] + grid[None, :], 0.0)
-    sol = catenary.solve(XF, model.ZF[:, None], model.L[:, None], model.EA[:, None], model.w[:, None],
-                         CB=model.CB[:, None], h_A=model.h_A[:, None])
-    return LineCharacteristics(line_ids=model.line_ids, XF0=XF0, XF=XF, H=sol.HF, V=sol.VF, T=sol.TF,
-                               regime=sol.regime)
+    sol = model.solve_xf(XF.T)
+    return LineCharacteristics(line_ids=model.line_ids, XF0=XF0, XF=XF, H=sol.HF.T, V=sol.VF.T, T=sol.TF.T,
+                               regime=sol.regime.T)
 
 
 def offset_curves(model: Any, directions: np.ndarray, offsets: np.ndarray) -> OffsetCurves:
@@ -163,10 +161,10 @@ def _regime_changes(solve, lo: float, hi: float, n: int) -> list[tuple[float, fl
     return out
 
 
-def _line_table(ZF, L, EA, w, CB, h_A, lo: float, hi: float, *, rtol: float, H_ref: float,
+def _line_table(solve, lo: float, hi: float, *, rtol: float, H_ref: float,
                 max_nodes: int = 200_000) -> _LineTable:
-    """Adaptive cubic Hermite tables of the catenary's HF(XF) and TF(XF) over [lo, hi] for one
-    configuration.
+    """Adaptive cubic Hermite tables of a line's HF(XF) and TF(XF) over [lo, hi], from its
+    quasi-static solution ``solve(XF) -> CatenarySolution`` (``MooringModel.line_solver``).
 
     Nodes start ~ (hi - lo)/64 apart with a node pair at every regime change; an interval is split
     in two while either interpolant misses :func:`catenary.solve` by more than
@@ -174,9 +172,6 @@ def _line_table(ZF, L, EA, w, CB, h_A, lo: float, hi: float, *, rtol: float, H_r
     Intervals still off when they are shorter than 2^-20 (hi - lo), or when the table reaches
     ``max_nodes``, are marked not ``ok`` (the evaluator then uses the exact model there).
     """
-    def solve(x):
-        return catenary.solve(x, ZF, L, EA, w, CB=CB, h_A=h_A)
-
     kinks = _regime_changes(solve, lo, hi, 257)
     edges = [lo, *[v for ab in kinks for v in ab], hi]
     h0 = (hi - lo) / 64.0
@@ -389,11 +384,13 @@ class TabulatedMooringLoad:
         H0 = model.solve_lines(eta0).HF
         # a line's fairlead moves at most |p| + 2 |p_cot| + 2 |p_T| from where it is at eta = 0
         reach = self.max_offset + 2.0 * float(np.hypot(*model.p_cot_B)) + 2.0 * np.hypot(model.p_T[:, 0], model.p_T[:, 1])
-        cfg = np.stack([model.ZF, model.L, model.EA, model.w, model.CB, model.h_A], axis=1)
-        keys, line_table = np.unique(cfg, axis=0, return_inverse=True)
-        line_table = np.ravel(line_table)
+        first: dict = {}
+        line_table = np.array([first.setdefault(model.line_key(i), len(first)) for i in range(model.n_lines)],
+                              dtype=np.int64)
+        reps = [int(np.flatnonzero(line_table == j)[0]) for j in range(len(first))]
         tables = []
-        for j, (ZF, L, EA, w, CB, h_A) in enumerate(keys):
+        for j, i0 in enumerate(reps):
+            ZF, L, EA, w = (float(a[i0]) for a in (model.ZF, model.L, model.EA, model.w))
             mine = line_table == j
             lo = max(float(np.min(XF0[mine] - reach[mine])), 0.0)
             hi = float(np.max(XF0[mine] + reach[mine]))
@@ -405,7 +402,7 @@ class TabulatedMooringLoad:
                                          T=np.zeros(2), KT=np.zeros(2), ok=np.zeros(1, bool),
                                          err=np.full(1, np.inf)))
                 continue
-            tables.append(_line_table(ZF, L, EA, w, CB, h_A, lo, hi, rtol=self.rtol, H_ref=H_ref))
+            tables.append(_line_table(model.line_solver(i0), lo, hi, rtol=self.rtol, H_ref=H_ref))
         self._tables = tuple(tables)
         self._line_table = line_table
         self._members = tuple(np.flatnonzero(line_table == j) for j in range(len(tables)))

@@ -30,7 +30,7 @@ from .. import _backend as bk
 from .._io import readonly
 from ..errors import ModelError
 from ..geometry import fairleads_E, rot2_apply, rot_z
-from . import catenary
+from . import catenary, composite as _composite
 from .statics import EquilibriumError, solve_equilibrium
 
 __all__ = ["MooringModel", "LinearMooring"]
@@ -65,6 +65,12 @@ class MooringModel:
         Height of each anchor (the line's lower end) above the seabed [m], >= 0 (0: on the seabed).
         Seabed friction is not applied to a line whose anchor is above the seabed (see
         :mod:`tapm_opt.models.catenary`).
+    composite : tuple of CompositeLine or None
+        Per line, its sections and points (:class:`~tapm_opt.models.composite.CompositeLine`) for
+        a composite line, None for a homogeneous one; empty: every line homogeneous. A composite
+        line's L, EA, w are its equivalents (total length, series stiffness, mean weight, see
+        ``Scenario.line_arrays``), read only where a rough scale is wanted; every tension comes
+        from :meth:`line_solver`.
     """
 
     line_ids: tuple[str, ...]
@@ -81,6 +87,7 @@ class MooringModel:
     MBS: np.ndarray
     h_A: np.ndarray
     MBS_std: np.ndarray = field(default_factory=lambda: readonly(np.zeros(0)))
+    composite: tuple = ()
     _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     # -- construction ---------------------------------------------------------------------
@@ -138,6 +145,9 @@ class MooringModel:
             MBS=readonly(la["MBS"][keep]),
             h_A=readonly(h_A[keep]),
             MBS_std=readonly(np.asarray(la["MBS_std"], float)[keep]),
+            composite=tuple(_composite.CompositeLine.from_arrays(sec) if sec["L"].size > 1 else None
+                            for sec, k in zip(scenario.line_sections, keep) if k)
+            if any(sec["L"].size > 1 for sec in scenario.line_sections) else (),
         )
 
     def without(self, broken: Iterable[str]) -> "MooringModel":
@@ -151,8 +161,56 @@ class MooringModel:
             raise ModelError("every line is broken: there is no mooring left to model")
         arrays = {name: readonly(np.asarray(getattr(self, name))[keep])
                   for name in ("anchors", "p_T", "ZF", "L", "EA", "w", "CB", "MBS", "h_A", "MBS_std")}
+        comp = tuple(c for c, k in zip(self.composite, keep) if k) if self.composite else ()
         return MooringModel(line_ids=tuple(i for i, k in zip(self.line_ids, keep) if k), p_cot_B=self.p_cot_B,
-                            turret_angle=self.turret_angle, turret_mode=self.turret_mode, **arrays)
+                            turret_angle=self.turret_angle, turret_mode=self.turret_mode,
+                            composite=comp if any(c is not None for c in comp) else (), **arrays)
+
+    # -- the lines' quasi-static solution (one definition for every caller) ---------------
+    @property
+    def has_composite(self) -> bool:
+        """True when any line is composite (sections and points)."""
+        return any(c is not None for c in self.composite)
+
+    def line_solver(self, i: int, ZF: float | None = None):
+        """Quasi-static solution of line ``i`` at horizontal anchor-fairlead distances ``XF`` (any
+        shape) [m]: a function ``XF -> CatenarySolution`` (:func:`tapm_opt.models.catenary.solve`
+        for a homogeneous line, :func:`tapm_opt.models.composite.solve` for a composite one), at the
+        line's fairlead height ``ZF`` unless another is given."""
+        zf = float(self.ZF[i]) if ZF is None else ZF
+        hA = float(self.h_A[i])
+        c = self.composite[i] if self.composite else None
+        if c is None:
+            L, EA, w, CB = (float(a[i]) for a in (self.L, self.EA, self.w, self.CB))
+            return lambda XF: catenary.solve(XF, zf, L, EA, w, CB=CB, h_A=hA)
+        return lambda XF: _composite.solve(XF, zf, c, h_A=hA)
+
+    def line_key(self, i: int) -> tuple:
+        """Hashable description of line ``i``'s quasi-static physics (lines with equal keys share
+        tables): (ZF, L, EA, w, CB, h_A) and, for a composite line, its sections and points."""
+        base = tuple(float(a[i]) for a in (self.ZF, self.L, self.EA, self.w, self.CB, self.h_A))
+        c = self.composite[i] if self.composite else None
+        return base if c is None else base + (c.key(),)
+
+    def solve_xf(self, XF, *, L=None) -> catenary.CatenarySolution:
+        """Quasi-static solution of every line at horizontal distances ``XF`` [m] of shape
+        (..., n) (lines on the last axis); ``L`` (n,) [m] replaces the homogeneous lines'
+        unstretched lengths (a winch's), composite lines keep theirs."""
+        XF = np.asarray(XF, dtype=float)
+        Ls = self.L if L is None else np.asarray(L, dtype=float)
+        if not self.has_composite:
+            return catenary.solve(XF, self.ZF, Ls, self.EA, self.w, CB=self.CB, h_A=self.h_A)
+        XF = np.broadcast_to(XF, XF.shape[:-1] + (self.n_lines,)) if XF.ndim else np.full(self.n_lines, XF)
+
+        def one(i):
+            if self.composite[i] is not None or L is None:
+                return self.line_solver(i)(XF[..., i])
+            return catenary.solve(XF[..., i], self.ZF[i], Ls[i], self.EA[i], self.w[i], CB=self.CB[i], h_A=self.h_A[i])
+
+        sols = [one(i) for i in range(self.n_lines)]
+        names = ("HF", "VF", "HA", "VA", "TF", "TA", "LBot", "regime", "dHF_dXF", "dHF_dZF", "dVF_dXF", "dVF_dZF")
+        out = {k: np.stack([np.asarray(getattr(sl, k)) for sl in sols], axis=-1) for k in names}
+        return catenary.CatenarySolution(iterations=max(sl.iterations for sl in sols), **out)
 
     @property
     def n_lines(self) -> int:
@@ -219,7 +277,7 @@ class MooringModel:
         """Catenary solution of every line at pose ``eta`` (x [m], y [m], psi [rad])."""
         eta = self._check_eta(eta)
         _, _, XF = self.spans(eta)
-        return catenary.solve(XF, self.ZF, self.L, self.EA, self.w, CB=self.CB, h_A=self.h_A)
+        return self.solve_xf(XF)
 
     def force(self, eta) -> np.ndarray:
         """Restoring load tau_moor in {B}, shape (3,) [N, N, N m] (eq. 23, 28)."""
@@ -327,6 +385,7 @@ class MooringModel:
         eta = ca.MX.sym("eta", 3)
         outs, names = [], ["tau_moor"]
         if kind == "catenary":
+            self._no_symbolic_composite("force_function")
             sol0 = self.solve_lines(eta0)
             _, _, XF0 = self.spans(np.asarray(eta0, dtype=float))
             _, _, XF = self.spans(eta)
@@ -371,6 +430,7 @@ class MooringModel:
         if kind == "characteristic":
             T = self.characteristic_load(eta, self.characteristics(eta0))[1]
         elif kind == "catenary":
+            self._no_symbolic_composite("tension_function")
             dX = XF - XF0
             DM = ca.DM
             HF0 = ca.fmax(DM(sol0.HF) + DM(sol0.dHF_dXF) * dX, DM(0.1 * sol0.HF + 1.0))
@@ -385,6 +445,14 @@ class MooringModel:
         fn = ca.Function(f"T_fairlead_{kind}", [eta], [T], ["eta"], ["T"])
         self._cache[key] = fn
         return fn
+
+    def _no_symbolic_composite(self, what: str) -> None:
+        if self.has_composite:
+            ids = [i for i, c in zip(self.line_ids, self.composite) if c is not None]
+            raise ModelError(
+                f"{what}(kind='catenary'): lines {ids} are composite (sections and points), whose quasi-static "
+                "solve has no symbolic form in tapm_opt; use kind='characteristic' (each line's exact characteristic "
+                "about the working point) or the tabulated load (load_evaluator)")
 
     def characteristics(self, eta0) -> np.ndarray:
         """Every line's characteristic about the pose ``eta0`` (survey eq. 26–28), from the elastic

@@ -32,7 +32,6 @@ import numpy as np
 
 from ..errors import ModelError
 from ..geometry import rot2_apply, rot_z
-from ..models import catenary
 from .mooring_fem import MooringFEM, SettleInfo
 
 __all__ = ["ForcedMotionResult", "forced_motion", "identify_mooring_damping", "DOFS"]
@@ -245,7 +244,7 @@ def forced_motion(scenario: Any, *, dof: Literal["surge", "sway", "yaw"] = "surg
     # quasi-static reference at the output poses
     moor = plant.geometry
     XF = np.array([moor.spans(e)[2] for e in eta_out])
-    T_qs = catenary.solve(XF, moor.ZF, moor.L, moor.EA, moor.w, CB=moor.CB, h_A=moor.h_A).TF
+    T_qs = moor.solve_xf(XF).TF
 
     # whole cycles after the first one, within the simulated time (a whole number of dt_out)
     n_cyc = int(math.floor(n_steps * dt / period + 1e-9)) - 1
