@@ -3,7 +3,12 @@
 Every line j is cut into ``n_j`` segments of unstretched length ``l_j = L_j / n_j``; nodes 0..n_j,
 node 0 at the anchor, node n_j at the fairlead. All nodes of all lines live in one flat array, and
 every force is computed for all of them at once with index gathers (no Python loop over lines or
-nodes in a time step).
+nodes in a time step). A composite line (:attr:`LineSet.sections`) is cut section by section: the
+segments of section k have its own ``l_k = L_k / n_k``, EA, weight, mass and damping, its nodes
+its own drag and added-mass coefficients, and the node joining two sections (a *joint*) carries
+half of each adjacent segment with that segment's own coefficients, plus the point there (a clump
+weight or a buoy: its mass, net weight ``(m - rho V) g``, isotropic added mass ``Ca rho V`` and
+drag ``1/2 rho CdA |v_r| v_r``, MoorDyn's point). See docs/plant.md, "Composite lines in the FEM".
 
 Forces on node k (NED, z down):
 
@@ -95,6 +100,15 @@ class LineSet:
     length in air [kg/m]; ``d`` hydrodynamic diameter [m]; ``Cdn``, ``Cdt`` drag and ``Can``,
     ``Cat`` added-mass coefficients; ``segments`` (int); ``damping_ratio`` axial internal damping as
     a fraction of the critical damping of one segment's axial mode; ``mu`` seabed friction.
+
+    ``sections`` (optional) makes lines composite: one entry per line, ``None`` for a homogeneous
+    line (its properties are the per-line arrays) or a dict of per-section arrays from the anchor
+    up (:data:`SECTION_KEYS`: ``L, EA, w, mass, d, Cdn, Cdt, Can, Cat, damping_ratio, mu`` and the
+    int ``segments``, shape (n_sections,)) and of per-point arrays (:data:`POINT_KEYS`: ``W`` net
+    submerged weight [N] positive down, ``point_mass`` [kg], ``point_volume`` [m^3],
+    ``point_CdA`` [m^2], ``point_Ca`` [-], shape (n_sections - 1,), point k joining section k to
+    section k + 1). A composite line's ``segments`` is the sum of its sections' and its ``L`` their
+    total length; its other per-line values are not used by the FEM.
     """
 
     ids: tuple[str, ...]
@@ -110,6 +124,21 @@ class LineSet:
     segments: np.ndarray
     damping_ratio: np.ndarray
     mu: np.ndarray
+    sections: tuple[dict | None, ...] | None = None
+
+
+SECTION_KEYS = ("L", "EA", "w", "mass", "d", "Cdn", "Cdt", "Can", "Cat", "damping_ratio", "mu", "segments")
+"""Per-section arrays of a composite line in :attr:`LineSet.sections` (from the anchor up)."""
+
+POINT_KEYS = ("W", "point_mass", "point_volume", "point_CdA", "point_Ca")
+"""Per-point arrays of a composite line in :attr:`LineSet.sections` (point k joins sections k and k + 1)."""
+
+JOINT_COLUMNS = ("cdn_lo", "cdn_hi", "cdt_lo", "cdt_hi", "can_lo", "can_hi", "cat_lo", "cat_hi", "cda", "m_add")
+"""Columns of :attr:`FEMLines.joint_c`, one row per joint node: the normal and tangential drag
+(``1/2 rho C d / 2`` per stretched length) and added-mass (``C rho pi d^2/4 / 2`` per stretched
+length) factors of the segment below (``lo``) and above (``hi``) the node, applied to each
+segment's own stretched length; the point's isotropic drag ``cda = 1/2 rho CdA`` [kg/m] on the
+relative velocity and isotropic added mass ``m_add = Ca rho V`` [kg]."""
 
 
 CurrentField = Callable[[np.ndarray], np.ndarray]
@@ -184,6 +213,7 @@ class FEMLines:
         self._cat_half = 0.5 * (ls.Cat * rho_w * area)[self.line_of_node]
         self._d_node = ls.d[self.line_of_node]
         self._mu = np.asarray(ls.mu, dtype=float)[self.line_of_node]
+        self._setup_sections(ls.sections)
         self._kb_pen = float(seabed_penetration)
         self._zeta_b = float(seabed_damping_ratio)
         self._attached = np.arange(nl)
@@ -219,11 +249,142 @@ class FEMLines:
                 kernel = "numpy"
         self._kernel = kernel
 
+    # -- composite lines -------------------------------------------------------------------
+    def _setup_sections(self, sections) -> None:
+        """Per-bond and per-node properties of the composite lines (:attr:`LineSet.sections`).
+
+        Each section's bonds take its EA, w, mass, internal damping and ``l0 = L_k / n_k``; its
+        nodes (the anchor node for the first section, the fairlead node for the last) its drag and
+        added-mass factors. A node joining two sections is a *joint* (:attr:`joint_node`,
+        :attr:`joint_c`): its drag and added mass are the sum of each adjacent half segment's with
+        that segment's own factors and stretched length, plus the point's isotropic drag and added
+        mass; its mass and weight gain the point's (:meth:`_update_lengths`). A joint between two
+        sections with the same factors and no point is an ordinary node (a line cut into equal
+        sections is the homogeneous line, to the bit)."""
+        nl, nb = self.n_lines, self.n_nodes - 1
+        self.composite = np.zeros(nl, dtype=bool)
+        self._sec_bond = np.zeros(nb, dtype=bool)
+        self._l0_sec = np.ones(nb)
+        self._point_mass = np.zeros(self.n_nodes)  # point mass [kg] and net weight [N] at the joint nodes
+        self._point_W = np.zeros(self.n_nodes)
+        rows: list[list[float]] = []
+        nodes: list[int] = []
+        if sections is not None:
+            if len(sections) != nl:
+                raise ModelError(f"LineSet.sections has {len(sections)} entries, expected one per line ({nl})")
+            rho = self.rho_w
+            for j, sec in enumerate(sections):
+                if sec is None:
+                    continue
+                lid = self.lines.ids[j]
+                missing = [k for k in SECTION_KEYS + POINT_KEYS if k not in sec]
+                if missing:
+                    raise ModelError(f"sections of line {lid!r} lack {', '.join(missing)}")
+                a = {k: np.asarray(sec[k], dtype=float).ravel() for k in SECTION_KEYS + POINT_KEYS}
+                ns = a["L"].size
+                seg = np.asarray(sec["segments"]).ravel().astype(int)
+                if ns < 1 or any(a[k].size != ns for k in SECTION_KEYS) or any(a[k].size != ns - 1 for k in POINT_KEYS):
+                    raise ModelError(f"sections of line {lid!r}: every section array needs one value per section "
+                                     f"({ns}) and every point array one per joint ({ns - 1})")
+                if np.any(seg < 1) or int(seg.sum()) != int(self._seg_per_line[j]):
+                    raise ModelError(f"sections of line {lid!r} have {seg.tolist()} segments, which must each be >= 1 "
+                                     f"and add up to the line's {int(self._seg_per_line[j])}")
+                if not (np.all(a["L"] > 0) and np.all(np.isfinite(a["L"]))):
+                    raise ModelError(f"sections of line {lid!r} have lengths {a['L'].tolist()} m, which must be > 0")
+                if not math.isclose(float(self.L[j]), float(a["L"].sum()), rel_tol=1e-12):
+                    raise ModelError(f"line {lid!r} has L = {float(self.L[j]):g} m, its sections "
+                                     f"{float(a['L'].sum()):g} m")
+                self.composite[j] = True
+                cum = np.concatenate([[0], np.cumsum(seg)])
+                b0 = int(self.node_start[j])
+                cdn = 0.5 * (0.5 * rho * a["Cdn"] * a["d"])  # the per-line formulas of __init__, per section
+                cdt = 0.5 * (0.5 * rho * a["Cdt"] * a["d"])
+                area = 0.25 * np.pi * a["d"] ** 2
+                can = 0.5 * (a["Can"] * rho * area)
+                cat = 0.5 * (a["Cat"] * rho * area)
+                for k in range(ns):
+                    bonds = slice(b0 + cum[k], b0 + cum[k + 1])
+                    self._EA[bonds] = a["EA"][k]
+                    self._w[bonds] = a["w"][k]
+                    self._m[bonds] = a["mass"][k]
+                    self._zeta_int[bonds] = a["damping_ratio"][k]
+                    self._sec_bond[bonds] = True
+                    self._l0_sec[bonds] = a["L"][k] / seg[k]
+                    inner = slice(b0 + cum[k] + (0 if k == 0 else 1), b0 + cum[k + 1] + (1 if k == ns - 1 else 0))
+                    self._cdn_node[inner] = cdn[k]
+                    self._cdt_node[inner] = cdt[k]
+                    self._can_half[inner] = can[k]
+                    self._cat_half[inner] = cat[k]
+                    self._d_node[inner] = a["d"][k]
+                    self._mu[inner] = a["mu"][k]
+                for k in range(ns - 1):  # point k joins section k (below) and k + 1 (above)
+                    i = b0 + int(cum[k + 1])
+                    lo, hi = k, k + 1
+                    share = np.array([a["w"][lo] * a["L"][lo] / seg[lo], a["w"][hi] * a["L"][hi] / seg[hi]])
+                    mus = np.array([a["mu"][lo], a["mu"][hi]])
+                    self._mu[i] = float(share @ mus / share.sum()) if share.sum() > 0 else float(mus.mean())
+                    self._d_node[i] = 0.5 * (a["d"][lo] + a["d"][hi])
+                    m_add = a["point_Ca"][k] * rho * a["point_volume"][k]
+                    cda = 0.5 * rho * a["point_CdA"][k]
+                    self._point_mass[i] = a["point_mass"][k]
+                    self._point_W[i] = a["W"][k]
+                    row = [cdn[lo], cdn[hi], cdt[lo], cdt[hi], can[lo], can[hi], cat[lo], cat[hi], cda, m_add]
+                    if row[0::2][:4] == row[1::2][:4] and cda == 0.0 and m_add == 0.0:
+                        # the same factors both sides and no point's drag or added mass: an ordinary node
+                        self._cdn_node[i], self._cdt_node[i] = cdn[lo], cdt[lo]
+                        self._can_half[i], self._cat_half[i] = can[lo], cat[lo]
+                        continue
+                    self._cdn_node[i] = 0.5 * (cdn[lo] + cdn[hi])  # not used at a joint (joint_c is)
+                    self._cdt_node[i] = 0.5 * (cdt[lo] + cdt[hi])
+                    self._can_half[i] = 0.5 * (can[lo] + can[hi])
+                    self._cat_half[i] = 0.5 * (cat[lo] + cat[hi])
+                    nodes.append(i)
+                    rows.append(row)
+        self._L_composite = np.where(self.composite, self.L, np.nan)  # the lengths _update_lengths keeps
+        self.joint_node = np.array(nodes, dtype=np.int64)
+        """Nodes joining two sections of a composite line that differ or carry a point (n_joints,)."""
+        self.joint_c = np.array(rows, dtype=float).reshape(len(rows), len(JOINT_COLUMNS))
+        """Drag and added-mass factors of each joint node, columns :data:`JOINT_COLUMNS`."""
+        self._joint_c4 = self.joint_c[:, :8].reshape(-1, 4, 2)  # (lo, hi) of cdn, cdt, can, cat
+        self._joint_bonds = np.column_stack([self.joint_node, self.joint_node + 1])  # rows of epsp: below, above
+        self._has_points = bool(np.any(self._point_mass) or np.any(self._point_W))
+
+    def _node_factors(self, epsp: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Per node, for the padded stretched bond lengths ``epsp`` (n_nodes + 1,): the normal and
+        tangential drag factors on the node's stretched length (``1/2 rho C d`` times it, the
+        squared relative speed still to come) and the node's mass normal and tangential to its
+        tangent [kg] (structural, point and added mass), and twice the nodes' stretched lengths. At
+        a joint each adjacent segment's own factors on its own stretched length (the kernel's
+        ``_joints``, in its order)."""
+        stretched = epsp[1:] + epsp[:-1]
+        cn = self._cdn_node * stretched
+        ct = self._cdt_node * stretched
+        mn = self.node_mass + self._can_half * stretched
+        mt = self.node_mass + self._cat_half * stretched
+        jn = self.joint_node
+        if jn.size:  # (n_joints, 4): lo * e_lo + hi * e_hi of the drag and added-mass factors
+            f = (self._joint_c4 * epsp[self._joint_bonds][:, None, :]).sum(axis=2)
+            cn[jn] = f[:, 0]
+            ct[jn] = f[:, 1]
+            mj, ma = self.node_mass[jn], self.joint_c[:, 9]
+            mn[jn] = mj + f[:, 2] + ma
+            mt[jn] = mj + f[:, 3] + ma
+        return cn, ct, mn, mt, stretched
+
     # -- geometry and constants ------------------------------------------------------------
     def _update_lengths(self) -> None:
-        """Recompute per-segment/per-node constants from the current unstretched lengths L."""
+        """Recompute per-segment/per-node constants from the current unstretched lengths L (a
+        composite line's sections keep their lengths: its ``L`` may not change)."""
         ok = self.bond_ok
         self.l0 = np.where(ok, (self.L / self._seg_per_line)[self.line_of_bond], 1.0)  # (n_bonds,)
+        if self.composite.any():
+            changed = self.composite & (self.L != self._L_composite)
+            if changed.any():
+                j = int(np.argmax(changed))
+                raise ModelError(f"line {self.lines.ids[j]!r} is a composite line: its unstretched length is its "
+                                 f"sections' ({self._L_composite[j]:g} m) and cannot change to {self.L[j]:g} m (a "
+                                 "composite line has no winch)")
+            self.l0[self._sec_bond] = self._l0_sec[self._sec_bond]
         l0 = np.where(ok, self.l0, 0.0)
         self.node_len = 0.5 * (np.append(l0, 0.0) + np.insert(l0, 0, 0.0))  # unstretched length per node
         ml = self._m * l0
@@ -233,7 +394,14 @@ class FEMLines:
         k_ax = self._EA / self.l0
         self._c_int = self._zeta_int * 2.0 * np.sqrt(k_ax * 0.5 * self._m * l0) * self.l0  # [N s] on strain rate
         self._has_int_damping = bool(np.any(self._c_int))
-        self._kb = self.node_weight / self._kb_pen  # node spring [N/m]: static penetration = seabed_penetration
+        if self._has_points:
+            # a clump's weight presses its node into the seabed (the spring keeps the penetration);
+            # a buoy's lift does not soften the seabed under the line's own weight
+            self._kb = (self.node_weight + np.maximum(self._point_W, 0.0)) / self._kb_pen
+            self.node_mass = self.node_mass + self._point_mass
+            self.node_weight = self.node_weight + self._point_W
+        else:
+            self._kb = self.node_weight / self._kb_pen  # node spring [N/m]: static penetration = seabed_penetration
         self._cb = self._zeta_b * 2.0 * np.sqrt(self._kb * self.node_mass)
 
     def stable_dt(self, safety: float = 0.8, extra_damping: float = 0.0) -> float:
@@ -258,6 +426,10 @@ class FEMLines:
         bounded the same way on its own: it acts across the grounded, horizontal segments, so it
         does not add to their axial modes. Added mass only lowers the transverse frequencies; drag
         (quadratic, explicit) is left out; seabed friction is implicit (:meth:`_friction`).
+        On composite lines every bond has its own section's stiffness and damping and every node
+        its own mass, a joint's with the point's mass: the bound is per node as on a homogeneous
+        line (a joint is no stiffer than the interior nodes of its two sections, a point only adds
+        mass).
         """
         free = ~self.fixed
         m_node = np.maximum(self.node_mass, 1e-300)[free]
@@ -322,14 +494,18 @@ class FEMLines:
         F[:, 2] += self.node_weight
         qn = qp[1:] + qp[:-1]
         qn /= np.sqrt((qn * qn).sum(axis=1))[:, None]
-        stretched = epsp[1:] + epsp[:-1]  # twice the node's stretched length
+        cn, ct, mn, mt, _ = self._node_factors(epsp)  # drag factors and masses (a joint: each half segment's)
+        jn = self.joint_node
         # Morison drag on the relative velocity, normal and tangential to the node tangent
         vr = v - v_current
         vt = (vr * qn).sum(axis=1)
         vn = vr - vt[:, None] * qn
         vn_mag = np.sqrt((vn * vn).sum(axis=1))
-        F -= (self._cdn_node * stretched * vn_mag)[:, None] * vn
-        F -= (self._cdt_node * stretched * np.abs(vt) * vt)[:, None] * qn
+        F -= (cn * vn_mag)[:, None] * vn
+        F -= (ct * np.abs(vt) * vt)[:, None] * qn
+        if jn.size:  # the points' isotropic drag 1/2 rho CdA |v_r| v_r
+            vrj = vr[jn]
+            F[jn] -= (self.joint_c[:, 8] * np.sqrt((vrj * vrj).sum(axis=1)))[:, None] * vrj
         # seabed contact
         pen = r[:, 2] - self.depth
         on = pen > 0.0
@@ -339,8 +515,8 @@ class FEMLines:
             F[:, 2] -= Fn
         # closed-form inverse of m I + m_an (I - q q^T) + m_at q q^T
         Ft = (F * qn).sum(axis=1)
-        a = (F - Ft[:, None] * qn) * (1.0 / (self.node_mass + self._can_half * stretched))[:, None]
-        a += (Ft / (self.node_mass + self._cat_half * stretched))[:, None] * qn
+        a = (F - Ft[:, None] * qn) * (1.0 / mn)[:, None]
+        a += (Ft / mt)[:, None] * qn
         return a, T
 
     # -- integration -----------------------------------------------------------------------
@@ -448,7 +624,8 @@ class FEMLines:
         if c is not None and c[0] is self.l0 and c[-1] is self._attached:
             return c
         c = self._kc = (self.l0, self._EA, self._c_int, self.bond_ok, self.node_weight, self.node_mass,
-                self._cdn_node, self._cdt_node, self._can_half, self._cat_half, self._kb, self._cb, self._mu,
+                self._cdn_node, self._cdt_node, self._can_half, self._cat_half, self.joint_node, self.joint_c,
+                self._kb, self._cb, self._mu,
                 float(self.depth), bool(self._has_int_damping), bool(self._has_friction),
                 self.anchor_idx, self.anchors, self.fairlead_idx, self._attached)
         return c
@@ -464,8 +641,7 @@ class FEMLines:
         """
         pen = self.r[:, 2] - self.depth
         Fn = np.where(pen > 0.0, np.maximum(self._kb * pen + self._cb * self.v[:, 2], 0.0), 0.0)
-        stretched = self._epsp[1:] + self._epsp[:-1]
-        dv = dt * self._mu * Fn / (self.node_mass + self._cat_half * stretched)
+        dv = dt * self._mu * Fn / self._node_factors(self._epsp)[3]
         vh = v_new[:, :2]
         sp = np.sqrt((vh * vh).sum(axis=1))
         act = dv > 0.0

@@ -4,8 +4,9 @@ One function, :func:`advance`, runs ``n_steps`` steps of :meth:`FEMLines.step
 <tapm_opt.plant.fem.FEMLines.step>` in one call: the same forces (axial tension-only elasticity
 with internal damping, submerged weight, Morison drag normal and tangential to the node tangent
 on the velocity relative to the current, seabed spring-damper), the same closed-form inverse of
-the node mass + added-mass matrix, the same update (with the implicit Coulomb seabed friction of
-``FEMLines._friction``)
+the node mass + added-mass matrix, the same joints of composite lines (each adjacent half segment's
+drag and added mass with its own factors, the point's isotropic drag and added mass), the same
+update (with the implicit Coulomb seabed friction of ``FEMLines._friction``)
 (``v += dt a``, anchors fixed, attached fairleads prescribed, ``r += dt v``), evaluated in the same
 floating-point order as the numpy reference path, so the two agree to round-off (checked in
 ``tests/test_fem_kernel.py``).
@@ -73,8 +74,98 @@ def _bond(r, v, i, l0, EA, c_int, has_int_damping):  # pragma: no cover - compil
 
 
 @_jit
+def _joints(r, v, vc, dt, extra_damping, node_weight, node_mass, joint, joint_c, kb, cb, mu, depth, has_friction,
+            qp, tvp, epsp, r_out, v_out, F_node):  # pragma: no cover - compiled
+    """The joint nodes ``joint`` (ascending) of composite lines in :func:`_step`: the force and
+    update of every other node with the joint's drag and added mass (``joint_c``: each adjacent
+    half segment with its own factors and stretched length, the point's isotropic drag and added
+    mass). Apart, so that the loop over the other nodes stays the homogeneous line's (no test per
+    node)."""
+    for i in range(joint.shape[0]):
+        k = joint[i]
+        Fx = tvp[k + 1, 0] - tvp[k, 0]
+        Fy = tvp[k + 1, 1] - tvp[k, 1]
+        Fz = tvp[k + 1, 2] - tvp[k, 2]
+        Fz += node_weight[k]
+        qx = qp[k + 1, 0] + qp[k, 0]
+        qy = qp[k + 1, 1] + qp[k, 1]
+        qz = qp[k + 1, 2] + qp[k, 2]
+        nq = math.sqrt(qx * qx + qy * qy + qz * qz)
+        qx /= nq
+        qy /= nq
+        qz /= nq
+        el = epsp[k]  # the stretched lengths of the segments below and above
+        eh = epsp[k + 1]
+        cs_n = joint_c[i, 0] * el + joint_c[i, 1] * eh
+        cs_t = joint_c[i, 2] * el + joint_c[i, 3] * eh
+        mn = node_mass[k] + (joint_c[i, 4] * el + joint_c[i, 5] * eh) + joint_c[i, 9]
+        mt = node_mass[k] + (joint_c[i, 6] * el + joint_c[i, 7] * eh) + joint_c[i, 9]
+        vrx = v[k, 0] - vc[k, 0]
+        vry = v[k, 1] - vc[k, 1]
+        vrz = v[k, 2] - vc[k, 2]
+        vt = vrx * qx + vry * qy + vrz * qz
+        vnx = vrx - vt * qx
+        vny = vry - vt * qy
+        vnz = vrz - vt * qz
+        vn_mag = math.sqrt(vnx * vnx + vny * vny + vnz * vnz)
+        cn = cs_n * vn_mag
+        Fx -= cn * vnx
+        Fy -= cn * vny
+        Fz -= cn * vnz
+        ct = cs_t * abs(vt) * vt
+        Fx -= ct * qx
+        Fy -= ct * qy
+        Fz -= ct * qz
+        # the point's isotropic drag 1/2 rho CdA |v_r| v_r
+        cp = joint_c[i, 8] * math.sqrt(vrx * vrx + vry * vry + vrz * vrz)
+        Fx -= cp * vrx
+        Fy -= cp * vry
+        Fz -= cp * vrz
+        pen = r[k, 2] - depth
+        Fn = 0.0
+        if pen > 0.0:
+            Fn = kb[k] * pen + cb[k] * v[k, 2]
+            if Fn < 0.0:
+                Fn = 0.0
+            Fz -= Fn
+        F_node[k, 0] = Fx
+        F_node[k, 1] = Fy
+        F_node[k, 2] = Fz
+        Ft = Fx * qx + Fy * qy + Fz * qz
+        inv_n = 1.0 / mn
+        at = Ft / mt
+        ax = (Fx - Ft * qx) * inv_n + at * qx
+        ay = (Fy - Ft * qy) * inv_n + at * qy
+        az = (Fz - Ft * qz) * inv_n + at * qz
+        if extra_damping != 0.0:
+            ax -= extra_damping * v[k, 0]
+            ay -= extra_damping * v[k, 1]
+            az -= extra_damping * v[k, 2]
+        vx = v[k, 0] + dt * ax
+        vy = v[k, 1] + dt * ay
+        vz = v[k, 2] + dt * az
+        if has_friction:  # Coulomb friction, implicit: stick or slide (FEMLines._friction)
+            dv = dt * mu[k] * Fn / mt
+            if dv > 0.0:
+                sp = math.sqrt(vx * vx + vy * vy)
+                if sp <= dv:
+                    vx = vx * 0.0
+                    vy = vy * 0.0
+                else:
+                    f = 1.0 - dv / sp
+                    vx = vx * f
+                    vy = vy * f
+        v_out[k, 0] = vx
+        v_out[k, 1] = vy
+        v_out[k, 2] = vz
+        r_out[k, 0] = r[k, 0] + dt * vx
+        r_out[k, 1] = r[k, 1] + dt * vy
+        r_out[k, 2] = r[k, 2] + dt * vz
+
+
+@_jit
 def _step(r, v, vc, dt, extra_damping, fl_r, fl_v,
-          l0, EA, c_int, bond_ok, node_weight, node_mass, cdn, cdt, can_half, cat_half,
+          l0, EA, c_int, bond_ok, node_weight, node_mass, cdn, cdt, can_half, cat_half, joint, joint_c,
           kb, cb, mu, depth, has_int_damping, has_friction,
           anchor_idx, anchors, fairlead_idx, attached,
           r_out, v_out, T, qp, tvp, epsp, F_node):  # pragma: no cover - compiled
@@ -101,76 +192,84 @@ def _step(r, v, vc, dt, extra_damping, fl_r, fl_v,
         tvp[i + 1, 1] = t * qy
         tvp[i + 1, 2] = t * qz
         epsp[i + 1] = e * ok
-    # nodes: forces, accelerations, velocity and position updates
-    for k in range(n):
-        Fx = tvp[k + 1, 0] - tvp[k, 0]
-        Fy = tvp[k + 1, 1] - tvp[k, 1]
-        Fz = tvp[k + 1, 2] - tvp[k, 2]
-        Fz += node_weight[k]
-        qx = qp[k + 1, 0] + qp[k, 0]
-        qy = qp[k + 1, 1] + qp[k, 1]
-        qz = qp[k + 1, 2] + qp[k, 2]
-        nq = math.sqrt(qx * qx + qy * qy + qz * qz)
-        qx /= nq
-        qy /= nq
-        qz /= nq
-        s = epsp[k + 1] + epsp[k]  # twice the node's stretched length
-        vrx = v[k, 0] - vc[k, 0]
-        vry = v[k, 1] - vc[k, 1]
-        vrz = v[k, 2] - vc[k, 2]
-        vt = vrx * qx + vry * qy + vrz * qz
-        vnx = vrx - vt * qx
-        vny = vry - vt * qy
-        vnz = vrz - vt * qz
-        vn_mag = math.sqrt(vnx * vnx + vny * vny + vnz * vnz)
-        cn = cdn[k] * s * vn_mag
-        Fx -= cn * vnx
-        Fy -= cn * vny
-        Fz -= cn * vnz
-        ct = cdt[k] * s * abs(vt) * vt
-        Fx -= ct * qx
-        Fy -= ct * qy
-        Fz -= ct * qz
-        pen = r[k, 2] - depth
-        Fn = 0.0
-        if pen > 0.0:
-            Fn = kb[k] * pen + cb[k] * v[k, 2]
-            if Fn < 0.0:
-                Fn = 0.0
-            Fz -= Fn
-        F_node[k, 0] = Fx
-        F_node[k, 1] = Fy
-        F_node[k, 2] = Fz
-        Ft = Fx * qx + Fy * qy + Fz * qz
-        inv_n = 1.0 / (node_mass[k] + can_half[k] * s)
-        at = Ft / (node_mass[k] + cat_half[k] * s)
-        ax = (Fx - Ft * qx) * inv_n + at * qx
-        ay = (Fy - Ft * qy) * inv_n + at * qy
-        az = (Fz - Ft * qz) * inv_n + at * qz
-        if extra_damping != 0.0:
-            ax -= extra_damping * v[k, 0]
-            ay -= extra_damping * v[k, 1]
-            az -= extra_damping * v[k, 2]
-        vx = v[k, 0] + dt * ax
-        vy = v[k, 1] + dt * ay
-        vz = v[k, 2] + dt * az
-        if has_friction:  # Coulomb friction, implicit: stick or slide (FEMLines._friction)
-            dv = dt * mu[k] * Fn / (node_mass[k] + cat_half[k] * s)
-            if dv > 0.0:
-                sp = math.sqrt(vx * vx + vy * vy)
-                if sp <= dv:
-                    vx = vx * 0.0
-                    vy = vy * 0.0
-                else:
-                    f = 1.0 - dv / sp
-                    vx = vx * f
-                    vy = vy * f
-        v_out[k, 0] = vx
-        v_out[k, 1] = vy
-        v_out[k, 2] = vz
-        r_out[k, 0] = r[k, 0] + dt * vx
-        r_out[k, 1] = r[k, 1] + dt * vy
-        r_out[k, 2] = r[k, 2] + dt * vz
+    # nodes: forces, accelerations, velocity and position updates, in the runs of ordinary
+    # nodes between the joints of composite lines (one run over all nodes without joints)
+    start = 0
+    for j in range(joint.shape[0] + 1):
+        stop = joint[j] if j < joint.shape[0] else n
+        for k in range(start, stop):
+            Fx = tvp[k + 1, 0] - tvp[k, 0]
+            Fy = tvp[k + 1, 1] - tvp[k, 1]
+            Fz = tvp[k + 1, 2] - tvp[k, 2]
+            Fz += node_weight[k]
+            qx = qp[k + 1, 0] + qp[k, 0]
+            qy = qp[k + 1, 1] + qp[k, 1]
+            qz = qp[k + 1, 2] + qp[k, 2]
+            nq = math.sqrt(qx * qx + qy * qy + qz * qz)
+            qx /= nq
+            qy /= nq
+            qz /= nq
+            s = epsp[k + 1] + epsp[k]  # twice the node's stretched length
+            vrx = v[k, 0] - vc[k, 0]
+            vry = v[k, 1] - vc[k, 1]
+            vrz = v[k, 2] - vc[k, 2]
+            vt = vrx * qx + vry * qy + vrz * qz
+            vnx = vrx - vt * qx
+            vny = vry - vt * qy
+            vnz = vrz - vt * qz
+            vn_mag = math.sqrt(vnx * vnx + vny * vny + vnz * vnz)
+            cn = cdn[k] * s * vn_mag
+            Fx -= cn * vnx
+            Fy -= cn * vny
+            Fz -= cn * vnz
+            ct = cdt[k] * s * abs(vt) * vt
+            Fx -= ct * qx
+            Fy -= ct * qy
+            Fz -= ct * qz
+            pen = r[k, 2] - depth
+            Fn = 0.0
+            if pen > 0.0:
+                Fn = kb[k] * pen + cb[k] * v[k, 2]
+                if Fn < 0.0:
+                    Fn = 0.0
+                Fz -= Fn
+            F_node[k, 0] = Fx
+            F_node[k, 1] = Fy
+            F_node[k, 2] = Fz
+            Ft = Fx * qx + Fy * qy + Fz * qz
+            inv_n = 1.0 / (node_mass[k] + can_half[k] * s)
+            at = Ft / (node_mass[k] + cat_half[k] * s)
+            ax = (Fx - Ft * qx) * inv_n + at * qx
+            ay = (Fy - Ft * qy) * inv_n + at * qy
+            az = (Fz - Ft * qz) * inv_n + at * qz
+            if extra_damping != 0.0:
+                ax -= extra_damping * v[k, 0]
+                ay -= extra_damping * v[k, 1]
+                az -= extra_damping * v[k, 2]
+            vx = v[k, 0] + dt * ax
+            vy = v[k, 1] + dt * ay
+            vz = v[k, 2] + dt * az
+            if has_friction:  # Coulomb friction, implicit: stick or slide (FEMLines._friction)
+                dv = dt * mu[k] * Fn / (node_mass[k] + cat_half[k] * s)
+                if dv > 0.0:
+                    sp = math.sqrt(vx * vx + vy * vy)
+                    if sp <= dv:
+                        vx = vx * 0.0
+                        vy = vy * 0.0
+                    else:
+                        f = 1.0 - dv / sp
+                        vx = vx * f
+                        vy = vy * f
+            v_out[k, 0] = vx
+            v_out[k, 1] = vy
+            v_out[k, 2] = vz
+            r_out[k, 0] = r[k, 0] + dt * vx
+            r_out[k, 1] = r[k, 1] + dt * vy
+            r_out[k, 2] = r[k, 2] + dt * vz
+        start = stop + 1
+    if joint.shape[0]:  # the joints
+        _joints(r, v, vc, dt, extra_damping, node_weight, node_mass, joint, joint_c, kb, cb, mu, depth, has_friction,
+                qp, tvp, epsp, r_out, v_out, F_node)
     # boundary conditions: anchors fixed, attached fairleads prescribed
     for j in range(anchor_idx.shape[0]):
         a = anchor_idx[j]
@@ -187,7 +286,7 @@ def _step(r, v, vc, dt, extra_damping, fl_r, fl_v,
 
 @_jit
 def advance(r, v, vc, dt, extra_damping, fl_r_seq, fl_v_seq,
-            l0, EA, c_int, bond_ok, node_weight, node_mass, cdn, cdt, can_half, cat_half,
+            l0, EA, c_int, bond_ok, node_weight, node_mass, cdn, cdt, can_half, cat_half, joint, joint_c,
             kb, cb, mu, depth, has_int_damping, has_friction,
             anchor_idx, anchors, fairlead_idx, attached, F_fl_seq):  # pragma: no cover - compiled
     """``n_steps = len(fl_r_seq)`` (>= 1) symplectic-Euler steps of the FEM lines.
@@ -203,8 +302,9 @@ def advance(r, v, vc, dt, extra_damping, fl_r_seq, fl_v_seq,
     fl_r_seq, fl_v_seq : ndarray (n_steps, n_lines, 3)
         Prescribed fairlead positions and velocities at the end of each step.
     l0 ... attached
-        The constants of :class:`~tapm_opt.plant.fem.FEMLines` (bond and node arrays, seabed
-        depth, flags, anchor and fairlead node indices, the attached lines).
+        The constants of :class:`~tapm_opt.plant.fem.FEMLines` (bond and node arrays, the joint
+        nodes of composite lines and their drag and added-mass factors, seabed depth, flags,
+        anchor and fairlead node indices, the attached lines).
     F_fl_seq : ndarray (n_steps, n_lines, 3) or (0, n_lines, 3)
         Filled, when not empty, with the net force of the line and the water on each fairlead
         node at the start of every step (tension, weight, drag: the load on the vessel without
@@ -235,7 +335,7 @@ def advance(r, v, vc, dt, extra_damping, fl_r_seq, fl_v_seq,
         else:
             r_out, v_out = rb, vb
         _step(r_in, v_in, vc, dt, extra_damping, fl_r_seq[s], fl_v_seq[s],
-              l0, EA, c_int, bond_ok, node_weight, node_mass, cdn, cdt, can_half, cat_half,
+              l0, EA, c_int, bond_ok, node_weight, node_mass, cdn, cdt, can_half, cat_half, joint, joint_c,
               kb, cb, mu, depth, has_int_damping, has_friction,
               anchor_idx, anchors, fairlead_idx, attached,
               r_out, v_out, T, qp, tvp, epsp, F_node)
@@ -451,7 +551,7 @@ def _fairleads(eta, p_cot, p_T, turret_angle, locked, fx, fy, rx, ry):  # pragma
 @_jit
 def mooring_step(pose0, pose1, rate_prev, h, n_sub, p_cot, p_T, turret_angle, locked, z_fl,
                  r, v, vc, l0, EA, c_int, bond_ok, node_weight, node_mass, cdn, cdt, can_half, cat_half,
-                 kb, cb, mu, depth, has_int_damping, has_friction,
+                 joint, joint_c, kb, cb, mu, depth, has_int_damping, has_friction,
                  anchor_idx, anchors, fairlead_idx, attached, fairlead_seg, anchor_seg, active,
                  near_tension, max_speed):  # pragma: no cover - compiled
     """The mooring part of the plant's outer step of ``h`` seconds in ``n_sub`` FEM substeps.
@@ -510,7 +610,7 @@ def mooring_step(pose0, pose1, rate_prev, h, n_sub, p_cot, p_T, turret_angle, lo
             fl_v[s, j, 1] = rate[1] + rate[2] * rx[j]
             fl_v[s, j, 2] = 0.0
     r, v, T = advance(r, v, vc, h / n_sub, 0.0, fl_r, fl_v,
-                      l0, EA, c_int, bond_ok, node_weight, node_mass, cdn, cdt, can_half, cat_half,
+                      l0, EA, c_int, bond_ok, node_weight, node_mass, cdn, cdt, can_half, cat_half, joint, joint_c,
                       kb, cb, mu, depth, has_int_damping, has_friction,
                       anchor_idx, anchors, fairlead_idx, attached, np.zeros((0, nl, 3)))
     # fairlead accelerations at pose1 (rigid body)

@@ -1,35 +1,62 @@
 """FEM mooring lines of a scenario, attached to the vessel's fairleads.
 
-Connects :class:`~tapm_opt.plant.fem.FEMLines` to a scenario: line properties, catenary
-initialisation, settling, fairlead kinematics and the load on the vessel. The turret and
+Connects :class:`~tapm_opt.plant.fem.FEMLines` to a scenario: line properties (a composite
+line's sections and points), catenary initialisation (a composite line on its quasi-static
+shape), settling, fairlead kinematics and the load on the vessel. The turret and
 fairlead geometry and the assembly of the load in {B} are those of
 :class:`~tapm_opt.models.mooring.MooringModel` (one definition for the design model and the plant).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 from typing import Any, Callable
 
 import numpy as np
 
-from ..errors import ModelError, TapmError
+from ..errors import CatenaryError, ModelError, TapmError
 from ..geometry import rot2_apply
-from ..models import catenary
+from ..models import catenary, composite
 from ..models.mooring import MooringModel
-from .fem import MAX_NODE_SPEED, FEMLines, LineSet, _as_f64
+from .fem import MAX_NODE_SPEED, POINT_KEYS, SECTION_KEYS, FEMLines, LineSet, _as_f64
 
 __all__ = ["MooringFEM", "SettleInfo", "SettlingNotConverged", "line_set_from_scenario"]
 
 
+def _section_segments(line: Any, segments: int | None) -> tuple[int, ...]:
+    """FEM segments of each section of a composite line: its own (``Line.section_segments``), or,
+    with a total ``segments`` for every line, that total shared by length (at least 1 each)."""
+    if segments is None:
+        return line.section_segments()
+    return dataclasses.replace(line, sections=tuple(dataclasses.replace(s, segments=None) for s in line.sections),
+                               segments=int(segments)).section_segments()
+
+
 def line_set_from_scenario(scenario: Any, *, segments: int | None = None) -> LineSet:
-    """Per-line FEM properties of a scenario; ``segments`` overrides every line's count."""
+    """Per-line FEM properties of a scenario; ``segments`` overrides every line's count (a
+    composite line's shared among its sections by length). Composite lines carry their sections
+    and points (:attr:`LineSet.sections`)."""
     if segments is not None and (not isinstance(segments, (int, np.integer)) or segments < 2):
         raise ModelError(f"segments = {segments!r} must be a whole number >= 2")
     la = scenario.line_arrays
     types = [scenario.line_type(ln) for ln in scenario.lines]
     n = len(types)
+    sections = None
+    if any(ln.composite for ln in scenario.lines):
+        sections = []
+        for ln, sec in zip(scenario.lines, scenario.line_sections):
+            if not ln.composite:
+                sections.append(None)
+                continue
+            d = {k: np.array(sec[k], dtype=float) for k in SECTION_KEYS + POINT_KEYS if k not in ("mu", "segments")}
+            d["mu"] = np.array(sec["CB"], dtype=float)
+            d["segments"] = np.array(_section_segments(ln, segments), dtype=int)
+            sections.append(d)
+        sections = tuple(sections)
+    nseg = np.array([int(s["segments"].sum()) if s is not None else (segments or la["segments"][i])
+                     for i, s in enumerate(sections)], dtype=int) if sections is not None else None
     return LineSet(
         ids=tuple(ln.id for ln in scenario.lines),
         L=np.array(la["L"], dtype=float),
@@ -41,9 +68,11 @@ def line_set_from_scenario(scenario: Any, *, segments: int | None = None) -> Lin
         Cdt=np.array([t.Cd_tangential for t in types]),
         Can=np.array([t.Ca_normal for t in types]),
         Cat=np.array([t.Ca_tangential for t in types]),
-        segments=np.full(n, segments, dtype=int) if segments is not None else np.array(la["segments"], dtype=int),
+        segments=(nseg if nseg is not None else np.full(n, segments, dtype=int) if segments is not None
+                  else np.array(la["segments"], dtype=int)),
         damping_ratio=np.array([getattr(t, "axial_damping_ratio", 0.0) for t in types]),
         mu=np.array([t.seabed_friction for t in types]),
+        sections=sections,
     )
 
 
@@ -158,7 +187,9 @@ class MooringFEM:
 
         An anchor above the seabed (height ``h_A`` of the geometry's lines) is held at depth
         ``water depth - h_A``, and its line's catenary starts there (a sag that reaches the seabed
-        puts the middle nodes on it)."""
+        puts the middle nodes on it). A composite line's nodes lie on its quasi-static shape
+        (:meth:`_composite_nodes`): the joint nodes exactly at its points' equilibrium, each
+        section's nodes on its own catenary between them."""
         fem = self.fem
         r_fl, _ = self.fairlead_state(np.asarray(eta, float), np.zeros(3))
         depth = fem.depth
@@ -170,8 +201,17 @@ class MooringFEM:
             XF = float(np.hypot(*d))
             u = d / XF if XF > 0 else np.array([1.0, 0.0])
             ns = int(fem.lines.segments[j])
-            prof = catenary.line_profile(XF, a[2] - self.fairlead_z, fem.L[j], fem.lines.EA[j], fem.lines.w[j],
-                                         CB=fem.lines.mu[j], h_A=h_A[j], n=ns + 1)
+            L, EA, w, mu = fem.L[j], fem.lines.EA[j], fem.lines.w[j], fem.lines.mu[j]
+            if fem.composite[j] and len(fem.lines.sections[j]["L"]) == 1:  # one section: the homogeneous line
+                sec = fem.lines.sections[j]
+                L, EA, w, mu = (float(np.ravel(sec[k])[0]) for k in ("L", "EA", "w", "mu"))
+            elif fem.composite[j]:
+                x, z = self._composite_nodes(j, XF, a[2] - self.fairlead_z, float(h_A[j]))
+                sl = slice(fem.node_start[j], fem.node_start[j] + ns + 1)
+                fem.r[sl, :2] = a[:2] + x[:, None] * u
+                fem.r[sl, 2] = depth - z
+                continue
+            prof = catenary.line_profile(XF, a[2] - self.fairlead_z, L, EA, w, CB=mu, h_A=h_A[j], n=ns + 1)
             sl = slice(fem.node_start[j], fem.node_start[j] + ns + 1)
             fem.r[sl, :2] = a[:2] + prof["x"][:, None] * u
             fem.r[sl, 2] = a[2] - prof["z"]
@@ -179,6 +219,52 @@ class MooringFEM:
         fem.r[fem.fairlead_idx] = r_fl
         fem.v[:] = 0.0
         self._r_fl = r_fl
+
+    def _composite_nodes(self, j: int, XF: float, ZF: float, h_A: float) -> tuple[np.ndarray, np.ndarray]:
+        """Node positions of composite line ``j`` on its quasi-static shape: horizontal distance
+        from the anchor ``x`` and height above the seabed ``z`` [m], each (segments + 1,).
+
+        The points' equilibrium (:func:`tapm_opt.models.composite.points`) places the joint nodes;
+        each section's nodes are its elastic catenary between its two ends at equal steps of
+        unstretched arc length (:func:`tapm_opt.models.catenary.line_profile`, taken from the
+        physically lower end, so a section hanging down from a buoy is sampled as it hangs). Where
+        a catenary cannot be solved (a configuration out of its reach) the nodes are spread on the
+        chord instead, and settling does the rest."""
+        sec = self.fem.lines.sections[j]
+        line = composite.CompositeLine(L=np.asarray(sec["L"], float), EA=np.asarray(sec["EA"], float),
+                                       w=np.asarray(sec["w"], float), CB=np.asarray(sec["mu"], float),
+                                       W=np.asarray(sec["W"], float))
+        seg = np.asarray(sec["segments"], dtype=int)
+        try:
+            px, pz = composite.points(XF, ZF, line, h_A=h_A)
+            px, pz = np.ravel(px), np.ravel(pz)
+        except CatenaryError:  # the points on the straight line, by arc length
+            frac = np.cumsum(line.L)[:-1] / line.length
+            px, pz = XF * frac, h_A + ZF * frac
+        xe = np.r_[0.0, px, XF]  # the ends of the sections
+        ze = np.r_[h_A, pz, h_A + ZF]
+        xs, zs = [np.array([0.0])], [np.array([h_A])]
+        for k in range(line.n_sections):
+            up = ze[k + 1] >= ze[k]
+            lo, hi = (k, k + 1) if up else (k + 1, k)
+            sgn = 1.0 if xe[hi] >= xe[lo] else -1.0
+            try:
+                pr = catenary.line_profile(abs(xe[hi] - xe[lo]), ze[hi] - ze[lo], line.L[k], line.EA[k], line.w[k],
+                                           CB=line.CB[k], h_A=max(ze[lo], 0.0), n=int(seg[k]) + 1)
+                x, z = xe[lo] + sgn * pr["x"], ze[lo] + pr["z"]
+                if not up:
+                    x, z = x[::-1], z[::-1]
+                ok = bool(np.all(np.isfinite(x)) and np.all(np.isfinite(z)))
+            except CatenaryError:
+                ok = False
+            if not ok:
+                f = np.linspace(0.0, 1.0, int(seg[k]) + 1)
+                x, z = xe[k] + f * (xe[k + 1] - xe[k]), ze[k] + f * (ze[k + 1] - ze[k])
+            x, z = x.copy(), z.copy()
+            x[-1], z[-1] = xe[k + 1], ze[k + 1]  # the joints exactly at the points
+            xs.append(x[1:])
+            zs.append(z[1:])
+        return np.concatenate(xs), np.maximum(np.concatenate(zs), 0.0)
 
     def settle(self, eta: np.ndarray, *, max_time: float = 1200.0, check_every: float = 5.0,
                tol: float = 1e-6, speed_tol: float = 0.01, damping: float = 0.5,
