@@ -187,7 +187,7 @@ def scenario_export_moordyn(scenario_name: str, out: str, segments: int | None) 
     One coupled body at the centre of turret carries the fairleads; anchors are fixed points.
     Conventions (frames, diameter, drag, damping, seabed, time step): docs/moordyn.md.
     """
-    from ..config.moordyn import export_moordyn
+    from ..models.moordyn_import import export_moordyn   # free points start at the quasi-static equilibrium
 
     sc = load(scenario_name)
     info = export_moordyn(sc, out, segments=segments)

@@ -23,7 +23,13 @@ Conventions (all of them, with the evidence, in ``docs/moordyn.md``):
   ``kBot = w / (0.01 d_md)`` and ``cBot = sqrt(w m / 0.01) / d_md``.
 * **Representation.** A written file has one ``Coupled`` body at the centre of turret (COT) with
   the turret's orientation, each fairlead a ``Body1`` point on it, each anchor a ``Fixed`` point;
-  line k of the file is line k of the scenario (anchor end A, fairlead end B).
+  line k of the file is line k of the scenario (anchor end A, fairlead end B), or its fairlead
+  section for a composite line, whose lower sections follow the n fairlead sections, joined by
+  ``Free`` points carrying the point types. The front matter keeps what MoorDyn has no column for
+  (:class:`FrontMatter`), so a written file reads back as the same scenario.
+* **Composite lines.** Reading, lines in series through free points that each join two lines, from
+  a fixed point to the vessel, are one composite line (:class:`MDChain`); a free point with a mass,
+  volume, drag or added mass is a point type at its joint.
 
 Every problem is a :class:`MoorDynError` (a :class:`~tapm_opt.errors.TapmError`) naming the file,
 its line number and the item: the ``tapm`` command prints it on one line.
@@ -35,19 +41,22 @@ Size: one module on purpose — reading and writing MoorDyn files share one tabl
 from __future__ import annotations
 
 import difflib
+import json
 import math
 import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any, Iterable, Mapping
 
 import numpy as np
 
 from .._io import toml_key, toml_value
 from ..errors import TapmError
+from ..geometry import fairleads_B
 from .loader import BUILTIN_DIR, fairlead_reach, hangoff_depth_limit, load_scenario
-from .schema import Scenario
+from .schema import Line, LineType, Scenario, Section
 
 __all__ = [
     "MoorDynError",
@@ -56,6 +65,8 @@ __all__ = [
     "MDPoint",
     "MDBody",
     "MDLine",
+    "MDChain",
+    "FrontMatter",
     "read_moordyn",
     "parse_moordyn",
     "scenario_data_from_moordyn",
@@ -140,8 +151,10 @@ class MDBody:
 
 @dataclass(frozen=True)
 class MDPoint:
-    """A row of POINTS. ``kind`` is 'fixed', 'coupled' (global coordinates) or 'body'
-    (coordinates relative to body ``body``); ``r`` in the MoorDyn frame [m]."""
+    """A row of POINTS. ``kind`` is 'fixed', 'coupled' (global coordinates), 'body'
+    (coordinates relative to body ``body``) or 'free' (a connection between lines, which may carry
+    a clump weight or a buoy: ``mass`` [kg], ``volume`` [m^3], ``CdA`` [m^2], ``Ca``); ``r`` in the
+    MoorDyn frame [m]."""
 
     id: int
     attachment: str
@@ -149,6 +162,15 @@ class MDPoint:
     body: int | None
     r: tuple[float, float, float]
     lineno: int
+    mass: float = 0.0
+    volume: float = 0.0
+    CdA: float = 0.0
+    Ca: float = 0.0
+
+    @property
+    def carries(self) -> tuple[float, float, float, float]:
+        """(mass, volume, CdA, Ca): all zero for a plain joint."""
+        return (self.mass, self.volume, self.CdA, self.Ca)
 
 
 @dataclass(frozen=True)
@@ -162,6 +184,59 @@ class MDLine:
     length: float
     segments: int
     lineno: int
+
+
+@dataclass(frozen=True)
+class MDChain:
+    """Lines in series from a fixed point (the anchor) up to a vessel point (the fairlead),
+    joined by free points that each join exactly two lines: one tapm_opt line, composite when it
+    has more than one section. ``lines`` and ``flipped`` run from the anchor up (``flipped[k]``:
+    line k's end B is its lower end in the chain); ``points`` are the point ids from the anchor
+    up (anchor, joints..., fairlead)."""
+
+    lines: tuple[MDLine, ...]
+    flipped: tuple[bool, ...]
+    points: tuple[int, ...]
+
+    @property
+    def anchor(self) -> int:
+        return self.points[0]
+
+    @property
+    def fairlead(self) -> int:
+        return self.points[-1]
+
+    @property
+    def joints(self) -> tuple[int, ...]:
+        return self.points[1:-1]
+
+    @property
+    def top(self) -> MDLine:
+        """The fairlead section's line."""
+        return self.lines[-1]
+
+    @property
+    def name(self) -> str:
+        """The file's line numbers from the anchor up, joined by '-' (a single line: its number)."""
+        return "-".join(str(ln.id) for ln in self.lines)
+
+    def said(self) -> str:
+        """'line 3' or 'lines 1, 2, 3 (from the anchor up)' for messages."""
+        if len(self.lines) == 1:
+            return f"line {self.lines[0].id}"
+        return f"lines {', '.join(str(ln.id) for ln in self.lines)} (from the anchor up)"
+
+
+@dataclass(frozen=True)
+class FrontMatter:
+    """What a file written by :func:`moordyn_text` says of the scenario in its front matter (text
+    before the first section), which MoorDyn ignores: per line type its tapm_opt values
+    (``types[name] = (values, line number)``), per MoorDyn line number of a fairlead section the
+    tapm_opt line's own fields (``lines``), per free point its point type id (``points``)."""
+
+    types: dict[str, tuple[dict[str, float], int]] = field(default_factory=dict)
+    lines: dict[int, tuple[dict[str, Any], int]] = field(default_factory=dict)
+    points: dict[int, tuple[str, int]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -179,9 +254,17 @@ class MoorDynModel:
     lines: tuple[MDLine, ...]
     options: dict[str, tuple[str, int]]
     notes: tuple[str, ...] = ()
-    #: ``max_strain`` (and its line number) of line types whose tapm_opt front-matter comment
-    #: (written by :func:`moordyn_text`) gives one; MoorDyn itself has no such property.
-    max_strain: dict[str, tuple[float, int]] = field(default_factory=dict)
+    #: The lines in series from each anchor to the vessel (:class:`MDChain`), in the order of their
+    #: fairlead sections' line numbers: the tapm_opt lines.
+    chains: tuple[MDChain, ...] = ()
+    #: What a tapm_opt front matter (written by :func:`moordyn_text`) gives; empty otherwise.
+    front: FrontMatter = field(default_factory=FrontMatter)
+
+    @property
+    def max_strain(self) -> dict[str, tuple[float, int]]:
+        """``max_strain`` (and its line number) of line types whose tapm_opt front-matter comment
+        gives one; MoorDyn itself has no such property."""
+        return {k: (v["max_strain"], i) for k, (v, i) in self.front.types.items() if "max_strain" in v}
 
     # -- derived -------------------------------------------------------------------------
     def option(self, *names: str) -> tuple[str, int] | None:
@@ -308,6 +391,21 @@ def _looks_like_data(tokens: list[str], n_min: int) -> bool:
         return False
 
 
+class _AlreadySaid(Exception):
+    """A row refused because of another row whose problem is said already (a point on a refused body)."""
+
+
+def _raise_all(problems: list[MoorDynError], source: str) -> None:
+    """One error for all ``problems`` (a single one as it is), each with its file line, in the
+    order of the file."""
+    if len(problems) == 1:
+        raise problems[0]
+    if problems:
+        problems = sorted(problems, key=lambda e: math.inf if e.lineno is None else e.lineno)
+        listed = "; ".join((f"line {e.lineno}: " if e.lineno is not None else "") + e.detail for e in problems)
+        raise MoorDynError(f"{len(problems)} problems: {listed}", source=source)
+
+
 class _Reader:
     def __init__(self, text: str, source: str):
         self.source = source
@@ -317,14 +415,12 @@ class _Reader:
         self.problems: list[MoorDynError] = []
         self.refused_types: set[str] = set()
         self.refused_points: set[int] = set()
+        self.refused_bodies: set[int] = set()
+        self.ends: list[tuple[int, int | None, int | None, int]] = []
 
     def raise_problems(self) -> None:
         """One error for every refused row and section (the single one as it is)."""
-        if len(self.problems) == 1:
-            raise self.problems[0]
-        if self.problems:
-            listed = "; ".join((f"line {e.lineno}: " if e.lineno is not None else "") + e.detail for e in self.problems)
-            raise MoorDynError(f"{len(self.problems)} problems: {listed}", source=self.source)
+        _raise_all(self.problems, self.source)
 
     def err(self, msg: str, lineno: int | None = None) -> MoorDynError:
         return MoorDynError(msg, source=self.source, lineno=lineno)
@@ -454,17 +550,23 @@ class _Reader:
             if bid != k:
                 raise self.err(f"body ID {t[0]} is out of sequence (IDs run 1, 2, ...; expected {k})", i)
             word, _ = _word_number(t[1])
-            if word not in _COUPLED:
-                raise self.err(f"body {bid} is attached as {t[1]!r}: only one coupled body (the vessel, 'Coupled' or "
-                               "'Vessel') is supported, not free, fixed or pinned bodies", i)
-            if out:
-                raise self.err(f"body {bid}: only one coupled body (the vessel) is supported; body {out[0].id} "
-                               "already is", i)
-            pose = tuple(self.num(t[j], f"body {bid} {c}", i) for j, c in
-                         zip(range(2, 8), ("X0", "Y0", "Z0", "r0", "p0", "y0")))
-            if abs(pose[3]) > 1e-12 or abs(pose[4]) > 1e-12:
-                raise self.err(f"body {bid}: roll r0 = {t[5]} deg and pitch p0 = {t[6]} deg must be 0 "
-                               "(tapm_opt moves the vessel in surge, sway and yaw)", i)
+            try:
+                if word not in _COUPLED:
+                    raise self.err(f"body {bid} is attached as {t[1]!r}: only one coupled body (the vessel, 'Coupled' "
+                                   "or 'Vessel') is supported, not free, fixed or pinned bodies", i)
+                if out:
+                    raise self.err(f"body {bid}: only one coupled body (the vessel) is supported; body {out[0].id} "
+                                   "already is", i)
+                pose = tuple(self.num(t[j], f"body {bid} {c}", i) for j, c in
+                             zip(range(2, 8), ("X0", "Y0", "Z0", "r0", "p0", "y0")))
+                if abs(pose[3]) > 1e-12 or abs(pose[4]) > 1e-12:
+                    raise self.err(f"body {bid}: roll r0 = {t[5]} deg and pitch p0 = {t[6]} deg must be 0 "
+                                   "(tapm_opt moves the vessel in surge, sway and yaw)", i)
+            except MoorDynError as exc:
+                # said once, here: its points and lines are not named again
+                self.problems.append(exc)
+                self.refused_bodies.add(bid)
+                continue
             if len(t) > 8 and any(_nonzero(x) for x in t[8:]):
                 self.notes.append(f"body {bid}: its mass, inertia, volume and drag (line {i}) are vessel properties; "
                                   "the vessel scenario's are used")
@@ -484,6 +586,8 @@ class _Reader:
                 out.append(self._point(pid, t, i, n_bodies))
             except MoorDynError as exc:
                 self.problems.append(exc)
+                self.refused_points.add(pid)
+            except _AlreadySaid:
                 self.refused_points.add(pid)
         return out
 
@@ -505,16 +609,23 @@ class _Reader:
             kind = "coupled"
         elif word == "BODY":
             kind = "body"
+            if num.isdigit() and int(num) in self.refused_bodies:
+                raise _AlreadySaid
             if not num.isdigit() or not 1 <= int(num) <= n_bodies:
                 raise self.err(f"point {pid} is attached to {t[1]!r}, but the file defines "
                                f"{n_bodies} coupled bod{'y' if n_bodies == 1 else 'ies'}", i)
             body = int(num)
         elif word in _FREE:
-            raise self.err(f"point {pid} is a free point ({t[1]!r}): line-to-line connections, clump weights "
-                           "and buoys are not supported (every line runs from a fixed anchor to the vessel)", i)
+            kind = "free"
+            for what, v in (("Mass", M), ("Volume", V), ("CdA", CdA), ("Ca", Ca)):
+                if v < 0:
+                    raise self.err(f"point {pid}: {what} = {v:g} must be >= 0", i)
+            if any(F):
+                raise self.err(f"point {pid}: a steady external force on a free point is not supported", i)
+            return MDPoint(pid, t[1], kind, None, r, i, M, V, CdA, Ca)  # type: ignore[arg-type]
         else:
             raise self.err(f"point {pid}: attachment {t[1]!r} is not supported (use Fixed for anchors, Coupled or "
-                           "Body1 for fairleads)", i)
+                           "Body1 for fairleads, Free for the joints of lines in series)", i)
         if kind != "fixed":
             for what, v in (("Mass", M), ("Volume", V), ("CdA", CdA), ("Ca", Ca)):
                 if v != 0:
@@ -525,9 +636,12 @@ class _Reader:
         return MDPoint(pid, t[1], kind, body, r, i)  # type: ignore[arg-type]
 
     def lines(self, rows, types: list[MDLineType], points: list[MDPoint]) -> list[MDLine]:
+        """The lines read; ``self.ends`` gets every line row's (id, end A, end B, file line), an end
+        None where it is a rod's, for :meth:`chains`."""
         out = []
         names = {lt.name for lt in types} | self.refused_types
         n_points = len(points) + len(self.refused_points)
+        self.ends = []
         for k, (i, t) in enumerate(rows, start=1):
             if len(t) < 6:
                 raise self.err(f"line row has {len(t)} columns; MoorDyn v2 takes ID LineType AttachA AttachB UnstrLen "
@@ -538,20 +652,28 @@ class _Reader:
             if t[1] not in names:
                 raise self.err(f"line {lid}: line type {t[1]!r} is not defined in LINE TYPES ({', '.join(sorted(names))})",
                                i)
-            ends = []
-            try:
-                for col, word in (("AttachA", t[2]), ("AttachB", t[3])):
-                    if not word.isdigit():
-                        raise self.err(f"line {lid}: {col} = {word!r}: lines attached to rod ends are not supported", i)
-                    pid = int(word)
-                    if not 1 <= pid <= n_points:
-                        raise self.err(f"line {lid}: {col} = {pid} is not a point (the file has {n_points})", i)
-                    ends.append(pid)
-            except MoorDynError as exc:
-                self.problems.append(exc)
-                continue
-            if t[1] in self.refused_types or set(ends) & self.refused_points:
-                continue   # its type or a point of it is refused already: said once, there
+            ends: list[int | None] = []
+            said = False
+            for col, word in (("AttachA", t[2]), ("AttachB", t[3])):
+                if not word.isdigit():
+                    if not said:
+                        self.problems.append(self.err(f"line {lid}: {col} = {word!r}: lines attached to rod ends are "
+                                                      "not supported", i))
+                    said = True
+                    ends.append(None)
+                    continue
+                pid = int(word)
+                if not 1 <= pid <= n_points:
+                    if not said:
+                        self.problems.append(self.err(f"line {lid}: {col} = {pid} is not a point (the file has "
+                                                      f"{n_points})", i))
+                    said = True
+                    ends.append(None)
+                    continue
+                ends.append(pid)
+            self.ends.append((lid, ends[0], ends[1], i))
+            if said or t[1] in self.refused_types or set(ends) & self.refused_points:
+                continue   # its type, an end or a point of it is refused already: said once, there
             L = self.num(t[4], f"line {lid} UnstrLen", i)
             if not L > 0:
                 raise self.err(f"line {lid}: UnstrLen = {t[4]} must be > 0", i)
@@ -559,11 +681,119 @@ class _Reader:
                 n = int(t[5])
             except ValueError:
                 raise self.err(f"line {lid}: NumSegs = {t[5]!r} is not a whole number", i) from None
-            if n < 2:
-                raise self.err(f"line {lid}: NumSegs = {n}: tapm_opt needs at least 2 segments", i)
-            out.append(MDLine(lid, t[1], ends[0], ends[1], L, n, i))
+            if n < 1:
+                raise self.err(f"line {lid}: NumSegs = {n} must be >= 1", i)
+            out.append(MDLine(lid, t[1], int(ends[0]), int(ends[1]), L, n, i))  # type: ignore[arg-type]
         if not out and not self.problems:
             raise self.err("the file defines no line (section LINES)")
+        return out
+
+    def chains(self, points: list[MDPoint], lines: list[MDLine]) -> list[MDChain]:
+        """The lines in series from each fixed point to a vessel point (:class:`MDChain`).
+
+        A free point must join exactly two lines. A free point at one line's end only (a free end),
+        one joining three or more (a bridle, a Y-connection, lines sharing an anchor through it),
+        lines in series between two fixed or two vessel points and loops of free points are
+        problems, each said once, at the point or the lines that make it; lines ending at a refused
+        point, body or rod are said there already.
+        """
+        by_id = {p.id: p for p in points}
+        good = {ln.id: ln for ln in lines}
+        at: dict[int, list[int]] = {}   # point id -> rows of self.ends that end there
+        loops = set()
+        for k, (lid, a, b, i) in enumerate(self.ends):
+            if a is not None and a == b:
+                self.problems.append(self.err(f"line {lid} starts and ends at point {a}", i))
+                loops.add(k)
+                continue
+            for e in (a, b):
+                if e is not None:
+                    at.setdefault(e, []).append(k)
+        bad_free: set[int] = set()
+        for p in points:
+            if p.kind != "free":
+                continue
+            uses = sorted({self.ends[k][0] for k in at.get(p.id, [])})
+            n = len(at.get(p.id, []))
+            if n == 0:
+                self.notes.append(f"point {p.id} (line {p.lineno}) is a free point that no line uses: ignored")
+            elif n == 1:
+                self.problems.append(self.err(
+                    f"point {p.id} is a free point ({p.attachment!r}) at the end of line {uses[0]} alone: a free end "
+                    "(a hanging line, or a weight or buoy on a line's end) is not supported; every line runs from a "
+                    "fixed anchor to the vessel, through free points that each join two lines", p.lineno))
+            elif n > 2:
+                self.problems.append(self.err(
+                    f"point {p.id} is a free point ({p.attachment!r}) joining {n} lines ({', '.join(map(str, uses))}): "
+                    "a bridle or Y-connection is not supported; tapm_opt's composite lines are sections in series, "
+                    "each free point joining two lines", p.lineno))
+            if n != 2:
+                bad_free.add(p.id)
+
+        def kind(pid: int | None) -> str:
+            if pid is None:
+                return "rod"
+            p = by_id.get(pid)
+            return "refused" if p is None else p.kind
+
+        def terminal(pid: int | None) -> bool:
+            return kind(pid) != "free" or pid in bad_free
+
+        out = []
+        visited = set(loops)
+        vessel = ("coupled", "body")
+        for k0, (_, a0, b0, _) in enumerate(self.ends):
+            if k0 in visited or not (terminal(a0) or terminal(b0)):
+                continue
+            cur = a0 if terminal(a0) else b0
+            k, rows, flips, pts = k0, [], [], [cur]
+            while True:
+                visited.add(k)
+                _, ea, eb, _ = self.ends[k]
+                flipped = cur != ea
+                cur = ea if flipped else eb
+                rows.append(k)
+                flips.append(flipped)
+                pts.append(cur)
+                if terminal(cur):
+                    break
+                k = next(j for j in at[cur] if j != k)   # the free point's other line
+            ka, kb = kind(pts[0]), kind(pts[-1])
+            if {ka, kb} & {"rod", "refused"} or pts[0] in bad_free or pts[-1] in bad_free:
+                continue   # said at the rod, the refused point or the free point
+            ids = [self.ends[j][0] for j in rows]
+            first = self.ends[rows[0]][3]
+            if ka in vessel and kb == "fixed":
+                rows, flips, pts = rows[::-1], [not f for f in flips[::-1]], pts[::-1]
+            elif not (ka == "fixed" and kb in vessel):
+                what = "fixed" if ka == "fixed" else "vessel"   # both ends fixed, or both on the vessel
+                if len(rows) == 1:
+                    self.problems.append(self.err(
+                        f"line {ids[0]} runs between two {what} points ({pts[0]} and {pts[-1]}); every line must run "
+                        "from a fixed anchor to the vessel", first))
+                else:
+                    joints = ", ".join(map(str, pts[1:-1]))
+                    self.problems.append(self.err(
+                        f"lines {', '.join(map(str, ids))} run in series between two {what} points ({pts[0]} and "
+                        f"{pts[-1]}) through free point{'s' * (len(pts) > 3)} {joints}; every line must run from a "
+                        "fixed anchor to the vessel", first))
+                continue
+            mdl = [good.get(self.ends[j][0]) for j in rows]
+            if any(ln is None for ln in mdl):
+                continue   # a line of a refused type: said at the type
+            if len(mdl) == 1 and mdl[0].segments < 2:   # type: ignore[union-attr]
+                self.problems.append(self.err(f"line {ids[0]}: NumSegs = {mdl[0].segments}: tapm_opt needs at least "  # type: ignore[union-attr]
+                                              "2 segments on a line of one section", first))
+                continue
+            out.append(MDChain(tuple(mdl), tuple(flips), tuple(int(p) for p in pts)))  # type: ignore[arg-type]
+        left = [k for k in range(len(self.ends)) if k not in visited]
+        if left:
+            self.problems.append(self.err(
+                f"line{'s' * (len(left) > 1)} {', '.join(str(self.ends[k][0]) for k in left)} join only free points to "
+                "each other (a loop with no anchor and no vessel point)", self.ends[left[0]][3]))
+        out.sort(key=lambda ch: ch.top.id)
+        if not out and not self.problems:
+            raise self.err("no line runs from a fixed point (an anchor) to the vessel")
         return out
 
 
@@ -589,21 +819,57 @@ _OPTION_CASE = {n.lower(): n for n in (
 _KNOWN_OPTIONS = frozenset(_OPTION_CASE)
 _NUMERIC_OPTIONS = _KNOWN_OPTIONS - {"tscheme", "seafloorfile", "waterkin", "wtrdpth", "depth", "waterdepth",
                                      "echo"}
-#: A line type's tapm_opt-only properties in the front matter written by :func:`moordyn_text`.
-_FRONT_MATTER_TYPE = re.compile(r"^Line type (\S+): tapm_opt .*?, max_strain ([-+]?[0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\.?\s*$")
+_NUM = r"([-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][-+]?[0-9]+)?)"
+#: A line type's tapm_opt values in the front matter written by :func:`moordyn_text`:
+#: ``Line type NAME: tapm_opt d = .. m, w = .. N/m, C_DN .., C_DT .. (on d), C_MN .., C_MT ..,
+#: axial_damping_ratio .., MBS .. N, MBS_std .. N[, density .. kg/m^3][, max_strain ..].``
+_FRONT_MATTER_TYPE = re.compile(r"^Line type (\S+): tapm_opt (.*)$")
+_FRONT_TYPE_KEYS = {
+    "d": rf"\bd = {_NUM} m\b", "w": rf"\bw = {_NUM} N/m", "Cd_normal": rf"\bC_DN {_NUM}",
+    "Cd_tangential": rf"\bC_DT {_NUM}", "Ca_normal": rf"\bC_MN {_NUM}", "Ca_tangential": rf"\bC_MT {_NUM}",
+    "axial_damping_ratio": rf"\baxial_damping_ratio {_NUM}", "MBS": rf"\bMBS {_NUM} N",
+    "MBS_std": rf"\bMBS_std {_NUM} N", "density": rf"\bdensity {_NUM} kg/m\^3", "max_strain": rf"\bmax_strain {_NUM}",
+}
+#: A tapm_opt line in the front matter: ``Line K: tapm_opt line {json}`` (K the MoorDyn line of its
+#: fairlead section), and a free point's point type: ``Point P: tapm_opt point type "ID"``.
+_FRONT_MATTER_LINE = re.compile(r"^Line (\d+): tapm_opt line (\{.*\})\s*$")
+_FRONT_MATTER_POINT = re.compile(r"^Point (\d+): tapm_opt point type (\"(?:[^\"\\]|\\.)*\")")
 
 
-def _front_matter_max_strain(text: str) -> dict[str, tuple[float, int]]:
-    """``max_strain`` of each line type named in a front matter written by tapm_opt (line number
-    too); MoorDyn has no such property, so the export keeps it in that comment."""
-    out: dict[str, tuple[float, int]] = {}
+def _front_matter(text: str) -> FrontMatter:
+    """What a front matter written by :func:`moordyn_text` gives (:class:`FrontMatter`); rows
+    that do not read are left out (the importer then uses the MoorDyn tables alone)."""
+    fm = FrontMatter()
     for i, raw in enumerate(text.splitlines(), start=1):
         if "---" in raw and _section_of(raw) is not None:
             break  # the front matter ends at the first section
-        m = _FRONT_MATTER_TYPE.match(raw.strip())
-        if m:   # the pattern matches a float's text only
-            out[m.group(1)] = (float(m.group(2)), i)
-    return out
+        row = raw.strip()
+        m = _FRONT_MATTER_TYPE.match(row)
+        if m:
+            vals = {}
+            for key, pat in _FRONT_TYPE_KEYS.items():
+                got = re.search(pat, m.group(2))
+                if got:
+                    vals[key] = float(got.group(1))
+            if vals:
+                fm.types[m.group(1)] = (vals, i)
+            continue
+        m = _FRONT_MATTER_LINE.match(row)
+        if m:
+            try:
+                item = json.loads(m.group(2))
+            except ValueError:
+                continue
+            if isinstance(item, dict) and isinstance(item.get("id"), str):
+                fm.lines[int(m.group(1))] = (item, i)
+            continue
+        m = _FRONT_MATTER_POINT.match(row)
+        if m:
+            try:
+                fm.points[int(m.group(1))] = (str(json.loads(m.group(2))), i)
+            except ValueError:
+                continue
+    return fm
 
 
 def parse_moordyn(text: str, *, source: str = "") -> MoorDynModel:
@@ -611,10 +877,10 @@ def parse_moordyn(text: str, *, source: str = "") -> MoorDynModel:
     them in the file at once (a row whose line type or point is refused is not named again).
 
     Supported: line types (linear EA, constant BA, EI = 0, no VIV), at most one coupled body (the
-    vessel, roll = pitch = 0), Fixed points (anchors), Coupled and Body1 points (fairleads), lines
-    from an anchor to a fairlead, and OPTIONS. Rods, free points (connections, clump weights,
-    buoys), other bodies, failures and nonlinear or viscoelastic line models are refused, naming
-    the item and the line of the file.
+    vessel, roll = pitch = 0), Fixed points (anchors), Coupled and Body1 points (fairleads), Free
+    points joining two lines in series (:class:`MDChain`), lines from an anchor to a fairlead
+    directly or through free points, and OPTIONS. Rods, free ends, bridles, other bodies, failures
+    and nonlinear or viscoelastic line models are refused, naming the item and the line of the file.
     """
     rd = _Reader(text, source)
     sec = rd.sections()
@@ -626,8 +892,9 @@ def parse_moordyn(text: str, *, source: str = "") -> MoorDynModel:
             rd.problems.append(rd.err(f"{item}{more}: {why}", i))
     types = rd.line_types(sec.get("line_types", []))
     bodies = rd.bodies(sec.get("bodies", []))
-    points = rd.points(sec.get("points", []), len(bodies))
+    points = rd.points(sec.get("points", []), len(bodies) + len(rd.refused_bodies))
     lines = rd.lines(sec.get("lines", []), types, points)
+    chains = rd.chains(points, lines)
     rd.raise_problems()
     options: dict[str, tuple[str, int]] = {}
     spelled: dict[str, str] = {}
@@ -660,8 +927,8 @@ def parse_moordyn(text: str, *, source: str = "") -> MoorDynModel:
         rd.notes.append(f"option rhoW (line {options['rhow'][1]}) is read as the water density, as MoorDyn-F does; "
                         "MoorDyn-C 2.7 reads only 'rho' or 'WtrDnsty' and would run with 1025 kg/m^3")
     model = MoorDynModel(source=source, line_types=tuple(types), bodies=tuple(bodies), points=tuple(points),
-                         lines=tuple(lines), options=options, notes=tuple(rd.notes),
-                         max_strain=_front_matter_max_strain(text))
+                         lines=tuple(lines), options=options, notes=tuple(rd.notes), chains=tuple(chains),
+                         front=_front_matter(text))
     wd = model.option("wtrdpth", "depth", "waterdepth")
     if wd is not None:
         try:
@@ -780,13 +1047,14 @@ def moordyn_time_step(scenario: Scenario, *, segments: int | None = None,
     env = scenario.environment
     cache: dict[str, dict[str, float]] = {}
     modes = []
-    for ln in scenario.lines:
-        lt = scenario.line_type(ln)
+    for ln, (sec, n) in ((ln, sn) for ln in scenario.lines for sn in _sections_written(ln, segments)):
+        # every section of a composite line (a joint between two sections is no stiffer than both:
+        # its stiffness over mass is the mediant of theirs; a clump or buoy only adds mass)
+        lt = scenario.line_type_by_id(sec.type)
         if lt.id not in cache:
             cache[lt.id] = moordyn_line_type(lt, env)
         md = cache[lt.id]
-        n = int(segments or ln.segments)
-        l = ln.length / n
+        l = sec.length / n
         BA = md["BA"] if md["BA"] >= 0 else -md["BA"] * l * math.sqrt(md["EA"] * md["mass"])
         kb, cb = seabed_constants(lt.w(env), md["mass"], md["d"])
         m = md["mass"] * l
@@ -835,9 +1103,31 @@ class ExportInfo:
     notes: tuple[str, ...] = ()
 
 
+def _sections_written(ln: Any, segments: int | None) -> list[tuple[Any, int]]:
+    """(section, its NumSegs) of a line from the anchor up: the sections' own segments, or with
+    ``segments`` given, that many for the line shared among its sections by length."""
+    parts = ln.parts
+    if segments is None:
+        return list(zip(parts, ln.section_segments()))
+    if len(parts) == 1:
+        return [(parts[0], int(segments))]
+    shared = Line(id="x", sections=tuple(Section(type=s.type, length=s.length, top=s.top) for s in parts),
+                  segments=int(segments), anchor=(0.0, 0.0), fairlead_angle=0.0)
+    return list(zip(parts, shared.section_segments()))
+
+
+def _joint_guess(anchor: np.ndarray, fairlead: np.ndarray, lengths: list[float]) -> list[np.ndarray]:
+    """First positions of a composite line's joints (NED) when no better ones are given: on the
+    straight line from the anchor to the fairlead at their unstretched length's fraction, the
+    sections slack between them."""
+    s = np.cumsum(lengths)[:-1] / float(np.sum(lengths))
+    return [anchor + f * (fairlead - anchor) for f in s]
+
+
 def moordyn_text(scenario: Scenario, *, segments: int | None = None, dtM: float | None = None,
                  scheme: str | None = None, outputs: bool = True, extra_options: Mapping[str, Any] | None = None,
-                 ic: Mapping[str, Any] | None = None) -> tuple[str, ExportInfo]:
+                 ic: Mapping[str, Any] | None = None,
+                 joints: Mapping[int, Any] | None = None) -> tuple[str, ExportInfo]:
     """MoorDyn v2 input text of the scenario's mooring at the field zero point.
 
     One ``Coupled`` body at the centre of turret with the turret's orientation (MoorDyn yaw
@@ -847,10 +1137,19 @@ def moordyn_text(scenario: Scenario, *, segments: int | None = None, dtM: float 
     the turret's pose: position of the COT, yaw ``-(psi + alpha_t)`` for a locked turret, ``-alpha_t``
     for a free one. No waves, current or faults are written.
 
+    A composite line k is its sections in series: MoorDyn line k is its fairlead section (so
+    ``FairTen k`` is line k's fairlead tension), the sections below are lines n+1, n+2, ...
+    (after the n fairlead sections, line by line from the anchor up), joined by ``Free`` points
+    2n+1, 2n+2, ... that carry the point type's Mass, Volume, CdA and Ca (0 for a plain joint).
+    The front matter keeps what MoorDyn has no column for: each line type's tapm_opt values,
+    MBS and ``max_strain``; each line's id, fairlead angle, winch and segment sharing; each
+    joint's point type id (read back by the importer).
+
     Parameters
     ----------
     segments : int, optional
-        Segments of every line (default: each line's ``segments``).
+        Segments of every line (default: each line's ``segments``); a composite line's are shared
+        among its sections by length.
     dtM, scheme : optional
         Time step and scheme (default: :func:`moordyn_time_step`).
     outputs : bool
@@ -860,6 +1159,12 @@ def moordyn_text(scenario: Scenario, *, segments: int | None = None, dtM: float 
     ic : mapping, optional
         Initial-condition options (default ``dtIC`` 2 s, ``TmaxIC`` 600 s, ``threshIC`` 1e-3: the
         stationary solution then matches the FEM's settled tensions to about 1e-4).
+    joints : mapping, optional
+        Line index -> positions in {E} (NED) [m] of its joints from the anchor up, shape
+        (sections - 1, 3), where MoorDyn starts its free points (e.g. the quasi-static equilibrium,
+        :func:`tapm_opt.models.moordyn_import.composite_joints`); default: on the straight line
+        from the anchor to the fairlead, from where they settle in simulated time (MoorDyn's
+        initial-condition solver barely moves free points), with a note.
     """
     env = scenario.environment
     g, rho, depth = env.gravity, env.water_density, env.water_depth
@@ -875,7 +1180,8 @@ def moordyn_text(scenario: Scenario, *, segments: int | None = None, dtM: float 
     # seabed constants: from the line type with the most line length
     length_of = {lt.id: 0.0 for lt in scenario.line_types}
     for ln in scenario.lines:
-        length_of[ln.type] += ln.length
+        for sec in ln.parts:
+            length_of[sec.type] += sec.length
     main = max(scenario.line_types, key=lambda t: length_of[t.id])
     kb, cb = seabed_constants(main.w(env), main.mass_per_length, types[main.id]["d"])
     others = [t.id for t in scenario.line_types if length_of[t.id] > 0 and t.id != main.id
@@ -893,6 +1199,53 @@ def moordyn_text(scenario: Scenario, *, segments: int | None = None, dtM: float 
     body = md_from_ned(p_cot)
     yaw = -math.degrees(tur.angle)
     fT = scenario.fairleads_T
+    anchors = scenario.anchors
+    n = len(scenario.lines)
+    ptypes = {pt.id: pt for pt in scenario.point_types}
+    # the file's points and lines: the n fairlead sections first, then the sections below them
+    free_rows: list[tuple[int, np.ndarray, Any, int]] = []    # (point id, NED position, point type, line index)
+    line_rows: list[tuple[int, str, int, int, float, int]] = []  # (id, type, A, B, length, NumSegs)
+    low_rows: list[tuple[int, str, int, int, float, int]] = []
+    front_lines: list[str] = []
+    n_pt, n_ln = 2 * n, n
+    for i, ln in enumerate(scenario.lines):
+        secs = _sections_written(ln, segments)
+        anchor = np.asarray(anchors[i], dtype=float)
+        fx, fy = fairleads_B(tur.position, fT[i:i + 1], tur.angle)   # in {E} at the field zero point
+        fair_E = np.array([float(fx[0]), float(fy[0]), tur.fairlead_depth])
+        pos = (list(joints[i]) if joints is not None and i in joints else
+               _joint_guess(anchor, fair_E, [s.length for s, _ in secs]))
+        if len(pos) != len(secs) - 1:
+            raise MoorDynError(f"line {ln.id}: {len(pos)} joint positions given for its {len(secs) - 1} joints")
+        below = 2 * i + 1
+        ids = []
+        for k, (sec, nseg) in enumerate(secs):
+            if k == len(secs) - 1:
+                line_rows.append((i + 1, sec.type, below, 2 * i + 2, sec.length, nseg))
+                ids.append(i + 1)
+                break
+            n_pt += 1
+            n_ln += 1
+            free_rows.append((n_pt, np.asarray(pos[k], dtype=float), ptypes.get(sec.top) if sec.top else None, i))
+            low_rows.append((n_ln, sec.type, below, n_pt, sec.length, nseg))
+            ids.append(n_ln)
+            below = n_pt
+        own: dict[str, Any] = {"id": ln.id, "fairlead_angle_deg": math.degrees(ln.fairlead_angle)}
+        if ln.fairlead_radius is not None:
+            own["fairlead_radius"] = ln.fairlead_radius
+        if ln.composite:
+            own["moordyn_lines"] = ids
+            own["segments"] = int(segments) if segments is not None else int(ln.segments)
+            shared = (list(range(len(ln.sections))) if segments is not None else
+                      [k for k, s in enumerate(ln.sections) if s.segments is None])
+            if shared:
+                own["shared_segments"] = shared
+        if ln.winch_max_rate:
+            own["winch_max_rate"] = ln.winch_max_rate
+        for key in ("min_length", "max_length"):
+            if getattr(ln, key) is not None:
+                own[key] = getattr(ln, key)
+        front_lines.append(f"Line {i + 1}: tapm_opt line {json.dumps(own)}")
 
     out: list[str] = []
     w = out.append
@@ -902,14 +1255,23 @@ def moordyn_text(scenario: Scenario, *, segments: int | None = None, dtM: float 
     w("Frame: z up, x north (surge), y west (port at heading 0): (x, y, z) = (x, -y, -z) of tapm_opt's NED {E}.")
     w("Body 1 is the turret: drive it at the centre of turret with the turret's heading (yaw = -(psi + alpha_t)")
     w("for a locked turret, -alpha_t for a free one). Line k: anchor = point 2k-1 (end A), fairlead = point 2k (end B).")
+    if free_rows:
+        w(f"Composite lines: line k is the fairlead section; the sections below run from the anchor up as lines "
+          f"{n + 1}-{n_ln}, joined by Free points {2 * n + 1}-{n_pt} (clump weights, buoys, plain joints).")
     w("Diam reproduces the submerged weight; Cd, Ca, CdAx, CaAx are rescaled to tapm_opt's forces per length.")
-    if [ln.id for ln in scenario.lines] != [str(i + 1) for i in range(len(scenario.lines))]:
-        w("Lines: " + ", ".join(f"{i + 1} = tapm_opt line {ln.id}" for i, ln in enumerate(scenario.lines)) + ".")
+    w("The rows below are tapm_opt's own values, which MoorDyn has no column for (read back on import).")
     for lt in scenario.line_types:
         w(f"Line type {lt.id}: tapm_opt d = {_f(lt.diameter)} m, w = {_f(lt.w(env))} N/m, C_DN {_f(lt.Cd_normal)}, "
           f"C_DT {_f(lt.Cd_tangential)} (on d), C_MN {_f(lt.Ca_normal)}, C_MT {_f(lt.Ca_tangential)}, "
-          f"axial_damping_ratio {_f(getattr(lt, 'axial_damping_ratio', 0.0))}, MBS {_f(lt.MBS)} N"
+          f"axial_damping_ratio {_f(getattr(lt, 'axial_damping_ratio', 0.0))}, MBS {_f(lt.MBS)} N, "
+          f"MBS_std {_f(lt.MBS_std)} N"
+          + (f", density {_f(lt.density)} kg/m^3" if lt.density is not None else "")
           + (f", max_strain {_f(lt.max_strain)}" if lt.max_strain is not None else "") + ".")
+    for row in front_lines:
+        w(row)
+    for pid, _, pt, i in free_rows:
+        if pt is not None:
+            w(f"Point {pid}: tapm_opt point type {json.dumps(pt.id)} (line {json.dumps(scenario.lines[i].id)}).")
     w("---------------------- LINE TYPES -----------------------------------------------------")
     w("TypeName   Diam    Mass/m    EA     BA/-zeta    EI      Cd     Ca     CdAx    CaAx")
     w("(name)     (m)     (kg/m)    (N)    (N-s/-)   (N-m^2)   (-)    (-)    (-)     (-)")
@@ -924,17 +1286,20 @@ def moordyn_text(scenario: Scenario, *, segments: int | None = None, dtM: float 
     w("---------------------- POINTS -----------------------------------------------------------")
     w("ID  Attachment  X    Y    Z    Mass  Volume  CdA   Ca")
     w("(#) (word/ID)  (m)  (m)  (m)  (kg)  (m^3)  (m^2)  (-)")
-    anchors = scenario.anchors
     for i, ln in enumerate(scenario.lines):
         a = [_clean(v) for v in md_from_ned(anchors[i])]
         f = [_clean(v) for v in md_from_ned((fT[i, 0], fT[i, 1], tur.fairlead_depth))]
         w(f"{2 * i + 1}  Fixed  {_f(a[0])}  {_f(a[1])}  {_f(a[2])}  0  0  0  0")
         w(f"{2 * i + 2}  Body1  {_f(f[0])}  {_f(f[1])}  {_f(f[2])}  0  0  0  0")
+    for pid, r, pt, _ in free_rows:
+        x = [_clean(v, 6) for v in md_from_ned(r)]
+        m, v, cda, cam = (pt.mass, pt.volume, pt.CdA, pt.Ca) if pt is not None else (0.0, 0.0, 0.0, 0.0)
+        w(f"{pid}  Free  {_f(x[0])}  {_f(x[1])}  {_f(x[2])}  {_f(m)}  {_f(v)}  {_f(cda)}  {_f(cam)}")
     w("---------------------- LINES ------------------------------------------------------------")
     w("ID  LineType  AttachA  AttachB  UnstrLen  NumSegs  LineOutputs")
     w("(#)  (name)    (ID)     (ID)      (m)      (-)      (-)")
-    for i, ln in enumerate(scenario.lines):
-        w(f"{i + 1}  {ln.type}  {2 * i + 1}  {2 * i + 2}  {_f(ln.length)}  {int(segments or ln.segments)}  -")
+    for lid, typ, pa, pb, length, nseg in line_rows + low_rows:
+        w(f"{lid}  {typ}  {pa}  {pb}  {_f(length)}  {int(nseg)}  -")
     w("---------------------- OPTIONS ----------------------------------------------------------")
     w(f"{_f(dtM)}  dtM  time step [s]: {DTM_SAFETY:g} x the {scheme} stability limit of the stiffest line mode")
     w(f"{scheme}  tScheme  time integration scheme")
@@ -956,6 +1321,12 @@ def moordyn_text(scenario: Scenario, *, segments: int | None = None, dtM: float 
         for i in range(len(scenario.lines)):
             w(f"FairTen{i + 1}")
     w("------------------------- need this line ------------------------------------------------")
+    guessed = [scenario.lines[i].id for i in sorted({i for *_, i in free_rows}) if joints is None or i not in joints]
+    if guessed:
+        notes.append(f"the free points of composite line{'s' * (len(guessed) > 1)} {', '.join(guessed)} start on the "
+                     "straight line from the anchor to the fairlead: MoorDyn's initial-condition solver barely moves "
+                     "free points, so they settle only in simulated time; tapm_opt.models.moordyn_import.export_moordyn "
+                     "(and tapm scenario export-moordyn) start them at the quasi-static equilibrium")
     info = ExportInfo(dtM=float(dtM), scheme=str(scheme), kBot=kb, cBot=cb, n_lines=len(scenario.lines),
                       notes=tuple(notes))
     return "\n".join(out) + "\n", info
@@ -1023,7 +1394,10 @@ def scenario_data_from_moordyn(model: MoorDynModel, vessel_data: dict, *, mbs: M
         notes.append(f"option WtrDpth = {wd:g} m is above point {deepest.id} (z = {-depth:g} m): the water depth is "
                      f"{depth:g} m, as MoorDyn-C raises it; anchors above -{depth:g} m are read as raised anchors")
     # -- line types -----------------------------------------------------------------------
-    missing = [lt.name for lt in model.line_types if lt.name not in mbs and any(ln.type == lt.name for ln in model.lines)]
+    problems: list[MoorDynError] = []
+    front = model.front
+    used = [lt for lt in model.line_types if any(ln.type == lt.name for ch in model.chains for ln in ch.lines)]
+    missing = [lt.name for lt in used if lt.name not in mbs and "MBS" not in front.types.get(lt.name, ({}, 0))[0]]
     if missing:
         raise MoorDynError(f"line type {missing[0]!r} has no breaking strength: MoorDyn files carry none; give it with "
                            f"--mbs {missing[0]}=NEWTONS" + (f" (also missing: {', '.join(missing[1:])})"
@@ -1034,9 +1408,8 @@ def scenario_data_from_moordyn(model: MoorDynModel, vessel_data: dict, *, mbs: M
                            f"{', '.join(lt.name for lt in model.line_types)})", source=src)
     seabed = [(n, model.number_option(n)) for n in ("kbot", "kb", "cbot", "cb") if n in model.options]
     if seabed:
-        ref = [seabed_constants(w, lt.mass, lt.d) for lt in model.line_types
-               if any(ln.type == lt.name for ln in model.lines)
-               and (w := (lt.mass - rho * math.pi * lt.d**2 / 4.0) * g) > 0]
+        ref = [seabed_constants(w, lt.mass, lt.d) for lt in used
+               if (w := (lt.mass - rho * math.pi * lt.d**2 / 4.0) * g) > 0]
         for n, v in seabed:
             k = 0 if n.startswith("k") else 1
             if not any(r[k] > 0 and abs(float(v) / r[k] - 1.0) < 1e-6 for r in ref):
@@ -1047,46 +1420,71 @@ def scenario_data_from_moordyn(model: MoorDynModel, vessel_data: dict, *, mbs: M
     if mu:
         notes.append(f"seabed friction {mu:g} (FrictionCoefficient) for every line type; MoorDyn's saturated-damping "
                      "friction model and the FEM's tanh-regularised Coulomb friction differ at low speed")
-    used = [lt for lt in model.line_types if any(ln.type == lt.name for ln in model.lines)]
     line_types, comments = [], {}
-    for k, lt in enumerate(used):
+    for lt in used:
         w = (lt.mass - rho * math.pi * lt.d**2 / 4.0) * g
         if not w > 0:
-            raise MoorDynError(f"line type {lt.name!r} is buoyant (Mass/m {lt.mass:g} kg/m, Diam {lt.d:g} m: submerged "
-                               f"weight {w:g} N/m); buoyant lines are not supported", source=src, lineno=lt.lineno)
+            problems.append(MoorDynError(f"line type {lt.name!r} is buoyant (Mass/m {lt.mass:g} kg/m, Diam {lt.d:g} m: "
+                                         f"submerged weight {w:g} N/m); buoyant lines are not supported (a buoy is a "
+                                         "free point with a volume)", source=src, lineno=lt.lineno))
+            continue
         if lt.BA < 0:
             zeta = -lt.BA / _SQRT2
         elif lt.BA > 0:
             seg = {ln.length / ln.segments for ln in model.lines if ln.type == lt.name}
             if max(seg) - min(seg) > 1e-9 * max(seg):
-                raise MoorDynError(
+                problems.append(MoorDynError(
                     f"line type {lt.name!r}: BA = {lt.BA:g} N s with lines of different segment lengths "
                     f"({', '.join(f'{s:g}' for s in sorted(seg))} m); tapm_opt's axial damping is one ratio per line type: "
                     "give the lines the same UnstrLen/NumSegs, or BA as a negative damping ratio", source=src,
-                    lineno=lt.lineno)
+                    lineno=lt.lineno))
+                continue
             l = seg.pop()
             zeta = lt.BA / (_SQRT2 * l * math.sqrt(lt.EA * lt.mass))
         else:
             zeta = 0.0
         if zeta > 1.0:
-            raise MoorDynError(f"line type {lt.name!r}: BA = {lt.BA:g} is {zeta:.3g} of the critical damping of "
-                               "tapm_opt's segment mode; at most 1 (BA = -1.414) is allowed", source=src, lineno=lt.lineno)
-        MBS = float(mbs[lt.name])
+            problems.append(MoorDynError(f"line type {lt.name!r}: BA = {lt.BA:g} is {zeta:.3g} of the critical damping "
+                                         "of tapm_opt's segment mode; at most 1 (BA = -1.414) is allowed", source=src,
+                                         lineno=lt.lineno))
+            continue
+        fm, at = front.types.get(lt.name, ({}, 0))
+        if lt.name in mbs:
+            MBS, MBS_std, said = float(mbs[lt.name]), mbs_cov * float(mbs[lt.name]), "--mbs"
+        else:
+            MBS = fm["MBS"]
+            MBS_std = fm.get("MBS_std", mbs_cov * MBS)
+            said = f"the front matter (line {at})"
+            notes.append(f"line type {lt.name!r}: MBS {MBS:g} N" + (f" and MBS_std {MBS_std:g} N" if "MBS_std" in fm
+                                                                   else "") +
+                         f" from the file's tapm_opt front matter (line {at}); --mbs {lt.name}=NEWTONS overrides")
         item = {
             "id": lt.name, "diameter": lt.d, "mass_per_length": lt.mass, "submerged_weight": w, "EA": lt.EA,
-            "MBS": MBS, "MBS_std": mbs_cov * MBS, "Cd_normal": lt.Cd, "Cd_tangential": math.pi * lt.CdAx,
+            "MBS": MBS, "MBS_std": MBS_std, "Cd_normal": lt.Cd, "Cd_tangential": math.pi * lt.CdAx,
             "Ca_normal": lt.Ca, "Ca_tangential": lt.CaAx, "seabed_friction": mu, "axial_damping_ratio": zeta,
         }
-        if lt.name in model.max_strain:
-            eps, at = model.max_strain[lt.name]
-            item["max_strain"] = eps
-            notes.append(f"line type {lt.name!r}: max_strain {eps:g} from the file's tapm_opt front matter (line {at})")
-        line_types.append(item)
-        comments[("line_types", k)] = [
+        own = _front_type_values(lt, fm, g, rho)
+        if own is not None:
+            item.update(own)
+            if item["submerged_weight"] is None:
+                del item["submerged_weight"]   # the density gives it
+            notes.append(f"line type {lt.name!r}: tapm_opt's own {', '.join(k for k in own if own[k] is not None)} "
+                         f"from the file's front matter (line {at}), which give its MoorDyn row")
+        elif any(k in fm for k in ("d", "Cd_normal")):
+            notes.append(f"line type {lt.name!r}: the front matter's tapm_opt values (line {at}) do not give the "
+                         f"MoorDyn row (line {lt.lineno}), which is read instead")
+        if "max_strain" in fm:
+            item["max_strain"] = fm["max_strain"]
+            notes.append(f"line type {lt.name!r}: max_strain {fm['max_strain']:g} from the file's tapm_opt front matter "
+                         f"(line {at})")
+        comments[("line_types", len(line_types))] = [
             f"MoorDyn {lt.name} ({src}:{lt.lineno}): Diam {lt.d:g} m, Mass/m {lt.mass:g} kg/m, EA {lt.EA:g} N, "
             f"BA {lt.BA:g}, Cd {lt.Cd:g}, Ca {lt.Ca:g}, CdAx {lt.CdAx:g} (on pi d), CaAx {lt.CaAx:g}",
-            f"MBS from --mbs; MBS_std = {mbs_cov:g} x MBS (--mbs-cov)",
+            f"MBS from {said}" + (f"; MBS_std = {mbs_cov:g} x MBS (--mbs-cov)" if said == "--mbs" else ""),
         ]
+        line_types.append(item)
+    # -- points at the joints of composite lines ----------------------------------------------
+    point_types, top_of = _point_types(model, rho, g, notes)
     # -- geometry -------------------------------------------------------------------------
     tur = dict(vessel_data.get("turret", {}))
     p_cot = np.array([float(x) for x in tur.get("position", (0.0, 0.0))], dtype=float)
@@ -1094,46 +1492,50 @@ def scenario_data_from_moordyn(model: MoorDynModel, vessel_data: dict, *, mbs: M
     ca, sa = math.cos(-alpha), math.sin(-alpha)
     tol_z = 1e-6 * max(1.0, depth)
     lines, fair, anchors = [], [], []
-    for ln in model.lines:
-        pa, pb = model.point(ln.a), model.point(ln.b)
-        if pa.kind == "fixed" and pb.kind != "fixed":
-            anc, fl = pa, pb
-        elif pb.kind == "fixed" and pa.kind != "fixed":
-            anc, fl = pb, pa
-            notes.append(f"line {ln.id} runs from the fairlead (end A, point {pa.id}) to the anchor (end B): "
+    for ch in model.chains:
+        anc, fl = model.point(ch.anchor), model.point(ch.fairlead)
+        if len(ch.lines) == 1 and ch.flipped[0]:
+            notes.append(f"line {ch.top.id} runs from the fairlead (end A, point {fl.id}) to the anchor (end B): "
                          "read with its anchor first, as tapm_opt numbers nodes from the anchor")
-        elif pa.kind == "fixed":
-            raise MoorDynError(f"line {ln.id} runs between two fixed points ({pa.id} and {pb.id}); every line must run "
-                               "from a fixed anchor to the vessel", source=src, lineno=ln.lineno)
-        else:
-            raise MoorDynError(f"line {ln.id} runs between two vessel points ({pa.id} and {pb.id}); every line must "
-                               "run from a fixed anchor to the vessel", source=src, lineno=ln.lineno)
+        elif any(ch.flipped):
+            down = [str(ln.id) for ln, f in zip(ch.lines, ch.flipped) if f]
+            notes.append(f"line{'s' * (len(down) > 1)} {', '.join(down)} of composite line {ch.name} run{'s' * (len(down) == 1)} "
+                         "from the upper end (A) down: read from the anchor up, as tapm_opt numbers nodes from the anchor")
         a = ned_from_md(model.global_position(anc))
-        if a[2] > depth + tol_z:
-            raise MoorDynError(f"point {anc.id} (anchor of line {ln.id}) is at z = {-a[2]:g} m, below the seabed at "
-                               f"-{depth:g} m", source=src, lineno=anc.lineno)
         f = ned_from_md(model.global_position(fl))
-        fair.append((fl, ln, f))
+        fair.append((fl, ch, f))
         z_anc = depth if abs(a[2] - depth) <= tol_z else _clean(a[2])  # on the seabed, or above it
-        anchors.append((anc, ln, z_anc))
-        lines.append({"id": str(ln.id), "type": ln.type, "anchor": [_clean(a[0]), _clean(a[1]), _clean(z_anc)],
-                      "length": ln.length, "segments": ln.segments})
+        anchors.append((anc, ch, z_anc))
+        item: dict[str, Any] = {"id": ch.name}
+        if len(ch.lines) == 1:
+            item["type"] = ch.top.type
+        else:
+            item["sections"] = [{"type": ln.type, "length": ln.length, "segments": ln.segments}
+                                | ({"top": top_of[p]} if k < len(ch.lines) - 1 and (p := ch.points[k + 1]) in top_of
+                                   else {}) for k, ln in enumerate(ch.lines)]
+        item["anchor"] = [_clean(a[0]), _clean(a[1]), _clean(z_anc)]
+        if len(ch.lines) == 1:
+            item.update(length=ch.top.length, segments=ch.top.segments)
+        lines.append(item)
     zs = [f[2] for _, _, f in fair]
     if max(zs) - min(zs) > 1e-6:
         hi = max(fair, key=lambda x: x[2][2])
         lo = min(fair, key=lambda x: x[2][2])
-        raise MoorDynError(
-            f"fairlead depths differ: point {lo[0].id} (line {lo[1].id}) is {lo[2][2]:g} m deep, point {hi[0].id} "
-            f"(line {hi[1].id}) {hi[2][2]:g} m; tapm_opt's turret has one fairlead depth", source=src,
-            lineno=hi[0].lineno)
+        problems.append(MoorDynError(
+            f"fairlead depths differ: point {lo[0].id} (line {lo[1].name}) is {lo[2][2]:g} m deep, point {hi[0].id} "
+            f"(line {hi[1].name}) {hi[2][2]:g} m; tapm_opt's turret has one fairlead depth", source=src,
+            lineno=hi[0].lineno))
     fl_depth = _clean(float(np.mean(zs)))
     if fl_depth >= depth:
-        raise MoorDynError(f"the fairleads ({fl_depth:g} m deep) are not above the seabed ({depth:g} m)", source=src)
-    for anc, ln, z_anc in anchors:
+        problems.append(MoorDynError(f"the fairleads ({fl_depth:g} m deep) are not above the seabed ({depth:g} m)",
+                                     source=src))
+    for anc, ch, z_anc in anchors:
         if z_anc <= fl_depth:
-            raise MoorDynError(f"point {anc.id} (anchor of line {ln.id}) is at z = {-z_anc:g} m, not below the fairleads "
-                               f"at -{fl_depth:g} m: an anchor lies on the seabed (-{depth:g} m) or above it, below the "
-                               "fairleads", source=src, lineno=anc.lineno)
+            problems.append(MoorDynError(
+                f"point {anc.id} (anchor of line {ch.name}) is at z = {-z_anc:g} m, not below the fairleads at "
+                f"-{fl_depth:g} m: an anchor lies on the seabed (-{depth:g} m) or above it, below the fairleads",
+                source=src, lineno=anc.lineno))
+    _raise_all(problems, src)
     fair, lines = _recentred(model, fair, lines, p_cot, vessel_data.get("vessel", {}), recentre, notes)
     radii = []
     for (fl, ln, f), item in zip(fair, lines):
@@ -1170,7 +1572,9 @@ def scenario_data_from_moordyn(model: MoorDynModel, vessel_data: dict, *, mbs: M
         notes.append(f"MoorDyn has no turret: its fairleads on the vessel are fixed to the hull. They lie {where}; "
                      f"{how} (--turret {other} for the other; the vessel scenario's turret is {vessel_mode})")
     tur["fairlead_depth"] = fl_depth
-    order = ("id", "type", "anchor", "fairlead_angle_deg", "fairlead_radius", "length", "segments")
+    _front_lines(model, lines, notes)
+    order = ("id", "type", "sections", "anchor", "fairlead_angle_deg", "fairlead_radius", "length", "segments",
+             "winch_max_rate", "min_length", "max_length")
     lines = [{k: it[k] for k in order if k in it} for it in lines]
     # -- the rest from the vessel -----------------------------------------------------------
     data = {k: v for k, v in vessel_data.items()}
@@ -1201,6 +1605,9 @@ def scenario_data_from_moordyn(model: MoorDynModel, vessel_data: dict, *, mbs: M
     data["turret"] = tur
     data["line_types"] = line_types
     data["lines"] = lines
+    data.pop("point_types", None)
+    if point_types:
+        data["point_types"] = point_types
     ids = {it["id"] for it in lines}
     faults = []
     for f in vessel_data.get("faults", []):
@@ -1217,9 +1624,126 @@ def scenario_data_from_moordyn(model: MoorDynModel, vessel_data: dict, *, mbs: M
         notes.append(f"line type{'s' if len(unused) > 1 else ''} {', '.join(map(repr, unused))} used by no line: "
                      "left out")
     # keep the table order of the schema
-    keys = ["meta", "environment", "vessel", "turret", "line_types", "lines"]
+    keys = ["meta", "environment", "vessel", "turret", "line_types", "lines", "point_types"]
     data = {k: data[k] for k in keys if k in data} | {k: v for k, v in data.items() if k not in keys}
     return data, notes, comments
+
+
+def _front_type_values(lt: MDLineType, fm: Mapping[str, float], g: float, rho: float) -> dict[str, float] | None:
+    """tapm_opt's own values of a line type from the front matter written by :func:`moordyn_text`
+    (hydrodynamic diameter, coefficients on it, damping ratio, density or submerged weight), if
+    they give the file's MoorDyn row (to 1e-9); None otherwise (an edited file: the row is read)."""
+    need = ("d", "Cd_normal", "Cd_tangential", "Ca_normal", "Ca_tangential", "axial_damping_ratio")
+    if not all(k in fm for k in need) or not ("w" in fm or "density" in fm):
+        return None
+    dens = fm.get("density")
+    own = {"diameter": fm["d"], "Cd_normal": fm["Cd_normal"], "Cd_tangential": fm["Cd_tangential"],
+           "Ca_normal": fm["Ca_normal"], "Ca_tangential": fm["Ca_tangential"],
+           "axial_damping_ratio": fm["axial_damping_ratio"]}
+    try:
+        t = LineType(id=lt.name, mass_per_length=lt.mass, EA=lt.EA, MBS=1.0, MBS_std=0.0, density=dens,
+                     submerged_weight=None if dens is not None else fm["w"], **own)
+        md = moordyn_line_type(t, SimpleNamespace(gravity=g, water_density=rho))
+    except (MoorDynError, ValueError, ZeroDivisionError):
+        return None
+    row = {"d": lt.d, "mass": lt.mass, "EA": lt.EA, "BA": lt.BA, "Cd": lt.Cd, "Ca": lt.Ca, "CdAx": lt.CdAx,
+           "CaAx": lt.CaAx}
+    if not all(math.isclose(md[k], v, rel_tol=1e-9, abs_tol=1e-12) for k, v in row.items()):
+        return None
+    if dens is not None:
+        own["density"] = dens
+        own["submerged_weight"] = None   # given by the density instead
+    else:
+        own["submerged_weight"] = fm["w"]   # as the scenario gives it, not its MoorDyn round-off
+    return own
+
+
+def _point_types(model: MoorDynModel, rho: float, g: float, notes: list[str]) -> tuple[list[dict], dict[int, str]]:
+    """Point types of the free points at the joints of composite lines that carry something (mass,
+    volume, drag or added mass), one per distinct row (and front-matter id), and each such point's
+    point type id. Named by the front matter written by :func:`moordyn_text`, else
+    ``clump``/``buoy``/``point`` + the first point's number (net weight down, up or none)."""
+    out: list[dict] = []
+    top_of: dict[int, str] = {}
+    seen: dict[tuple, str] = {}
+    taken: set[str] = set()
+    for ch in model.chains:
+        for pid in ch.joints:
+            p = model.point(pid)
+            if not any(p.carries):
+                continue
+            named = model.front.points.get(pid, (None, 0))[0]
+            key = (named, p.carries)
+            if key not in seen:
+                pt_id = named
+                if pt_id is None or pt_id in taken:
+                    W = (p.mass - rho * p.volume) * g
+                    base = "clump" if W > 0 else "buoy" if W < 0 else "point"
+                    pt_id, k = f"{base}{pid}", 1
+                    while pt_id in taken:
+                        k += 1
+                        pt_id = f"{base}{pid}_{k}"
+                seen[key] = pt_id
+                taken.add(pt_id)
+                out.append({"id": pt_id, "mass": p.mass, "volume": p.volume, "CdA": p.CdA, "Ca": p.Ca})
+            top_of[pid] = seen[key]
+    if out:
+        notes.append("free points with a mass, volume, drag or added mass become point types at the joints of "
+                     "composite lines: " + "; ".join(
+                         f"{pt['id']} (point{'s' * (n > 1)} {', '.join(str(q) for q, t in top_of.items() if t == pt['id'])}"
+                         f"; net weight {(pt['mass'] - rho * pt['volume']) * g:.4g} N)"
+                         for pt in out if (n := sum(t == pt['id'] for t in top_of.values()))))
+    return out, top_of
+
+
+def _front_lines(model: MoorDynModel, lines: list[dict], notes: list[str]) -> None:
+    """tapm_opt's own fields of each line from the front matter written by :func:`moordyn_text`
+    (id, fairlead angle and radius to the file's precision, winch, segments shared among the
+    sections), where its row names the same MoorDyn lines; in place."""
+    rows = []
+    for ch, item in zip(model.chains, lines):
+        got = model.front.lines.get(ch.top.id)
+        if got is None:
+            continue
+        fm, at = got
+        if list(fm.get("moordyn_lines", [ch.top.id])) != [ln.id for ln in ch.lines]:
+            notes.append(f"the front matter's line {fm.get('id')!r} (line {at}) names MoorDyn lines "
+                         f"{fm.get('moordyn_lines')}, not {ch.said()}: not used")
+            continue
+        rows.append((ch, item, fm, at))
+    new_ids = [fm["id"] for _, _, fm, _ in rows]
+    ids_ok = len(set(new_ids)) == len(new_ids) and not (set(new_ids) & {it["id"] for it in lines} - set(
+        it["id"] for _, it, _, _ in rows))
+    for ch, item, fm, _ in rows:
+        if ids_ok:
+            item["id"] = fm["id"]
+        for key, tol in (("fairlead_angle_deg", 1e-6), ("fairlead_radius", 1e-6)):
+            v = fm.get(key)
+            if isinstance(v, (int, float)) and key in item:
+                d = float(v) - float(item[key])
+                if key == "fairlead_angle_deg":
+                    d = (d + 180.0) % 360.0 - 180.0
+                if abs(d) <= tol:
+                    item[key] = float(v)
+        for key in ("winch_max_rate", "min_length", "max_length"):
+            if isinstance(fm.get(key), (int, float)):
+                item[key] = float(fm[key])
+        shared = fm.get("shared_segments", [])
+        if "sections" in item and isinstance(fm.get("segments"), int) and isinstance(shared, list):
+            secs = tuple(Section(type=s["type"], length=s["length"], top=s.get("top"),
+                                 segments=None if k in shared else s["segments"])
+                         for k, s in enumerate(item["sections"]))
+            ln = Line(id="x", sections=secs, segments=fm["segments"], anchor=(0.0, 0.0), fairlead_angle=0.0)
+            if list(ln.section_segments()) == [s["segments"] for s in item["sections"]]:
+                if shared or fm["segments"] != sum(s["segments"] for s in item["sections"]):
+                    item["segments"] = fm["segments"]   # (all sections giving theirs, the sum is the default)
+                for k, sec in enumerate(item["sections"]):
+                    if k in shared:
+                        sec.pop("segments")
+    if rows:
+        notes.append(f"line{'s' * (len(rows) > 1)} {', '.join(str(it['id']) for _, it, _, _ in rows)}: tapm_opt's own "
+                     "ids, fairlead angles, winches and segment counts from the file's front matter (lines "
+                     f"{rows[0][3]}-{rows[-1][3]})")
 
 
 #: tapm_opt's line-type fields as the MoorDyn columns they come from: (column, tapm_opt value -> file value).
@@ -1233,18 +1757,32 @@ _MD_COLUMNS: dict[str, tuple[str, Any]] = {
 def problem_in_file_terms(issue: Any, model: MoorDynModel, data: Mapping[str, Any]) -> str:
     """A scenario problem of an imported field said in the MoorDyn file's own terms: the line
     type or line, the file's line number and column, then tapm_opt's field and reason."""
-    m = re.fullmatch(r"(line_types|lines)\[(\d+)\]\.(\w+)", str(issue.path))
+    m = re.fullmatch(r"(line_types|lines|point_types)\[(\d+)\](?:\.sections\[(\d+)\])?\.(\w+)", str(issue.path))
     if not m:
         return str(issue)
-    table, k, field_name = m.group(1), int(m.group(2)), m.group(3)
+    table, k, sec, field_name = m.group(1), int(m.group(2)), m.group(3), m.group(4)
     try:
         item = data[table][k]
     except (KeyError, IndexError, TypeError):
         return str(issue)
     if table == "lines":
-        ln = next((x for x in model.lines if str(x.id) == str(item.get("id"))), None)
-        where = f"line {item.get('id')}" + (f" (file line {ln.lineno})" if ln is not None and hasattr(ln, "lineno") else "")
+        ch = model.chains[k] if k < len(model.chains) else None
+        if ch is not None and sec is not None and int(sec) < len(ch.lines):
+            ln = ch.lines[int(sec)]
+            return (f"line {item.get('id')}, section {sec} (MoorDyn line {ln.id}, file line {ln.lineno}): {field_name} "
+                    f"{issue.message}")
+        where = f"line {item.get('id')}" + (f" (file line{'s' * (len(ch.lines) > 1)} "
+                                             f"{', '.join(str(x.lineno) for x in ch.lines)})" if ch is not None else "")
         return f"{where}: {field_name} {issue.message}"
+    if table == "point_types":
+        pts = [model.point(pid) for c in model.chains for pid in c.joints
+               if model.point(pid).carries == (item.get("mass"), item.get("volume"), item.get("CdA"), item.get("Ca"))]
+        col = {"mass": "Mass", "volume": "Volume", "CdA": "CdA", "Ca": "Ca"}.get(field_name, field_name)
+        where = f"point type {item.get('id')!r}" + (
+            f" (point{'s' * (len(pts) > 1)} {', '.join(str(p.id) for p in pts)}, file line {pts[0].lineno})" if pts else "")
+        v = item.get(field_name)
+        return f"{where}: {col} = {v:g} gives tapm_opt's {field_name} {issue.message}" if isinstance(
+            v, (int, float)) else f"{where}: {field_name} {issue.message}"
     name = str(item.get("id"))
     lt = next((x for x in model.line_types if x.name == name), None)
     col, back = _MD_COLUMNS.get(field_name, (None, None))

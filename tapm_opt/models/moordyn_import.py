@@ -20,9 +20,11 @@ from ..config.moordyn import (RECENTRE_CHOICES, RISER_CHOICES, TURRET_CHOICES, I
                               MoorDynModel, problem_in_file_terms, read_moordyn, scenario_data_from_moordyn,
                               scenario_toml, vessel_data_of)
 from ..errors import ScenarioError
+from ..geometry import fairleads_B
+from . import composite as _composite
 from .mooring import MooringModel
 
-__all__ = ["import_moordyn", "bending_notes", "BENDING_NEGLIGIBLE"]
+__all__ = ["import_moordyn", "bending_notes", "BENDING_NEGLIGIBLE", "composite_joints", "export_moordyn"]
 
 
 #: Bending stiffness is neglected where ``EI / (H l^2)`` is at most this (H the line's horizontal
@@ -42,13 +44,18 @@ def bending_notes(model: MoorDynModel, sc: Any) -> list[str]:
     H = np.atleast_1d(np.asarray(sol.HF, dtype=float))
     worst: dict[str, tuple[float, str]] = {}
     for k, ln in enumerate(sc.lines):
-        lt = stiff.get(str(ln.type))
-        if lt is None:
-            continue
-        seg = ln.length / ln.segments
-        ratio = lt.EI / (H[k] * seg * seg) if H[k] > 0 else math.inf
-        if ratio > worst.get(lt.name, (-1.0, ""))[0]:
-            worst[lt.name] = (ratio, str(ln.id))
+        # every section (a MoorDyn line): the horizontal tension is the line's, the same in all
+        # its suspended sections (the points between them carry vertical loads only)
+        chain = model.chains[k] if k < len(model.chains) else None
+        for j, (sec, nseg) in enumerate(zip(ln.parts, ln.section_segments())):
+            lt = stiff.get(str(sec.type))
+            if lt is None:
+                continue
+            seg = sec.length / nseg
+            ratio = lt.EI / (H[k] * seg * seg) if H[k] > 0 else math.inf
+            name = str(chain.lines[j].id) if chain is not None and len(chain.lines) == len(ln.parts) else str(ln.id)
+            if ratio > worst.get(lt.name, (-1.0, ""))[0]:
+                worst[lt.name] = (ratio, name)
     notes, bad = [], []
     for name, (ratio, lid) in worst.items():
         lt = stiff[name]
@@ -67,14 +74,18 @@ def bending_notes(model: MoorDynModel, sc: Any) -> list[str]:
 
 
 
-def import_moordyn(path: str | Path, vessel: str | Path, *, mbs: Mapping[str, float], mbs_cov: float = 0.05,
+def import_moordyn(path: str | Path, vessel: str | Path, *, mbs: Mapping[str, float] | None = None,
+                   mbs_cov: float = 0.05,
                    name: str | None = None, riser: str = "auto", turret: str = "auto",
                    recentre: str = "auto") -> ImportResult:
     """A scenario from a MoorDyn v2 file and a vessel scenario.
 
     From the MoorDyn file: line types, lines (length, segments), anchors, fairleads, water depth,
     water density and gravity (``g``, default 9.80665 as MoorDyn-C; ``rho`` or ``WtrDnsty``, or
-    MoorDyn-F's ``rhoW``), seabed friction. From ``vessel`` (built-in name or TOML path):
+    MoorDyn-F's ``rhoW``), seabed friction. Lines joined in series by free points, from a fixed
+    point up to the vessel, become one composite line (its sections from the anchor up); a free
+    point with a mass, volume, drag or added mass becomes a point type (clump weight or buoy) at
+    its joint. From ``vessel`` (built-in name or TOML path):
     everything else (vessel, turret position, mode and angle, thrusters, sea states, riser,
     faults of lines that exist, sensors, limits, plant settings).
 
@@ -83,7 +94,9 @@ def import_moordyn(path: str | Path, vessel: str | Path, *, mbs: Mapping[str, fl
     point) lies on the seabed or above it, below the fairleads (a raised anchor keeps its z; one
     below the seabed or not below the fairleads is refused). MoorDyn files carry
     no breaking strength: ``mbs`` maps every used line type to its MBS [N]; ``MBS_std`` is
-    ``mbs_cov`` times it.
+    ``mbs_cov`` times it. A file written by ``tapm scenario export-moordyn`` gives its line types'
+    MBS and MBS_std (and tapm_opt's own values of what MoorDyn has no column for) in its front
+    matter, so ``mbs`` may leave them out.
 
     ``riser`` says what becomes of the vessel scenario's riser in the file's water depth (one of
     :data:`~tapm_opt.config.moordyn.RISER_CHOICES`; docs/moordyn.md, "The riser"):
@@ -113,7 +126,7 @@ def import_moordyn(path: str | Path, vessel: str | Path, *, mbs: Mapping[str, fl
         raise MoorDynError(f"recentre = {recentre!r} must be one of {', '.join(RECENTRE_CHOICES)}")
     model = read_moordyn(path)
     vdata, vname = vessel_data_of(vessel)
-    data, notes, comments = scenario_data_from_moordyn(model, vdata, mbs=mbs, mbs_cov=mbs_cov, name=name,
+    data, notes, comments = scenario_data_from_moordyn(model, vdata, mbs=mbs or {}, mbs_cov=mbs_cov, name=name,
                                                        vessel_name=vname, riser=riser, turret=turret,
                                                        recentre=recentre)
     try:
@@ -132,3 +145,39 @@ def import_moordyn(path: str | Path, vessel: str | Path, *, mbs: Mapping[str, fl
     ]
     return ImportResult(scenario=sc, data=data, toml=scenario_toml(data, header=header, comments=comments),
                         notes=tuple(notes))
+
+
+def composite_joints(sc: Any) -> dict[int, np.ndarray]:
+    """Quasi-static equilibrium positions in {E} (NED) [m] of the joints of every composite line
+    at the field zero point: line index -> array (sections - 1, 3) from the anchor up
+    (:func:`tapm_opt.models.composite.points`), where :func:`~tapm_opt.config.moordyn.moordyn_text`
+    starts MoorDyn's free points."""
+    model = MooringModel.from_scenario(sc)
+    if not model.has_composite:
+        return {}
+    fx, fy = fairleads_B(sc.turret.position, sc.fairleads_T, sc.turret.angle)
+    depth = sc.environment.water_depth
+    out = {}
+    for i, c in enumerate(model.composite):
+        if c is None:
+            continue
+        a = np.asarray(sc.anchors[i], dtype=float)
+        d = np.array([float(fx[i]) - a[0], float(fy[i]) - a[1]])
+        XF = float(np.hypot(*d))
+        u = d / XF if XF > 0 else np.array([1.0, 0.0])
+        px, pz = _composite.points(XF, float(model.ZF[i]), c, h_A=float(model.h_A[i]))
+        px, pz = np.ravel(px), np.ravel(pz)
+        out[i] = np.column_stack([a[0] + px * u[0], a[1] + px * u[1], depth - pz])
+    return out
+
+
+def export_moordyn(scenario: Any, path: str | Path, **kwargs: Any):
+    """:func:`tapm_opt.config.moordyn.export_moordyn` with the free points of composite lines
+    started at their quasi-static equilibrium (:func:`composite_joints`), so that MoorDyn's
+    initial-condition solver starts at the answer; the same file otherwise."""
+    from ..config import load_scenario
+    from ..config.moordyn import export_moordyn as _export
+
+    sc = scenario if not isinstance(scenario, (str, Path)) else load_scenario(scenario)
+    kwargs.setdefault("joints", composite_joints(sc))
+    return _export(sc, path, **kwargs)
