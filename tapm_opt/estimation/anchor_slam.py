@@ -167,21 +167,10 @@ class TensionRangeMap:
         ZF, L, EA, w, CB, hA = self._par
         X = np.asarray(X, dtype=float)
         shape = X.shape
-        if self.model.has_composite:  # line by line through the model's one solver of each line
+        if self.model.has_composite:  # through the model's one solver of each line
             li = (np.broadcast_to(np.arange(len(ZF)).reshape((-1,) + (1,) * (X.ndim - 1)), shape) if idx is None
                   else np.broadcast_to(idx, shape))
-            Xf, lf = np.maximum(X, 0.0).ravel(), li.ravel()
-            names = ("HF", "VF", "HA", "VA", "TF", "TA", "LBot", "regime", "dHF_dXF", "dHF_dZF", "dVF_dXF",
-                     "dVF_dZF")
-            out = {k: np.zeros(Xf.size, dtype=np.int64 if k == "regime" else float) for k in names}
-            it = 0
-            for i in np.unique(lf):
-                m = lf == i
-                sol = self.model.line_solver(int(i))(Xf[m])
-                it = max(it, sol.iterations)
-                for k in names:
-                    out[k][m] = getattr(sol, k)
-            return catenary.CatenarySolution(iterations=it, **{k: v.reshape(shape) for k, v in out.items()})
+            return self.model.solve_at(np.maximum(X, 0.0), li)
         if idx is None:
             pars = [np.broadcast_to(p.reshape((-1,) + (1,) * (X.ndim - 1)) if X.ndim > 1 else p, shape)
                     for p in (ZF, L, EA, w, CB, hA)]

@@ -236,6 +236,29 @@ def _kernels():
     return _KERNELS
 
 
+def _adaptive_source(solve, a: float, b: float, T_ref: float):
+    """``x -> (TF, dTF/dXF)`` of a line from an adaptive Hermite table over [a, b] checked to 1e-9
+    (:func:`tapm_opt.models.characteristics._line_table`), the exact solve where it is not usable."""
+    from types import SimpleNamespace
+
+    from ..models.characteristics import _hermite, _hermite_slope, _line_table
+
+    tb = _line_table(solve, a, b, rtol=1e-9, H_ref=T_ref)
+
+    def tf(x):
+        x = np.asarray(x, dtype=float)
+        j = np.clip(np.searchsorted(tb.X, x, side="right") - 1, 0, tb.X.size - 2)
+        T = _hermite(tb.X[j], tb.X[j + 1], tb.T[j], tb.T[j + 1], tb.KT[j], tb.KT[j + 1], x)
+        K = _hermite_slope(tb.X[j], tb.X[j + 1], tb.T[j], tb.T[j + 1], tb.KT[j], tb.KT[j + 1], x)
+        bad = ~tb.ok[j] | (x < tb.X[0]) | (x > tb.X[-1])
+        if np.any(bad):
+            ex = solve(x[bad])
+            T[bad], K[bad] = ex.TF, ex.dTF_dXF
+        return SimpleNamespace(TF=T, dTF_dXF=K)
+
+    return tf
+
+
 class _TensionTable:
     """Fairlead tensions ``TF`` [N] of a model's lines at a pose, from tabulated characteristics.
 
@@ -283,7 +306,14 @@ class _TensionTable:
                 if not math.isfinite(EA):
                     b = min(b, math.sqrt(max(L * L - ZF * ZF, 0.0)) * (1.0 - 1e-9))
                 T_ref = float(np.max(T0[mine])) or w * L or 1.0
-                tables[tkey] = self._table(model.line_solver(int(np.argmax(mine))), a, b, rtol, T_ref)
+                i0 = int(np.argmax(mine))
+                src = model.line_solver(i0)
+                if model.composite and model.composite[i0] is not None:
+                    # a composite line's TF(XF) has kinks where a joint meets the seabed, which a
+                    # uniform grid resolves only with many nodes: read those from the adaptive
+                    # table of the load evaluator (node pairs at every regime change, 1e-9)
+                    src = _adaptive_source(src, a, b, T_ref)
+                tables[tkey] = self._table(src, a, b, rtol, T_ref)
             x0, dx, T, K = tables[tkey]
             geo[mine, 4:8] = (x0, dx, start, T.size - 1)
             parts.append(np.column_stack([T, K]))

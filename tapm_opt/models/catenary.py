@@ -347,9 +347,14 @@ def _initial_guess(XF, ZF, L, EA, w):
     return HF, VF
 
 
-def _newton(XF, ZF, L, EA, w, CB, h_A, *, tol, max_iter):
-    """Damped Newton on (HF, VF) for the general (non-degenerate) configurations."""
+def _newton(XF, ZF, L, EA, w, CB, h_A, *, tol, max_iter, guess=None):
+    """Damped Newton on (HF, VF) for the general (non-degenerate) configurations, from ``guess``
+    (HF, VF) where it is positive and finite, else from :func:`_initial_guess`."""
     HF, VF = _initial_guess(XF, ZF, L, EA, w)
+    if guess is not None:
+        g_H, g_V = guess
+        use = np.isfinite(g_H) & np.isfinite(g_V) & (g_H > 0) & (g_V > 0)
+        HF, VF = np.where(use, g_H, HF), np.where(use, g_V, VF)
     it = 0
     with np.errstate(all="ignore"):
         X, Z = closure(HF, VF, L, EA, w, CB, h_A)
@@ -357,6 +362,8 @@ def _newton(XF, ZF, L, EA, w, CB, h_A, *, tol, max_iter):
         err = np.abs(rX) + np.abs(rZ)
         for it in range(1, max_iter + 1):
             active = err > tol
+            if it == 1 and guess is not None:  # from a nearby solution: one step anyway, to full precision
+                active = err > 0
             if not np.any(active):
                 it -= 1
                 break
@@ -410,7 +417,8 @@ def _fallback(XF, ZF, L, EA, w, CB, h_A, HF, VF, tol):
     return best
 
 
-def solve(XF, ZF, L, EA, w, *, CB=0.0, h_A=0.0, tol: float = 1e-9, max_iter: int = 60) -> CatenarySolution:
+def solve(XF, ZF, L, EA, w, *, CB=0.0, h_A=0.0, tol: float = 1e-9, max_iter: int = 60,
+          guess=None) -> CatenarySolution:
     """Solve the elastic catenary for arrays of line configurations at once.
 
     Parameters
@@ -434,6 +442,10 @@ def solve(XF, ZF, L, EA, w, *, CB=0.0, h_A=0.0, tol: float = 1e-9, max_iter: int
         Closure tolerance [m]: the spans reproduce ``XF`` and ``ZF`` to within ``tol``.
     max_iter : int, optional
         Newton iteration limit before the per-configuration fallback.
+    guess : (HF, VF), optional
+        Starting tensions [N] for the Newton iteration (arrays of the input shape, e.g. a nearby
+        solution); entries that are not positive and finite use the usual start. The answer does
+        not depend on it beyond the tolerance.
 
     Returns
     -------
@@ -527,7 +539,10 @@ def solve(XF, ZF, L, EA, w, *, CB=0.0, h_A=0.0, tol: float = 1e-9, max_iter: int
     g = np.flatnonzero(regime < 0)
     if g.size:
         args = (XF[g], ZF[g], L[g], EA[g], w[g], CB[g], hA[g])
-        HF, VF, err, iterations = _newton(*args, tol=tol, max_iter=max_iter)
+        gs = None
+        if guess is not None:
+            gs = tuple(np.broadcast_to(np.asarray(a, dtype=float), shape).ravel()[g] for a in guess)
+        HF, VF, err, iterations = _newton(*args, tol=tol, max_iter=max_iter, guess=gs)
         bad = np.flatnonzero(~(err <= tol) | ~np.isfinite(HF) | ~np.isfinite(VF))
         for j in bad:
             h, v, r = _fallback(*(a[j] for a in args), HF[j], VF[j], tol)
@@ -577,10 +592,10 @@ def _hanging_piece(H, V0, sig, w, EA):
     hV, h0 = np.hypot(H, V), np.hypot(H, V0)
     same = V * V0 >= 0
     den = np.where(same, V * h0 + V0 * hV, 1.0)  # 0 only where V = V0 = 0, i.e. sig = 0
-    with np.errstate(invalid="ignore", divide="ignore"):
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         dS = np.where(same, np.where(den != 0, np.arcsinh(w * sig * (V + V0) / np.where(den != 0, den, 1.0)), 0.0),
                       np.arcsinh(V / H) - np.arcsinh(V0 / H))
-        dx = np.where(H > 0, H / w * dS, 0.0) + H * sig / EA
+        dx = np.where((H > 0) & (dS != 0), H / w * dS, 0.0) + H * sig / EA  # no 0 x inf for a tiny w
         dz = np.where(hV + h0 > 0, sig * (V + V0) / np.where(hV + h0 > 0, hV + h0, 1.0), 0.0)
     dz = dz + (V0 * sig + 0.5 * w * sig**2) / EA
     return dx, dz, hV
@@ -676,8 +691,14 @@ def symbolic_function(*, abstol: float = 1e-10, max_iter: int = 50) -> ca.Functi
     ``closure_error`` [m] is the largest span error of the returned tensions, recomputed from the
     closure equations (``inf`` if they are not finite). CasADi's rootfinder does not always report a
     failed solve, so **a caller must check it** (e.g. ``closure_error < 1e-6``); a poor guess can
-    leave Newton far from the root. Valid in the regular regimes (touching down and fully
-    suspended, HF > 0, w > 0); slack, vertical, seabed and weightless lines need :func:`solve`.
+    leave Newton far from the root.
+
+    Every regime of :func:`solve` is covered: the regular ones (touching down and fully
+    suspended) by the root, the degenerate ones by the same closed forms as :func:`solve`
+    (module docstring), chosen from the inputs and evaluated instead of the root (a short-circuit
+    switch, so the root is not attempted where it does not exist): weightless (``w = 0``), slack
+    (``L - L1 - L2 >= XF``), vertical (``XF = 0``) and both ends on the seabed (``ZF = 0``,
+    ``h_A = 0``). Their ``closure_error`` is 0; their derivatives are those of the closed forms.
 
     Inputs and outputs are scalars; use ``Function.map`` for several lines. At ``h_A = 0`` the
     derivative with respect to ``h_A`` is that of the anchored branch (0), not the one-sided limit
@@ -701,6 +722,51 @@ def symbolic_function(*, abstol: float = 1e-10, max_iter: int = 50) -> ca.Functi
     Xc, Zc = closure(HF, VF, *syms[2:7])
     err = ca.fmax(ca.fabs(Xc - syms[0]), ca.fabs(Zc - syms[1]))
     err = ca.if_else(err <= 1e300, err, ca.inf)  # NaN compares false: reported as inf
-    fn = ca.Function("catenary", syms, [HF, VF, err], names, ["HF", "VF", "closure_error"])
+    root = ca.Function("catenary_root", syms, [ca.vertcat(HF, VF, err)])
+    degenerate = _symbolic_degenerate()
+    XF, ZF, L, EA, w, CB, h_A = syms[:7]
+    code, closed = degenerate(XF, ZF, L, EA, w, CB, h_A)
+    out = ca.if_else(code > 0, closed, root(*syms), True)
+    fn = ca.Function("catenary", syms, [out[0], out[1], out[2]], names, ["HF", "VF", "closure_error"])
     _SYMBOLIC_CACHE[key] = fn
+    return fn
+
+
+def _symbolic_degenerate() -> ca.Function:
+    """CasADi Function ``(XF, ZF, L, EA, w, CB, h_A) -> (code, [HF, VF, 0])``: ``code`` > 0 where
+    :func:`solve` uses a closed form (1 weightless, 2 slack, 3 vertical, 4 both ends on the
+    seabed; 0: the regular root), and that closed form's tensions (the same formulas as
+    :func:`solve`; finite everywhere so that a switch on ``code`` keeps derivatives clean)."""
+    if "degenerate" in _SYMBOLIC_CACHE:
+        return _SYMBOLIC_CACHE["degenerate"]
+    XF, ZF, L, EA, w, CB, h_A = (ca.SX.sym(n) for n in ("XF", "ZF", "L", "EA", "w", "CB", "h_A"))
+    d = ca.sqrt(XF * XF + ZF * ZF)
+    dd = ca.if_else(d > 0, d, 1.0)
+    # weightless straight bar
+    T0 = EA * ca.fmax(d / L - 1.0, 0.0)
+    H_wl, V_wl = T0 * XF / dd, T0 * ZF / dd
+
+    def hang(z):  # hanging_length, written for SX
+        return 2.0 * z / (1.0 + ca.sqrt(1.0 + 2.0 * w * z / EA))
+
+    L1, L2 = hang(h_A), hang(ZF + h_A)
+    slack = ca.logic_and(L1 + L2 <= L, L - L1 - L2 >= XF)
+    # vertical: taut, or hanging doubled from an elevated lower end
+    kw = 1.0 + 0.5 * w * L / EA
+    taut = ZF >= L * kw
+    V_vert = ca.if_else(taut, EA * (ZF - L) / L + 0.5 * w * L, 0.5 * w * (L + ZF / kw))
+    # both ends on the seabed, stretched: friction over part or all of the line
+    cbw = CB * w
+    stretch = ca.fmax(XF - L, 0.0)
+    H_part = ca.sqrt(2.0 * EA * ca.fmax(cbw, 1e-300) * stretch)
+    part = ca.logic_and(cbw > 0, H_part < cbw * L)
+    H_full = (stretch + cbw * L * L / (2.0 * EA)) * EA / L
+    H_bed = ca.if_else(part, H_part, H_full)
+    wz = w == 0
+    code = ca.if_else(wz, 1, ca.if_else(slack, 2, ca.if_else(XF <= 1e-12 * L, 3,
+                      ca.if_else(ca.logic_and(ZF <= 0, h_A <= 0), 4, 0))))
+    H = ca.if_else(wz, H_wl, ca.if_else(slack, 0.0, ca.if_else(code == 3, 0.0, H_bed)))
+    V = ca.if_else(wz, V_wl, ca.if_else(slack, w * L2, ca.if_else(code == 3, V_vert, 0.0)))
+    fn = ca.Function("catenary_degenerate", [XF, ZF, L, EA, w, CB, h_A], [code, ca.vertcat(H, V, 0.0)])
+    _SYMBOLIC_CACHE["degenerate"] = fn
     return fn

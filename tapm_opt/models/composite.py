@@ -99,7 +99,7 @@ class CompositeLine:
 # ------------------------------------------------------------------------------------------
 
 
-def _section(xlo, zlo, xhi, zhi, L, EA, w, CB):
+def _section(xlo, zlo, xhi, zhi, L, EA, w, CB, guess=None):
     """Forces of sections on their ends and their derivatives, vectorised (flat arrays).
 
     Returns F_lo, F_hi (m, 2) — the section's force on its lower-index and upper-index end, (x, z)
@@ -112,7 +112,7 @@ def _section(xlo, zlo, xhi, zhi, L, EA, w, CB):
     s = np.where(dx >= 0, 1.0, -1.0)
     X, Z = np.abs(dx), zU - zA
     h = np.maximum(zA, 0.0)
-    sol = catenary.solve(X, Z, L, EA, w, CB=CB, h_A=h)
+    sol = catenary.solve(X, Z, L, EA, w, CB=CB, h_A=h, guess=guess)
     HF, VF, HA, VA = sol.HF, sol.VF, sol.HA, sol.VA
     dHX, dHZ, dVX = sol.dHF_dXF, sol.dHF_dZF, sol.dVF_dXF
     dVZ = np.where(np.isfinite(sol.dVF_dZF), sol.dVF_dZF, _BIG_STIFFNESS)
@@ -202,14 +202,15 @@ def _nodes(y, XF, D, hA):
     return x, z
 
 
-def _evaluate(y, XF, D, hA, line: CompositeLine):
-    """Residuals (m, 2 np), Jacobian (m, 2 np, 2 np), section solutions and end forces."""
+def _evaluate(y, XF, D, hA, line: CompositeLine, guess=None):
+    """Residuals (m, 2 np), Jacobian (m, 2 np, 2 np), section solutions and end forces; ``guess``
+    (HF, VF) of the sections (m n,) starts their catenary solves (e.g. the previous iterate's)."""
     m = y.shape[0]
     n = line.n_sections
     x, z = _nodes(y, XF, D, hA)
     rep = (lambda a: np.broadcast_to(a, (m, n)).ravel())
     F_lo, F_hi, J_lo, J_hi, sol = _section(x[:, :-1].ravel(), z[:, :-1].ravel(), x[:, 1:].ravel(), z[:, 1:].ravel(),
-                                           rep(line.L), rep(line.EA), rep(line.w), rep(line.CB))
+                                           rep(line.L), rep(line.EA), rep(line.w), rep(line.CB), guess=guess)
     F_lo = F_lo.reshape(m, n, 2)
     F_hi = F_hi.reshape(m, n, 2)
     J_lo = J_lo.reshape(m, n, 2, 4)
@@ -290,7 +291,9 @@ def _newton(XF, D, hA, line: CompositeLine, *, rtol: float, max_iter: int, y0=No
             Jm[ii[0], ii[1], ii[1]] = 1.0
         return Rm, Jm
 
-    R, J, *_ = _evaluate(y, XF, D, hA, line)
+    n = line.n_sections
+    R, J, sol, *_ = _evaluate(y, XF, D, hA, line)
+    gH, gV = sol.HF.reshape(m, n).copy(), sol.VF.reshape(m, n).copy()  # warm starts of the sections
     Rm, Jm = contact_masked(y, R, J)
     err = np.max(np.abs(Rm), axis=1)
     it = 0
@@ -320,7 +323,7 @@ def _newton(XF, D, hA, line: CompositeLine, *, rtol: float, max_iter: int, y0=No
         for _ in range(12):
             yn = ya + step * dy
             yn[:, zc] = np.maximum(yn[:, zc], 0.0)
-            Rn, Jn, *_ = _evaluate(yn, XF[a], D[a], hA[a], line)
+            Rn, Jn, sn, *_ = _evaluate(yn, XF[a], D[a], hA[a], line, guess=(gH[a].ravel(), gV[a].ravel()))
             Rnm, Jnm = contact_masked(yn, Rn, Jn)
             en = np.max(np.abs(Rnm), axis=1)
             ok = en < err[a] * (1.0 - 1e-4 * step[:, 0]) + 1e-300
@@ -330,6 +333,8 @@ def _newton(XF, D, hA, line: CompositeLine, *, rtol: float, max_iter: int, y0=No
         take = ok | (step[:, 0] <= 2.0 ** -11)  # a tiny step is taken anyway (leaves a stall)
         idx = a[take]
         y[idx] = yn[take]
+        gH[idx] = sn.HF.reshape(-1, n)[take]
+        gV[idx] = sn.VF.reshape(-1, n)[take]
         Rm[idx], Jm[idx], err[idx] = Rnm[take], Jnm[take], en[take]
     return y, err, tol, it
 
@@ -409,7 +414,10 @@ def solve(XF, ZF, line: CompositeLine, *, h_A=0.0, rtol: float = 1e-10, max_iter
     dR_q[:, -2:, :] = J_lo[:, -1, :, 2:4]  # the last point's residual: section n-1's force on its lower end
     dR_q[rows] = 0.0
     with np.errstate(all="ignore"):
-        sens = np.linalg.solve(Jm, dR_q)  # (m, nv, 2)
+        try:
+            sens = np.linalg.solve(Jm, dR_q)  # (m, nv, 2)
+        except np.linalg.LinAlgError:  # a slack joint (no stiffness along the line): least squares
+            sens = np.stack([np.linalg.lstsq(Jm[k], dR_q[k], rcond=None)[0] for k in range(m)])
     dFf = Jf_q - np.einsum("mij,mjk->mik", Jf_y, sens)  # (m, 2, 2): d(Fx, Fz)/d(XF, D)
     dHX, dHZ = -dFf[:, 0, 0], -dFf[:, 0, 1]
     dVX, dVZ = -dFf[:, 1, 0], -dFf[:, 1, 1]

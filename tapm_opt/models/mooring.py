@@ -35,6 +35,9 @@ from .statics import EquilibriumError, solve_equilibrium
 
 __all__ = ["MooringModel", "LinearMooring"]
 
+_SOLUTION_ARRAYS = ("HF", "VF", "HA", "VA", "TF", "TA", "LBot", "regime", "dHF_dXF", "dHF_dZF", "dVF_dXF", "dVF_dZF")
+"""The per-configuration arrays of a CatenarySolution."""
+
 
 @dataclass(frozen=True, eq=False)
 class MooringModel:
@@ -201,16 +204,38 @@ class MooringModel:
         if not self.has_composite:
             return catenary.solve(XF, self.ZF, Ls, self.EA, self.w, CB=self.CB, h_A=self.h_A)
         XF = np.broadcast_to(XF, XF.shape[:-1] + (self.n_lines,)) if XF.ndim else np.full(self.n_lines, XF)
+        idx = np.broadcast_to(np.arange(self.n_lines), XF.shape)
+        homo = np.array([c is None for c in self.composite])
+        if L is None or not homo.any():
+            return self.solve_at(XF, idx)
+        # winch lengths on the homogeneous lines: their catenary directly, the composite ones as usual
+        sol_c = self.solve_at(XF, idx)
+        sol_h = catenary.solve(XF, self.ZF, Ls, self.EA, self.w, CB=self.CB, h_A=self.h_A)
+        pick = np.broadcast_to(homo, XF.shape)
+        out = {k: np.where(pick, getattr(sol_h, k), getattr(sol_c, k)) for k in _SOLUTION_ARRAYS}
+        return catenary.CatenarySolution(iterations=max(sol_c.iterations, sol_h.iterations), **out)
 
-        def one(i):
-            if self.composite[i] is not None or L is None:
-                return self.line_solver(i)(XF[..., i])
-            return catenary.solve(XF[..., i], self.ZF[i], Ls[i], self.EA[i], self.w[i], CB=self.CB[i], h_A=self.h_A[i])
-
-        sols = [one(i) for i in range(self.n_lines)]
-        names = ("HF", "VF", "HA", "VA", "TF", "TA", "LBot", "regime", "dHF_dXF", "dHF_dZF", "dVF_dXF", "dVF_dZF")
-        out = {k: np.stack([np.asarray(getattr(sl, k)) for sl in sols], axis=-1) for k in names}
-        return catenary.CatenarySolution(iterations=max(sl.iterations for sl in sols), **out)
+    def solve_at(self, XF, line) -> catenary.CatenarySolution:
+        """Quasi-static solution at horizontal distances ``XF`` [m] of the lines ``line`` (indices,
+        the same shape as ``XF``): each element solved with its line's physics, lines with equal
+        :meth:`line_key` in one vectorised call."""
+        XF = np.asarray(XF, dtype=float)
+        line = np.broadcast_to(np.asarray(line, dtype=np.int64), XF.shape)
+        Xf, lf = XF.ravel(), line.ravel()
+        groups: dict = {}
+        for i in range(self.n_lines):
+            groups.setdefault(self.line_key(i), []).append(i)
+        out = {k: np.zeros(Xf.size, dtype=np.int64 if k == "regime" else float) for k in _SOLUTION_ARRAYS}
+        it = 0
+        for members in groups.values():
+            m = np.isin(lf, members)
+            if not m.any():
+                continue
+            sol = self.line_solver(members[0])(Xf[m])
+            it = max(it, sol.iterations)
+            for k in _SOLUTION_ARRAYS:
+                out[k][m] = getattr(sol, k)
+        return catenary.CatenarySolution(iterations=it, **{k: v.reshape(XF.shape) for k, v in out.items()})
 
     @property
     def n_lines(self) -> int:
