@@ -42,6 +42,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import TapmError
+from ..models.characteristics import tension_source
 
 __all__ = ["TensionDropDetector", "TensionResidualDetector", "DetectionError", "FALSE_ALARM_TIME_DEFAULT"]
 
@@ -166,14 +167,16 @@ def _predict_py(eta, par, geo, tab, out):  # pragma: no cover - compiled by numb
     return 0
 
 
-def _cusum_py(T, Tp, idx, st, cfg):  # pragma: no cover - compiled by numba
+def _cusum_py(T, Tp, idx, st, cfg, busy):  # pragma: no cover - compiled by numba
     """One sample of :class:`TensionResidualDetector`'s test, in place.
 
     ``T`` (n,) measured tensions [N] of every line; ``Tp`` (m,) predicted tensions of the lines
     still tested, whose rows in ``st`` are ``idx`` (m,); ``st`` (n, 8) per line: statistic g, bias
     b [N], scale s [N], scale floor [N], run sum of -z, run length, peak g, deepest drop;
     ``cfg`` = (shift, largest step, weight of the running estimates, clip, Huber factor, adapt
-    1/0, threshold). Returns the row of the line isolated at this sample, or -1.
+    1/0, threshold); ``busy`` (n,): 1 where another statistic of the line (a point-loss
+    hypothesis, :func:`_points_py`) is building an alarm, which freezes the line's running
+    estimates too. Returns the row of the line isolated at this sample, or -1.
     """
     shift, step_max, a, clip, beta, adapt, thr = cfg[0], cfg[1], cfg[2], cfg[3], cfg[4], cfg[5], cfg[6]
     best = -1
@@ -208,7 +211,7 @@ def _cusum_py(T, Tp, idx, st, cfg):  # pragma: no cover - compiled by numba
         else:
             st[i, 4] = 0.0
             st[i, 5] = 0.0
-            if adapt != 0.0:  # the running estimates move only while no alarm is building
+            if adapt != 0.0 and busy[i] == 0.0:  # the running estimates move only while no alarm is building
                 lim = clip * s
                 dc = dev if dev < lim else lim
                 if dc < -lim:
@@ -222,41 +225,70 @@ def _cusum_py(T, Tp, idx, st, cfg):  # pragma: no cover - compiled by numba
     return best
 
 
+def _points_py(T, Tp, pos, rows, D, st, sp, busy, cfg):  # pragma: no cover - compiled by numba
+    """One sample of the point-loss hypotheses of :class:`TensionResidualDetector`, in place,
+    before :func:`_cusum_py` (whose running estimates of the lines they read).
+
+    ``T`` (n,) measured tensions [N]; ``Tp`` (m,) predicted tensions of the lines still tested;
+    hypothesis q is about the line of row ``rows[q]`` in ``st`` and position ``pos[q]`` in ``Tp``,
+    and predicts the shift ``D[q]`` [N] (signed) of its residual; ``sp`` (k, 6) per hypothesis:
+    statistic g, run sum of sign(D) z, run length, peak g, largest fraction of D reached, unused;
+    ``busy`` (n,) is set to 1 on the lines with a statistic above zero; ``cfg`` = (largest step,
+    threshold). Returns the hypothesis isolated at this sample (the largest mean sign(D) z over
+    its run among those at the threshold), or -1.
+    """
+    step_max, thr = cfg[0], cfg[1]
+    best = -1
+    best_shift = -math.inf
+    for q in range(rows.shape[0]):
+        i = rows[q]
+        dev = T[i] - Tp[pos[q]] - st[i, 1]
+        s = st[i, 2]
+        d = D[q] / s
+        z = dev / s
+        llr = d * (z - 0.5 * d)
+        if llr > step_max:
+            llr = step_max
+        g_old = sp[q, 0]
+        g = g_old + llr
+        if g < 0.0:
+            g = 0.0
+        sp[q, 0] = g
+        if g > sp[q, 3]:
+            sp[q, 3] = g
+        sz = z if d >= 0.0 else -z
+        if D[q] != 0.0 and dev / D[q] > sp[q, 4]:
+            sp[q, 4] = dev / D[q]
+        if g > 0.0:
+            busy[i] = 1.0
+            if g_old > 0.0:
+                sp[q, 1] += sz
+                sp[q, 2] += 1.0
+            else:
+                sp[q, 1] = sz
+                sp[q, 2] = 1.0
+        else:
+            sp[q, 1] = 0.0
+            sp[q, 2] = 0.0
+        if g >= thr * (1.0 - 1e-12) and sp[q, 1] / sp[q, 2] > best_shift:
+            best = q
+            best_shift = sp[q, 1] / sp[q, 2]
+    return best
+
+
 _KERNELS = None
 
 
 def _kernels():
-    """(predict, cusum): :func:`_predict_py` and :func:`_cusum_py` compiled by numba (cached on
-    disk when possible), or the Python functions themselves without numba. Compiled on first use."""
+    """(predict, cusum, points): :func:`_predict_py`, :func:`_cusum_py` and :func:`_points_py`
+    compiled by numba (cached on disk when possible), or the Python functions themselves without
+    numba. Compiled on first use."""
     global _KERNELS
     if _KERNELS is None:
         from .._jit import jit
 
-        _KERNELS = (jit(_predict_py), jit(_cusum_py))
+        _KERNELS = (jit(_predict_py), jit(_cusum_py), jit(_points_py))
     return _KERNELS
-
-
-def _adaptive_source(solve, a: float, b: float, T_ref: float):
-    """``x -> (TF, dTF/dXF)`` of a line from an adaptive Hermite table over [a, b] checked to 1e-9
-    (:func:`tapm_opt.models.characteristics._line_table`), the exact solve where it is not usable."""
-    from types import SimpleNamespace
-
-    from ..models.characteristics import _hermite, _hermite_slope, _line_table
-
-    tb = _line_table(solve, a, b, rtol=1e-9, H_ref=T_ref)
-
-    def tf(x):
-        x = np.asarray(x, dtype=float)
-        j = np.clip(np.searchsorted(tb.X, x, side="right") - 1, 0, tb.X.size - 2)
-        T = _hermite(tb.X[j], tb.X[j + 1], tb.T[j], tb.T[j + 1], tb.KT[j], tb.KT[j + 1], x)
-        K = _hermite_slope(tb.X[j], tb.X[j + 1], tb.T[j], tb.T[j + 1], tb.KT[j], tb.KT[j + 1], x)
-        bad = ~tb.ok[j] | (x < tb.X[0]) | (x > tb.X[-1])
-        if np.any(bad):
-            ex = solve(x[bad])
-            T[bad], K[bad] = ex.TF, ex.dTF_dXF
-        return SimpleNamespace(TF=T, dTF_dXF=K)
-
-    return tf
 
 
 class _TensionTable:
@@ -312,7 +344,7 @@ class _TensionTable:
                     # a composite line's TF(XF) has kinks where a joint meets the seabed, which a
                     # uniform grid resolves only with many nodes: read those from the adaptive
                     # table of the load evaluator (node pairs at every regime change, 1e-9)
-                    src = _adaptive_source(src, a, b, T_ref)
+                    src = tension_source(src, a, b, T_ref)
                 tables[tkey] = self._table(src, a, b, rtol, T_ref)
             x0, dx, T, K = tables[tkey]
             geo[mine, 4:8] = (x0, dx, start, T.size - 1)

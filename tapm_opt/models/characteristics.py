@@ -18,7 +18,8 @@ import numpy as np
 
 from ..errors import ModelError
 
-__all__ = ["LineCharacteristics", "OffsetCurves", "TabulatedMooringLoad", "line_characteristics", "offset_curves"]
+__all__ = ["LineCharacteristics", "OffsetCurves", "TabulatedMooringLoad", "line_characteristics", "offset_curves",
+           "tension_source"]
 
 
 @dataclass(frozen=True)
@@ -520,3 +521,31 @@ class TabulatedMooringLoad:
         return (f"TabulatedMooringLoad({self.model.n_lines} lines, {len(self._tables)} table(s), "
                 f"{self.n_nodes} nodes, max_offset={self.max_offset:g} m, rtol={self.rtol:g}, "
                 f"kernel={self.kernel!r})")
+
+
+def tension_source(solve, lo: float, hi: float, T_ref: float, *, rtol: float = 1e-9):
+    """A line's fairlead tension from an adaptive table: ``x -> (TF, dTF/dXF)`` [N, N/m] as a
+    namespace with attributes ``TF`` and ``dTF_dXF`` (the fields of a ``CatenarySolution`` a
+    tension table reads), over [lo, hi] [m].
+
+    The table is :func:`_line_table`'s (node pairs at every regime change, checked to ``rtol``
+    against ``solve``, the line's quasi-static solution, ``MooringModel.line_solver``); the exact
+    ``solve`` answers outside it or in an interval it marks unusable. For callers that need many
+    evaluations of a line whose exact solve is expensive (a composite line) and whose curve has
+    kinks a uniform grid resolves only with many nodes (where a joint meets the seabed)."""
+    from types import SimpleNamespace
+
+    tb = _line_table(solve, lo, hi, rtol=rtol, H_ref=T_ref)
+
+    def tf(x):
+        x = np.asarray(x, dtype=float)
+        j = np.clip(np.searchsorted(tb.X, x, side="right") - 1, 0, tb.X.size - 2)
+        T = _hermite(tb.X[j], tb.X[j + 1], tb.T[j], tb.T[j + 1], tb.KT[j], tb.KT[j + 1], x)
+        K = _hermite_slope(tb.X[j], tb.X[j + 1], tb.T[j], tb.T[j + 1], tb.KT[j], tb.KT[j + 1], x)
+        bad = ~tb.ok[j] | (x < tb.X[0]) | (x > tb.X[-1])
+        if np.any(bad):
+            ex = solve(x[bad])
+            T[bad], K[bad] = ex.TF, ex.dTF_dXF
+        return SimpleNamespace(TF=T, dTF_dXF=K)
+
+    return tf
