@@ -9,7 +9,7 @@ machine is shared, so only ratios are meaningful):
 
 1. one vectorised solve of ``n`` fairlead distances of fpso's line as its chain-wire-chain
    sections with a buoy (``models.composite.solve``) against the equivalent homogeneous line
-   (``models.catenary.solve``);
+   (``models.catenary.solve``), and the composite solve without its continuation start;
 2. the mooring model's load tables (``MooringModel.load_evaluator``: adaptive Hermite tables of
    every distinct line, checked to 1e-9) of the composite fpso against fpso;
 3. one evaluation of the tabulated load at a pose (the control loop's path), composite against
@@ -56,8 +56,10 @@ def main() -> None:
     XF = np.linspace(1900.0, 2030.0, a.n)
     t_c = median_time(lambda: composite.solve(XF, comp.ZF[0], line, h_A=comp.h_A[0]), a.repeats)
     t_h = median_time(lambda: catenary.solve(XF, homo.ZF[0], homo.L[0], homo.EA[0], homo.w[0]), a.repeats)
+    t_n = median_time(lambda: composite.solve(XF, comp.ZF[0], line, h_A=comp.h_A[0], continuation=False), a.repeats)
     print(f"1. solve of {a.n} distances: composite {t_c * 1e3:.2f} ms, homogeneous {t_h * 1e3:.2f} ms, "
-          f"ratio {t_c / t_h:.1f} ({t_c / a.n * 1e6:.0f} us per composite configuration)")
+          f"ratio {t_c / t_h:.1f} ({t_c / a.n * 1e6:.0f} us per composite configuration); without the "
+          f"continuation start {t_n * 1e3:.2f} ms ({t_n / t_c:.1f} x)")
 
     def tables(sc_model):
         m = MooringModel(**{f: getattr(sc_model, f) for f in (
