@@ -51,6 +51,18 @@ _BIG_STIFFNESS = 1e12
 seabed (catenary regime 'seabed'); only its sign matters to the Newton step, which locks such a
 point on the seabed anyway."""
 
+_REST_FORCE = 1e-5
+"""Net upward load on a point at the seabed, relative to the line's force scale, below which the
+point still rests there. A point without weight (a plain joint, a buoy lost) at the place where
+the line lifts off the seabed would rise by ``V^2 / (2 w H)``, 1e-11 m for fpso's chain, while its
+section's vertical force there is the catenary's to a few newton only (a suspended length of
+1e-4 m left by the catenary's own tolerance): Newton cannot resolve that equilibrium and stalls
+at its residual. Held on the seabed within this band (30 N on fpso as chain-wire-chain, the lift
+below 1e-7 m), it converges."""
+
+_REST_HEIGHT = 1e-9
+"""Height above the seabed [m] below which a Newton step down puts a point on it (see _REST_FORCE)."""
+
 
 @dataclass(frozen=True)
 class CompositeLine:
@@ -275,10 +287,12 @@ def _newton(XF, D, hA, line: CompositeLine, *, rtol: float, max_iter: int, y0=No
     tol = rtol * scale
     m, nv = y.shape
     zc = np.arange(1, nv, 2)
+    rest = _REST_FORCE * scale
 
     def contact_masked(y, R, J):
-        # a point on the seabed with a net downward load rests there: its z is held at 0
-        on = (y[:, zc] <= 0.0) & (R[:, zc] <= 0.0)
+        # a point on the seabed with a net downward load (or an upward one within rest) rests
+        # there: its z is held at 0
+        on = (y[:, zc] <= 0.0) & (R[:, zc] <= rest)
         Rm = R.copy()
         Jm = J.copy()
         if np.any(on):
@@ -322,7 +336,8 @@ def _newton(XF, D, hA, line: CompositeLine, *, rtol: float, max_iter: int, y0=No
         ya = y[a]
         for _ in range(12):
             yn = ya + step * dy
-            yn[:, zc] = np.maximum(yn[:, zc], 0.0)
+            yn[:, zc] = np.where((yn[:, zc] <= 0.0) | ((yn[:, zc] <= _REST_HEIGHT) & (dy[:, zc] < 0.0)), 0.0,
+                                 yn[:, zc])
             Rn, Jn, sn, *_ = _evaluate(yn, XF[a], D[a], hA[a], line, guess=(gH[a].ravel(), gV[a].ravel()))
             Rnm, Jnm = contact_masked(yn, Rn, Jn)
             en = np.max(np.abs(Rnm), axis=1)
@@ -427,7 +442,7 @@ def solve(XF, ZF, line: CompositeLine, *, h_A=0.0, rtol: float = 1e-10, max_iter
     # sensitivities: dFf/d(XF, D) = dFf/dq - dFf/dy J^-1 dR/dq, q = (XF, D) (only the last point's
     # residual and the fairlead force depend on q and the last point)
     zc = np.arange(1, 2 * (n - 1), 2)
-    on = (y[:, zc] <= 0.0) & (R[:, zc] <= 0.0)
+    on = (y[:, zc] <= 0.0) & (R[:, zc] <= _REST_FORCE * line.force_scale())
     Jm = J.copy()
     rows = np.zeros(J.shape[:2], bool)
     rows[:, zc] = on
