@@ -430,7 +430,10 @@ def design_from_scenario(scenario: Any, *, periods: Any, damping: Any,
     params = system.vessel
     moor = system.with_broken(broken).lines if broken else system.lines
     eta_eq = _mooring_equilibrium(moor, tau_env, eta0)
-    fn = moored_function(params, moor.force_function("catenary", eta0=eta_eq), D_moor=D_moor)
+    # linearised at eta_eq, where the characteristic kind has the catenary's exact Jacobian; composite
+    # lines have no symbolic catenary
+    kind = "characteristic" if moor.has_composite else "catenary"
+    fn = moored_function(params, moor.force_function(kind, eta0=eta_eq), D_moor=D_moor)
     plant = linearise(fn, np.r_[eta_eq, np.zeros(3)], tau_env0=tau_env, outputs="state")
     ref = system.p_cot_B if reference_point is None else reference_point
     design = design_gains(plant, periods=periods, damping=damping, integral_ratio=integral_ratio, reference_point=ref,

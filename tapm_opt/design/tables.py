@@ -207,7 +207,10 @@ def _design_condition(scenario: Any, params: VesselParams, thrusters: ThrusterSe
     tau_env = load.total
     eta = _offset_equilibrium(moor, tau_env, cond.heading)
     tau_thr = np.array([0.0, 0.0, -(moor.force(eta)[_PSI] + tau_env[_PSI])])
-    fn = moored_function(params, moor.force_function("catenary", eta0=eta), D_moor=D_moor)
+    # linearised at eta, where the characteristic kind has the catenary's exact Jacobian; composite
+    # lines have no symbolic catenary
+    kind = "characteristic" if moor.has_composite else "catenary"
+    fn = moored_function(params, moor.force_function(kind, eta0=eta), D_moor=D_moor)
     plant = linearise(fn, np.r_[eta, np.zeros(3)], tau_thr0=tau_thr, tau_env0=tau_env,
                       outputs="state")
     with warnings.catch_warnings():
