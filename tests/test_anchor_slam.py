@@ -291,6 +291,7 @@ def test_cli_writes_files_and_json(network, tmp_path, capsys):
     (["--duration", "1000"], "longer than the stored records"),
     (["--initial", "BAD"], "gives no anchor for line(s) ['8']"),
     (["--initial", "MISSING"], "cannot be read"),
+    (["--offsets", "30", "20"], "'--offsets'"),
 ])
 def test_cli_bad_input(network, tmp_path, capsys, args, message):
     _, path = network

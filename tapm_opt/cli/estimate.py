@@ -84,6 +84,11 @@ def estimate() -> None:
 @click.option("--settle", type=float, default=200.0, show_default=True,
               help="Settling chunk before each record [s] (repeated until the LF position moves < 1 m, "
                    "at most 1200 s).")
+@click.option("--offsets", "offsets", type=click.FloatRange(min=0.0), nargs=2, default=(25.0, 60.0),
+              show_default=True, metavar="MIN MAX",
+              help="Distance of the virtual vessels' quasi-static equilibria from the field zero point [m] "
+                   "(the live vessel's: 0 to MAX); the random environments are drawn until they give it. A stiff "
+                   "mooring needs less: on the taut fpso_deep they put the vessel at most about 20 m away (--offsets 5 20).")
 @click.option("--workers", type=click.IntRange(1, 64), default=None,
               help="Processes for the plant runs (default: 2, or 1 on a single CPU).")
 @click.option("--line-correction/--no-line-correction", default=True, show_default=True,
@@ -95,8 +100,8 @@ def estimate() -> None:
                    "and start the EKF from that fit; without it the EKF starts from the initial guesses.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of text.")
 def anchors(scenario_name: str, n_virtual: int, duration: float, out_dir: str, initial: str | None,
-            network: str | None, seed: int, settle: float, workers: int | None, line_correction: bool,
-            survey: bool, as_json: bool) -> None:
+            network: str | None, seed: int, settle: float, offsets: tuple[float, float], workers: int | None,
+            line_correction: bool, survey: bool, as_json: bool) -> None:
     """Estimate SCENARIO's anchors and the vessel's position from the line tensions (EKF-SLAM).
 
     Generates N virtual vessels -- the vessel settled at equilibria in random environments, heading-only
@@ -118,6 +123,8 @@ def anchors(scenario_name: str, n_virtual: int, duration: float, out_dir: str, i
         raise click.BadParameter(f"{duration!r} s must be a finite number in [10, 86400] s", param_hint="'--duration'")
     if not (math.isfinite(settle) and settle > 0):
         raise click.BadParameter(f"{settle!r} s must be a positive number", param_hint="'--settle'")
+    if not offsets[0] < offsets[1]:
+        raise click.BadParameter(f"{offsets[0]:g} {offsets[1]:g}: MIN must be below MAX", param_hint="'--offsets'")
     model = MooringModel.from_scenario(sc)
     if initial is not None:
         a0 = _read_initial(initial, model.line_ids)
@@ -137,7 +144,9 @@ def anchors(scenario_name: str, n_virtual: int, duration: float, out_dir: str, i
         from ..studies.anchor_network import generate_network
 
         net = generate_network(sc, n_virtual, duration=duration, seed=seed, settle=settle,
-                               workers=workers or min(2, os.cpu_count() or 1))
+                               workers=workers or min(2, os.cpu_count() or 1),
+                               env_kw=None if tuple(offsets) == (25.0, 60.0) else
+                               {"min_offset": float(offsets[0]), "max_offset": float(offsets[1])})
     res = run_anchor_slam(sc, net, n_virtual=n_virtual, duration=duration, anchors0=a0,
                           line_correction=line_correction, survey=survey)
     summary = {"scenario": sc.name, **res.summary(),

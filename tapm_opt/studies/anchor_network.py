@@ -82,7 +82,8 @@ def random_sea_states(scenario: Any, n: int, *, seed: int = 0, min_offset: float
                 break
         else:  # pragma: no cover - the lower Hs of each sector always fits
             raise AnchorSlamError(f"no environment with an equilibrium {min_offset:g}..{max_offset:g} m away "
-                                  f"in sector {j} of {n} after 2000 draws")
+                                  f"in sector {j} of {n} after 2000 draws (a stiff mooring needs smaller offsets: "
+                                  f"min_offset, max_offset; tapm estimate anchors --offsets)")
     return out
 
 
@@ -256,7 +257,7 @@ def generate_network(scenario: Any, n: int, *, duration: float, seed: int = 0, s
         finite(name, v, lo=0.0, strict=True, error=AnchorSlamError)
     envs = random_sea_states(scenario, n, seed=seed, **(env_kw or {}))
     envs += random_sea_states(scenario, 1, seed=seed + 7919, stratify=False,
-                              **{"min_offset": 0.0, **(env_kw or {})})      # the live vessel
+                              **{**(env_kw or {}), "min_offset": 0.0})      # the live vessel: 0 to max_offset
     if live_sea_state is not None:
         from ..design.loads import mean_environmental_load
 
