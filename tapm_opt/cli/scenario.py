@@ -110,6 +110,10 @@ def scenario_show(name: str) -> None:
     if sc.riser is not None:
         click.echo(f"Riser: length {sc.riser.length:g} m, top tension {sc.riser.top_tension / 1e3:.0f} kN")
     for f in sc.faults:
+        if f.kind == "buoy_loss":
+            at = f"joint {f.joint}" if f.joint is not None else f"point {tt(f.point)}"
+            click.echo(f"Fault: buoy_loss at {at} of line {tt(f.line)} at t = {f.time:g} s")
+            continue
         target = f.line if f.kind == "line_break" else f.thruster
         click.echo(f"Fault: {f.kind} of {tt(target)} at t = {f.time:g} s")
     if sc.limits.safe_radius is not None:

@@ -24,7 +24,7 @@ import numpy as np
 from .._checks import fmt as _fmt, is_number as _is_number  # one definition for every layer
 from ..errors import ScenarioError, ScenarioIssue
 from ..geometry import fairleads_B, merge_sectors
-from .schema import Scenario
+from .schema import FaultTargetError, Scenario, buoy_of_fault
 
 BUILTIN_DIR = Path(__file__).parent / "scenarios"
 
@@ -924,6 +924,22 @@ def validate(sc: Scenario) -> list[ScenarioIssue]:
                 issues.append(ScenarioIssue(f"{p}.thruster", "is required for a thruster_failure"))
             elif fault.thruster not in thr_ids:
                 issues.append(ScenarioIssue(f"{p}.thruster", f"= {fault.thruster!r} is not a thruster id; thrusters are {thr_ids}"))
+        for extra in ("joint", "point"):
+            if fault.kind != "buoy_loss" and getattr(fault, extra) is not None:
+                issues.append(ScenarioIssue(f"{p}.{extra}", f"is only for a buoy_loss, not a {fault.kind}"))
+        if fault.kind == "buoy_loss":
+            try:
+                li, jj = buoy_of_fault(sc, fault.line, fault.joint, fault.point)
+            except FaultTargetError as exc:
+                issues.append(ScenarioIssue(f"{p}.{exc.field}", str(exc)))
+                continue
+            key, target = "joint", (line_ids[li], jj)
+            j = first_fault.setdefault(("buoy_loss", target), i)
+            if j != i:
+                issues.append(ScenarioIssue(f"{p}.{'point' if fault.point is not None else 'joint'}", (
+                    f"takes off the buoy at joint {jj} of line {line_ids[li]!r}, which faults[{j}] already takes off "
+                    f"at t = {sc.faults[j].time:g} s; a buoy comes off once (remove one of the two)")))
+            continue
         key, target = ("line", fault.line) if fault.kind == "line_break" else ("thruster", fault.thruster)
         if target is None:
             continue

@@ -539,12 +539,81 @@ class Riser:
 
 @dataclass(frozen=True, kw_only=True)
 class Fault:
-    """A fault injected into the plant at a given time."""
+    """A fault injected into the plant at a given time: a line breaks at its fairlead, a thruster
+    fails, or a buoy comes off a joint of a composite line (from then on the joint carries no
+    point: its mass, buoyancy, added mass and drag are gone)."""
 
-    kind: Literal["line_break", "thruster_failure"] = spec("Fault kind.")
+    kind: Literal["line_break", "thruster_failure", "buoy_loss"] = spec("Fault kind.")
     time: float = spec("Time the fault occurs.", "s", check=nonneg)
-    line: str | None = spec("Line id (line_break).", default=None, id_like=True)
+    line: str | None = spec("Line id (line_break, buoy_loss).", default=None, id_like=True)
     thruster: str | None = spec("Thruster id (thruster_failure).", default=None, id_like=True)
+    joint: int | None = spec(
+        "Joint of the buoy (buoy_loss): its index from the anchor up, 0 joining the line's sections 0 and 1; "
+        "give joint or point.", default=None, check=nonneg)
+    point: str | None = spec(
+        "Point type id of the buoy (buoy_loss), instead of joint: the one joint of the line that carries it.",
+        default=None, id_like=True)
+
+
+class FaultTargetError(ValueError):
+    """A fault names something the scenario does not have; ``field`` is the fault's field to blame
+    (``"line"``, ``"joint"``, ``"point"``) and the message starts as a scenario issue does."""
+
+    def __init__(self, field_name: str, message: str):
+        self.field = field_name
+        super().__init__(message)
+
+
+def buoy_of_fault(scenario: "Scenario", line: str | None, joint: int | None = None,
+                  point: str | None = None) -> tuple[int, int]:
+    """(line index, joint index) of the buoy a ``buoy_loss`` fault takes off ``line`` at ``joint``
+    (index from the anchor up) or at the one joint carrying point type ``point``.
+
+    Raises :class:`FaultTargetError` naming the field when the line is unknown or homogeneous (no
+    joint), the joint is out of range or carries no point, the point is not buoyant (net weight
+    ``(mass - rho_w volume) g >= 0``: a clump), or ``point`` is at no joint of the line or at
+    several; exactly one of ``joint`` and ``point`` must be given."""
+    ids = [ln.id for ln in scenario.lines]
+    if line is None:
+        raise FaultTargetError("line", "is required for a buoy_loss (the composite line that loses the buoy)")
+    if str(line) not in ids:
+        raise FaultTargetError("line", f"= {line!r} is not a line id; lines are {ids}")
+    i = ids.index(str(line))
+    ln = scenario.lines[i]
+    if not ln.composite:
+        raise FaultTargetError("line", f"= {line!r} is a homogeneous line: it has no joints, so no buoy to lose "
+                                       "(a buoy sits at a joint of a composite line's sections)")
+    tops = [s.top for s in ln.parts[:-1]]
+    env = scenario.environment
+    where = ", ".join(f"{j}: {t!r}" for j, t in enumerate(tops) if t is not None) or "none"
+    if (joint is None) == (point is None):
+        raise FaultTargetError("joint", f"give exactly one of joint and point for a buoy_loss (the joint's index "
+                                        f"from the anchor up, or the point type id); line {line!r} has points at "
+                                        f"joints {{{where}}}")
+    if point is not None:
+        at = [j for j, t in enumerate(tops) if t == str(point)]
+        if not at:
+            raise FaultTargetError("point", f"= {point!r} is at no joint of line {line!r}; its points are at joints "
+                                            f"{{{where}}}")
+        if len(at) > 1:
+            raise FaultTargetError("point", f"= {point!r} is at joints {at} of line {line!r}: give joint instead")
+        j, fld = at[0], "point"
+    else:
+        j, fld = int(joint), "joint"
+        if not 0 <= j < len(tops):
+            raise FaultTargetError("joint", f"= {j}: line {line!r} has {len(tops) + 1} sections, so joints 0 to "
+                                            f"{len(tops) - 1} from the anchor up")
+        if tops[j] is None:
+            raise FaultTargetError("joint", f"= {j}: joint {j} of line {line!r} is a plain joint with no point type; "
+                                            f"its points are at joints {{{where}}}")
+    pt = scenario.point_type(tops[j])
+    W = pt.net_weight(env)
+    if not W < 0:
+        val = j if fld == "joint" else repr(tops[j])
+        raise FaultTargetError(fld, f"= {val}: the point at joint {j} of line {line!r} ({tops[j]!r}, net weight "
+                                    f"{W / 1e3:+.4g} kN, positive down) is not buoyant: a buoy_loss takes off a buoy "
+                                    "(mass - water_density x volume < 0)")
+    return i, j
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -20,6 +20,7 @@ Sign conventions
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any, Iterable, Literal
 
@@ -74,6 +75,9 @@ class MooringModel:
         line's L, EA, w are its equivalents (total length, series stiffness, mean weight, see
         ``Scenario.line_arrays``), read only where a rough scale is wanted; every tension comes
         from :meth:`line_solver`.
+    lost_points : tuple of (str, int)
+        Points lost from composite lines, (line id, joint index from the anchor up), in the order
+        they were lost (:meth:`with_points_lost`): their net weight ``W`` is 0 in ``composite``.
     """
 
     line_ids: tuple[str, ...]
@@ -91,11 +95,13 @@ class MooringModel:
     h_A: np.ndarray
     MBS_std: np.ndarray = field(default_factory=lambda: readonly(np.zeros(0)))
     composite: tuple = ()
+    lost_points: tuple = ()
     _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     # -- construction ---------------------------------------------------------------------
     @classmethod
-    def from_scenario(cls, scenario: Any, *, broken: Iterable[str | int] = ()) -> "MooringModel":
+    def from_scenario(cls, scenario: Any, *, broken: Iterable[str | int] = (),
+                      lost_points: Iterable[tuple[str, int]] = ()) -> "MooringModel":
         """Mooring model of a :class:`~tapm_opt.config.Scenario`.
 
         Parameters
@@ -103,6 +109,9 @@ class MooringModel:
         scenario : Scenario
         broken : iterable of line ids
             Lines left out (broken). Unknown ids raise :class:`ModelError`.
+        lost_points : iterable of (line id, joint)
+            Points of composite lines gone (:meth:`with_points_lost`); those on broken lines are
+            ignored.
 
         Raises
         ------
@@ -133,6 +142,10 @@ class MooringModel:
             if not zf[i] > 0:
                 raise ModelError(f"{where} is not below the fairleads (fairlead depth "
                                  f"{scenario.turret.fairlead_depth:g} m, z down); z must be deeper than the fairleads")
+        lost_points = [(str(lid), j) for lid, j in lost_points]
+        unknown = sorted({lid for lid, _ in lost_points} - set(ids))
+        if unknown:
+            raise ModelError(f"lost point(s) on line(s) {unknown}, which are not in the scenario; lines are {ids}")
         return cls(
             line_ids=tuple(i for i, k in zip(ids, keep) if k),
             anchors=readonly(scenario.anchors[keep, :2]),
@@ -151,7 +164,7 @@ class MooringModel:
             composite=tuple(_composite.CompositeLine.from_arrays(sec) if sec["L"].size > 1 else None
                             for sec, k in zip(scenario.line_sections, keep) if k)
             if any(sec["L"].size > 1 for sec in scenario.line_sections) else (),
-        )
+        ).with_points_lost([(lid, j) for lid, j in lost_points if lid not in broken])
 
     def without(self, broken: Iterable[str]) -> "MooringModel":
         """The model with the lines ``broken`` (ids) left out; ids not in the model (already left
@@ -165,9 +178,83 @@ class MooringModel:
         arrays = {name: readonly(np.asarray(getattr(self, name))[keep])
                   for name in ("anchors", "p_T", "ZF", "L", "EA", "w", "CB", "MBS", "h_A", "MBS_std")}
         comp = tuple(c for c, k in zip(self.composite, keep) if k) if self.composite else ()
-        return MooringModel(line_ids=tuple(i for i, k in zip(self.line_ids, keep) if k), p_cot_B=self.p_cot_B,
+        ids = tuple(i for i, k in zip(self.line_ids, keep) if k)
+        return MooringModel(line_ids=ids, p_cot_B=self.p_cot_B,
                             turret_angle=self.turret_angle, turret_mode=self.turret_mode,
-                            composite=comp if any(c is not None for c in comp) else (), **arrays)
+                            composite=comp if any(c is not None for c in comp) else (),
+                            lost_points=tuple(p for p in self.lost_points if p[0] in ids), **arrays)
+
+    # -- lost points (a buoy or clump come off a composite line) ---------------------------
+    @property
+    def points(self) -> tuple[tuple[str, int, float], ...]:
+        """Every point still on the model's composite lines: (line id, joint index from the anchor
+        up, net weight W [N], positive down), lines in order, joints from the anchor up."""
+        out = []
+        for lid, c in zip(self.line_ids, self.composite or (None,) * self.n_lines):
+            if c is not None:
+                out += [(lid, j, float(W)) for j, W in enumerate(c.W) if W != 0.0]
+        return tuple(out)
+
+    @property
+    def buoys(self) -> tuple[tuple[str, int], ...]:
+        """The buoys still on the model's lines, (line id, joint): the points of net weight W < 0."""
+        return tuple((lid, j) for lid, j, W in self.points if W < 0.0)
+
+    def with_point_lost(self, line_id: str, joint: int) -> "MooringModel":
+        """The model with the point (a buoy or a clump) at joint ``joint`` (index from the anchor
+        up, 0 joining sections 0 and 1) of composite line ``line_id`` gone: the quasi-static line is
+        :func:`tapm_opt.models.composite.solve` with that point's ``W`` set to 0, the line's mean
+        weight ``w`` drops the point's. Raises :class:`ModelError` naming the line or joint when the
+        line is not in the model or homogeneous, the joint out of range or without a point."""
+        return self.with_points_lost([(line_id, joint)])
+
+    def with_points_lost(self, points: Iterable[tuple[str, int]]) -> "MooringModel":
+        """:meth:`with_point_lost` for every (line id, joint) of ``points``; a point already lost
+        (:attr:`lost_points`) is ignored, so is an empty ``points`` (the model itself)."""
+        comp = list(self.composite) if self.composite else [None] * self.n_lines
+        w = np.array(self.w, dtype=float)
+        lost = list(self.lost_points)
+        for item in points:
+            try:
+                lid, joint = item
+            except (TypeError, ValueError):
+                raise ModelError(f"lost point {item!r} must be a pair (line id, joint index)") from None
+            lid = str(lid)
+            if (lid, joint) in lost:
+                continue
+            if lid not in self.line_ids:
+                raise ModelError(f"lost point on line {lid!r}: no such line in the model; lines are {list(self.line_ids)}")
+            i = self.line_ids.index(lid)
+            c = comp[i]
+            if c is None or c.W.size == 0:
+                raise ModelError(f"lost point on line {lid!r}: a homogeneous line has no joints, so no point to lose")
+            if isinstance(joint, (bool, np.bool_)) or not isinstance(joint, (int, np.integer)) \
+                    or not 0 <= joint < c.W.size:
+                raise ModelError(f"lost point at joint {joint!r} of line {lid!r}: the joint must be a whole number from "
+                                 f"0 to {c.W.size - 1} (the line's {c.n_sections} sections from the anchor up)")
+            joint = int(joint)
+            if c.W[joint] == 0.0:
+                at = [j for j, W in enumerate(c.W) if W != 0.0]
+                raise ModelError(f"lost point at joint {joint} of line {lid!r}: that joint carries no point (W = 0); "
+                                 f"the line's points are at joints {at}")
+            W = np.array(c.W, dtype=float)
+            w[i] -= W[joint] / c.length
+            W[joint] = 0.0
+            comp[i] = dataclasses.replace(c, W=readonly(W))
+            lost.append((lid, joint))
+        if len(lost) == len(self.lost_points):
+            return self
+        return dataclasses.replace(self, composite=tuple(comp), w=readonly(w), lost_points=tuple(lost),
+                                   _cache={})
+
+    def damaged(self, broken: Iterable[str] = (), lost_points: Iterable[tuple[str, int]] = ()) -> "MooringModel":
+        """The model with the points ``lost_points`` (line id, joint) gone (:meth:`with_points_lost`)
+        and the lines ``broken`` left out (:meth:`without`): the line system after these faults.
+        Points on lines that are broken or not in the model are ignored, as :meth:`without` ignores
+        such lines."""
+        broken = {str(b) for b in broken}
+        lost = [(str(lid), j) for lid, j in lost_points if str(lid) not in broken and str(lid) in self.line_ids]
+        return self.with_points_lost(lost).without(broken)
 
     # -- the lines' quasi-static solution (one definition for every caller) ---------------
     @property

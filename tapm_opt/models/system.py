@@ -6,7 +6,8 @@ line system (:class:`~tapm_opt.models.mooring.MooringModel`: fairlead geometry o
 numeric and symbolic catenary line characteristics through one path), the thrusters
 (:class:`ThrusterSet`: configuration matrix and the **one** capacity model), the turret and the
 safety limits. Build it with :meth:`System.from_scenario`; derive a condition (broken lines,
-failed thrusters) with :meth:`System.with_broken` / :meth:`ThrusterSet.without`.
+buoys lost, failed thrusters) with :meth:`System.with_broken`, :meth:`System.with_lost_points` /
+:meth:`ThrusterSet.without`.
 
 Thrust capacity (one model, used by allocation bounds, PID saturation, the MPC's thrust box and the
 LQR weights): :meth:`ThrusterSet.max_tau` is, for each of X, Y and N, the largest magnitude the
@@ -323,6 +324,9 @@ class System:
     limits : Limits
     broken : tuple of str
         Lines left out of ``lines`` (see :meth:`with_broken`).
+    lost_points : tuple of (str, int)
+        Points (buoys, clumps) gone from composite lines, (line id, joint) (see
+        :meth:`with_lost_points`).
     """
 
     scenario: Any
@@ -332,6 +336,7 @@ class System:
     p_cot_B: np.ndarray
     limits: Limits
     broken: tuple[str, ...] = ()
+    lost_points: tuple[tuple[str, int], ...] = ()
     _risers: dict = field(default_factory=dict, repr=False, compare=False)
 
     def riser(self, sea_state: Any = None) -> Any:
@@ -377,13 +382,33 @@ class System:
         if not allb:
             return self
         return System(scenario=self.scenario, vessel=self.vessel,
-                      lines=MooringModel.from_scenario(self.scenario, broken=allb), thrusters=self.thrusters,
-                      p_cot_B=self.p_cot_B, limits=self.limits, broken=allb, _risers=self._risers)
+                      lines=MooringModel.from_scenario(self.scenario, broken=allb, lost_points=self.lost_points),
+                      thrusters=self.thrusters, p_cot_B=self.p_cot_B, limits=self.limits, broken=allb,
+                      lost_points=self.lost_points, _risers=self._risers)
+
+    def with_lost_points(self, points: Iterable[tuple[str, int]]) -> "System":
+        """The system with the points ``points`` ((line id, joint index from the anchor up): buoys
+        or clumps of composite lines) gone from its line system
+        (:meth:`MooringModel.with_points_lost <tapm_opt.models.mooring.MooringModel.with_points_lost>`;
+        points on broken lines are ignored). Unknown lines, homogeneous lines and joints without a
+        point raise :class:`~tapm_opt.errors.ModelError`."""
+        pts = [(str(lid), j) for lid, j in points]
+        ids = [ln.id for ln in self.scenario.lines]
+        for lid, _ in pts:
+            if lid not in ids:
+                raise ModelError(f"lost point on line {lid!r}, which is not a line id; lines are {ids}")
+        allp = tuple(dict.fromkeys((*self.lost_points, *((lid, j) for lid, j in pts if lid not in self.broken))))
+        if allp == self.lost_points:
+            return self
+        return System(scenario=self.scenario, vessel=self.vessel,
+                      lines=MooringModel.from_scenario(self.scenario, broken=self.broken, lost_points=allp),
+                      thrusters=self.thrusters, p_cot_B=self.p_cot_B, limits=self.limits, broken=self.broken,
+                      lost_points=allp, _risers=self._risers)
 
     def with_failed_thrusters(self, failed: Iterable[str | int]) -> "System":
         return System(scenario=self.scenario, vessel=self.vessel, lines=self.lines,
                       thrusters=self.thrusters.without(failed), p_cot_B=self.p_cot_B, limits=self.limits,
-                      broken=self.broken, _risers=self._risers)
+                      broken=self.broken, lost_points=self.lost_points, _risers=self._risers)
 
     def turret_offset(self, eta: Any) -> Any:
         """Turret-referenced offset (x, y) [m] of pose(s) ``eta`` (``geometry.turret_offset``)."""

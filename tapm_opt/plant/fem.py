@@ -667,6 +667,42 @@ class FEMLines:
         self.t += dt
         return T
 
+    def joint_node_index(self, j: int, k: int) -> int:
+        """The node of composite line ``j`` where its point ``k`` joins section k to section k + 1
+        (flat node index). :class:`~tapm_opt.errors.ModelError` for a homogeneous line or a ``k``
+        outside 0 .. n_sections - 2."""
+        sec = self.lines.sections[j] if self.lines.sections is not None else None
+        if sec is None or not self.composite[j]:
+            raise ModelError(f"line {self.lines.ids[j]!r} is homogeneous: it has no joints")
+        seg = np.asarray(sec["segments"]).ravel().astype(int)
+        if not (isinstance(k, (int, np.integer)) and not isinstance(k, (bool, np.bool_)) and 0 <= k < seg.size - 1):
+            raise ModelError(f"joint {k!r} of line {self.lines.ids[j]!r} must be a whole number from 0 to "
+                             f"{seg.size - 2} (its {seg.size} sections from the anchor up)")
+        return int(self.node_start[j] + np.sum(seg[:k + 1]))
+
+    def lose_point(self, j: int, k: int) -> None:
+        """The point at joint ``k`` of composite line ``j`` comes off (a buoy or clump lost): from
+        now on its node carries no point mass, net weight, added mass or drag, only the half
+        segments of its two sections (the seabed spring under it goes back to theirs). The stable
+        step may shrink (the node is lighter): :meth:`stable_dt` tells the new one.
+        :class:`~tapm_opt.errors.ModelError` when the joint carries no point."""
+        i = self.joint_node_index(j, k)
+        row = np.flatnonzero(self.joint_node == i)
+        has = self._point_mass[i] != 0.0 or self._point_W[i] != 0.0 or (
+            row.size and np.any(self.joint_c[row[0], 8:10] != 0.0))
+        if not has:
+            raise ModelError(f"joint {k} of line {self.lines.ids[j]!r} carries no point to lose")
+        self._point_mass = self._point_mass.copy()
+        self._point_W = self._point_W.copy()
+        self._point_mass[i] = 0.0
+        self._point_W[i] = 0.0
+        if row.size:  # the point's isotropic drag and added mass (new arrays: a kernel may hold the old)
+            jc = self.joint_c.copy()
+            jc[row[0], 8:10] = 0.0
+            self.joint_c = jc
+        self._has_points = bool(np.any(self._point_mass) or np.any(self._point_W))
+        self._update_lengths()   # node mass, weight and seabed spring without the point; a new l0
+
     def break_line(self, j: int) -> None:
         """Line j breaks at its fairlead: it no longer acts on the vessel and its upper end falls free.
 

@@ -444,6 +444,17 @@ class MooringFEM:
         """Anchor tension of every line [N]."""
         return self.fem.anchor_tension()
 
+    def lose_point(self, line_id: str, joint: int) -> None:
+        """The point (buoy or clump) at joint ``joint`` (from the anchor up) of composite line
+        ``line_id`` comes off (:meth:`FEMLines.lose_point`); the FEM step is the new stable step."""
+        try:
+            j = self.line_ids.index(str(line_id))
+        except ValueError:
+            raise ModelError(f"cannot take a point off line {line_id!r}: no such line; lines are "
+                             f"{list(self.line_ids)}") from None
+        self.fem.lose_point(j, joint)
+        self.dt = min(self.dt, self.fem.stable_dt(self.safety))
+
     def break_line(self, line_id: str) -> None:
         """Break line ``line_id`` at its fairlead."""
         try:

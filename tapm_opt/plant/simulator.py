@@ -46,6 +46,7 @@ import numpy as np
 
 from ._kernels import fem_kernel as _fem_kernel
 from .._checks import vector
+from ..config.schema import FaultTargetError, buoy_of_fault
 from ..geometry import rot_z
 from ..interfaces import Measurement, ThrusterCommand, Truth, _frozen, _trusted
 from ..models.system import System
@@ -145,7 +146,20 @@ class Plant:
         self._winch_rate_max = np.array([ln.winch_max_rate for ln in scenario.lines])
         self._L_limits = np.array([ln.length_limits for ln in scenario.lines])
         self._faults = sorted(scenario.faults if faults is None else faults, key=lambda f: f.time)
-        for f in self._faults:
+        #: The joint of each buoy_loss fault, by its position in the time-sorted faults.
+        self._buoy_joint: dict[int, int] = {}
+        for k, f in enumerate(self._faults):
+            if f.kind == "buoy_loss":
+                try:
+                    self._buoy_joint[k] = buoy_of_fault(scenario, f.line, getattr(f, "joint", None),
+                                                        getattr(f, "point", None))[1]
+                except FaultTargetError as exc:
+                    sep = " " if str(exc).startswith("= ") else ": "
+                    raise PlantError(f"fault buoy_loss at t = {f.time:g} s: {exc.field}{sep}{exc}") from None
+                continue
+            if f.kind not in ("line_break", "thruster_failure"):
+                raise PlantError(f"fault at t = {f.time:g} s has kind {f.kind!r}; kinds are 'line_break', "
+                                 "'thruster_failure', 'buoy_loss'")
             if f.kind == "line_break" and str(f.line) not in self.line_ids:
                 raise PlantError(f"fault line_break at t = {f.time:g} s names line {f.line!r}, which does not "
                                  f"exist; lines are {list(self.line_ids)}")
@@ -311,6 +325,12 @@ class Plant:
             if f.kind == "line_break":
                 self.mooring.break_line(str(f.line))
                 self.events.append((self.t, f"line {f.line} broke"))
+            elif f.kind == "buoy_loss":
+                joint = self._buoy_joint[self._fault_i]
+                self.mooring.lose_point(str(f.line), joint)
+                self._dt_stable = None   # a lighter joint node: the stable step again
+                self._h_last = -1.0
+                self.events.append((self.t, f"line {f.line} lost its buoy at joint {joint}"))
             else:
                 self.thrusters.fail(str(f.thruster))
                 self.events.append((self.t, f"thruster {f.thruster} failed"))
