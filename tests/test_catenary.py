@@ -1,7 +1,8 @@
 """Tests of the elastic catenary (tapm_opt.models.catenary): analytic limits, physical invariants,
 closure of every regime, sensitivities against finite differences, the symbolic CasADi path, the
 line profile, random and invalid input, and a cross-check against MoorPy (independent code); the
-same for lines whose lower end is above the seabed (argument h_A)."""
+same for lines whose lower end is above the seabed (argument h_A), and for lines of a nonlinear
+axial law, a tension-strain table (argument table)."""
 
 from __future__ import annotations
 
@@ -20,6 +21,7 @@ from scipy.optimize import brentq
 
 from tapm_opt.errors import CatenaryError
 from tapm_opt.models import catenary as cat
+from tapm_opt.strain_table import StrainTable, StrainTableError
 
 DATA = Path(__file__).parent / "data"
 
@@ -1103,3 +1105,261 @@ def test_symbolic_catenary_covers_every_regime_of_the_numeric_one(args):
     assert H == pytest.approx(float(s.HF), rel=1e-8, abs=1e-6)
     assert V == pytest.approx(float(s.VF), rel=1e-8, abs=1e-6)
     assert e <= 1e-8
+
+
+# ------------------------------------------------------------------------------------------
+# nonlinear axial stiffness: a tension-strain table (docs/models.md, "Nonlinear axial stiffness")
+# ------------------------------------------------------------------------------------------
+
+
+POLY_ROWS = ((0.0, 0.0), (0.005, 1.0e6), (0.01, 2.4e6), (0.02, 5.6e6), (0.03, 9.2e6), (0.05, 17.0e6))
+"""A polyester-like law that stiffens with load (slopes 200, 280, 320, 360, 390 MN), secant 340 MN."""
+POLY = StrainTable.from_rows(POLY_ROWS)
+W_POLY = 138.19  # N/m: 52 kg/m polyester of 0.217 m in water
+
+
+def linear_tables(EA):
+    """The constant-EA law as a two-row table and as four collinear rows (intercepts at round-off)."""
+    return (StrainTable.from_rows([[0.0, 0.0], [0.01, 0.01 * EA]]),
+            StrainTable.from_rows([[0.0, 0.0], [0.003, 0.003 * EA], [0.007, 0.007 * EA], [0.02, 0.02 * EA]]))
+
+
+def strain_of(T):
+    """eps(T) of POLY_ROWS, written independently of StrainTable: np.interp, and the last slope beyond."""
+    e, t = np.array(POLY_ROWS).T
+    T = np.asarray(T, dtype=float)
+    return np.where(T <= t[-1], np.interp(T, t, e), e[-1] + (T - t[-1]) * (e[-1] - e[-2]) / (t[-1] - t[-2]))
+
+
+# every regime of the solver, as (XF, ZF, L, w, CB, h_A)
+TABLE_REGIMES = {
+    "suspended": (1190.0, 300.0, 1200.0, 800.0, 0.0, 0.0),
+    "touchdown": (900.0, 300.0, 1200.0, 800.0, 0.0, 0.0),
+    "touchdown, friction": (900.0, 300.0, 1200.0, 800.0, 0.7, 0.0),
+    "touchdown, friction to zero": (600.0, 300.0, 1200.0, 800.0, 1.0, 0.0),
+    "touchdown, elevated end": (950.0, 300.0, 1200.0, 800.0, 0.0, 40.0),
+    "suspended, sag below an elevated end": (1100.0, 100.0, 1200.0, 800.0, 0.0, 300.0),
+    "slack": (300.0, 300.0, 1200.0, 800.0, 0.0, 0.0),
+    "slack, elevated end": (300.0, 300.0, 1200.0, 800.0, 0.0, 50.0),
+    "vertical, taut": (0.0, 1201.0, 1200.0, 800.0, 0.0, 0.0),
+    "vertical, doubled": (0.0, 600.0, 1200.0, 800.0, 0.0, 400.0),
+    "seabed": (1201.0, 0.0, 1200.0, 800.0, 0.0, 0.0),
+    "seabed, friction over part": (1200.2, 0.0, 1200.0, 800.0, 0.8, 0.0),
+    "seabed, friction all along": (1205.0, 0.0, 1200.0, 800.0, 0.1, 0.0),
+    "weightless": (1000.0, 500.0, 1110.0, 0.0, 0.0, 0.0),
+}
+
+
+@pytest.mark.parametrize("case", sorted(TABLE_REGIMES))
+def test_a_linear_table_is_the_constant_ea_catenary(case):
+    """A table whose rows lie on T = EA eps gives solve()'s constant-EA answer in every regime, to
+    round-off: tensions within 1e-12 of the largest tension, stiffness within 1e-10 of the largest,
+    profiles within 1e-9 m (measured 2.2e-16, 2.8e-16 and 2.8e-13 m over the 14 regimes)."""
+    XF, ZF, L, w, CB, h = TABLE_REGIMES[case]
+    EA = 5e8
+    ref = cat.solve(XF, ZF, L, EA, w, CB=CB, h_A=h)
+    for tab in linear_tables(EA):
+        sol = cat.solve(XF, ZF, L, EA, w, CB=CB, h_A=h, table=tab)
+        assert int(sol.regime) == int(ref.regime), case
+        scale = max(scalar(ref, "TF"), scalar(ref, "TA"), 1.0)
+        for k in ("HF", "VF", "HA", "VA"):
+            assert abs(scalar(sol, k) - scalar(ref, k)) <= 1e-12 * scale, (case, k)
+        assert abs(scalar(sol, "LBot") - scalar(ref, "LBot")) <= 1e-9 * L
+        ks = max(abs(scalar(ref, k)) for k in ("dHF_dXF", "dHF_dZF", "dVF_dXF")) or 1.0
+        for k in ("dHF_dXF", "dHF_dZF", "dVF_dXF", "dVF_dZF"):
+            a, b = scalar(sol, k), scalar(ref, k)
+            assert a == b or abs(a - b) <= 1e-10 * max(ks, abs(b)), (case, k, a, b)
+        p0 = cat.line_profile(XF, ZF, L, EA, w, CB=CB, h_A=h, n=41)
+        p1 = cat.line_profile(XF, ZF, L, EA, w, CB=CB, h_A=h, n=41, table=tab)
+        assert np.max(np.abs(p1["x"] - p0["x"])) < 1e-9 and np.max(np.abs(p1["z"] - p0["z"])) < 1e-9, case
+        assert np.allclose(p1["T"], p0["T"], rtol=1e-12, atol=1e-12 * scale)
+
+
+def _spans_by_quadrature(HF, VF, L, w, CB, h):
+    """(X, Z) of a line of POLY_ROWS with fairlead tensions (HF, VF), integrated numerically along
+    its unstretched length (scipy quad, cut at the table's rows): the catenary's geometry with the
+    strain of the table, written without the module's closed forms. Suspended, or touching down
+    (friction on the grounded stretch from an anchor on the seabed; from an elevated end, the
+    part that runs down to the seabed ends where its drop is h)."""
+    knots = np.array(POLY_ROWS)[1:, 1]
+
+    def run(V0, length):  # from vertical tension V0 over length: (dx, dz)
+        def T(s):
+            return math.hypot(HF, V0 + w * s)
+        brk = [(math.copysign(math.sqrt(Tk * Tk - HF * HF), v) - V0) / w for Tk in knots if Tk > HF for v in (1, -1)]
+        brk = [b for b in brk if 0 < b < length] + ([-V0 / w] if 0 < -V0 / w < length else [])
+        kw = dict(points=sorted(brk) or None, epsabs=1e-12, epsrel=1e-13, limit=200)
+        dx = quad(lambda s: (1 + float(strain_of(T(s)))) * HF / T(s), 0.0, length, **kw)[0]
+        dz = quad(lambda s: (1 + float(strain_of(T(s)))) * (V0 + w * s) / T(s), 0.0, length, **kw)[0]
+        return dx, dz
+
+    VA = VF - w * L
+    if VA >= 0 or (h > 0 and -run(VA, -VA / w)[1] < h):  # suspended: its lowest point above the seabed
+        return run(VA, L)
+    V1 = 0.0
+    if h > 0:  # the downward vertical tension where the line from the elevated end meets the seabed
+        V1 = brentq(lambda V: -run(-V, V / w)[1] - h, 1e-9, -VA, xtol=1e-12)
+    LB = L - (VF + V1) / w
+    cbw = CB * w if h == 0 else 0.0
+    if cbw > 0:
+        s0 = max(LB - HF / cbw, 0.0)
+        bed = LB + quad(lambda s: float(strain_of(HF - cbw * (LB - s))), s0, LB, epsabs=1e-12, epsrel=1e-13,
+                        limit=200)[0]
+    else:
+        bed = LB * (1 + float(strain_of(HF)))
+    dxA, dzA = run(-V1, V1 / w) if V1 > 0 else (0.0, 0.0)
+    dxF, dzF = run(0.0, VF / w)
+    return dxA + bed + dxF, dzF - h
+
+
+@pytest.mark.parametrize("HF, VF, CB, h", [
+    (2.0e6, 1.2e6, 0.0, 0.0),    # suspended, every segment of the table along it
+    (4.0e5, 5.0e5, 0.0, 0.0),    # touching down
+    (4.0e5, 5.0e5, 0.7, 0.0),    # friction, some tension left at the anchor
+    (1.5e5, 5.0e5, 1.0, 0.0),    # friction takes it all
+    (4.0e5, 5.0e5, 0.0, 40.0),   # touching down from an elevated end
+    (3.0e6, 7.0e5, 0.0, 300.0),  # suspended, sagging below an elevated end
+    (1.2e7, 3.0e6, 0.0, 0.0),    # beyond the last row: the last slope continued
+])
+def test_table_closure_is_the_integral_of_the_strain_along_the_line(HF, VF, CB, h):
+    """closure() with a table against numerical quadrature of (1 + eps(T(s))) along the line (an
+    independent statement of the elastic catenary): within 1e-9 m (measured 2.3e-13 m)."""
+    L, w = 1200.0, 800.0
+    X, Z = cat.closure(np.array(HF), np.array(VF), L, POLY.secant, w, CB, h, POLY)
+    Xq, Zq = _spans_by_quadrature(HF, VF, L, w, CB, h)
+    assert abs(float(X) - Xq) < 1e-9 and abs(float(Z) - Zq) < 1e-9, (float(X) - Xq, float(Z) - Zq)
+
+
+@pytest.mark.parametrize("case", ["suspended", "touchdown", "touchdown, friction", "touchdown, friction to zero",
+                                  "touchdown, elevated end", "suspended, sag below an elevated end"])
+def test_table_stiffness_equals_finite_differences(case):
+    """The analytic stiffness of a line of a nonlinear table (implicit function theorem on the
+    exact closure and its Jacobian) against central differences of solve(), 1e-5 m apart, over a
+    range of spans that crosses the table's rows: within 1e-6 of the largest (measured 1.9e-7)."""
+    XF, ZF, L, w, CB, h = TABLE_REGIMES[case]
+    # spans clear of those where the line's lowest tension equals a row's tension: the stiffness has a
+    # square-root kink there, which differences resolve poorly
+    X = XF + np.linspace(-25.0, 25.0, 11) + 0.377
+    d = 1e-5
+    sol = cat.solve(X, ZF, L, POLY.secant, w, CB=CB, h_A=h, table=POLY)
+    args = dict(CB=CB, h_A=h, table=POLY, tol=1e-11)
+    xp, xm = (cat.solve(X + s, ZF, L, 1.0, w, **args) for s in (d, -d))
+    zp, zm = (cat.solve(X, ZF + s, L, 1.0, w, **args) for s in (d, -d))
+    for an, fd in ((sol.dHF_dXF, (xp.HF - xm.HF) / (2 * d)), (sol.dVF_dXF, (xp.VF - xm.VF) / (2 * d)),
+                   (sol.dHF_dZF, (zp.HF - zm.HF) / (2 * d)), (sol.dVF_dZF, (zp.VF - zm.VF) / (2 * d))):
+        assert np.max(np.abs(an - fd)) <= 1e-6 * np.max(np.abs(an)), (case, an, fd)
+
+
+def test_table_degenerate_regimes_close():
+    """The closed forms of a table line: the vertical line hangs (doubled, or taut) to its spans,
+    the slack line hangs its own stretched length, and the straight line on the seabed or without
+    weight carries the table's tension of its strain, all checked against the table directly."""
+    w, L = 800.0, 1200.0
+    # taut vertical: ZF = L + int eps over the line, the tension falling by w L from VF
+    s = cat.solve(0.0, 1215.0, L, POLY.secant, w, table=POLY)
+    VF = scalar(s, "VF")
+    Z = L + quad(lambda u: float(strain_of(VF - w * u)), 0.0, L, epsabs=1e-12, limit=200)[0]
+    assert cat.regime_name(int(s.regime)) == "vertical" and abs(Z - 1215.0) < 1e-9
+    # doubled from an elevated end: L1 down, L2 up from the fold
+    s = cat.solve(0.0, 600.0, L, POLY.secant, w, h_A=400.0, table=POLY)
+    L2 = scalar(s, "VF") / w
+    L1 = L - L2
+
+    def rise(length):
+        return length + quad(lambda u: float(strain_of(w * u)), 0.0, length, epsabs=1e-12)[0]
+    assert abs(rise(L2) - rise(L1) - 600.0) < 1e-9
+    # slack: the hanging length rises ZF + h_A with its own weight's stretch
+    Ls = float(cat.hanging_length(300.0, w, POLY.secant, POLY))
+    assert abs(rise(Ls) - 300.0) < 1e-9
+    # weightless: a straight bar at its chord's strain
+    s = cat.solve(1000.0, 500.0, 1110.0, POLY.secant, 0.0, table=POLY)
+    e = math.hypot(1000.0, 500.0) / 1110.0 - 1.0
+    assert abs(scalar(s, "TF") - float(np.interp(e, *np.array(POLY_ROWS).T))) < 1e-6
+    # on the seabed without friction: HF = T(stretch / L)
+    s = cat.solve(1210.0, 0.0, L, POLY.secant, w, table=POLY)
+    assert abs(scalar(s, "HF") - float(np.interp(10.0 / L, *np.array(POLY_ROWS).T))) < 1e-6
+
+
+# MoorPy 1.3.0 reference (moorpy.nonlinear.nonlinear(XF, ZF, L, Str, Ten, W) with POLY_ROWS):
+# MoorPy reads a tension-strain table as a straight weightless bar at the chord's strain, its
+# weight lumped half at each end, no seabed: exact for w = 0 and for a light taut pendant, where
+# the catenary's sag and its tension's change along the line are small. (HF, VF at the fairlead,
+# HA, VA at the anchor) [N].
+MOORPY_NONLINEAR = {
+    (190.0, 50.0, 192.0, 138.19): (6555847.325827027, 1738489.2204807966, 6555847.325827027, 1711956.7404807967),
+    (95.0, 25.0, 96.0, 138.19): (6555847.325827027, 1731856.1004807968, 6555847.325827027, 1718589.8604807965),
+    (190.0, 50.0, 192.0, 0.0): (6555847.325827027, 1725222.9804807967, 6555847.325827027, 1725222.9804807967),
+}
+
+
+@pytest.mark.parametrize("key", sorted(MOORPY_NONLINEAR))
+def test_table_line_matches_moorpy_nonlinear(key):
+    """Against MoorPy 1.3.0's nonlinear line (hard-coded above): a weightless bar to 1e-12, a taut
+    192 m polyester pendant at 6.8 MN to 1e-4 of the tension (measured 3.1e-5, and 7.7e-6 for the
+    96 m one, 3e-17 weightless: MoorPy's bar leaves out the sag and the change of tension along the
+    line, which its catenary has)."""
+    XF, ZF, L, w = key
+    HF, VF, HA, VA = MOORPY_NONLINEAR[key]
+    s = cat.solve(XF, ZF, L, POLY.secant, w, table=POLY)
+    tol = 1e-12 if w == 0 else 1e-4
+    T = math.hypot(HF, VF)
+    for got, ref in ((s.HF, HF), (s.VF, VF), (s.HA, HA), (s.VA, VA)):
+        assert abs(float(got) - ref) <= tol * T, (float(got), ref)
+
+
+def test_table_profile_ends_at_the_fairlead_and_stretches_as_the_table_says():
+    """line_profile of a table line in each regime ends at the fairlead (1e-8 m); along a suspended
+    line each piece's arc length is its unstretched length stretched by the table's strain at its
+    tension (the polygon of 4001 points, to 1e-6)."""
+    for case, (XF, ZF, L, w, CB, h) in TABLE_REGIMES.items():
+        p = cat.line_profile(XF, ZF, L, POLY.secant, w, CB=CB, h_A=h, n=51, table=POLY)
+        assert abs(p["x"][-1] - XF) < 1e-8 and abs(p["z"][-1] - ZF) < 1e-8, case
+        assert p["x"][0] == 0.0 and p["z"][0] == 0.0, case
+    XF, ZF, L, w, CB, h = TABLE_REGIMES["suspended"]
+    p = cat.line_profile(XF, ZF, L, POLY.secant, w, n=4001, table=POLY)
+    arc = np.hypot(np.diff(p["x"]), np.diff(p["z"]))
+    Tm = 0.5 * (p["T"][1:] + p["T"][:-1])
+    assert np.max(np.abs(arc / np.diff(p["s"]) - 1.0 - strain_of(Tm))) < 1e-6
+
+
+def test_a_table_line_solves_many_configurations_at_once():
+    """Vectorised: a sweep of spans through slack, touchdown and suspended, one call against one by one."""
+    X = np.linspace(100.0, 1195.0, 40)
+    sol = cat.solve(X, 300.0, 1200.0, POLY.secant, 800.0, CB=0.3, table=POLY)
+    one = [cat.solve(x, 300.0, 1200.0, POLY.secant, 800.0, CB=0.3, table=POLY) for x in X[::7]]
+    assert {cat.regime_name(r) for r in sol.regime} == {"slack", "touchdown", "suspended"}
+    for s, i in zip(one, range(0, 40, 7)):
+        assert abs(scalar(s, "TF") - sol.TF[i]) <= 1e-9 * sol.TF.max()
+
+
+@pytest.mark.parametrize("rows, match", [
+    ([[0.0, 0.0]], "at least 2"),
+    ([[0.001, 0.0], [0.01, 1e6]], r"row 0 = \[0.001, 0\] must be \[0, 0\]"),
+    ([[0.0, 0.0], [0.01, 1e6], [0.005, 2e6]], r"row 2 = \[0.005, 2e\+06\] does not increase the strain"),
+    ([[0.0, 0.0], [0.01, 1e6], [0.02, 1e6]], "does not increase the tension"),
+    ([[0.0, 0.0], [0.01, -1e6]], "negative tension"),
+    ([[0.0, 0.0], [0.01, float("nan")]], "must be finite"),
+])
+def test_an_invalid_table_is_refused_naming_the_row(rows, match):
+    with pytest.raises(StrainTableError, match=match):
+        StrainTable.from_rows(rows)
+    with pytest.raises(CatenaryError, match=match):
+        cat.solve(900.0, 300.0, 1200.0, 5e8, 800.0, table=rows)
+
+
+def test_strain_table_law():
+    """The table's law: strain and tension inverse to each other, linear between rows and beyond
+    the last, its complementary energy E(T) the integral of the strain, rise() the closed-form
+    root of alpha dT + E(T0 + dT) - E(T0) = R."""
+    T = np.array([0.0, 5e5, 1e6, 3e6, 9.2e6, 2e7])
+    e = POLY.strain_at(T)
+    assert np.allclose(e, strain_of(T), rtol=0, atol=1e-15)
+    assert np.allclose(POLY.tension_at(e), T, rtol=1e-14, atol=1e-8)
+    for t in (3e5, 4e6, 2e7):
+        assert abs(float(POLY.energy(t)) - quad(lambda x: float(strain_of(x)), 0.0, t, points=[1e6, 2.4e6, 5.6e6,
+                                                                                              9.2e6, 1.7e7])[0]) < 1e-9
+    for T0, R, alpha in ((0.0, 300.0 * 800.0, 1.0), (4e5, 40.0 * 800.0, 1.0), (0.0, 2e4, 0.0), (1e6, 1e5, 0.0)):
+        dT = float(POLY.rise(T0, R, alpha))
+        assert abs(alpha * dT + float(POLY.energy(T0 + dT) - POLY.energy(T0)) - R) <= 1e-12 * R
+    assert math.isclose(POLY.secant, 3.4e8) and math.isclose(POLY.max_slope, 3.9e8)
+    assert math.isclose(POLY.initial_slope, 2e8)

@@ -93,6 +93,7 @@ import numpy as np
 
 from .. import _backend as bk
 from ..errors import CatenaryError
+from ..strain_table import StrainTable, StrainTableError
 
 __all__ = [
     "REGIMES",
@@ -133,7 +134,7 @@ def _seabed_reach(HF, h_A, EA, w):
     return bk.where(up, bk.sqrt(q), 0.0)
 
 
-def closure(HF, VF, L, EA, w, CB=0.0, h_A=0.0):
+def closure(HF, VF, L, EA, w, CB=0.0, h_A=0.0, table=None, *, _V1=None):
     """Horizontal and vertical span (X, Z) [m] reached by a line with fairlead tension (HF, VF).
 
     Implements the elastic catenary closure equations with seabed contact and friction (module
@@ -154,11 +155,16 @@ def closure(HF, VF, L, EA, w, CB=0.0, h_A=0.0):
         Seabed friction coefficient [-], >= 0 (not applied where ``h_A > 0``).
     h_A : array_like
         Height of the lower end A above the seabed [m], >= 0.
+    table : StrainTable, optional
+        A nonlinear axial law (:class:`tapm_opt.strain_table.StrainTable`) instead of ``EA``
+        (numeric path only; section "Nonlinear axial stiffness" of the module docstring).
 
     Returns
     -------
     X, Z : spans [m] of the same shape; Z is the fairlead's height above A.
     """
+    if table is not None:
+        return _table_closure(HF, VF, L, w, CB, h_A, table)[:2]
     VA = VF - w * L
     hF = bk.hypot(HF, VF)
     hA = bk.hypot(HF, VA)
@@ -170,7 +176,7 @@ def closure(HF, VF, L, EA, w, CB=0.0, h_A=0.0):
         up = VA >= 0
         den = bk.where(up, VF * hA + VA * hF, 1.0)
         S = bk.where(up, bk.asinh(w * L * (VF + VA) / den), bk.asinh(VF / HF) + bk.asinh(-VA / HF))
-        V1 = _seabed_reach(HF, h_A, EA, w)
+        V1 = _seabed_reach(HF, h_A, EA, w) if _V1 is None else _V1
         St = bk.asinh(VF / HF) + bk.asinh(V1 / HF)
         cb = bk.where(h_A > 0, 0.0, CB)  # no friction with an elevated lower end (module docstring)
     else:  # every lower end on the seabed (numeric): V1 = 0, and VA >= 0 wherever suspended
@@ -189,8 +195,11 @@ def closure(HF, VF, L, EA, w, CB=0.0, h_A=0.0):
     return bk.where(susp, Xs, Xt), bk.where(susp, Zs, Zt)
 
 
-def _closure_jacobian(HF, VF, L, EA, w, CB, h_A=0.0):
-    """Analytic d(X, Z)/d(HF, VF) of :func:`closure` (numpy only), for the Newton iteration."""
+def _closure_jacobian(HF, VF, L, EA, w, CB, h_A=0.0, table=None, *, _V1=None, _dV1=None):
+    """Analytic d(X, Z)/d(HF, VF) of :func:`closure` (numpy only), for the Newton iteration
+    (``_V1``, ``_dV1``: the elevated end's ``V1`` and ``dV1/dHF`` of another axial law)."""
+    if table is not None:
+        return _table_closure(HF, VF, L, w, CB, h_A, table, jacobian=True)[2]
     VA = VF - w * L
     hF = np.hypot(HF, VF)
     hA = np.hypot(HF, VA)
@@ -215,9 +224,9 @@ def _closure_jacobian(HF, VF, L, EA, w, CB, h_A=0.0):
     Zv_t = VF / (w * hF) + VF / (EA * w)
     Xv_t = off_t.copy()
     if elevated:  # the part from an elevated A down to the seabed: V1(HF)
-        V1 = _seabed_reach(HF, h_A, EA, w)
+        V1 = _seabed_reach(HF, h_A, EA, w) if _V1 is None else _V1
         h1 = np.hypot(HF, V1)
-        dV1 = V1 / ((h1 + HF) * (1.0 + h1 / EA))
+        dV1 = V1 / ((h1 + HF) * (1.0 + h1 / EA)) if _dV1 is None else _dV1
         Xh_t = Xh_t + (np.arcsinh(V1 / HF) - V1 / h1 - dV1 * V1 * V1 / (h1 * (h1 + HF))) / w
         cb = np.where(h_A > 0, 0.0, CB)
     else:
@@ -235,6 +244,185 @@ def _closure_jacobian(HF, VF, L, EA, w, CB, h_A=0.0):
         np.where(susp, off_s, off_t),
         np.where(susp, Zv_s, Zv_t),
     )
+
+
+# ------------------------------------------------------------------------------------------
+# nonlinear axial law: the elastic terms of a tension-strain table (numpy only)
+# ------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _Run:
+    """Integrals along a suspended run of line (horizontal tension H, vertical tension V = V0 + w s
+    over its unstretched length s in [0, sig]) of a tension-strain table, ``eps = a_k + c_k T`` on
+    each table segment: ``QX = int eps/T ds``, ``QZ = int eps V/T ds``, ``QC = int c ds``,
+    ``Q5 = H^2 int a/T^3 ds``, ``Q6 = int a V/T^3 ds``. Elastic spans of the run: ``H QX``
+    horizontally, ``QZ`` vertically."""
+
+    QX: np.ndarray
+    QZ: np.ndarray
+    QC: np.ndarray
+    Q5: np.ndarray
+    Q6: np.ndarray
+
+
+def _stack_last(*parts):
+    """The arrays ``parts`` (..., n_i) joined on their last axis, their leading axes broadcast."""
+    lead = np.broadcast_shapes(*(p.shape[:-1] for p in parts))
+    return np.concatenate([np.broadcast_to(p, lead + p.shape[-1:]) for p in parts], axis=-1)
+
+
+def _run(H, V0, sig, w, tab) -> _Run:
+    """:class:`_Run` of a table ``tab``, exact for the piecewise-linear law: the run is cut where
+    its tension crosses a row of the table (``V = +-sqrt(T_k^2 - H^2)``) and where ``V = 0``, and on
+    each piece of unstretched length ``ds`` between vertical tensions ``Va < Vb`` (one sign)::
+
+        int ds/T   = asinh(w ds (Va + Vb) / (Vb Ta + Va Tb)) / w
+        int V/T ds = ds (Va + Vb) / (Ta + Tb)            int V ds = ds (Va + Vb) / 2
+        H^2 int ds/T^3 = H^2 ds (Va + Vb) / (Ta Tb (Vb Ta + Va Tb))
+        int V/T^3 ds   = ds (Va + Vb) / ((Ta + Tb) Ta Tb)
+
+    (``T = sqrt(H^2 + V^2)``), all without cancellation as ``w ds -> 0``. Requires ``w > 0``; the
+    pieces of every configuration are evaluated at once (arrays with a last axis of pieces)."""
+    H, V0, sig, w = (a[..., None] for a in np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (H, V0, sig, w))))
+    knots = tab.tension[1:-1]
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        Vk = np.sqrt(np.maximum(knots * knots - H * H, 0.0))
+        cand = _stack_last(0.0 * H, sig, -V0 / w, (Vk - V0) / w, (-Vk - V0) / w)
+        S = np.sort(np.clip(cand, 0.0, sig), axis=-1)
+        S[..., 0] = 0.0
+        S[..., -1] = sig[..., 0]
+        sa, sb = S[..., :-1], S[..., 1:]
+        ds = sb - sa
+        on = ds > 0
+        Va = V0 + w * sa
+        Vb = V0 + w * sb
+        Ta, Tb = np.hypot(H, Va), np.hypot(H, Vb)
+        sV = Va + Vb
+        den = Vb * Ta + Va * Tb
+        k = tab.segment_of_tension(np.hypot(H, 0.5 * sV))
+        a, c = tab.intercept[k], tab.compliance[k]
+        ha = on & (a != 0)
+        cds = np.where(on, c * ds, 0.0)
+        aP2 = np.where(ha, a * (np.arcsinh(w * ds * sV / den) / w), 0.0)
+        aP3 = np.where(ha, a * (ds * sV / (Ta + Tb)), 0.0)
+        cP4 = np.where(on, c * (0.5 * ds * sV), 0.0)
+        aP5 = np.where(ha & (H > 0), a * (H * H * ds * sV / (Ta * Tb * den)), 0.0)
+        aP6 = np.where(ha, a * (ds * sV / ((Ta + Tb) * Ta * Tb)), 0.0)
+    return _Run(QX=np.sum(cds + aP2, axis=-1), QZ=np.sum(cP4 + aP3, axis=-1), QC=np.sum(cds, axis=-1),
+                Q5=np.sum(aP5, axis=-1), Q6=np.sum(aP6, axis=-1))
+
+
+def _bed(HF, LB, cbw, tab, s1=None, s2=None):
+    """Stretch ``int eps(T(s)) ds`` [m] of the grounded stretch between ``s1`` and ``s2`` (default
+    the whole ``[0, LB]``, s from where it starts on the seabed) and ``int c ds`` [m/N] over its
+    tensioned part: the tension rises by friction ``cbw = CB w`` [N/m] toward the suspended part,
+    ``T(s) = max(HF - cbw (LB - s), 0)`` (``HF`` all along for ``cbw = 0``). Exact for the table:
+    cut at the table's rows and where the tension vanishes, each piece a trapezoid in strain."""
+    if s1 is None:
+        s1 = 0.0
+    if s2 is None:
+        s2 = LB
+    if not np.any(np.asarray(cbw) > 0):  # no friction: the tension HF all along
+        ds = np.maximum(np.asarray(s2, dtype=float) - s1, 0.0)
+        return ds * tab.strain_at(HF), ds * tab.compliance_at(HF)
+    HF, LB, cbw, s1, s2 = (a[..., None] for a in np.broadcast_arrays(
+        *(np.asarray(x, dtype=float) for x in (HF, LB, cbw, s1, s2))))
+    fr = cbw > 0
+    cs = np.where(fr, cbw, 1.0)
+    knots = np.r_[0.0, tab.tension[1:-1]]
+    cand = _stack_last(s1, s2, np.where(fr, LB - (HF - knots) / cs, s1))
+    S = np.sort(np.clip(cand, s1, s2), axis=-1)
+    sa, sb = S[..., :-1], S[..., 1:]
+    ds = sb - sa
+    Ta = np.maximum(HF - cbw * (LB - sa), 0.0)
+    Tb = np.maximum(HF - cbw * (LB - sb), 0.0)
+    Tm = HF - cbw * (LB - 0.5 * (sa + sb))  # > 0 on a tensioned piece (its ends may round to 0)
+    on = (ds > 0) & (Tm > 0)
+    B = np.sum(np.where(on, 0.5 * ds * (tab.strain_at(Ta) + tab.strain_at(Tb)), 0.0), axis=-1)
+    QC = np.sum(np.where(on, ds * tab.compliance_at(Tm), 0.0), axis=-1)
+    return B, QC
+
+
+def _table_reach(HF, h_A, w, tab):
+    """``V1`` [N] of a table (module docstring, "Nonlinear axial stiffness"): the downward vertical
+    tension at a lower end ``h_A`` above the seabed of a catenary with horizontal tension ``HF``
+    that meets the seabed horizontally, from ``w h_A = (T1 - HF) + E(T1) - E(HF)``."""
+    up = h_A > 0
+    d1 = tab.rise(HF, np.where(up, w * h_A, 0.0))
+    return np.where(up, np.sqrt(d1 * (d1 + 2.0 * HF)), 0.0)
+
+
+def _reach_terms_table(HF, V1, w, tab):
+    """For a line of a table touching down from an elevated lower end (``V1 > 0``): ``dV1/dHF``,
+    ``dV1/dh_A`` and ``dX/dV1`` [m/N] (the span's change with ``V1`` at fixed fairlead tensions)."""
+    T1 = np.hypot(HF, V1)
+    A = _run(HF, -V1, V1 / w, w, tab)
+    e1 = tab.strain_at(T1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        dV1 = np.where(V1 > 0, (V1 * V1 / (T1 + HF) - HF * T1 * w * A.Q6) / ((1.0 + e1) * V1), 0.0)
+        dV1h = w * T1 / ((1.0 + e1) * V1)
+    dXdV1 = -(V1 * V1 / (T1 + HF)) / (w * T1) + HF * A.Q6
+    return dV1, dV1h, dXdV1
+
+
+def _table_closure(HF, VF, L, w, CB, h_A, tab, jacobian: bool = False):
+    """:func:`closure` (and, with ``jacobian``, :func:`_closure_jacobian`) of a line whose axial law
+    is the table ``tab``: the inextensible catenary (``EA = inf``, with the table's ``V1`` for an
+    elevated lower end) plus the exact elastic spans of its suspended runs and grounded stretch
+    (module docstring, "Nonlinear axial stiffness"). Returns ``(X, Z, jacobian or None)``."""
+    if bk.is_symbolic(HF, VF, L, w, CB, h_A):
+        raise CatenaryError("a tension-strain table (nonlinear EA) has no symbolic catenary in tapm_opt")
+    HF, VF, L, w, CB, h_A = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (HF, VF, L, w, CB, h_A)))
+    shape = HF.shape
+    HF, VF, L, w, CB, h_A = (a.ravel() for a in (HF, VF, L, w, CB, h_A))
+    elevated = _elevated(h_A)
+    el = [np.zeros(HF.size) for _ in range(6)]  # elastic X, Z and their d/d(HF, VF)
+    dV1 = np.zeros(HF.size)
+    with np.errstate(all="ignore"):
+        V1 = _table_reach(HF, h_A, w, tab) if elevated else np.zeros(HF.size)
+        X, Z = closure(HF, VF, L, np.inf, w, CB, h_A, _V1=V1)
+        susp = VF + V1 >= w * L
+        i = np.flatnonzero(susp)
+        if i.size:  # suspended: one run from VA to VF
+            H = HF[i]
+            S = _run(H, VF[i] - w[i] * L[i], L[i], w[i], tab)
+            for k, v in enumerate((H * S.QX, S.QZ, S.QX - S.Q5, -H * S.Q6, -H * S.Q6, S.Q5 + S.QC)):
+                el[k][i] = v
+        i = np.flatnonzero(~susp)
+        if i.size:  # touching down: A's part down to the seabed, the grounded stretch, the run to the fairlead
+            H, V, Li, wi, V1i = HF[i], VF[i], L[i], w[i], V1[i]
+            F = _run(H, 0.0, np.minimum(V / wi, Li), wi, tab)
+            cb = np.where(h_A[i] > 0, 0.0, CB[i])
+            B, QCb = _bed(H, np.maximum(Li - (V + V1i) / wi, 0.0), cb * wi, tab)
+            Xt = B + H * F.QX
+            a_t = QCb + F.QX - F.Q5
+            if elevated:
+                A = _run(H, -V1i, V1i / wi, wi, tab)
+                T1 = np.hypot(H, V1i)
+                dV1[i] = np.where(V1i > 0, (V1i * V1i / (T1 + H) - H * T1 * wi * A.Q6)
+                                  / ((1.0 + tab.strain_at(T1)) * V1i), 0.0)
+                Xt = Xt + H * A.QX
+                a_t = a_t + A.QX - A.Q5 + dV1[i] * H * A.Q6
+            for k, v in enumerate((Xt, F.QZ, a_t, -H * F.Q6 + cb * QCb, -H * F.Q6, F.Q5 + F.QC)):
+                el[k][i] = v
+        X = (X + el[0]).reshape(shape)
+        Z = (Z + el[1]).reshape(shape)
+        if not jacobian:
+            return X, Z, None
+        a, b, c, d = _closure_jacobian(HF, VF, L, np.inf, w, CB, h_A, _V1=V1, _dV1=dV1)
+    return X, Z, tuple((g + e).reshape(shape) for g, e in zip((a, b, c, d), el[2:]))
+
+
+def as_table(table) -> Any:
+    """``table`` as a :class:`~tapm_opt.strain_table.StrainTable` (rows ``[[strain, tension], ...]``
+    are read as one; None stays None); an invalid table raises :class:`CatenaryError`."""
+    if table is None or isinstance(table, StrainTable):
+        return table
+    try:
+        return StrainTable.from_rows(table)
+    except StrainTableError as exc:
+        raise CatenaryError(str(exc)) from None
 
 
 # ------------------------------------------------------------------------------------------
@@ -325,10 +513,16 @@ def _check_inputs(**arrays: np.ndarray) -> None:
             raise CatenaryError(f"{name} = {float(arr[idx])!r}{where} {what}")
 
 
-def hanging_length(ZF, w, EA):
+def hanging_length(ZF, w, EA, table=None):
     """Unstretched length [m] of a line hanging vertically with no horizontal tension over a
     height ZF [m] (submerged weight w [N/m], axial stiffness EA [N]; floats or arrays): the root
-    of ZF = Ls + w Ls^2 / (2 EA), in a form without cancellation."""
+    of ZF = Ls + w Ls^2 / (2 EA), in a form without cancellation. With a tension-strain ``table``
+    (instead of EA): the root of ``w ZF = w Ls + E(w Ls)``, ``E`` the table's complementary energy."""
+    if table is not None:
+        tab = as_table(table)
+        ZF, w = np.broadcast_arrays(np.asarray(ZF, dtype=float), np.asarray(w, dtype=float))
+        top = tab.rise(0.0, w * ZF)
+        return np.where(w > 0, top / np.where(w > 0, w, 1.0), ZF)
     return 2.0 * ZF / (1.0 + np.sqrt(1.0 + 2.0 * w * ZF / EA))
 
 
@@ -347,17 +541,25 @@ def _initial_guess(XF, ZF, L, EA, w):
     return HF, VF
 
 
-def _newton(XF, ZF, L, EA, w, CB, h_A, *, tol, max_iter, guess=None):
+def _newton(XF, ZF, L, EA, w, CB, h_A, *, tol, max_iter, guess=None, table=None):
     """Damped Newton on (HF, VF) for the general (non-degenerate) configurations, from ``guess``
-    (HF, VF) where it is positive and finite, else from :func:`_initial_guess`."""
-    HF, VF = _initial_guess(XF, ZF, L, EA, w)
+    (HF, VF) where it is positive and finite, else from :func:`_initial_guess` (with a ``table``,
+    at the stiffness of the straight line's strain)."""
+    if table is None:
+        HF, VF = _initial_guess(XF, ZF, L, EA, w)
+    else:
+        e = np.maximum(np.hypot(XF, ZF) / L - 1.0, 0.0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            EAg = np.where(e > 0, table.tension_at(e) / np.where(e > 0, e, 1.0), table.initial_slope)
+        HF, VF = _initial_guess(XF, ZF, L, EAg, w)
     if guess is not None:
         g_H, g_V = guess
         use = np.isfinite(g_H) & np.isfinite(g_V) & (g_H > 0) & (g_V > 0)
         HF, VF = np.where(use, g_H, HF), np.where(use, g_V, VF)
     it = 0
+    J = None  # a table's Jacobian, kept from the line search (its runs are the closure's)
     with np.errstate(all="ignore"):
-        X, Z = closure(HF, VF, L, EA, w, CB, h_A)
+        X, Z = closure(HF, VF, L, EA, w, CB, h_A, table)
         rX, rZ = X - XF, Z - ZF
         err = np.abs(rX) + np.abs(rZ)
         for it in range(1, max_iter + 1):
@@ -367,7 +569,7 @@ def _newton(XF, ZF, L, EA, w, CB, h_A, *, tol, max_iter, guess=None):
             if not np.any(active):
                 it -= 1
                 break
-            a, b, c, d = _closure_jacobian(HF, VF, L, EA, w, CB, h_A)
+            a, b, c, d = _closure_jacobian(HF, VF, L, EA, w, CB, h_A, table) if J is None else J
             det = a * d - b * c
             dH = -(d * rX - b * rZ) / det
             dV = -(-c * rX + a * rZ) / det
@@ -378,7 +580,10 @@ def _newton(XF, ZF, L, EA, w, CB, h_A, *, tol, max_iter, guess=None):
             for _ in range(8):  # backtracking on the residual norm, keep HF, VF positive
                 Hn = np.maximum(HF + step * dH, 0.1 * HF)
                 Vn = np.maximum(VF + step * dV, 0.1 * VF)
-                Xn, Zn = closure(Hn, Vn, L, EA, w, CB, h_A)
+                if table is None:
+                    Xn, Zn = closure(Hn, Vn, L, EA, w, CB, h_A)
+                else:
+                    Xn, Zn, Jn = _table_closure(Hn, Vn, L, w, CB, h_A, table, jacobian=True)
                 rXn, rZn = Xn - XF, Zn - ZF
                 errn = np.abs(rXn) + np.abs(rZn)
                 ok = (errn < err) | ~active | ~np.isfinite(err)
@@ -387,6 +592,8 @@ def _newton(XF, ZF, L, EA, w, CB, h_A, *, tol, max_iter, guess=None):
                     break
                 step = np.where(ok, step, 0.5 * step)
             take = active & np.isfinite(errn)
+            if table is not None:
+                J = tuple(np.where(take, jn, jo) for jn, jo in zip(Jn, (a, b, c, d)))
             HF = np.where(take, Hn, HF)
             VF = np.where(take, Vn, VF)
             rX = np.where(take, rXn, rX)
@@ -395,13 +602,13 @@ def _newton(XF, ZF, L, EA, w, CB, h_A, *, tol, max_iter, guess=None):
     return HF, VF, err, it
 
 
-def _fallback(XF, ZF, L, EA, w, CB, h_A, HF, VF, tol):
+def _fallback(XF, ZF, L, EA, w, CB, h_A, HF, VF, tol, table=None):
     """Per-configuration scipy solve, in log-scaled variables, for what Newton did not converge."""
     from scipy.optimize import root
 
     def fun(p):
         h, v = np.exp(p)
-        x, z = closure(np.array(h), np.array(v), L, EA, w, CB, h_A)
+        x, z = closure(np.array(h), np.array(v), L, EA, w, CB, h_A, table)
         return [float(x - XF), float(z - ZF)]
 
     best = (HF, VF, np.inf)
@@ -418,7 +625,7 @@ def _fallback(XF, ZF, L, EA, w, CB, h_A, HF, VF, tol):
 
 
 def solve(XF, ZF, L, EA, w, *, CB=0.0, h_A=0.0, tol: float = 1e-9, max_iter: int = 60,
-          guess=None) -> CatenarySolution:
+          guess=None, table=None) -> CatenarySolution:
     """Solve the elastic catenary for arrays of line configurations at once.
 
     Parameters
@@ -446,6 +653,12 @@ def solve(XF, ZF, L, EA, w, *, CB=0.0, h_A=0.0, tol: float = 1e-9, max_iter: int
         Starting tensions [N] for the Newton iteration (arrays of the input shape, e.g. a nearby
         solution); entries that are not positive and finite use the usual start. The answer does
         not depend on it beyond the tolerance.
+    table : StrainTable or rows, optional
+        A nonlinear axial law, a tension-strain table (:class:`tapm_opt.strain_table.StrainTable`
+        or rows ``[[strain, tension], ...]``), for every configuration: the elastic stretch is
+        the exact integral of its strain along the line (module docstring, "Nonlinear axial
+        stiffness"), and ``EA`` is not read but for its check (give the table's secant). Without
+        it (default) the line has the constant ``EA``.
 
     Returns
     -------
@@ -459,6 +672,7 @@ def solve(XF, ZF, L, EA, w, *, CB=0.0, h_A=0.0, tol: float = 1e-9, max_iter: int
         anchor–fairlead distance, or a configuration that does not converge; the message names
         the input and its value. No NaN is ever returned.
     """
+    tab = as_table(table)
     XF, ZF, L, EA, w, CB, hA = (np.asarray(a, dtype=float) for a in (XF, ZF, L, EA, w, CB, h_A))
     _check_inputs(XF=XF, ZF=ZF, L=L, EA=EA, w=w, CB=CB, h_A=hA)
     shape = np.broadcast_shapes(XF.shape, ZF.shape, L.shape, EA.shape, w.shape, CB.shape, hA.shape)
@@ -468,7 +682,7 @@ def solve(XF, ZF, L, EA, w, *, CB=0.0, h_A=0.0, tol: float = 1e-9, max_iter: int
     regime = np.full(n, -1, dtype=np.int8)
 
     d = np.hypot(XF, ZF)
-    inext_short = np.isinf(EA) & (d > L * (1 + 1e-12))
+    inext_short = np.isinf(EA) & (d > L * (1 + 1e-12)) & (tab is None)
     if np.any(inext_short):
         i = int(np.argmax(inext_short))
         raise CatenaryError(
@@ -479,32 +693,44 @@ def solve(XF, ZF, L, EA, w, *, CB=0.0, h_A=0.0, tol: float = 1e-9, max_iter: int
         # weightless straight bar
         m = w == 0
         if np.any(m):
-            T = EA[m] * np.maximum(d[m] / L[m] - 1.0, 0.0)
+            if tab is None:
+                T = EA[m] * np.maximum(d[m] / L[m] - 1.0, 0.0)
+            else:
+                T = tab.tension_at(np.maximum(d[m] / L[m] - 1.0, 0.0))
             dd = np.where(d[m] > 0, d[m], 1.0)
             out["HF"][m] = T * XF[m] / dd
             out["VF"][m] = T * ZF[m] / dd
             out["HA"][m], out["VA"][m] = out["HF"][m], out["VF"][m]
             taut = d[m] > L[m]
-            k0 = np.where(taut, EA[m] * (1.0 / L[m] - 1.0 / dd), 0.0)
-            k1 = np.where(taut, EA[m] / dd**3, 0.0)
+            if tab is None:
+                k0 = np.where(taut, EA[m] * (1.0 / L[m] - 1.0 / dd), 0.0)
+                k1 = np.where(taut, EA[m] / dd**3, 0.0)
+            else:  # F = T(d/L - 1) (X, Z)/d: k0 = T/d, k1 = (T'/L - T/d)/d^2
+                k0 = np.where(taut, T / dd, 0.0)
+                k1 = np.where(taut, (tab.tangent_at(d[m] / L[m] - 1.0) / L[m] - T / dd) / dd**2, 0.0)
             out["dHX"][m] = k0 + k1 * XF[m] ** 2
             out["dVZ"][m] = k0 + k1 * ZF[m] ** 2
             out["dHZ"][m] = out["dVX"][m] = k1 * XF[m] * ZF[m]
             regime[m] = WEIGHTLESS
         heavy = ~m
         # slack: hanging vertically from the fairlead (L2) and from an elevated lower end (L1)
-        L1 = hanging_length(hA, w, EA)
-        L2 = hanging_length(ZF + hA, w, EA)
+        L1 = hanging_length(hA, w, EA, tab)
+        L2 = hanging_length(ZF + hA, w, EA, tab)
         m = heavy & (L1 + L2 <= L) & (L - L1 - L2 >= XF)
         if np.any(m):
             out["VF"][m] = w[m] * L2[m]
             out["VA"][m] = -w[m] * L1[m]
             out["LBot"][m] = L[m] - L1[m] - L2[m]
-            out["dVZ"][m] = w[m] / (1.0 + w[m] * L2[m] / EA[m])
+            if tab is None:
+                out["dVZ"][m] = w[m] / (1.0 + w[m] * L2[m] / EA[m])
+            else:
+                out["dVZ"][m] = w[m] / (1.0 + tab.strain_at(w[m] * L2[m]))
             regime[m] = SLACK
         # vertical, fully suspended: taut (VA >= 0) or hanging doubled from an elevated lower end
         m = heavy & (regime < 0) & (XF <= 1e-12 * L)
-        if np.any(m):
+        if np.any(m) and tab is not None:
+            _vertical_table(m, out, regime, ZF, L, w, tab)
+        elif np.any(m):
             kw = 1.0 + 0.5 * w[m] * L[m] / EA[m]
             taut = ZF[m] >= L[m] * kw
             VF = np.where(taut, EA[m] * (ZF[m] - L[m]) / L[m] + 0.5 * w[m] * L[m],
@@ -520,7 +746,9 @@ def solve(XF, ZF, L, EA, w, *, CB=0.0, h_A=0.0, tol: float = 1e-9, max_iter: int
             regime[m] = VERTICAL
         # both ends on the seabed, line stretched
         m = heavy & (regime < 0) & (ZF <= 0) & (hA <= 0)
-        if np.any(m):
+        if np.any(m) and tab is not None:
+            _seabed_table(m, out, regime, XF, L, w, CB, tab)
+        elif np.any(m):
             cbw = CB[m] * w[m]
             stretch = XF[m] - L[m]
             with np.errstate(divide="ignore", invalid="ignore"):
@@ -542,10 +770,10 @@ def solve(XF, ZF, L, EA, w, *, CB=0.0, h_A=0.0, tol: float = 1e-9, max_iter: int
         gs = None
         if guess is not None:
             gs = tuple(np.broadcast_to(np.asarray(a, dtype=float), shape).ravel()[g] for a in guess)
-        HF, VF, err, iterations = _newton(*args, tol=tol, max_iter=max_iter, guess=gs)
+        HF, VF, err, iterations = _newton(*args, tol=tol, max_iter=max_iter, guess=gs, table=tab)
         bad = np.flatnonzero(~(err <= tol) | ~np.isfinite(HF) | ~np.isfinite(VF))
         for j in bad:
-            h, v, r = _fallback(*(a[j] for a in args), HF[j], VF[j], tol)
+            h, v, r = _fallback(*(a[j] for a in args), HF[j], VF[j], tol, tab)
             if not r <= tol:
                 i = int(g[j])
                 raise CatenaryError(
@@ -554,7 +782,10 @@ def solve(XF, ZF, L, EA, w, *, CB=0.0, h_A=0.0, tol: float = 1e-9, max_iter: int
                         XF[i], ZF[i], L[i], EA[i], w[i], CB[i], hA[i], i, r))
             HF[j], VF[j] = h, v
         Lg, wg, EAg, CBg, hg = L[g], w[g], EA[g], CB[g], hA[g]
-        V1 = _seabed_reach(HF, hg, EAg, wg) if _elevated(hg) else np.zeros_like(HF)
+        if not _elevated(hg):
+            V1 = np.zeros_like(HF)
+        else:
+            V1 = _seabed_reach(HF, hg, EAg, wg) if tab is None else _table_reach(HF, hg, wg, tab)
         susp = VF + V1 >= wg * Lg
         LB = np.where(susp, 0.0, Lg - (VF + V1) / wg)
         cbw = np.where(hg > 0, 0.0, CBg * wg)
@@ -563,7 +794,7 @@ def solve(XF, ZF, L, EA, w, *, CB=0.0, h_A=0.0, tol: float = 1e-9, max_iter: int
         out["VA"][g] = np.where(susp, VF - wg * Lg, 0.0 - V1)  # 0.0 - 0.0: no negative zero
         out["HA"][g] = np.where(susp, HF, np.maximum(HF - cbw * LB, 0.0))
         out["LBot"][g] = LB
-        a, b, c, dd = _closure_jacobian(HF, VF, Lg, EAg, wg, CBg, hg)
+        a, b, c, dd = _closure_jacobian(HF, VF, Lg, EAg, wg, CBg, hg, tab)
         det = a * dd - b * c
         out["dHX"][g], out["dHZ"][g] = dd / det, -b / det
         out["dVX"][g], out["dVZ"][g] = -c / det, a / det
@@ -581,6 +812,70 @@ def solve(XF, ZF, L, EA, w, *, CB=0.0, h_A=0.0, tol: float = 1e-9, max_iter: int
             raise CatenaryError(f"non-finite {k} for XF = {XF[i]:g} m, ZF = {ZF[i]:g} m, L = {L[i]:g} m")
     shaped = {k: v.reshape(shape) for k, v in res.items()}
     return CatenarySolution(regime=regime.reshape(shape), iterations=int(iterations), **shaped)
+
+
+def _vertical_table(m, out, regime, ZF, L, w, tab) -> None:
+    """The vertical regime (``XF = 0``) of a line of a table, into ``out`` at the mask ``m``: taut,
+    ``ZF = L + L mean_strain(VF, w L)`` (its tension falls linearly by ``w L`` to A), or hanging
+    doubled from an elevated lower end over ``L1`` down and ``L2 = L - L1`` up,
+    ``ZF = L2 + E(w L2)/w - L1 - E(w L1)/w``."""
+    z, Lm, wm = ZF[m], L[m], w[m]
+    wL = wm * Lm
+    taut = z >= Lm * (1.0 + tab.mean_strain(wL, wL))
+    VF = tab.solve_mean_strain(np.where(taut, (z - Lm) / Lm, 0.0), wL)
+    # doubled: R(L2) = ZF, R increasing on [L/2, L] with R' = 2 + eps(w L2) + eps(w L1)
+    lo, hi = 0.5 * Lm, Lm.copy()
+
+    def R(L2):
+        L1 = Lm - L2
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return (L2 - L1 + L2 * np.where(L2 > 0, tab.mean_strain(wm * L2, wm * L2), 0.0)
+                    - L1 * np.where(L1 > 0, tab.mean_strain(wm * L1, wm * L1), 0.0))
+
+    L2 = 0.5 * (lo + hi)
+    for _ in range(200):
+        f = R(L2) - z
+        lo, hi = np.where(f < 0, L2, lo), np.where(f > 0, L2, hi)
+        dR = 2.0 + tab.strain_at(wm * L2) + tab.strain_at(wm * (Lm - L2))
+        L2n = L2 - f / dR
+        L2n = np.where((L2n <= lo) | (L2n >= hi) | ~np.isfinite(L2n), 0.5 * (lo + hi), L2n)
+        done = (np.abs(L2n - L2) <= 4e-16 * Lm) | (f == 0) | taut
+        L2 = np.where(f == 0, L2, L2n)
+        if np.all(done):
+            break
+    VF = np.where(taut, VF, wm * L2)
+    out["VF"][m] = VF
+    out["VA"][m] = VF - wL
+    VA = np.maximum(VF - wL, 0.0)
+    run = _run(0.0, VA, Lm, wm, tab)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.log(VF / np.maximum(VA, 1e-300))
+        dHX = 1.0 / (ratio / wm + run.QX)
+    out["dHX"][m] = np.where(taut & np.isfinite(dHX), dHX, 0.0)
+    out["dVZ"][m] = np.where(taut, 1.0 / (Lm * tab.mean_compliance(VA, VF)),
+                             wm / (2.0 + tab.strain_at(wm * L2) + tab.strain_at(wm * (Lm - L2))))
+    regime[m] = VERTICAL
+
+
+def _seabed_table(m, out, regime, XF, L, w, CB, tab) -> None:
+    """Both ends on the seabed, the line stretched by ``XF - L``, for a line of a table, into
+    ``out`` at the mask ``m``: friction carries the tension to 0 over part of the line
+    (``E(H) = CB w (XF - L)``, while ``H < CB w L``) or it falls by ``CB w L`` along all of it
+    (``XF - L = L mean_strain(H, CB w L)``)."""
+    cbw = CB[m] * w[m]
+    Lm = L[m]
+    stretch = XF[m] - Lm
+    H_part = tab.rise(0.0, cbw * stretch, alpha=0.0)
+    part = (cbw > 0) & (H_part < cbw * Lm)
+    H_full = tab.solve_mean_strain(stretch / Lm, cbw * Lm)
+    H = np.where(part, H_part, H_full)
+    out["HF"][m] = H
+    out["HA"][m] = np.where(part, 0.0, np.maximum(H - cbw * Lm, 0.0))
+    out["LBot"][m] = Lm
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out["dHX"][m] = np.where(part, cbw / tab.strain_at(H), 1.0 / (Lm * tab.mean_compliance(H - cbw * Lm, H)))
+    out["dVZ"][m] = np.inf
+    regime[m] = SEABED
 
 
 def _hanging_piece(H, V0, sig, w, EA):
@@ -602,13 +897,13 @@ def _hanging_piece(H, V0, sig, w, EA):
 
 
 def line_profile(XF: float, ZF: float, L: float, EA: float, w: float, *, CB: float = 0.0, h_A: float = 0.0,
-                 n: int = 101):
+                 n: int = 101, table=None):
     """Shape and tension along one line, from the lower end A (s = 0) to the fairlead (s = L).
 
     Parameters
     ----------
-    XF, ZF, L, EA, w, CB, h_A : float
-        As in :func:`solve` (scalars).
+    XF, ZF, L, EA, w, CB, h_A, table : float
+        As in :func:`solve` (scalars; ``table`` a tension-strain table or None).
     n : int
         Number of points along the unstretched arc length.
 
@@ -619,6 +914,8 @@ def line_profile(XF: float, ZF: float, L: float, EA: float, w: float, *, CB: flo
         [m] (the seabed is at ``z = -h_A``), ``T`` tension [N], each of shape (n,), plus the scalar
         solution.
     """
+    if table is not None:
+        return _line_profile_table(XF, ZF, L, EA, w, CB, h_A, n, as_table(table))
     sol = solve(XF, ZF, L, EA, w, CB=CB, h_A=h_A)
     HF = float(sol.HF)
     reg = int(sol.regime)
@@ -664,6 +961,73 @@ def line_profile(XF: float, ZF: float, L: float, EA: float, w: float, *, CB: flo
         x_bed = sb + tens_int / EA
         sig = np.maximum(s - L1 - LB, 0.0)
         x2, z2, T2 = _hanging_piece(HF, V2, sig, w, EA)
+        x = x1 + x_bed + x2
+        z = z1 + z2
+        T_bed = np.maximum(HF - cbw * (LB - sb), 0.0)
+        T = np.where(s < L1, T1, np.where((s <= L1 + LB) & (LB > 0), T_bed, T2))
+    return {"s": s, "x": x, "z": z, "T": T, "solution": sol}
+
+
+def _line_profile_table(XF, ZF, L, EA, w, CB, h_A, n, tab):
+    """:func:`line_profile` of a line of a tension-strain table: the inextensible shape of each
+    part plus its exact elastic stretch up to each point (:func:`_run`, :func:`_bed`); a part
+    hanging vertically over ``sv`` from where its tension is 0 rises ``sv + E(w sv)/w``."""
+    sol = solve(XF, ZF, L, EA, w, CB=CB, h_A=h_A, table=tab)
+    HF = float(sol.HF)
+    reg = int(sol.regime)
+    s = np.linspace(0.0, L, n)
+
+    def hang(sv):  # height risen over sv above a zero-tension end, hanging vertically
+        return sv + np.where(sv > 0, sv * tab.mean_strain(w * sv, w * sv), 0.0)
+
+    if reg == WEIGHTLESS:
+        frac = s / L
+        x, z = frac * XF, frac * ZF
+        T = np.full(n, float(sol.TF))
+    elif reg == SLACK or (reg == VERTICAL and float(sol.VA) < 0):
+        if reg == SLACK:
+            L1 = float(hanging_length(h_A, w, EA, tab))
+            L2 = float(hanging_length(ZF + h_A, w, EA, tab))
+            LB = float(sol.LBot)
+        else:  # hanging doubled from an elevated A: down over L1, up over L2
+            L2 = float(sol.VF) / w
+            L1, LB = L - L2, 0.0
+        s1 = np.minimum(s, L1)
+        z1 = -(hang(L1) - hang(L1 - s1))  # below A
+        if reg == SLACK:
+            x = np.clip(XF * (s - L1) / max(LB, 1e-300), 0.0, XF)
+            sv = np.clip(L2 - (L - s), 0.0, L2)
+            z = np.where(s <= L1, z1, -h_A + hang(sv))
+            T = np.where(s <= L1, w * (L1 - s1), w * sv)
+        else:
+            x = np.zeros(n)
+            s2 = np.maximum(s - L1, 0.0)
+            z = np.where(s <= L1, z1, -hang(L1) + hang(s2))
+            T = w * np.where(s <= L1, L1 - s1, s2)
+    else:  # touchdown, suspended, taut vertical, seabed
+        LB = float(sol.LBot)
+        VA = float(sol.VA)
+        L1 = -VA / w if (reg == TOUCHDOWN and h_A > 0) else 0.0
+        V2 = 0.0 if reg in (TOUCHDOWN, SEABED) else VA
+
+        def piece(V0, sig):
+            dx, dz, Tp = _hanging_piece(HF, V0, sig, w, np.inf)
+            if w > 0 and np.any(sig > 0):
+                r = _run(HF, V0, sig, w, tab)
+                dx = dx + (HF * r.QX if HF > 0 else 0.0)
+                dz = dz + r.QZ
+            return dx, dz, Tp
+
+        s1 = np.minimum(s, L1)
+        x1, z1, T1 = piece(VA if L1 > 0 else 0.0, s1)
+        if L1 > 0:
+            z1 = np.where(s >= L1, -h_A, z1)
+        cbw = CB * w if h_A <= 0 else 0.0
+        sb = np.clip(s - L1, 0.0, LB)
+        B, _ = _bed(HF, LB, cbw, tab, 0.0, sb)
+        x_bed = sb + B
+        sig = np.maximum(s - L1 - LB, 0.0)
+        x2, z2, T2 = piece(V2, sig)
         x = x1 + x_bed + x2
         z = z1 + z2
         T_bed = np.maximum(HF - cbw * (LB - sb), 0.0)
