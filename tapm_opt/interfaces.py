@@ -125,6 +125,10 @@ class Estimate:
     broken_lines : frozenset of str
         Ids of the lines the estimator's line-break detector reports broken (empty: none known,
         or no detector). Faults reach the setpoint layer and the controller only this way.
+    lost_points : frozenset of (str, int)
+        Buoys the detector reports lost from composite lines, (line id, joint index from the
+        anchor up) (empty: none known). The line system after the faults is
+        ``model.damaged(broken_lines, lost_points)``.
     reliability : ReliabilityState or None
         The estimator's on-line reliability statistics of the measured tensions and riser angles
         (:class:`tapm_opt.estimation.reliability.ReliabilityState`: ``x_lf``, ``sigma``, ``k``,
@@ -144,11 +148,13 @@ class Estimate:
     broken_lines: frozenset = frozenset()
     reliability: Any = None
     eta_wf: np.ndarray | None = None
+    lost_points: frozenset = frozenset()
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "t", float(self.t))
         bl = self.broken_lines
         object.__setattr__(self, "broken_lines", frozenset([bl] if isinstance(bl, str) else (str(b) for b in bl)))
+        object.__setattr__(self, "lost_points", frozenset((str(lid), int(j)) for lid, j in self.lost_points))
         for name in ("eta", "nu", "tau_env"):
             object.__setattr__(self, name, readonly(getattr(self, name)))
         for name in ("tensions", "riser_angles", "eta_wf"):
@@ -222,8 +228,9 @@ def _trusted(cls: type, **fields: Any) -> Any:
     """A frozen data object of ``cls`` (:class:`Measurement`, :class:`Estimate`, :class:`Setpoint`,
     :class:`Truth`) from fields that are already what its constructor would make of them: every
     array a new read-only float64 (bool for ``thruster_failed``) held by nobody else, ``t`` a
-    float, ``broken_lines`` a frozenset of str. For the loop's own components on their hot path;
-    the constructor's copies and conversions are skipped, the object is the same."""
+    float, ``broken_lines`` a frozenset of str, ``lost_points`` a frozenset of (str, int). For the
+    loop's own components on their hot path; the constructor's copies and conversions are skipped,
+    the object is the same."""
     obj = object.__new__(cls)
     d = obj.__dict__
     d.update(_DEFAULTS[cls])
@@ -235,7 +242,7 @@ _DEFAULTS: dict[type, dict[str, Any]] = {
     Measurement: {"thruster_f": None, "thruster_alpha": None, "thruster_failed": None, "tau_thr": None,
                   "truth": None, "riser_angles": None, "t_riser_angles": None},
     Estimate: {"tensions": None, "riser_angles": None, "broken_lines": frozenset(), "reliability": None,
-               "eta_wf": None},
+               "eta_wf": None, "lost_points": frozenset()},
     Setpoint: {},
     Truth: {},
 }

@@ -120,15 +120,17 @@ class _MPCBase:
         self._b_mean: np.ndarray | None = None     # its mean and the heading's for the dead band's budget (5,)
         self._t_mean: float | None = None
         self._t_first = 0.0
-        self._damaged_lines: dict[frozenset, Any] = {}   # the mooring without the broken lines
+        self._damaged_lines: dict[Any, Any] = {}   # the mooring without the broken lines (and lost buoys)
+        self._lost_models: dict[frozenset, Any] = {}   # the line model without the lost buoys
         self._radius = math.nan                    # the dead band's radius of the last step [m]
         self._log: list[dict] = []                 # the dead band's changes after a break
 
     def log(self) -> list[dict]:
         """The dead band after a break (with ``dead_band_damaged``; ``interfaces.Logged``): a
         record ``{"t", "event": "mode switch", "from", "to": "intact" | "damaged", "radius" [m],
-        "broken"}`` whenever the set of broken lines reported changes (the KPI ``mode_switches``
-        counts them), and ``{"t", "event": "dead band", "radius", "broken"}`` whenever the budgeted
+        "broken"}`` (and ``"lost_points"``, [line id, joint] of the buoys reported lost, when there
+        are any) whenever the set of broken lines or lost buoys reported changes (the KPI
+        ``mode_switches`` counts them), and ``{"t", "event": "dead band", "radius", "broken"}`` whenever the budgeted
         radius has moved 0.5 m since the last record."""
         return [dict(r) for r in self._log]
 
@@ -167,23 +169,37 @@ class _MPCBase:
         # rate rows start from its part inside (else the first move could have no feasible value)
         u_prev = self._into_polytope(u_prev / self._prob.scale["u"]) * self._prob.scale["u"]
         p[pi["x0"]], p[pi["u_prev"]], p[pi["eta_d"]], p[pi["b"]] = np.concatenate([eta, nu]), u_prev, eta_d, b_E
+        ft = self.settings.fault_tolerance
+        lost = frozenset(est.lost_points) if ft else frozenset()
         if pi["moor"].stop > pi["moor"].start:
-            moor = mooring_parameters(self.model, self._centre(eta, eta_d))
-            if self.settings.fault_tolerance and est.broken_lines:
+            moor = mooring_parameters(self._with_lost(lost), self._centre(eta, eta_d))
+            if ft and est.broken_lines:
                 moor = self._without_broken(moor, frozenset(est.broken_lines))
             p[pi["moor"]] = moor
         p[pi["T_lim"]] = self._tension_limits(est)
         self._radius = math.nan
         if pi["dead_band"].stop > pi["dead_band"].start:
             p[pi["dead_band"]] = self._radius = self._dead_band(float(est.t), eta[2], tau_env_E,
-                                                                frozenset(est.broken_lines), eta_d[:2])
+                                                                frozenset(est.broken_lines), eta_d[:2], lost)
         if pi["riser"].stop > pi["riser"].start:
             p[pi["riser"]] = self._riser_parameters(est)
         return p
 
-    def _dead_band(self, t: float, psi: float, b_E: np.ndarray, broken: frozenset, centre: np.ndarray) -> float:
-        """The dead band's radius [m]: ``dead_band``, or once a break is reported
-        ``dead_band_damaged``, within the intact thrust budget (:func:`budgeted_dead_band`) with
+    def _with_lost(self, lost: frozenset) -> Any:
+        """The line model with the buoys ``lost`` ((line id, joint)) gone (the model itself for
+        none), built once per set: the same lines, so its characteristics take the intact ones'
+        place in the prediction."""
+        lost = frozenset(p for p in lost if p[0] in self.model.line_ids)
+        if not lost:
+            return self.model
+        if lost not in self._lost_models:
+            self._lost_models[lost] = self.model.with_points_lost(sorted(lost))
+        return self._lost_models[lost]
+
+    def _dead_band(self, t: float, psi: float, b_E: np.ndarray, broken: frozenset, centre: np.ndarray,
+                   lost: frozenset = frozenset()) -> float:
+        """The dead band's radius [m]: ``dead_band``, or once a break (or a buoy loss, ``lost``) is
+        reported ``dead_band_damaged``, within the intact thrust budget (:func:`budgeted_dead_band`) with
         ``dead_band_budget``: at the estimated load and heading low-passed over
         ``MEAN_LOAD_TIME_CONSTANT`` (the heading as its unit vector; over the time since the first
         estimate until that has passed, so an early break sees the mean so far, not the filter's
@@ -200,27 +216,31 @@ class _MPCBase:
             self._b_mean = _low_pass_step(self._b_mean, self._t_mean, m, t, T)
             self._t_mean = t
         broken = broken & frozenset(self.model.line_ids)
-        if not broken:
+        lost = frozenset(p for p in lost if p[0] in self.model.line_ids and p[0] not in broken)
+        if not broken and not lost:
             r = st.dead_band
         elif not st.dead_band_budget:
             r = st.dead_band_damaged
         else:
-            if broken not in self._damaged_lines:
+            key = (broken, lost) if lost else broken
+            if key not in self._damaged_lines:
                 try:
-                    self._damaged_lines[broken] = self.model.without(broken)
+                    self._damaged_lines[key] = self.model.damaged(broken, lost)
                 except ModelError:        # no line left: the thrusters hold it all, no budget to share
-                    self._damaged_lines[broken] = None
-            damaged = self._damaged_lines[broken]
+                    self._damaged_lines[key] = None
+            damaged = self._damaged_lines[key]
             b_mean, psi_mean = self._b_mean[:3], math.atan2(self._b_mean[4], self._b_mean[3])
             r = st.dead_band if damaged is None else budgeted_dead_band(
                 self.model, damaged, b_mean, psi_mean, st.dead_band_damaged, st.dead_band, centre)
-        ids = sorted(broken)
+        ids, pts = sorted(broken), [[lid, j] for lid, j in sorted(lost)]
+        extra = {"lost_points": pts} if pts else {}
         last = self._log[-1] if self._log else {"broken": [], "radius": st.dead_band}
-        if last["broken"] != ids:
-            self._log.append({"t": t, "event": "mode switch", "from": "damaged" if last["broken"] else "intact",
-                              "to": "damaged" if ids else "intact", "radius": r, "broken": ids})
-        elif ids and abs(last["radius"] - r) >= 0.5:
-            self._log.append({"t": t, "event": "dead band", "radius": r, "broken": ids})
+        was = bool(last["broken"] or last.get("lost_points"))
+        if last["broken"] != ids or last.get("lost_points", []) != pts:
+            self._log.append({"t": t, "event": "mode switch", "from": "damaged" if was else "intact",
+                              "to": "damaged" if ids or pts else "intact", "radius": r, "broken": ids, **extra})
+        elif (ids or pts) and abs(last["radius"] - r) >= 0.5:
+            self._log.append({"t": t, "event": "dead band", "radius": r, "broken": ids, **extra})
         return r
 
     def _condensed_solve(self, evaluate: Any, *args: Any) -> tuple[bool, str, int, np.ndarray]:

@@ -155,7 +155,9 @@ class MPCSettings:
         When the estimate reports broken lines (``Estimate.broken_lines``), drop them from the
         prediction: their characteristics (``mooring="characteristic"``, the only kind whose lines
         are parameters) are zeroed, so the predicted mooring load and tensions are those of the
-        lines left, with no new problem.
+        lines left, with no new problem. Buoys reported lost (``Estimate.lost_points``) leave their
+        lines' characteristics those of the line without the buoy
+        (``MooringModel.with_points_lost``); the dead band treats them as damage too.
     load_time_constant : float
         Time constant [s] of a first-order low-pass filter through which the estimated
         environmental load (``Estimate.tau_env``, taken into {E}) enters the prediction, which

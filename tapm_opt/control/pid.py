@@ -256,11 +256,11 @@ class TAPMPID:
     line_model : MooringModel, optional
         The intact line model, for ``fault_tolerance``.
     fault_tolerance : bool
-        When the estimate reports broken lines (``Estimate.broken_lines``), add the load they
-        gave the vessel at the estimated pose as feed-forward, ``tau_moor,intact(eta) -
-        tau_moor,without them(eta)`` ([S] §4.2.4: "the thrusters must be used in feedforward to
-        compensate for the lost mooring force"; the tabulated catenary of
-        :meth:`MooringModel.load_evaluator`). Needs ``line_model``.
+        When the estimate reports broken lines (``Estimate.broken_lines``) or lost buoys
+        (``Estimate.lost_points``), add the load the mooring no longer gives the vessel at the
+        estimated pose as feed-forward, ``tau_moor,intact(eta) - tau_moor,damaged(eta)`` ([S]
+        §4.2.4: "the thrusters must be used in feedforward to compensate for the lost mooring
+        force"; the tabulated catenary of :meth:`MooringModel.load_evaluator`). Needs ``line_model``.
 
     Notes
     -----
@@ -453,8 +453,8 @@ class TAPMPID:
         tau = -(self._Ki @ (Rt @ self._xi)) - self._Kp @ e_b - self._Kd @ dnu
         if tau_env is not None:
             tau = tau - tau_env
-        if self._ft and estimate.broken_lines:
-            tau = tau + self.lost_load(eta, frozenset(estimate.broken_lines))
+        if self._ft and (estimate.broken_lines or estimate.lost_points):
+            tau = tau + self.lost_load(eta, frozenset(estimate.broken_lines), frozenset(estimate.lost_points))
         self._tau_unsat = tau
         if self._tau_limit is not None:
             self._sat = np.abs(tau) > self._tau_limit
@@ -462,15 +462,20 @@ class TAPMPID:
         self._last = ControllerStep(t=t, active=("saturated",) if np.any(self._sat) else ())
         return np.array(tau)
 
-    def lost_load(self, eta: np.ndarray, broken: frozenset) -> np.ndarray:
-        """The load in {B} [N, N, N m] the lines ``broken`` gave the vessel at pose ``eta`` (the
-        fault-tolerant feed-forward): the intact model's minus the model without them."""
-        broken = frozenset(broken) & frozenset(self._line_model.line_ids)
-        if not broken:
+    def lost_load(self, eta: np.ndarray, broken: frozenset, lost_points: frozenset = frozenset()) -> np.ndarray:
+        """The load in {B} [N, N, N m] the mooring no longer gives the vessel at pose ``eta`` (the
+        fault-tolerant feed-forward): the intact model's minus the damaged model's, without the
+        lines ``broken`` and the buoys ``lost_points`` ((line id, joint);
+        :meth:`MooringModel.damaged <tapm_opt.models.mooring.MooringModel.damaged>`)."""
+        ids = frozenset(self._line_model.line_ids)
+        broken = frozenset(broken) & ids
+        lost = frozenset(p for p in lost_points if p[0] in ids and p[0] not in broken)
+        if not broken and not lost:
             return np.zeros(3)
-        if broken not in self._reduced:
-            self._reduced[broken] = self._line_model.without(broken)
-        return np.asarray(self._line_model.force_fast(eta), float) - np.asarray(self._reduced[broken].force_fast(eta), float)
+        key = (broken, lost) if lost else broken
+        if key not in self._reduced:
+            self._reduced[key] = self._line_model.damaged(broken, lost)
+        return np.asarray(self._line_model.force_fast(eta), float) - np.asarray(self._reduced[key].force_fast(eta), float)
 
     def _integrate(self, e_b: np.ndarray, Rt: np.ndarray, dt: float) -> None:
         """xi += (eta - eta_d) dt with conditional integration and clamping (anti-windup)."""

@@ -56,8 +56,9 @@ Costs (``method``):
 Every method keeps the optimum where every index is at least ``delta_s`` (soft constraints with a
 stiff quadratic penalty, so a problem with no such point still has an answer: the least violating
 one) and inside ``max_offset`` (default the alert radius). The layer re-solves every ``period``
-seconds and when the set of known broken lines changes (``Estimate.broken_lines``; the model is
-rebuilt without them), and moves the setpoint toward the optimum at no more than ``max_rate``.
+seconds and when the set of known broken lines or lost buoys changes (``Estimate.broken_lines``,
+``Estimate.lost_points``; the model is rebuilt without them), and moves the setpoint toward the
+optimum at no more than ``max_rate``.
 """
 
 from __future__ import annotations
@@ -575,8 +576,8 @@ class OptimalSetpoint:
     Parameters
     ----------
     system : System
-        The intact system (lines known broken are dropped from its model when the estimate says
-        so).
+        The intact system (lines known broken are dropped from its model, buoys known lost taken
+        off their lines, when the estimate says so).
     method : {"quadratic", "reliability", "unified"}
     riser : RiserModel, optional
     options : SetpointOptions or mapping
@@ -614,8 +615,9 @@ class OptimalSetpoint:
         self._t: float | None = None
         self._t_solve: float | None = None
         self._broken: frozenset = frozenset()
+        self._lost: frozenset = frozenset()
         self._p_mean: np.ndarray | None = None   # running mean of the estimated turret offset from the setpoint [m]
-        self._solved_for: frozenset | None = None  # broken lines of the latest optimisation
+        self._solved_for: Any = None  # broken lines (and lost buoys) of the latest optimisation
         self._ms_lf = 0.0      # running mean square of its distance from that mean [m^2]
         self.history = []
 
@@ -623,12 +625,17 @@ class OptimalSetpoint:
         """Every optimisation: time [s], target turret offset [m], lines known broken, solver status."""
         return self.history
 
-    def problem(self, broken: frozenset) -> SetpointProblem:
-        """The optimisation for this set of broken lines (built once per set)."""
-        if broken not in self._problems:
+    def problem(self, broken: frozenset, lost_points: frozenset = frozenset()) -> SetpointProblem:
+        """The optimisation for this set of broken lines and lost buoys ((line id, joint)), built
+        once per set (keyed by the broken lines alone when no buoy is lost)."""
+        lost = frozenset(p for p in lost_points if p[0] not in broken)
+        key = (broken, lost) if lost else broken
+        if key not in self._problems:
             sys_b = self.system0.with_broken(sorted(broken)) if broken else self.system0
-            self._problems[broken] = SetpointProblem(sys_b, self.riser, self.method, self.options)
-        return self._problems[broken]
+            if lost:
+                sys_b = sys_b.with_lost_points(sorted(lost))
+            self._problems[key] = SetpointProblem(sys_b, self.riser, self.method, self.options)
+        return self._problems[key]
 
     def working_point(self, estimate: Estimate, broken: frozenset) -> WorkingPoint:
         """The optimisation's inputs from the estimate and its reliability statistics."""
@@ -650,6 +657,7 @@ class OptimalSetpoint:
             raise SetpointOptError(f"estimate at t = {t!r} s: eta = {eta.tolist()} must be 3 finite numbers "
                                    "(x [m], y [m], psi [rad])")
         broken = frozenset(estimate.broken_lines)
+        lost = frozenset(estimate.lost_points)
         dt = 0.0 if self._t is None else max(t - self._t, 0.0)
         self._t = float(t)
         # the LF excursion is that of the offset from the setpoint in use: the layer's own moves of
@@ -663,16 +671,16 @@ class OptimalSetpoint:
             self._ms_lf = first_order_step(self._ms_lf, float(np.sum((e_now - self._p_mean) ** 2)), dt, T)
         due = (self._t_solve is None and t >= self.options.warmup) or (
             self._t_solve is not None and t - self._t_solve >= self.options.period - 1e-9) or (
-            broken != self._broken and t >= 0)
+            (broken != self._broken or lost != self._lost) and t >= 0)
         if due:
-            self._broken = broken
-            prob = self.problem(broken)
+            self._broken, self._lost = broken, lost
+            prob = self.problem(broken, lost)
             wp = self.working_point(estimate, broken)
             w0 = time.perf_counter()
             if self.method == "unified" and self.options.solver == "closed_form":
                 target, info = prob.closed_form(wp)
             else:
-                warm = self._solved_for == broken
+                warm = self._solved_for == (broken, lost)
                 target, info = prob.solve(wp, starts=(self.target,) if warm else (self.target, self.p), warm=warm)
                 if warm and not info["success"]:   # the re-solve stopped early: every start
                     target, info = prob.solve(wp, starts=(self.target, self.p))
@@ -687,9 +695,10 @@ class OptimalSetpoint:
                         target, info = self.target, {**info, "J": J_keep, "kept": True}
             self.target = np.asarray(target, float)
             self._t_solve = float(t)
-            self._solved_for = broken
+            self._solved_for = (broken, lost)
+            extra = {"lost_points": [[lid, j] for lid, j in sorted(lost)]} if lost else {}
             self.history.append({"t": float(t), "target": self.target.tolist(), "broken": sorted(broken),
-                                 "r_lf": self.r_lf, "solve_time": time.perf_counter() - w0, **info})
+                                 **extra, "r_lf": self.r_lf, "solve_time": time.perf_counter() - w0, **info})
         step = self.target - self.p
         dist = float(np.hypot(*step))
         lim = self.options.max_rate * dt

@@ -1,4 +1,4 @@
-"""Line-break detection from the tension cells.
+"""Line-break (and buoy-loss) detection from the tension cells.
 
 Two detectors, both fed by the estimators (``update(t, tensions, eta)``, latched, ``events``):
 
@@ -18,7 +18,10 @@ Two detectors, both fed by the estimators (``update(t, tensions, eta)``, latched
   line's tension by default), so also to a break below the fairlead, where the cell keeps reading
   the weight of the hanging line.
 
-Detected breaks reach the setpoint layer and the controllers through ``Estimate.broken_lines``.
+Detected breaks reach the setpoint layer and the controllers through ``Estimate.broken_lines``. On a
+mooring of composite lines the residual detector also tests the loss of each buoy (its known shift
+of its line's static tension, on the residual no pose error explains); a buoy found lost reaches
+them through ``Estimate.lost_points``.
 
 References
 ----------
@@ -31,7 +34,9 @@ M. Basseville, I. V. Nikiforov, Detection of Abrupt Changes: Theory and Applicat
 Hall, 1993, §2.2 (CUSUM), §2.4 (GLR), §5.2 (mean delay).
 P. J. Huber, Robust Statistics, Wiley, 1981 (the clipped running estimates).
 Z. Ren et al., A survey on modeling and control of thruster-assisted position mooring systems,
-§4.2.4 (fault detection and isolation of line breaks).
+§4.2.4 (fault detection and isolation of line breaks), §4.4 (loss of a buoyancy element).
+E. Y. Chow, A. S. Willsky, Analytical redundancy and the design of robust failure detection
+systems, IEEE Trans. Automat. Contr. 29 (1984) 603-614 (parity relations).
 """
 
 from __future__ import annotations
@@ -44,7 +49,8 @@ import numpy as np
 from ..errors import TapmError
 from ..models.characteristics import tension_source
 
-__all__ = ["TensionDropDetector", "TensionResidualDetector", "DetectionError", "FALSE_ALARM_TIME_DEFAULT"]
+__all__ = ["TensionDropDetector", "TensionResidualDetector", "DetectionError", "FALSE_ALARM_TIME_DEFAULT",
+           "BUOY_CONFIRMATION_TIME"]
 
 
 class DetectionError(TapmError, ValueError):
@@ -107,6 +113,14 @@ class TensionDropDetector:
 #: Default design mean time between false alarms of a whole :class:`TensionResidualDetector`
 #: (all its lines together) [s]: one year.
 FALSE_ALARM_TIME_DEFAULT = 365.25 * 86400.0
+#: Default time a buoy loss must last before :class:`TensionResidualDetector` declares it [s]
+#: (``buoy_min_samples`` = this x ``rate``, rounded up): the loss shifts the static part of the
+#: line's tension by a fraction of what a break does, so its hypothesis is confirmed over longer
+#: than a wave group's tension swings (docs/estimation.md, "Buoy loss").
+BUOY_CONFIRMATION_TIME = 30.0
+#: Pose steps (x [m], y [m], psi [rad]) of the finite differences of the predicted tensions that
+#: span the residuals a pose error explains (the buoy-loss test's parity space).
+_POSE_STEPS = (0.5, 0.5, 0.005)
 #: Default time a break must last before :class:`TensionResidualDetector` declares it [s]
 #: (``min_samples`` = this x ``rate``, rounded up). An intact line's wave-frequency tension dips
 #: below the test's reference level (a quarter of its tension) last up to 5 s in fpso's extreme
@@ -225,28 +239,25 @@ def _cusum_py(T, Tp, idx, st, cfg, busy):  # pragma: no cover - compiled by numb
     return best
 
 
-def _points_py(T, Tp, pos, rows, D, st, sp, busy, cfg):  # pragma: no cover - compiled by numba
-    """One sample of the point-loss hypotheses of :class:`TensionResidualDetector`, in place,
-    before :func:`_cusum_py` (whose running estimates of the lines they read).
+def _points_py(z, d, rows, sp, busy, cfg):  # pragma: no cover - compiled by numba
+    """One sample of the buoy-loss hypotheses of :class:`TensionResidualDetector`, in place,
+    before :func:`_cusum_py` (whose running estimates of the lines they freeze).
 
-    ``T`` (n,) measured tensions [N]; ``Tp`` (m,) predicted tensions of the lines still tested;
-    hypothesis q is about the line of row ``rows[q]`` in ``st`` and position ``pos[q]`` in ``Tp``,
-    and predicts the shift ``D[q]`` [N] (signed) of its residual; ``sp`` (k, 6) per hypothesis:
-    statistic g, run sum of sign(D) z, run length, peak g, largest fraction of D reached, unused;
-    ``busy`` (n,) is set to 1 on the lines with a statistic above zero; ``cfg`` = (largest step,
-    threshold). Returns the hypothesis isolated at this sample (the largest mean sign(D) z over
-    its run among those at the threshold), or -1.
+    Hypothesis q is about the line of row ``rows[q]``; ``z[q]`` is that line's standardised
+    parity residual and ``d[q]`` the shift of it the hypothesis predicts (signed, in standard
+    deviations; 0 where the hypothesis is not tested at this sample); ``sp`` (k, 6) per
+    hypothesis: statistic g, run sum of sign(d) z, run length, peak g, largest fraction of d
+    reached, unused; ``busy`` (n,) is set to 1 on the lines with a statistic above zero; ``cfg`` =
+    (largest step, threshold). Returns the hypothesis isolated at this sample (the largest mean
+    sign(d) z over its run among those at the threshold), or -1.
     """
     step_max, thr = cfg[0], cfg[1]
     best = -1
     best_shift = -math.inf
     for q in range(rows.shape[0]):
-        i = rows[q]
-        dev = T[i] - Tp[pos[q]] - st[i, 1]
-        s = st[i, 2]
-        d = D[q] / s
-        z = dev / s
-        llr = d * (z - 0.5 * d)
+        dq = d[q]
+        zq = z[q]
+        llr = dq * (zq - 0.5 * dq)
         if llr > step_max:
             llr = step_max
         g_old = sp[q, 0]
@@ -256,11 +267,11 @@ def _points_py(T, Tp, pos, rows, D, st, sp, busy, cfg):  # pragma: no cover - co
         sp[q, 0] = g
         if g > sp[q, 3]:
             sp[q, 3] = g
-        sz = z if d >= 0.0 else -z
-        if D[q] != 0.0 and dev / D[q] > sp[q, 4]:
-            sp[q, 4] = dev / D[q]
+        sz = zq if dq >= 0.0 else -zq
+        if dq != 0.0 and zq / dq > sp[q, 4]:
+            sp[q, 4] = zq / dq
         if g > 0.0:
-            busy[i] = 1.0
+            busy[rows[q]] = 1.0
             if g_old > 0.0:
                 sp[q, 1] += sz
                 sp[q, 2] += 1.0
@@ -458,6 +469,44 @@ class TensionResidualDetector:
     if they are still above ``h``. Latched: a detected line stays broken until :meth:`reset`, leaves
     the test, and the predictions of the remaining lines come from ``model.without(broken)``.
 
+    Buoy loss (``buoys=True``, on a model with composite lines): one more hypothesis per buoy of
+    the model (:attr:`MooringModel.buoys <tapm_opt.models.mooring.MooringModel.buoys>`), "the buoy
+    at joint j of line i came off". Its predicted shift of line i's residual is known at every pose,
+    ``D = T_i without the buoy (eta_hat) - T_model,i(eta_hat)`` (the quasi-static line with that
+    point's weight 0, tabulated as the model's lines are); it raises the static tension where the
+    buoy held up the line below the fairlead (fpso as chain-wire-chain, a 353 kN buoy 100 m below
+    the fairlead: +320 kN, 13 %; at the bottom joint: +50 kN at rest, -6 to +250 kN over the
+    storm's offsets), where a break drops it to the hanging weight or zero. The shift is small
+    against a pose error's: in the storm the intact residuals' slow part is one pattern over the
+    lines (90 % of its variance), the tensions' response to an error of ``eta_hat``. So the
+    hypotheses test the *parity residual*: the standardised residuals ``(r_i - b_i) / s_i`` of the
+    lines still tested less their least-squares fit by the columns of ``J = dT_model/d eta / s``
+    (finite differences of the table), the part no pose error explains (Chow & Willsky 1984).
+    A shift of line i alone keeps ``sqrt(1 - P_ii)`` of itself there (``P`` the projector on J's
+    columns; about 0.87 with 12 lines), so with ``z_q`` line i's parity residual over that factor
+    and ``d_q = sqrt(1 - P_ii) D / s_i``::
+
+        l_q = d_q (z_q - d_q / 2),   g_q <- max(0, g_q + min(l_q, h / buoy_min_samples))
+
+    the CUSUM of the known signed shift (l_q grows only while the residual is past half the
+    predicted shift in its direction). Where ``|d_q| < buoy_shift_min`` (a shift below half the
+    residual's scale at this pose by default) the sample is no evidence either way (``l_q = 0``):
+    such a shift cannot be told from the model's error. ``buoy_min_samples`` (``BUOY_CONFIRMATION_TIME``
+    = 30 s x ``rate``) samples at least confirm a loss: the static part of the tension is tested,
+    not its wave-frequency swings. The threshold counts every statistic: ``h = ln((n_lines +
+    n_buoys) x false_alarm_time x rate)``. While a hypothesis' statistic is above zero its line's
+    running estimates are frozen, as for a break.
+
+    Isolation of a buoy loss: the hypothesis whose statistic crosses ``h`` (the largest mean of
+    ``sign(d_q) z_q`` over its run when several do). When a break test and a buoy hypothesis cross
+    at the same sample: on different lines the larger normalised shift, as between lines; on the
+    same line the one the residual fits better (the distance of the run's mean residual from the
+    predicted ``D / s_i`` of the buoy against its distance past ``-Delta_i / s_i`` for the break;
+    a tie goes to the break). A buoy found lost is latched in :attr:`lost_points`, logged
+    ``{"t", "line", "joint", "event": "buoy loss detected", "statistic"}``, and its line is
+    predicted from ``model.damaged(broken, lost_points)`` from then on (its other buoys' hypotheses
+    start again against that); a line found broken drops its buoys' hypotheses.
+
     Before the estimator's first pose (``eta`` None) there is no test: :meth:`update` only checks
     the measurement and returns the lines already known broken.
 
@@ -489,16 +538,31 @@ class TensionResidualDetector:
         Time constant of the running estimates [s], > 0.
     clip : float
         Clipping of the deviations in the running estimates, in standard deviations, > 0.
+    buoys : bool
+        Test a buoy-loss hypothesis for every buoy of the model (above); False: breaks only.
+    buoy_min_samples : int or None
+        Samples a buoy loss must last at least, >= 1 (None: ``BUOY_CONFIRMATION_TIME`` x ``rate``,
+        rounded up: 30 at 1 Hz).
+    buoy_shift_min : float
+        Smallest predicted shift of a buoy loss tested, in standard deviations of the parity
+        residual, >= 0 (default 0.5).
 
     Attributes
     ----------
     line_ids : tuple of str
+    buoys : tuple of (str, int)
+        The buoy-loss hypotheses, (line id, joint).
     threshold : float
         ``h`` [-] (log-likelihood units).
     broken : frozenset of str
         Lines detected broken.
+    lost_points : frozenset of (str, int)
+        Buoys detected lost, (line id, joint).
+    buoy_statistics : dict
+        Per buoy hypothesis its statistic, peak and largest fraction of the predicted shift reached.
     events : list of dict
-        ``{"t" [s], "line", "event": "line break detected", "statistic": g_i at the alarm}``.
+        ``{"t" [s], "line", "event": "line break detected", "statistic": g_i at the alarm}`` and
+        ``{"t", "line", "joint", "event": "buoy loss detected", "statistic"}``.
     statistic, bias, sigma : ndarray (n,)
         ``g_i`` [-], ``b_i`` [N], ``s_i`` [N] of every line of ``model`` (the values at its
         detection for a broken line).
@@ -513,7 +577,8 @@ class TensionResidualDetector:
 
     def __init__(self, model: Any, *, shift: float = 0.5, false_alarm_time: float = FALSE_ALARM_TIME_DEFAULT,
                  rate: float = 1.0, min_samples: int | None = None, noise_rel: float = 0.002,
-                 dynamic_rel: float = 0.02, adapt: bool = True, tau: float = 600.0, clip: float = 3.0):
+                 dynamic_rel: float = 0.02, adapt: bool = True, tau: float = 600.0, clip: float = 3.0,
+                 buoys: bool = True, buoy_min_samples: int | None = None, buoy_shift_min: float = 0.5):
         def num(name, v, lo, hi=math.inf, *, lo_ok=False, unit=""):
             ok = isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool) and \
                 math.isfinite(v) and (v >= lo if lo_ok else v > lo) and v <= hi
@@ -537,19 +602,32 @@ class TensionResidualDetector:
         self.adapt = bool(adapt)
         self.tau = num("tau", tau, 0.0, unit=" s")
         self.clip = num("clip", clip, 0.0)
+        if not isinstance(buoys, (bool, np.bool_)):
+            raise DetectionError(f"buoys = {buoys!r} must be True or False")
+        if buoy_min_samples is None:
+            buoy_min_samples = max(1, math.ceil(BUOY_CONFIRMATION_TIME * self.rate - 1e-9))
+        if not (isinstance(buoy_min_samples, (int, np.integer)) and not isinstance(buoy_min_samples, bool)
+                and buoy_min_samples >= 1):
+            raise DetectionError(f"buoy_min_samples = {buoy_min_samples!r} must be an integer >= 1 or None")
+        self.buoy_min_samples = int(buoy_min_samples)
+        self.buoy_shift_min = num("buoy_shift_min", buoy_shift_min, 0.0, lo_ok=True)
         self.model = model
         self.line_ids = tuple(model.line_ids)
+        #: The buoy-loss hypotheses tested, (line id, joint): every buoy of the model (``buoys``).
+        self.buoys: tuple[tuple[str, int], ...] = tuple(getattr(model, "buoys", ())) if buoys else ()
         n = len(self.line_ids)
-        h = math.log(n * self.false_alarm_time * self.rate)
+        n_stat = n + len(self.buoys)
+        h = math.log(n_stat * self.false_alarm_time * self.rate)
         if not h > 0:
-            raise DetectionError(f"false_alarm_time = {false_alarm_time!r} s gives the threshold h = ln(n_lines x "
-                                 f"false_alarm_time x rate) = {h:.3g} <= 0: it must exceed one sample per line")
+            raise DetectionError(f"false_alarm_time = {false_alarm_time!r} s gives the threshold h = ln(n_tests x "
+                                 f"false_alarm_time x rate) = {h:.3g} <= 0: it must exceed one sample per test")
         self.threshold = h
         self._cfg = np.array([self.shift, h / self.min_samples, min(1.0 / (self.rate * self.tau), 1.0), self.clip,
                               _huber_beta(self.clip), 1.0 if self.adapt else 0.0, h])
+        self._cfg_points = np.array([h / self.buoy_min_samples, h])
         self._tables: dict = {}
         self._intact_table = _TensionTable(model, tables=self._tables)
-        self._cusum = _kernels()[1]
+        _, self._cusum, self._points = _kernels()
         T0 = np.asarray(model.tensions(np.zeros(3)), float)
         #: Smallest scale s_i [N]: the cell noise noise_rel x MBS_i.
         self.sigma_floor = self.noise_rel * np.asarray(model.MBS, float)
@@ -559,15 +637,20 @@ class TensionResidualDetector:
         # compile the kernels (or load them from the disk cache) now, not in the first control step
         held = T0.copy()
         held.setflags(write=False)   # the sensors hand on read-only arrays (a second specialisation)
+        none = np.zeros(0, np.intp)
         for T in (T0, held):
-            self._cusum(T, T0, np.zeros(0, np.intp), self._st.copy(), self._cfg)
+            self._cusum(T, T0, none, self._st.copy(), self._cfg, self._busy)
+            if self.buoys:
+                self._points(np.zeros(0), np.zeros(0), none, np.zeros((0, 6)), self._busy, self._cfg_points)
         self._intact_table(np.zeros(3))
 
     def reset(self) -> None:
-        """Back to the intact model, no line broken, statistics and running estimates at their
-        start values."""
+        """Back to the intact model, no line broken and no buoy lost, statistics and running
+        estimates at their start values."""
         n = len(self.line_ids)
         self.broken: frozenset[str] = frozenset()
+        #: Buoys detected lost, (line id, joint).
+        self.lost_points: frozenset[tuple[str, int]] = frozenset()
         self.events: list[dict] = []
         st = np.zeros((n, 8))
         st[:, 2] = self.sigma_design
@@ -577,8 +660,40 @@ class TensionResidualDetector:
         self.samples = 0
         self._active = np.arange(n, dtype=np.intp)
         self._predict = self._intact_table
+        self._busy = np.zeros(n)
+        self._hyp = list(self.buoys)
+        sp = np.zeros((len(self._hyp), 6))
+        sp[:, 4] = -np.inf
+        self._sp = sp
+        self._hyp_stats: dict[tuple[str, int], np.ndarray] = {}   # final statistics of the hypotheses left
+        self._hyp_tables()
         self._t_prev = -math.inf
         self._t_next = -math.inf
+
+    def _hyp_tables(self) -> None:
+        """The tension tables of the buoy-loss hypotheses still tested: per hypothesis, its line alone
+        in the present model (:attr:`active_model`) with that buoy also gone; and where each line
+        is (row in the statistics, position among the predicted tensions)."""
+        model = self._predict.model
+        tabs = []
+        for lid, j in self._hyp:
+            others = [x for x in model.line_ids if x != lid]
+            tabs.append(_TensionTable(model.with_point_lost(lid, j).without(others), tables=self._tables))
+        self._htab = tabs
+        self._hrow = np.array([self.line_ids.index(lid) for lid, _ in self._hyp], dtype=np.intp)
+        self._hpos = np.array([model.line_ids.index(lid) for lid, _ in self._hyp], dtype=np.intp)
+        self._hD = np.zeros(len(self._hyp))
+        self._hd = np.zeros(len(self._hyp))
+        self._hnv = np.ones(len(self._hyp))
+
+    def _drop_hypotheses(self, keep) -> None:
+        """Keep the hypotheses where ``keep`` (bool per hypothesis) holds; the others' final
+        statistics go to :attr:`buoy_statistics`."""
+        for q, h in enumerate(self._hyp):
+            if not keep[q]:
+                self._hyp_stats[h] = self._sp[q].copy()
+        self._hyp = [h for h, k in zip(self._hyp, keep) if k]
+        self._sp = self._sp[np.asarray(keep, dtype=bool)] if len(keep) else self._sp
 
     # -- state ----------------------------------------------------------------------------
     @property
@@ -610,8 +725,21 @@ class TensionResidualDetector:
         return w
 
     @property
+    def buoy_statistics(self) -> dict[tuple[str, int], dict[str, float]]:
+        """Per buoy-loss hypothesis (line id, joint): its CUSUM statistic ``g`` [-] (its value at
+        detection for a buoy found lost, or when its line was found broken), ``peak`` (largest g so
+        far) and ``worst`` (largest residual as a fraction of the predicted shift D so far; above
+        0.5 the statistic grows; NaN before the first test)."""
+        out = {}
+        rows = {**self._hyp_stats, **{h: self._sp[q] for q, h in enumerate(self._hyp)}}
+        for h in self.buoys:
+            r = rows[h]
+            out[h] = {"g": float(r[0]), "peak": float(r[3]), "worst": float(r[4]) if np.isfinite(r[4]) else math.nan}
+        return out
+
+    @property
     def active_model(self) -> Any:
-        """The line model the predictions come from: ``model.without(broken)``."""
+        """The line model the predictions come from: ``model.damaged(broken, lost_points)``."""
         return self._predict.model
 
     def predicted(self, eta: Any) -> np.ndarray:
@@ -652,13 +780,87 @@ class TensionResidualDetector:
         self.samples += 1
         if not T.flags.c_contiguous:
             T = np.ascontiguousarray(T)
-        j = int(self._cusum(T, self._predict(e), self._active, self._st, self._cfg))
-        if j >= 0:
+        q = -1
+        if self._hyp:
+            q = self._test_buoys(T, e)
+        Tp = self._predict(e)
+        j = int(self._cusum(T, Tp, self._active, self._st, self._cfg, self._busy))
+        if q >= 0 and (j < 0 or self._buoy_first(j, q, Tp)):
+            self._declare_buoy(t, q)
+        elif j >= 0:
             lid = self.line_ids[j]
             self.broken = self.broken | {lid}
             self.events.append({"t": float(t), "line": lid, "event": "line break detected",
                                 "statistic": float(self._st[j, 0])})
             self._active = self._active[self._active != j]
+            if self._hyp:
+                self._drop_hypotheses([h[0] != lid for h in self._hyp])
             if self._active.size:
-                self._predict = _TensionTable(self.model.without(self.broken), tables=self._tables)
+                self._predict = _TensionTable(self.model.damaged(self.broken, self.lost_points), tables=self._tables)
+                self._hyp_tables()
         return self.broken
+
+    def _test_buoys(self, T: np.ndarray, e: np.ndarray) -> int:
+        """One sample of the buoy-loss hypotheses (class docstring, "Buoy loss"): the parity
+        residual of the lines still tested, each hypothesis' predicted shift of it, and their
+        statistics (:func:`_points_py`); returns the hypothesis isolated at this sample or -1."""
+        act, st = self._active, self._st
+        s = st[act, 2]
+        J = np.empty((act.size, 3))
+        for k, h in enumerate(_POSE_STEPS):   # the tensions' sensitivity to the pose (a pose error)
+            e2 = e.copy()
+            e2[k] += h
+            J[:, k] = self._predict(e2)
+        Tp = self._predict(e).copy()
+        J = (J - Tp[:, None]) / (np.asarray(_POSE_STEPS)[None, :] * s[:, None])
+        r = (T[act] - Tp - st[act, 1]) / s
+        Qb = np.linalg.qr(J)[0] if act.size > 3 else np.eye(act.size)
+        rp = r - Qb @ (Qb.T @ r)                             # the part no pose error explains
+        keep = np.maximum(1.0 - np.einsum("ij,ij->i", Qb, Qb), 0.0)   # diagonal of I - P
+        pos = self._hpos
+        nv = np.sqrt(keep[pos])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            z = np.where(nv > 1e-3, rp[pos] / nv, 0.0)
+        D = self._hD
+        for k, tab in enumerate(self._htab):
+            D[k] = tab(e)[0]
+        D -= Tp[pos]
+        d = D / s[pos] * nv
+        d[np.abs(d) < self.buoy_shift_min] = 0.0              # not testable at this pose
+        self._hd, self._hnv = d, nv
+        self._busy[:] = 0.0
+        return int(self._points(z, d, self._hrow, self._sp, self._busy, self._cfg_points))
+
+    def _buoy_first(self, j: int, q: int, Tp: np.ndarray) -> bool:
+        """Line ``j``'s break test and buoy-loss hypothesis ``q`` both reach the threshold at this
+        sample: whether the buoy loss is declared first. On different lines: the larger normalised
+        shift, as between lines (the other is declared at the next sample if still above). On the
+        same line: the hypothesis the residual fits better, the distance of its mean over the run
+        (in units of s_i) from the hypothesis' level: ``D / s_i`` for the buoy loss, anything at
+        or below ``-shift T_model / s_i`` for the break (a tie goes to the break)."""
+        st, sp = self._st, self._sp
+        if self._hrow[q] != j:
+            return sp[q, 1] / sp[q, 2] > st[j, 4] / st[j, 5]
+        s = st[j, 2]
+        tp = float(Tp[int(np.flatnonzero(self._active == j)[0])])
+        mean_break = -st[j, 4] / st[j, 5]                       # mean z over the break test's run
+        d_break = max(mean_break + self.shift * tp / s, 0.0)   # one-sided: a break may lose more
+        sgn = 1.0 if self._hd[q] >= 0 else -1.0                 # the buoy's, in the same units
+        d_buoy = abs(sgn * sp[q, 1] / sp[q, 2] - self._hd[q]) / max(float(self._hnv[q]), 1e-3)
+        return d_buoy < d_break
+
+    def _declare_buoy(self, t: float, q: int) -> None:
+        """Hypothesis ``q``'s buoy is lost: latched, its line predicted without it from now on, the
+        line's other hypotheses restarted against the new model."""
+        lid, joint = self._hyp[q]
+        self.lost_points = self.lost_points | {(lid, joint)}
+        self.events.append({"t": float(t), "line": lid, "joint": int(joint), "event": "buoy loss detected",
+                            "statistic": float(self._sp[q, 0])})
+        self._drop_hypotheses([k != q for k in range(len(self._hyp))])
+        for k, h in enumerate(self._hyp):   # the line's other buoys: their shifts from the new model
+            if h[0] == lid:
+                self._sp[k, :4] = 0.0
+        i = self.line_ids.index(lid)
+        self._st[i, 0] = self._st[i, 4] = self._st[i, 5] = 0.0
+        self._predict = _TensionTable(self.model.damaged(self.broken, self.lost_points), tables=self._tables)
+        self._hyp_tables()

@@ -52,8 +52,15 @@ class _WithDetectorAndMonitor:
     _eta_det: Any = None
 
     def log(self) -> list[dict]:
-        """The detector's events (``{"t", "line", "event"}``), if there is a detector."""
+        """The detector's events (``{"t", "line", "event"}``, a buoy loss's with its ``"joint"``), if
+        there is a detector."""
         return [] if self.detector is None else list(self.detector.events)
+
+    @property
+    def lost_points(self) -> frozenset:
+        """The buoys the detector reports lost, (line id, joint) (empty without a detector or one
+        that tests no buoy)."""
+        return frozenset() if self.detector is None else getattr(self.detector, "lost_points", frozenset())
 
     def _reset_parts(self) -> None:
         for part in (self.detector, self.monitor):
@@ -83,10 +90,13 @@ class _WithDetectorAndMonitor:
 
     def _broken(self, t: float, m: Measurement) -> frozenset:
         """Feed the detector (with the previous LF pose ``self._eta_det``); on a new break, leave
-        the line out of the model (``self.model = self.intact_model.without(broken)``)."""
+        the line out of the model, on a buoy found lost take it off its line
+        (``self.model = self.intact_model.damaged(broken, lost_points)``)."""
         broken = self._detect(t, m, self._eta_det)
-        if broken and set(broken) & set(self.model.line_ids):
-            self.model = self.intact_model.without(broken)
+        lost = self.lost_points
+        if (broken and set(broken) & set(self.model.line_ids)) or \
+                (lost and lost != frozenset(getattr(self.model, "lost_points", ()))):
+            self.model = self.intact_model.damaged(broken, lost)
         return broken
 
     def _reliability(self, t: float, m: Measurement) -> Any:
@@ -153,7 +163,8 @@ class LowPassEstimator(_WithDetectorAndMonitor):
         self._eta_det = eta
         eta_wf = np.array([m.position[0] - eta[0], m.position[1] - eta[1], ssa(m.heading - eta[2])])
         return Estimate(t=t, eta=eta, nu=nu, tau_env=tau_env, tensions=m.tensions, riser_angles=m.riser_angles,
-                        broken_lines=broken, reliability=self._reliability(t, m), eta_wf=eta_wf)
+                        broken_lines=broken, reliability=self._reliability(t, m), eta_wf=eta_wf,
+                        lost_points=self.lost_points)
 
     def filter(self, t: float, position: np.ndarray, heading: float, tau_thr: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Feed one measurement; returns (eta_hat (3,), nu_hat (3,), tau_env_hat (3,) in {B}).
@@ -253,7 +264,7 @@ class TrueStateEstimator(_WithDetectorAndMonitor):
             raise EstimationError("the measurement carries no truth: TrueStateEstimator needs a simulated plant")
         return Estimate(t=t, eta=tr.eta, nu=tr.nu, tau_env=tr.tau_env, tensions=measurement.tensions,
                         riser_angles=measurement.riser_angles, broken_lines=self._detect(t, measurement, tr.eta),
-                        reliability=self._reliability(t, measurement))
+                        reliability=self._reliability(t, measurement), lost_points=self.lost_points)
 
     def reset(self) -> None:
         self._reset_parts()

@@ -29,8 +29,10 @@ default peak period :data:`DEFAULT_TP` = 10 s) and ``Lambda = lambda I`` (relati
 
 A detected broken line (``detector``, e.g. :class:`~tapm_opt.estimation.detection.TensionDropDetector`)
 leaves the model (``self.model = self.intact_model.without(broken)``) from then on, so its lost
-restoring load is not absorbed into the bias; ``Estimate.broken_lines`` and ``reliability`` come
-from the shared detector/monitor base, the measured tensions and riser angles pass through.
+restoring load is not absorbed into the bias; so does a buoy the detector reports lost (the model
+is ``intact_model.damaged(broken, lost_points)``). ``Estimate.broken_lines``, ``lost_points`` and
+``reliability`` come from the shared detector/monitor base, the measured tensions and riser angles
+pass through.
 
 Headings are unwrapped next to the observer's predicted heading (``ssa`` of the difference), the
 internal LF heading is continuous and reported wrapped to [-pi, pi).
@@ -283,17 +285,18 @@ class _ModelObserver(_WithDetectorAndMonitor):
         return t, y, tau_c
 
     def _estimate(self, t: float, m: Measurement, eta: np.ndarray, nu: np.ndarray, b: np.ndarray,
-                  eta_wf: np.ndarray, broken: frozenset) -> Estimate:
+                  eta_wf: np.ndarray, broken: frozenset, lost: frozenset | None = None) -> Estimate:
         psi = eta[2]
         c, s = math.cos(psi), math.sin(psi)
         tau_env = np.array([c * b[0] + s * b[1], -s * b[0] + c * b[1], b[2]])
         est = np.array([eta[0], eta[1], _wrap(psi)])
         self._eta_det = est
-        return _estimate_of(t, est, nu, tau_env, m, broken, self._reliability(t, m), eta_wf)
+        return _estimate_of(t, est, nu, tau_env, m, broken, self._reliability(t, m), eta_wf,
+                            self.lost_points if lost is None else lost)
 
 
 def _estimate_of(t: float, eta: np.ndarray, nu: np.ndarray, tau_env: np.ndarray, m: Measurement, broken: Any,
-                 reliability: Any, eta_wf: np.ndarray) -> Estimate:
+                 reliability: Any, eta_wf: np.ndarray, lost_points: frozenset = frozenset()) -> Estimate:
     """The :class:`Estimate` the constructor makes of these fields, without its copies: ``eta``,
     ``nu``, ``tau_env``, ``eta_wf`` are new float64 (3,) arrays of the caller's (made read-only
     here), the tensions and riser angles the measurement's read-only arrays (shared)."""
@@ -302,10 +305,10 @@ def _estimate_of(t: float, eta: np.ndarray, nu: np.ndarray, tau_env: np.ndarray,
             or (m.tensions is not None and m.tensions.flags.writeable) \
             or (m.riser_angles is not None and m.riser_angles.flags.writeable):
         return Estimate(t=t, eta=eta, nu=nu, tau_env=tau_env, tensions=m.tensions, riser_angles=m.riser_angles,
-                        broken_lines=broken, reliability=reliability, eta_wf=eta_wf)
+                        broken_lines=broken, reliability=reliability, eta_wf=eta_wf, lost_points=lost_points)
     return _trusted(Estimate, t=t, eta=_frozen(eta), nu=_frozen(nu), tau_env=_frozen(tau_env), tensions=m.tensions,
                     riser_angles=m.riser_angles, broken_lines=broken, reliability=reliability,
-                    eta_wf=_frozen(eta_wf))
+                    eta_wf=_frozen(eta_wf), lost_points=lost_points)
 
 
 def _implicit_damping(M_inv: np.ndarray, D: np.ndarray, dt: float) -> np.ndarray:
@@ -428,7 +431,7 @@ class PassiveObserver(_ModelObserver):
     def estimate_now(self, t: float, m: Measurement) -> Estimate:
         """The estimate of the present state at ``t`` (measurement ``m`` for the pass-through
         fields), without an update; no broken line reported."""
-        return self._estimate(t, m, self._z[2], self._nu.copy(), self._b, self._z[1].copy(), frozenset())
+        return self._estimate(t, m, self._z[2], self._nu.copy(), self._b, self._z[1].copy(), frozenset(), frozenset())
 
     def _discretise(self, dt: float) -> None:
         """Exact ZOH discretisation of the fast subsystem over ``dt`` [s] (cached), and the implicit
@@ -624,7 +627,7 @@ class EKFObserver(_ModelObserver):
         """The estimate of the present state at ``t`` (measurement ``m`` for the pass-through
         fields), without an update; no broken line reported."""
         x = self.x
-        return self._estimate(t, m, x[6:9], x[9:12].copy(), x[12:], x[3:6].copy(), frozenset())
+        return self._estimate(t, m, x[6:9], x[9:12].copy(), x[12:], x[3:6].copy(), frozenset(), frozenset())
 
     def _discretise(self, dt: float) -> None:
         """Exact WF transition and process noise (Van Loan) over ``dt`` [s], the bias decay and its

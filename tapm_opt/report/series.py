@@ -64,6 +64,8 @@ def _decision_text(role: str, e: Mapping) -> str:
     kind = str(e.get("event", "event"))
     if kind == "line break detected":
         return f"{role}: line {e.get('line')} break detected"
+    if kind == "buoy loss detected":
+        return f"{role}: buoy loss at joint {e.get('joint')} of line {e.get('line')} detected"
     radius = e.get("radius")
     if kind == "dead band" and isinstance(radius, (int, float)):
         return f"{role}: dead band {float(radius):.1f} m"

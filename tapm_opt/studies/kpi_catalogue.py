@@ -171,7 +171,15 @@ _ENTRIES: tuple[KpiDef, ...] = (
                                           "broke, else 0", kind="flag"),
     _k("break_isolated_line", "-", "none", "id of the first line detected after the first break (a text)",
        kind="text"),
-    _k("false_alarms", "-", "minimise", "detections of a line that had not broken by then", kind="count"),
+    _k("false_alarms", "-", "minimise", "detections of a line break or buoy loss that had not happened by then",
+       kind="count"),
+    # buoy-loss detection
+    _k("buoys_lost", "-", "none", "buoys the plant lost from composite lines (prescribed faults)", kind="count"),
+    _k("buoy_loss_detected_at", "s", "none", "time of the first detection of a lost buoy: an instant on the "
+                                             "record's clock, compare buoy_loss_detection_delay"),
+    _k("buoy_loss_detection_delay", "s", "minimise", "time from a buoy's loss to its detection"),
+    _k("buoy_loss_isolated", "-", "maximise", "1 when the first fault detected after the first buoy loss is a buoy "
+                                              "lost by then (not a break, not another buoy), else 0", kind="flag"),
     _k("mode_switches", "-", "none", "controller mode, gain-row or dead-band switches: a switch the weather or a "
                                      "break calls for is wanted, so the count alone is neither good nor bad",
        kind="count"),

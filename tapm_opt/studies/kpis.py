@@ -39,6 +39,7 @@ __all__ = [
     "gumbel_k", "low_pass", "reliability_index", "ReliabilityTrace",
     "DNV_E301_2008_FACTORS", "DNV_CAPACITY_FACTOR", "SFC_DEFAULT", "LP_WINDOW_DEFAULT", "SIGMA_WINDOW_DEFAULT",
     "DELTA_S_DEFAULT", "RISER_ENDS", "IndexRun", "causal_runs", "break_times", "break_tensions",
+    "buoy_loss_times",
 ]
 
 
@@ -60,6 +61,7 @@ SFC_DEFAULT = 0.2
 # The plant's break events: "line <id> broke" (a prescribed break) and "line <id> broke: overload,
 # tension <T> MN = <p> % MBS >= strength <S> MN" (tension and strength to 3 significant digits).
 _BREAK_RE = re.compile(r"line\s+(\S+)\s+broke(?::\s*(?P<detail>.*))?", re.DOTALL)
+_BUOY_RE = re.compile(r"line\s+(\S+)\s+lost its buoy at joint\s+(\d+)")
 _BREAK_TENSION_RE = re.compile(r"\btension\s+(?P<T>[0-9][0-9.]*(?:[eE][-+]?[0-9]+)?)\s*MN\b")
 _BREAK_STRENGTH_RE = re.compile(r"\bstrength\s+(?P<S>[0-9][0-9.]*(?:[eE][-+]?[0-9]+)?)\s*MN\b")
 
@@ -334,6 +336,22 @@ def break_times(result: Any, line_ids: Sequence[str] | None = None) -> dict[str,
     return out
 
 
+def buoy_loss_times(result: Any) -> dict[tuple[str, int], float]:
+    """``{(line id, joint): time [s]}`` of the plant's ``"line <id> lost its buoy at joint <j>"``
+    events of a result (the first per buoy)."""
+    out: dict[tuple[str, int], float] = {}
+    for ev in result.meta.get("events", []) or []:
+        try:
+            te, text = float(ev[0]), str(ev[1])
+        except (TypeError, ValueError, IndexError):
+            raise KpiError(f"result.meta['events'] entry {ev!r} is not [time, text]") from None
+        m = _BUOY_RE.fullmatch(text.strip())
+        if m:
+            key = (m.group(1), int(m.group(2)))
+            out[key] = min(te, out.get(key, math.inf))
+    return out
+
+
 def break_tensions(result: Any, line_ids: Sequence[str] | None = None,
                    strength: Mapping[str, float] | None = None) -> dict[str, float]:
     """``{line id: tension [N]}`` at the overload break of each line that broke from overload.
@@ -362,21 +380,40 @@ def break_tensions(result: Any, line_ids: Sequence[str] | None = None,
     return out
 
 
-def _detection(result: Result, breaks: dict[str, float]) -> dict[str, Any]:
-    """Line-break detection KPIs from the estimator's log (``meta["estimator_log"]``: events
-    ``{"t", "line", "event": "line break detected"}``), against the breaks the plant reported:
+def _detection(result: Result, breaks: dict[str, float],
+               losses: dict[tuple[str, int], float] | None = None) -> dict[str, Any]:
+    """Line-break and buoy-loss detection KPIs from the estimator's log (``meta["estimator_log"]``:
+    events ``{"t", "line", "event": "line break detected"}`` and ``{"t", "line", "joint", "event":
+    "buoy loss detected"}``), against the breaks and buoy losses the plant reported:
     ``break_detected_at`` [s] — the first detection of a line that broke, after its break (absent
     when no break was detected); ``detection_delay`` [s] — that time less the break's;
     ``break_isolated_line`` — the id of the first line detected after the first break (``""``
     when none was) and ``break_isolated`` — 1 when that line is one that broke, else 0 (both
-    absent without a break); ``false_alarms`` — detections of a line that had not broken by then.
-    All absent when the run had no detector (no log)."""
+    absent without a break); the same for buoy losses (``buoy_loss_detected_at``,
+    ``buoy_loss_detection_delay``, ``buoy_loss_isolated``: 1 when the first fault detected after
+    the first loss, break or buoy loss, is a buoy lost by then; absent without a buoy loss);
+    ``false_alarms`` — detections of a break or a buoy loss that had not happened by then (a
+    buoy loss detected as a break counts). All absent when the run had no detector (no log)."""
     log = result.meta.get("estimator_log")
     if log is None:
         return {}
+    losses = losses or {}
     det = sorted((float(e["t"]), str(e["line"])) for e in log if e.get("event") == "line break detected")
+    lost = sorted((float(e["t"]), (str(e["line"]), int(e["joint"]))) for e in log
+                  if e.get("event") == "buoy loss detected")
     true = [(t, lid) for t, lid in det if lid in breaks and t >= breaks[lid]]
-    out: dict[str, Any] = {"false_alarms": sum(1 for t, lid in det if not (lid in breaks and t >= breaks[lid]))}
+    wrong_lost = sum(1 for t, b in lost if not (b in losses and t >= losses[b]))
+    out: dict[str, Any] = {"false_alarms": sum(1 for t, lid in det if not (lid in breaks and t >= breaks[lid]))
+                           + wrong_lost}
+    if losses:
+        t_l = min(losses.values())
+        first = sorted([(t, 0, b in losses and t >= losses[b]) for t, b in lost if t >= t_l]
+                       + [(t, 1, False) for t, lid in det if t >= t_l])
+        out["buoy_loss_isolated"] = float(bool(first) and first[0][2])
+        hit = [(t, b) for t, b in lost if b in losses and t >= losses[b]]
+        if hit:
+            out["buoy_loss_detected_at"] = hit[0][0]
+            out["buoy_loss_detection_delay"] = hit[0][0] - losses[hit[0][1]]
     if breaks:
         t_b = min(breaks.values())
         after = [(t, lid) for t, lid in det if t >= t_b]
@@ -536,7 +573,10 @@ def _compute(result: Result, scenario: Any, *, t_start: float, lp_window: float,
         out[f"dnv_{ls}_pass"] = int(sum(v <= 1.0 for v in r.values()))
         out[f"dnv_{ls}_fail"] = int(sum(v > 1.0 for v in r.values()))
     out["lines_broken"] = len(breaks)
-    out.update(_detection(result, breaks))
+    losses = buoy_loss_times(result)
+    if losses:
+        out["buoys_lost"] = len(losses)
+    out.update(_detection(result, breaks, losses))
     out.update(_mode_switches(result))
 
     # riser end angles and their reliability indices ([G] §2.2)

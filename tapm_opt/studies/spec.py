@@ -19,6 +19,7 @@ from .._io import toml_key, toml_value
 from ..config import Fault, builtin_scenarios, load_scenario, scenario_from_dict, scenario_to_dict
 from .._checks import fmt as _fmt  # the scenario loader's value checks too
 from ..config.loader import BUILTIN_DIR
+from ..config.schema import FaultTargetError, buoy_of_fault
 from ..config.loader import fem_size_issues, log_size_issues
 from ..errors import ScenarioError
 from . import store
@@ -99,21 +100,31 @@ _STUDY_KEYS = {"name", "description", "scenario", "duration", "segments", "break
                "setpoint", "setpoint_options", "true_state", "seeds", "mode", "estimator", "detector", "winch",
                "winch_options"}
 _TOP_KEYS = {"study", "sea_states", "controllers", "conditions", "cases", "capability", "tuning"}
-_CONDITION_KEYS = {"name", "line_break", "thruster_failure"}
-_FAULT_KEYS = {"line_break": {"line", "time", "time_fraction"}, "thruster_failure": {"thruster", "time", "time_fraction"}}
+_CONDITION_KEYS = {"name", "line_break", "thruster_failure", "buoy_loss"}
+_FAULT_KEYS = {"line_break": {"line", "time", "time_fraction"}, "thruster_failure": {"thruster", "time", "time_fraction"},
+               "buoy_loss": {"line", "joint", "point", "time", "time_fraction"}}
 _CASE_KEYS = {"name", "sea_state", "controller", "condition", "seed", "duration"}
 
 
 @dataclass(frozen=True)
 class _FaultSpec:
-    kind: str           # "line_break" | "thruster_failure"
+    kind: str           # "line_break" | "thruster_failure" | "buoy_loss"
     target: str         # line or thruster id
     time: float | None
     fraction: float | None
     path: str
+    joint: int | None = None    # buoy_loss: the buoy's joint (resolved from point when that is given)
+    point: str | None = None    # buoy_loss: the point type id given instead of joint
 
     def at(self, duration: float) -> float:
         return float(self.time) if self.time is not None else float(self.fraction) * duration
+
+    def fault(self, duration: float) -> Fault:
+        """The scenario's :class:`Fault` of this spec in a run of ``duration`` [s]."""
+        if self.kind == "buoy_loss":
+            return Fault(kind="buoy_loss", time=self.at(duration), line=self.target, joint=self.joint)
+        return Fault(kind=self.kind, time=self.at(duration),
+                     **{"line" if self.kind == "line_break" else "thruster": self.target})
 
 
 @dataclass(frozen=True)
@@ -129,6 +140,9 @@ class _Condition:
             return "intact"
         parts = []
         for f in self.faults:
+            if f.kind == "buoy_loss":
+                parts.append(f"line {f.target} buoy at joint {f.joint} lost at {f.at(duration):g} s")
+                continue
             verb = "broken" if f.kind == "line_break" else "failed"
             what = "line" if f.kind == "line_break" else "thruster"
             parts.append(f"{what} {f.target} {verb} at {f.at(duration):g} s")
@@ -496,8 +510,10 @@ def _parse_controllers(ck: Checker, data: Mapping, out: _Parsed) -> None:
 
 
 def _parse_fault(ck: Checker, f: dict, kind: str, fp: str, sc: Any) -> _FaultSpec | None:
-    target_key = "line" if kind == "line_break" else "thruster"
+    target_key = "thruster" if kind == "thruster_failure" else "line"
     ck.keys(f, _FAULT_KEYS[kind], fp)
+    if kind == "buoy_loss":
+        return _parse_buoy_loss(ck, f, fp, sc)
     target = None
     if target_key not in f:
         ck.err(f"{fp}.{target_key}", f"missing required field (the {target_key} id)")
@@ -521,13 +537,55 @@ def _parse_fault(ck: Checker, f: dict, kind: str, fp: str, sc: Any) -> _FaultSpe
     return _FaultSpec(kind, target, t, frac, fp)
 
 
+def _fault_time(ck: Checker, f: dict, fp: str) -> tuple[float | None, float | None, bool]:
+    """(time, time_fraction, ok) of a fault table: exactly one of them, checked."""
+    if ("time" in f) == ("time_fraction" in f):
+        ck.err(fp, "give exactly one of 'time' [s] and 'time_fraction' (of the case's duration)")
+        return None, None, False
+    if "time" in f:
+        t = ck.number(f["time"], f"{fp}.time", unit="s", nonneg=True)
+        return t, None, t is not None
+    frac = ck.number(f["time_fraction"], f"{fp}.time_fraction", nonneg=True, at_most=1.0)
+    return None, frac, frac is not None
+
+
+def _parse_buoy_loss(ck: Checker, f: dict, fp: str, sc: Any) -> _FaultSpec | None:
+    """A ``buoy_loss`` fault: the composite line, its buoy's joint (index from the anchor up) or
+    point type id, and the time; the target checked against the scenario
+    (:func:`tapm_opt.config.schema.buoy_of_fault`) with the field named."""
+    ok = True
+    line = joint = point = None
+    if "line" not in f:
+        ck.err(f"{fp}.line", "missing required field (the id of the composite line that loses the buoy)")
+        ok = False
+    else:
+        line = ck.text(f["line"], f"{fp}.line", id_like=True)
+        ok &= line is not None
+    if "joint" in f:
+        joint = ck.integer(f["joint"], f"{fp}.joint", at_least=0)
+        ok &= joint is not None
+    if "point" in f:
+        point = ck.text(f["point"], f"{fp}.point", id_like=True)
+        ok &= point is not None
+    t, frac, t_ok = _fault_time(ck, f, fp)
+    if ok and sc is not None:
+        try:
+            joint = buoy_of_fault(sc, line, joint, point)[1]
+        except FaultTargetError as exc:
+            ck.err(f"{fp}.{exc.field}", str(exc))
+            ok = False
+    if not (ok and t_ok) or joint is None:
+        return None
+    return _FaultSpec("buoy_loss", line, t, frac, fp, joint, point)
+
+
 def _parse_conditions(ck: Checker, data: Mapping, out: _Parsed) -> None:
     entries = ck.tables(data.get("conditions", []), "conditions")
     for i, e in enumerate(entries):
         p = f"conditions[{i}]"
         ck.keys(e, _CONDITION_KEYS, p)
         faults = []
-        for kind in ("line_break", "thruster_failure"):
+        for kind in ("line_break", "thruster_failure", "buoy_loss"):
             if kind in e:
                 many = isinstance(e[kind], list)
                 for j, f in enumerate(ck.tables(e[kind], f"{p}.{kind}")):
@@ -663,8 +721,7 @@ def _expand(ck: Checker, P: _Parsed) -> list[Case]:
                    + (f", {p}" if p else "") + ")")
         if late:
             continue
-        faults = [Fault(kind=f.kind, time=f.at(dur), **{"line" if f.kind == "line_break" else "thruster": f.target})
-                  for f in cond.faults]
+        faults = [f.fault(dur) for f in cond.faults]
         sc_dict = {**base, "sea_states": _case_sea_states(candidates, ss, spec),
                    "faults": list(base.get("faults", [])) + [scenario_to_dict(f) for f in faults]}
         inputs = {"scenario": sc_dict, "scenario_name": sc.name, "sea_state": sid, "controller": spec,

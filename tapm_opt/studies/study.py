@@ -1,7 +1,7 @@
 """Study files: many closed-loop cases from one TOML file, run in parallel, resumable.
 
 A study compares controllers across sea states, mooring conditions (intact, a line broken at some
-time, a thruster failed) and seeds. Every case is one :func:`run_case` — scenario with the
+time, a thruster failed, a buoy lost from a composite line) and seeds. Every case is one :func:`run_case` — scenario with the
 condition's faults, FEM plant, controller, :func:`~tapm_opt.studies.closed_loop.run_closed_loop`,
 KPIs — and :func:`run_study` writes each to its own folder (layout: :mod:`tapm_opt.studies.store`).
 
@@ -42,6 +42,8 @@ Study file
     name = "line 1 broken at 1800 s" # display name (default: made from the faults, or "intact")
     line_break = { line = "1", time = 1800.0 }              # a table or a list of tables
     thruster_failure = { thruster = "A3", time_fraction = 0.25 }
+    buoy_loss = { line = "3", joint = 0, time = 1200.0 }    # a composite line's buoy comes off: its
+                                     # joint from the anchor up (or point = "<point type id>")
                                      # time [s] or time_fraction (of the case's duration), one of them
 
     [[cases]]                        # optional: extra (mode "product") or the only (mode "list") cases
