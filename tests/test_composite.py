@@ -1,6 +1,6 @@
 """Composite mooring lines (sections and points): quasi-static solve against closed forms, MoorPy
 reference numbers and the homogeneous catenary; scenario validation; the workbench's models on a
-composite mooring."""
+composite mooring; sections of a tension-strain table (nonlinear EA)."""
 
 from __future__ import annotations
 
@@ -15,6 +15,7 @@ from tapm_opt.errors import CatenaryError, ModelError, ScenarioError
 from tapm_opt.models import catenary
 from tapm_opt.models.composite import CompositeLine, points, profile, solve
 from tapm_opt.models.mooring import MooringModel
+from tapm_opt.strain_table import StrainTable
 
 
 def line(L, EA, w, W, CB=None):
@@ -270,3 +271,90 @@ def test_detection_and_anchor_slam_build_on_a_composite_mooring():
     T = m.tensions(np.zeros(3))
     _, _, XF = m.spans(np.zeros(3))
     np.testing.assert_allclose(tm.distance(T), XF, rtol=1e-6)
+
+
+# ------------------------------------------------------------------------------------------
+# sections of a tension-strain table (nonlinear EA)
+# ------------------------------------------------------------------------------------------
+
+POLY_ROWS = ((0.0, 0.0), (0.005, 1.0e6), (0.01, 2.4e6), (0.02, 5.6e6), (0.03, 9.2e6), (0.05, 17.0e6))
+"""A polyester-like law that stiffens with load (slopes 200-390 MN, secant 340 MN)."""
+
+
+def chain_poly_chain(table, W=(-3.5e5, 0.0)):
+    """300 m of chain from the anchor, 1000 m of polyester of ``table`` (its secant as EA), 100 m of
+    chain to the fairlead; a buoy at the lower joint."""
+    tab = StrainTable.from_rows(table)
+    return CompositeLine(np.array([300.0, 1000.0, 100.0]), np.array([1.6e9, tab.secant, 1.6e9]),
+                         np.array([3185.6, 138.19, 3185.6]), np.zeros(3), np.asarray(W, float),
+                         tables=(None, tab, None))
+
+
+def section_regimes(sol, n):
+    """The section regimes (catenary codes, from the anchor up) in a composite solution's code."""
+    c = int(sol.regime) >> (n - 1)
+    out = []
+    for _ in range(n):
+        out.append(catenary.regime_name(c % 6))
+        c //= 6
+    return out[::-1]
+
+
+def test_a_section_of_a_linear_table_is_a_section_of_constant_ea():
+    """The polyester section as a table of rows on T = EA eps gives the constant-EA composite line's
+    tensions and stiffness to round-off (1e-12 of the tension, 1e-10 of the stiffness; measured 8e-15
+    and 2e-14)."""
+    EA = 3.4e8
+    lin = chain_poly_chain([[0.0, 0.0], [0.01, 0.01 * EA], [0.05, 0.05 * EA]])
+    ref = line([300.0, 1000.0, 100.0], [1.6e9, EA, 1.6e9], [3185.6, 138.19, 3185.6], [-3.5e5, 0.0])
+    XF = np.linspace(1000.0, 1300.0, 4)
+    a, b = solve(XF, 300.0, lin), solve(XF, 300.0, ref)
+    for k in ("HF", "VF", "HA", "VA"):
+        assert np.max(np.abs(getattr(a, k) - getattr(b, k))) <= 1e-12 * np.max(b.TF)
+    for k in ("dHF_dXF", "dHF_dZF", "dVF_dXF", "dVF_dZF"):
+        assert np.max(np.abs(getattr(a, k) - getattr(b, k))) <= 1e-10 * np.max(np.abs(getattr(b, k)))
+
+
+def test_one_section_of_a_table_is_the_catenary_of_the_table():
+    tab = StrainTable.from_rows(POLY_ROWS)
+    ln = CompositeLine(np.array([2170.0]), np.array([tab.secant]), np.array([138.19]), np.zeros(1), np.zeros(0),
+                       tables=(tab,))
+    XF = np.linspace(1800.0, 2000.0, 5)
+    a, b = solve(XF, 982.0, ln), catenary.solve(XF, 982.0, 2170.0, tab.secant, 138.19, table=tab)
+    for k in ("HF", "VF", "dHF_dXF"):
+        np.testing.assert_array_equal(getattr(a, k), getattr(b, k))
+    px, pz = points(1900.0, 982.0, ln)
+    assert px.size == 0 and pz.size == 0
+
+
+@pytest.mark.parametrize("XF", [1000.0, 1150.0, 1300.0])
+def test_stiffness_of_table_sections_is_the_derivative_of_the_tensions(XF):
+    """Chain-polyester-chain under a buoy, the polyester section touching down from the buoy's
+    joint (its elevated end's V1 and the span's change with it from the table) or suspended: the
+    exact stiffness against central differences 1e-4 m apart, within 2e-6 (measured 4.4e-7)."""
+    ln = chain_poly_chain(POLY_ROWS)
+    s = solve(XF, 300.0, ln)
+    if XF == 1000.0:
+        assert section_regimes(s, 3) == ["touchdown", "touchdown", "suspended"]
+    d = 1e-4
+    xp, xm = solve(XF + d, 300.0, ln), solve(XF - d, 300.0, ln)
+    zp, zm = solve(XF, 300.0 + d, ln), solve(XF, 300.0 - d, ln)
+    for an, fd in ((s.dHF_dXF, (xp.HF - xm.HF) / (2 * d)), (s.dVF_dXF, (xp.VF - xm.VF) / (2 * d)),
+                   (s.dHF_dZF, (zp.HF - zm.HF) / (2 * d)), (s.dVF_dZF, (zp.VF - zm.VF) / (2 * d))):
+        assert abs(float(an) - float(fd)) <= 2e-6 * max(abs(float(s.dHF_dXF)), abs(float(s.dVF_dZF))), (an, fd)
+
+
+def test_joint_equilibrium_with_a_table_section():
+    """At the solution the buoy's joint is in equilibrium: the polyester section's force on it, from
+    its own catenary of the table between the joints, balances the chain's and the buoy's lift."""
+    ln = chain_poly_chain(POLY_ROWS)
+    XF, ZF = 1150.0, 300.0
+    px, pz = (np.ravel(a) for a in points(XF, ZF, ln))
+    x = np.r_[0.0, px, XF]
+    z = np.r_[0.0, pz, ZF]
+    s0 = catenary.solve(x[1] - x[0], z[1] - z[0], 300.0, 1.6e9, 3185.6)
+    s1 = catenary.solve(x[2] - x[1], z[2] - z[1], 1000.0, ln.EA[1], 138.19, h_A=z[1], table=ln.tables[1])
+    # joint 1: section 0 pulls it back and down (HF, VF), section 1 forward with (HA, VA), the buoy lifts 3.5e5 N
+    Fx = -float(s0.HF) + float(s1.HA)
+    Fz = -float(s0.VF) + float(s1.VA) + 3.5e5
+    assert abs(Fx) < 1e-6 * float(s1.HA) and abs(Fz) < 1e-6 * 3.5e5, (Fx, Fz)

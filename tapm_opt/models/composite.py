@@ -75,6 +75,10 @@ class CompositeLine:
         seabed friction [-].
     W : ndarray, shape (n - 1,)
         Net submerged weight of each point [N], positive down (clump), negative (buoy).
+    tables : tuple
+        Per section, its tension-strain table (:class:`~tapm_opt.strain_table.StrainTable`, a
+        nonlinear axial law; its ``EA`` is then the table's secant) or None; empty (default):
+        every section of constant EA. A homogeneous line with a table is the one-section line.
     """
 
     L: np.ndarray
@@ -82,11 +86,24 @@ class CompositeLine:
     w: np.ndarray
     CB: np.ndarray
     W: np.ndarray
+    tables: tuple = ()
 
     @classmethod
     def from_arrays(cls, sec: dict) -> "CompositeLine":
         """From one entry of :attr:`Scenario.line_sections <tapm_opt.config.Scenario.line_sections>`."""
-        return cls(*(readonly(np.asarray(sec[k], dtype=float)) for k in ("L", "EA", "w", "CB", "W")))
+        tabs = tuple(sec.get("EA_table", ()))
+        tabs = tuple(None if t is None else catenary.as_table(t) for t in tabs) if any(
+            t is not None for t in tabs) else ()
+        return cls(*(readonly(np.asarray(sec[k], dtype=float)) for k in ("L", "EA", "w", "CB", "W")), tables=tabs)
+
+    def table(self, k: int):
+        """Section ``k``'s tension-strain table, or None (constant EA)."""
+        return self.tables[k] if self.tables else None
+
+    @property
+    def has_tables(self) -> bool:
+        """True when a section has a tension-strain table (nonlinear EA)."""
+        return any(t is not None for t in self.tables)
 
     @property
     def n_sections(self) -> int:
@@ -99,7 +116,18 @@ class CompositeLine:
 
     def key(self) -> tuple:
         """Hashable description (equal lines share tables)."""
-        return tuple(tuple(np.asarray(a, float).tolist()) for a in (self.L, self.EA, self.w, self.CB, self.W))
+        base = tuple(tuple(np.asarray(a, float).tolist()) for a in (self.L, self.EA, self.w, self.CB, self.W))
+        if not self.has_tables:
+            return base
+        return base + (tuple(None if t is None else t.key() for t in self.tables),)
+
+    def _table_ids(self, m: int):
+        """Per section of ``m`` configurations (flat, section-major per configuration), the index of
+        its table in :attr:`tables` (-1: constant EA); None when no section has one."""
+        if not self.has_tables:
+            return None
+        ids = np.array([-1 if t is None else k for k, t in enumerate(self.tables)], dtype=np.int64)
+        return np.broadcast_to(ids, (m, self.n_sections)).ravel()
 
     def force_scale(self) -> float:
         """A force scale [N] of the line: its weights in water, for tolerances."""
@@ -111,12 +139,38 @@ class CompositeLine:
 # ------------------------------------------------------------------------------------------
 
 
-def _section(xlo, zlo, xhi, zhi, L, EA, w, CB, guess=None):
+def _solve_sections(X, Z, L, EA, w, CB, h, guess, tab_id, tables) -> CatenarySolution:
+    """:func:`catenary.solve` of sections (flat arrays), those of each tension-strain table
+    (``tables[tab_id]``; ``tab_id`` -1 or None: constant EA) in one call of their own."""
+    if tab_id is None:
+        return catenary.solve(X, Z, L, EA, w, CB=CB, h_A=h, guess=guess)
+    X, Z, L, EA, w, CB, h = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (X, Z, L, EA, w, CB, h)))
+    out: dict = {}
+    it = 0
+    for t in np.unique(tab_id):
+        m = tab_id == t
+        g = None if guess is None else tuple(np.broadcast_to(np.asarray(a, float), X.shape)[m] for a in guess)
+        sol = catenary.solve(X[m], Z[m], L[m], EA[m], w[m], CB=CB[m], h_A=h[m], guess=g,
+                             table=None if t < 0 else tables[t])
+        it = max(it, sol.iterations)
+        for k in _SOL_FIELDS:
+            v = getattr(sol, k)
+            if k not in out:
+                out[k] = np.zeros(X.shape, dtype=v.dtype)
+            out[k][m] = v
+    return CatenarySolution(iterations=it, **out)
+
+
+_SOL_FIELDS = ("HF", "VF", "HA", "VA", "TF", "TA", "LBot", "regime", "dHF_dXF", "dHF_dZF", "dVF_dXF", "dVF_dZF")
+
+
+def _section(xlo, zlo, xhi, zhi, L, EA, w, CB, guess=None, tab_id=None, tables=()):
     """Forces of sections on their ends and their derivatives, vectorised (flat arrays).
 
     Returns F_lo, F_hi (m, 2) — the section's force on its lower-index and upper-index end, (x, z)
     with z up — their Jacobians (m, 2, 4) with respect to (x_lo, z_lo, x_hi, z_hi), and the
-    catenary solution (whose ends are the physically lower end A and the upper end U)."""
+    catenary solution (whose ends are the physically lower end A and the upper end U). ``tab_id``
+    (m,) picks each section's tension-strain table in ``tables`` (-1: constant EA)."""
     up = zhi >= zlo
     xA, zA = np.where(up, xlo, xhi), np.where(up, zlo, zhi)
     xU, zU = np.where(up, xhi, xlo), np.where(up, zhi, zlo)
@@ -124,7 +178,7 @@ def _section(xlo, zlo, xhi, zhi, L, EA, w, CB, guess=None):
     s = np.where(dx >= 0, 1.0, -1.0)
     X, Z = np.abs(dx), zU - zA
     h = np.maximum(zA, 0.0)
-    sol = catenary.solve(X, Z, L, EA, w, CB=CB, h_A=h, guess=guess)
+    sol = _solve_sections(X, Z, L, EA, w, CB, h, guess, tab_id, tables)
     HF, VF, HA, VA = sol.HF, sol.VF, sol.HA, sol.VA
     dHX, dHZ, dVX = sol.dHF_dXF, sol.dHF_dZF, sol.dVF_dXF
     dVZ = np.where(np.isfinite(sol.dVF_dZF), sol.dVF_dZF, _BIG_STIFFNESS)
@@ -146,6 +200,12 @@ def _section(xlo, zlo, xhi, zhi, L, EA, w, CB, guess=None):
             dV1dH = V1 / ((h1 + H) * (1.0 + h1 / ea))
             dV1dh = ww * h1 / (V1 * (1.0 + h1 / ea))
             dXdh = -(V1 * V1 / (h1 + H)) / (ww * h1) * dV1dh
+            if tab_id is not None:  # sections of a tension-strain table: its V1(HF, h) and span
+                tm = tab_id[m]
+                for t in np.unique(tm[tm >= 0]):
+                    q = tm == t
+                    a1, a2, a3 = catenary._reach_terms_table(H[q], V1[q], ww[q], tables[t])
+                    dV1dH[q], dV1dh[q], dXdh[q] = a1, a2, a3 * a2
             dHh[m] = -dHX[m] * dXdh + dHZ[m]
             dVh[m] = -dVX[m] * dXdh + dVZ[m]
             dHAh[m] = dHh[m]
@@ -171,6 +231,12 @@ def _section(xlo, zlo, xhi, zhi, L, EA, w, CB, guess=None):
             dHAX[m] = dHAZ[m] = 0.0
             dVAX[m] = dVAZ[m] = 0.0
             dVAh[m] = np.where(h[m] > 0, -ww / (1.0 + ww * L1 / ea), 0.0)
+            if tab_id is not None:  # d(w L1)/dh = w / (1 + eps(w L1)) of a table
+                tm = tab_id[m]
+                for t in np.unique(tm[tm >= 0]):
+                    q = np.flatnonzero(m)[tm == t]
+                    wq = ww[tm == t]
+                    dVAh[q] = np.where(h[q] > 0, -wq / (1.0 + tables[t].strain_at(-VA[q])), 0.0)
         # both ends on the seabed: VF = VA = 0
         m = reg == SEABED
         if np.any(m):
@@ -222,7 +288,8 @@ def _evaluate(y, XF, D, hA, line: CompositeLine, guess=None):
     x, z = _nodes(y, XF, D, hA)
     rep = (lambda a: np.broadcast_to(a, (m, n)).ravel())
     F_lo, F_hi, J_lo, J_hi, sol = _section(x[:, :-1].ravel(), z[:, :-1].ravel(), x[:, 1:].ravel(), z[:, 1:].ravel(),
-                                           rep(line.L), rep(line.EA), rep(line.w), rep(line.CB), guess=guess)
+                                           rep(line.L), rep(line.EA), rep(line.w), rep(line.CB), guess=guess,
+                                           tab_id=line._table_ids(m), tables=line.tables)
     F_lo = F_lo.reshape(m, n, 2)
     F_hi = F_hi.reshape(m, n, 2)
     J_lo = J_lo.reshape(m, n, 2, 4)
@@ -411,7 +478,7 @@ def solve(XF, ZF, line: CompositeLine, *, h_A=0.0, rtol: float = 1e-10, max_iter
     XF, ZF, hA = (np.asarray(a, dtype=float) for a in (XF, ZF, h_A))
     shape = np.broadcast_shapes(XF.shape, ZF.shape, hA.shape)
     if line.n_sections == 1:
-        return catenary.solve(XF, ZF, line.L[0], line.EA[0], line.w[0], CB=line.CB[0], h_A=hA)
+        return catenary.solve(XF, ZF, line.L[0], line.EA[0], line.w[0], CB=line.CB[0], h_A=hA, table=line.table(0))
     XF, ZF, hA = (np.broadcast_to(a, shape).ravel().copy() for a in (XF, ZF, hA))
     for name, a, lo in (("XF", XF, 0.0), ("ZF", ZF, 0.0), ("h_A", hA, 0.0)):
         bad = ~np.isfinite(a) | (a < lo)
@@ -485,6 +552,8 @@ def points(XF, ZF, line: CompositeLine, *, h_A=0.0, rtol: float = 1e-10, max_ite
     anchor toward the fairlead, z height above the seabed."""
     XF, ZF, hA = (np.asarray(a, dtype=float) for a in (XF, ZF, h_A))
     shape = np.broadcast_shapes(XF.shape, ZF.shape, hA.shape)
+    if line.n_sections == 1:  # no point (a homogeneous line of a tension-strain table)
+        return np.zeros(shape + (0,)), np.zeros(shape + (0,))
     XF, ZF, hA = (np.broadcast_to(a, shape).ravel().copy() for a in (XF, ZF, hA))
     y, *_ = _newton(XF, hA + ZF, hA, line, rtol=rtol, max_iter=max_iter)
     return y[:, 0::2].reshape(shape + (-1,)), y[:, 1::2].reshape(shape + (-1,))
@@ -496,7 +565,8 @@ def profile(XF: float, ZF: float, line: CompositeLine, *, h_A: float = 0.0, n: i
     of about ``n`` points (every section sampled in proportion to its length, both ends kept), and
     ``points`` (x, z) of the joints, as :func:`tapm_opt.models.catenary.line_profile`."""
     if line.n_sections == 1:
-        return catenary.line_profile(XF, ZF, line.L[0], line.EA[0], line.w[0], CB=line.CB[0], h_A=h_A, n=n)
+        return catenary.line_profile(XF, ZF, line.L[0], line.EA[0], line.w[0], CB=line.CB[0], h_A=h_A, n=n,
+                                     table=line.table(0))
     px, pz = points(XF, ZF, line, h_A=h_A)
     x = np.r_[0.0, px.ravel(), XF]
     z = np.r_[h_A, pz.ravel(), h_A + ZF]
@@ -508,7 +578,7 @@ def profile(XF: float, ZF: float, line: CompositeLine, *, h_A: float = 0.0, n: i
         sgn = 1.0 if x[b] >= x[a] else -1.0
         nk = max(int(round(n * line.L[k] / line.length)), 2)
         pr = catenary.line_profile(abs(x[b] - x[a]), z[b] - z[a], line.L[k], line.EA[k], line.w[k],
-                                   CB=line.CB[k], h_A=max(z[a], 0.0), n=nk)
+                                   CB=line.CB[k], h_A=max(z[a], 0.0), n=nk, table=line.table(k))
         xs, zs, Ts, ss = x[a] + sgn * pr["x"], z[a] + pr["z"], pr["T"], pr["s"]
         if not up:
             xs, zs, Ts, ss = xs[::-1], zs[::-1], Ts[::-1], line.L[k] - ss[::-1]
