@@ -380,6 +380,74 @@ def test_line_reach_uses_the_max_strain_when_given():
     assert "max strain 0.5 %" in issue_at(issues_of(data), "lines[0].length").message
 
 
+# a polyester-like tension-strain law (EA_table): slopes 200 to 390 MN, secant 340 MN at 5 %
+POLY_TABLE = [[0.0, 0.0], [0.005, 1.0e6], [0.01, 2.4e6], [0.02, 5.6e6], [0.03, 9.2e6], [0.05, 17.0e6]]
+
+
+def tabled(table=POLY_TABLE, *, EA=None, winch=False) -> dict:
+    """fpso with its line type given by a tension-strain table instead of EA (its winches off)."""
+    data = base("fpso")
+    lt = data["line_types"][0]
+    del lt["EA"]
+    lt["EA_table"] = table
+    if EA is not None:
+        lt["EA"] = EA
+    if not winch:
+        for ln in data["lines"]:
+            for k in ("winch_max_rate", "min_length", "max_length"):
+                ln.pop(k, None)
+    return data
+
+
+def test_a_tension_strain_table_gives_the_line_types_ea_and_strain_limit():
+    """EA_table: the line type's EA is the secant at the last row (also when given equal), the
+    strain at MBS read from the table (the 16.99 MN MBS at 4.80 %), the table kept through the dict."""
+    sc = scenario_from_dict(tabled())
+    lt = sc.line_types[0]
+    assert lt.EA == pytest.approx(3.4e8) and lt.EA_table == tuple(tuple(r) for r in POLY_TABLE)
+    assert lt.strain_limit == pytest.approx(0.03 + (16.99e6 - 9.2e6) / 3.9e8)
+    assert lt.max_EA == pytest.approx(3.9e8)
+    assert scenario_from_dict(scenario_to_dict(sc)) == sc
+    assert scenario_from_dict(tabled(EA=3.4e8)) == sc
+    assert sc.line_sections[0]["EA_table"][0] == lt.strain_table
+    assert MooringModel.from_scenario(sc).composite[0].tables == (lt.strain_table,)
+
+
+@pytest.mark.parametrize("table, path, message", [
+    ([[0.0, 0.0]], "line_types[0].EA_table", "has 1 row: a tension-strain table needs at least 2"),
+    ([[0.001, 0.0], [0.01, 1e6]], "line_types[0].EA_table[0]", "= [0.001, 0] must be [0, 0]"),
+    ([[0.0, 0.0], [0.01, 1e6], [0.008, 2e6]], "line_types[0].EA_table[2]",
+     "= [0.008, 2e+06] does not increase the strain of row 1 [0.01, 1e+06]"),
+    ([[0.0, 0.0], [0.01, 1e6], [0.02, 1e6]], "line_types[0].EA_table[2]", "does not increase the tension"),
+    ([[0.0, 0.0], [0.01, -1e6]], "line_types[0].EA_table[1]", "has a negative tension"),
+    ([[0.0, 0.0], [0.01, 1e6, 3.0]], "line_types[0].EA_table", "rows must all have the same length"),
+    ([[0.0, 0.0, 0.0], [0.01, 1e6, 3.0]], "line_types[0].EA_table", "must have shape (-1, 2)"),
+    ([[0.0, 0.0], [0.01, "x"]], "line_types[0].EA_table[1][1]", "must be a number"),
+])
+def test_a_bad_tension_strain_table_is_named_with_its_value(table, path, message):
+    assert message in issue_at(issues_of(tabled(table)), path).message
+
+
+def test_ea_and_its_table_must_agree_and_one_of_them_be_given():
+    assert "differs from EA_table's secant at its last row, T_n / eps_n = 340000000 N" in issue_at(
+        issues_of(tabled(EA=1.163e9)), "line_types[0].EA").message
+    data = base("fpso")
+    del data["line_types"][0]["EA"]
+    assert "is missing: give the axial stiffness EA" in issue_at(issues_of(data), "line_types[0].EA").message
+
+
+def test_a_winch_on_a_line_of_a_table_is_refused():
+    message = issue_at(issues_of(tabled(winch=True)), "lines[0].winch_max_rate").message
+    assert "has a tension-strain table (nonlinear EA)" in message
+
+
+def test_plausibility_reads_the_strain_at_mbs_from_the_table():
+    """A table in kN read as N puts the strain at MBS far beyond 20 %: named at EA_table."""
+    table = [[e, T / 1000.0] for e, T in POLY_TABLE]
+    message = issue_at(issues_of(tabled(table)), "line_types[0].EA_table").message
+    assert "strain at MBS (from the table)" in message
+
+
 def test_line_reach_uses_the_fairleads_of_eq3_with_the_turret_angle():
     """ren8 line 0 (radial, fairlead at 20 m on the anchor's side): turning the turret by 180 deg
     puts its fairlead on the far side, 40 m further from the anchor, out of reach."""

@@ -24,6 +24,7 @@ import numpy as np
 from .._checks import fmt as _fmt, is_number as _is_number  # one definition for every layer
 from ..errors import ScenarioError, ScenarioIssue
 from ..geometry import fairleads_B, merge_sectors
+from ..strain_table import secant_of_rows, table_problem
 from .schema import FaultTargetError, Scenario, buoy_of_fault
 
 BUILTIN_DIR = Path(__file__).parent / "scenarios"
@@ -392,7 +393,7 @@ def fem_size_issues(sc: Scenario, segments: int | None = None, *, where: str | N
         nk = ln.section_segments() if segments is None else _shared(ln, n[i])
         for sec, k in zip(ln.parts, nk):
             lt = sc.line_type_by_id(sec.type)
-            c = math.sqrt(lt.EA / lt.mass_per_length)
+            c = math.sqrt(lt.max_EA / lt.mass_per_length)
             steps.append((0.5 * sec.length / k / c, i, c, sec.length / k))
     dt, i, c, seg = min(steps)
     rate = nodes / dt if dt > 0 else math.inf
@@ -571,19 +572,22 @@ def _plausibility(sc: Scenario, fl_x: np.ndarray, fl_y: np.ndarray, issues: list
     for i, t in enumerate(sc.line_types):
         p = f"line_types[{i}]"
         n0 = len(issues)
-        strain = t.MBS / t.EA
+        strain = t.MBS / t.EA if t.EA_table is None else float(t.strain_table.strain_at(t.MBS))
         lo, hi = STRAIN_AT_MBS_RANGE
-        c = math.sqrt(t.EA / t.mass_per_length)
+        c = math.sqrt(t.max_EA / t.mass_per_length)
         area = math.pi * t.diameter * t.diameter / 4.0
         rho_eff = t.mass_per_length / area if area > 0 else math.inf
+        fld, what = (("EA", f"= {t.EA:g} N") if t.EA_table is None else
+                     ("EA_table", f"(largest slope {t.max_EA:g} N, secant {t.EA:g} N)"))
         if not lo <= strain <= hi:
-            issues.append(ScenarioIssue(f"{p}.EA", (
-                f"= {t.EA:g} N with MBS = {t.MBS:g} N gives a strain at MBS (MBS/EA) of {strain:.3g}, outside "
+            issues.append(ScenarioIssue(f"{p}.{fld}", (
+                f"{what} with MBS = {t.MBS:g} N gives a strain at MBS "
+                f"({'MBS/EA' if t.EA_table is None else 'from the table'}) of {strain:.3g}, outside "
                 f"[{lo:g}, {hi:g}] (chain breaks at about 1.5 %, wire 1 %, polyester and HMPE up to 20 %): "
                 "check the units of EA and MBS")))
         elif c > MAX_AXIAL_WAVE_SPEED:
-            issues.append(ScenarioIssue(f"{p}.EA", (
-                f"= {t.EA:g} N with mass_per_length = {t.mass_per_length:g} kg/m gives an axial wave speed "
+            issues.append(ScenarioIssue(f"{p}.{fld}", (
+                f"{what} with mass_per_length = {t.mass_per_length:g} kg/m gives an axial wave speed "
                 f"sqrt(EA/m) = {c:.3g} m/s, above {MAX_AXIAL_WAVE_SPEED:g} m/s (steel about 5000, carbon fibre "
                 "11000): check the units of EA and mass_per_length")))
         lo, hi = EFFECTIVE_DENSITY_RANGE
@@ -602,7 +606,8 @@ def _plausibility(sc: Scenario, fl_x: np.ndarray, fl_y: np.ndarray, issues: list
                 "coefficients of variation are 0.05-0.15)")))
         if t.max_strain is not None and t.max_strain > 0 and t.max_strain > strain * (1 + 1e-9):
             issues.append(ScenarioIssue(f"{p}.max_strain", (
-                f"= {t.max_strain:g} exceeds the strain at MBS, MBS/EA = {strain:.4g}: the line breaks first")))
+                f"= {t.max_strain:g} exceeds the strain at MBS, "
+                f"{'MBS/EA' if t.EA_table is None else 'from EA_table'} = {strain:.4g}: the line breaks first")))
         if len(issues) > n0:
             bad_types.add(t.id)
 
@@ -725,6 +730,29 @@ def hangoff_depth_limit(fairlead_depth: float, draught: float) -> float:
     return max(float(fairlead_depth), float(draught), 0.0)
 
 
+def _axial_law_issues(sc: Scenario, issues: list[ScenarioIssue]) -> None:
+    """Each line type's EA or EA_table: a valid tension-strain table (:func:`table_problem`), and
+    EA absent or the table's secant at its last row; EA given when there is no table."""
+    for i, t in enumerate(sc.line_types):
+        p = f"line_types[{i}]"
+        if t.EA_table is None:
+            if t.EA is None:
+                issues.append(ScenarioIssue(f"{p}.EA", (
+                    "is missing: give the axial stiffness EA [N], or a tension-strain table EA_table "
+                    "[[strain, tension], ...] for a nonlinear one")))
+            continue
+        bad = table_problem(t.EA_table)
+        if bad is not None:
+            k, msg = bad
+            issues.append(ScenarioIssue(f"{p}.EA_table" + ("" if k is None else f"[{k}]"), msg))
+            continue
+        secant = secant_of_rows(t.EA_table)
+        if secant is None or not math.isclose(float(t.EA), secant, rel_tol=1e-9):
+            issues.append(ScenarioIssue(f"{p}.EA", (
+                f"= {t.EA:g} N differs from EA_table's secant at its last row, T_n / eps_n = {secant:.10g} N: "
+                "with a table EA is that secant (leave EA out)")))
+
+
 def validate(sc: Scenario) -> list[ScenarioIssue]:
     """Physical and cross-field checks of a parsed scenario.
 
@@ -738,6 +766,8 @@ def validate(sc: Scenario) -> list[ScenarioIssue]:
     """
     issues: list[ScenarioIssue] = []
     _field_issues(sc, "", issues)
+    if not issues:
+        _axial_law_issues(sc, issues)
     if issues:
         return issues
     env = sc.environment
@@ -832,6 +862,11 @@ def validate(sc: Scenario) -> list[ScenarioIssue]:
             issues.append(ScenarioIssue(
                 f"{p}.type", f"= {ln.type!r} is not a line type" + (f"; did you mean {hint[0]!r}?" if hint else
                                                                      f"; defined: {sorted(type_ids)}")))
+            continue
+        if not ln.sections and ln.winch_max_rate > 0 and sc.line_type(ln).EA_table is not None:
+            issues.append(ScenarioIssue(f"{p}.winch_max_rate", (
+                f"= {ln.winch_max_rate:g} m/s: line type {ln.type!r} has a tension-strain table (nonlinear EA), and "
+                "the winch in tapm_opt pays out a line of constant EA; give 0")))
             continue
         if len(ln.anchor) not in (2, 3):
             issues.append(ScenarioIssue(f"{p}.anchor", f"must be (x, y) or (x, y, z), got {len(ln.anchor)} numbers"))

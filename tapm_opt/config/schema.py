@@ -23,6 +23,7 @@ import numpy as np
 
 from .. import geometry
 from .._io import readonly
+from ..strain_table import StrainTable, secant_of_rows
 
 Check = Callable[[Any], "str | None"]
 
@@ -279,7 +280,14 @@ class LineType:
     submerged_weight: float | None = spec(
         "Submerged weight per unit length w (instead of density).", "N/m", default=None, check=positive
     )
-    EA: float = spec("Axial stiffness.", "N", check=positive)
+    EA: float | None = spec(
+        "Axial stiffness. With EA_table: the table's secant at its last row, T_n / eps_n (MoorDyn's one "
+        "number for a tabulated line, its damping ratio's stiffness); then leave it out or give that value.",
+        "N", default=None, check=positive)
+    EA_table: Mat | None = spec(
+        "Nonlinear axial stiffness (polyester, nylon, HMPE): rows [strain, tension] from [0, 0], both "
+        "strictly increasing, linear between rows and beyond the last (at least 2 rows); absent: constant EA.",
+        "-, N", default=None, shape=(-1, 2))
     MBS: float = spec("Minimum breaking strength (mean breaking strength in the reliability index).", "N", check=positive)
     MBS_std: float = spec("Standard deviation of the breaking strength sigma_b (survey eq. 32).", "N", check=nonneg)
     Cd_normal: float = spec("Normal drag coefficient C_DN (on diameter).", check=bounded(0.0, 10.0, _COEF))
@@ -290,13 +298,20 @@ class LineType:
     Ca_normal: float = spec("Normal added-mass coefficient C_MN.", check=bounded(0.0, 10.0, _COEF))
     Ca_tangential: float = spec("Tangential added-mass coefficient.", default=0.0, check=bounded(0.0, 10.0, _COEF))
     max_strain: float | None = spec(
-        "Largest allowed axial strain; absent: the strain at MBS, MBS/EA.", default=None, check=in_range(0.0, 1.0)
+        "Largest allowed axial strain; absent: the strain at MBS (MBS/EA, or from EA_table).", default=None,
+        check=in_range(0.0, 1.0)
     )
     seabed_friction: float = spec("Seabed friction coefficient C_B (catenary and FEM seabed contact).", default=0.0,
                                   check=bounded(0.0, 5.0, "chain on clay or sand is about 0.7-1"))
     axial_damping_ratio: float = spec(
         "FEM axial internal damping as a fraction of the critical damping of one segment's axial mode.",
         default=0.0, check=in_range(0.0, 1.0))
+
+    def __post_init__(self) -> None:
+        if self.EA is None and self.EA_table is not None:  # EA is the table's secant (a bad table: validation says)
+            ea = secant_of_rows(self.EA_table)
+            if ea is not None:
+                object.__setattr__(self, "EA", ea)
 
     def w(self, env: Environment) -> float:
         """Submerged weight per unit unstretched length [N/m]."""
@@ -305,10 +320,27 @@ class LineType:
         assert self.density is not None  # guaranteed by validation
         return float(self.mass_per_length * env.gravity * (self.density - env.water_density) / self.density)
 
+    @cached_property
+    def strain_table(self) -> StrainTable | None:
+        """The nonlinear axial law of :attr:`EA_table` (:class:`~tapm_opt.strain_table.StrainTable`),
+        or None for a constant EA."""
+        return None if self.EA_table is None else StrainTable.from_rows(self.EA_table)
+
     @property
     def strain_limit(self) -> float:
-        """Largest strain the line may take: ``max_strain`` or MBS/EA [-]."""
-        return float(self.max_strain) if self.max_strain is not None else float(self.MBS / self.EA)
+        """Largest strain the line may take: ``max_strain``, else the strain at MBS (MBS/EA, or the
+        table's strain at MBS) [-]."""
+        if self.max_strain is not None:
+            return float(self.max_strain)
+        if self.EA_table is not None:
+            return float(self.strain_table.strain_at(self.MBS))
+        return float(self.MBS / self.EA)
+
+    @property
+    def max_EA(self) -> float:
+        """The stiffest axial stiffness the line reaches [N]: EA, or the table's largest slope
+        (the FEM's stable step, the axial wave speed)."""
+        return float(self.EA if self.EA_table is None else self.strain_table.max_slope)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -779,7 +811,9 @@ class Scenario:
         ``MBS`` [N], ``segments``. Point arrays, shape (n_sections - 1,), point j joining section j
         to section j + 1: ``W`` net submerged weight [N] (positive down), ``point_mass`` [kg],
         ``point_volume`` [m^3], ``point_CdA`` [m^2], ``point_Ca`` [-] (zeros for a plain joint).
-        A homogeneous line is the one-section case."""
+        ``EA_table``: per section its :class:`~tapm_opt.strain_table.StrainTable` (nonlinear axial
+        stiffness; its ``EA`` the table's secant) or None, a tuple. A homogeneous line is the
+        one-section case."""
         env = self.environment
         types = {t.id: t for t in self.line_types}
         points = {p.id: p for p in self.point_types}
@@ -808,5 +842,7 @@ class Scenario:
                 "point_CdA": [p.CdA if p else 0.0 for p in pts],
                 "point_Ca": [p.Ca if p else 0.0 for p in pts],
             }
-            out.append({k: readonly(np.asarray(v, dtype=int if k == "segments" else float)) for k, v in d.items()})
+            arrays = {k: readonly(np.asarray(v, dtype=int if k == "segments" else float)) for k, v in d.items()}
+            arrays["EA_table"] = tuple(t.strain_table for t in ts)
+            out.append(arrays)
         return tuple(out)

@@ -140,8 +140,14 @@ class TensionRangeMap:
         self.X_lo = X_slack + 1e-6 * model.L + 1e-3
         T_cap = frac * np.asarray(model.MBS, float)
         lo = self.X_lo.copy()
-        # upper bound: the straight reach of the line stretched by T_cap everywhere
-        hi = np.sqrt(np.maximum((model.L * (1 + T_cap / model.EA)) ** 2 - model.ZF ** 2, 0.0))
+        # upper bound: the straight reach of the line stretched by T_cap everywhere (a section of a
+        # tension-strain table by its own strain at T_cap, which its secant EA may understate)
+        strain = T_cap / model.EA
+        for i, c in enumerate(model.composite or ()):
+            if c is not None and c.has_tables:
+                strain[i] = max(float(t.strain_at(T_cap[i])) if t is not None else T_cap[i] / ea
+                                for t, ea in zip(c.tables, c.EA))
+        hi = np.sqrt(np.maximum((model.L * (1 + strain)) ** 2 - model.ZF ** 2, 0.0))
         if np.any(self._T(lo) >= T_cap):
             i = int(np.argmax(self._T(lo) >= T_cap))
             raise AnchorSlamError(f"line {self.line_ids[i]!r}: the tension at the slack limit already reaches "

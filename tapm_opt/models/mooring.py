@@ -40,6 +40,13 @@ _SOLUTION_ARRAYS = ("HF", "VF", "HA", "VA", "TF", "TA", "LBot", "regime", "dHF_d
 """The per-configuration arrays of a CatenarySolution."""
 
 
+def _own_solver(sec: dict) -> bool:
+    """A line of :attr:`Scenario.line_sections <tapm_opt.config.Scenario.line_sections>` that
+    :func:`tapm_opt.models.composite.solve` solves: sections and points, or a tension-strain table
+    (nonlinear EA; a homogeneous one is the one-section composite line)."""
+    return sec["L"].size > 1 or any(t is not None for t in sec.get("EA_table", ()))
+
+
 @dataclass(frozen=True, eq=False)
 class MooringModel:
     """Quasi-static catenary mooring of a turret-moored vessel.
@@ -74,7 +81,8 @@ class MooringModel:
         a composite line, None for a homogeneous one; empty: every line homogeneous. A composite
         line's L, EA, w are its equivalents (total length, series stiffness, mean weight, see
         ``Scenario.line_arrays``), read only where a rough scale is wanted; every tension comes
-        from :meth:`line_solver`.
+        from :meth:`line_solver`. A homogeneous line of a tension-strain table (nonlinear EA) is
+        here too, as the one-section composite line with its table (its EA the table's secant).
     lost_points : tuple of (str, int)
         Points lost from composite lines, (line id, joint index from the anchor up), in the order
         they were lost (:meth:`with_points_lost`): their net weight ``W`` is 0 in ``composite``.
@@ -161,9 +169,9 @@ class MooringModel:
             MBS=readonly(la["MBS"][keep]),
             h_A=readonly(h_A[keep]),
             MBS_std=readonly(np.asarray(la["MBS_std"], float)[keep]),
-            composite=tuple(_composite.CompositeLine.from_arrays(sec) if sec["L"].size > 1 else None
+            composite=tuple(_composite.CompositeLine.from_arrays(sec) if _own_solver(sec) else None
                             for sec, k in zip(scenario.line_sections, keep) if k)
-            if any(sec["L"].size > 1 for sec in scenario.line_sections) else (),
+            if any(_own_solver(sec) for sec in scenario.line_sections) else (),
         ).with_points_lost([(lid, j) for lid, j in lost_points if lid not in broken])
 
     def without(self, broken: Iterable[str]) -> "MooringModel":
