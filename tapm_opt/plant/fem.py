@@ -13,7 +13,8 @@ drag ``1/2 rho CdA |v_r| v_r``, MoorDyn's point). See docs/plant.md, "Composite 
 Forces on node k (NED, z down):
 
 * axial elasticity in tension only: segment tension ``T = EA max(e, 0) + c_int de/dt`` (clipped
-  at 0), strain ``e = |l_k| / l - 1`` ([A] eq. 1, [R] eq. 7 f_r);
+  at 0), strain ``e = |l_k| / l - 1`` ([A] eq. 1, [R] eq. 7 f_r); a section with a tension-strain
+  table (nonlinear EA) reads ``T(e)`` from it instead, linear between rows and beyond the last;
 * submerged weight ``w (l_k + l_{k+1}) / 2`` downward ([A] eq. 2);
 * Morison drag on the velocity relative to the current at the node's depth, each adjacent segment
   contributing half its length ([A] eq. 3–4, 'D_k'): normal ``-1/2 rho C_DN d eps |v_n| v_n`` and
@@ -45,6 +46,7 @@ from typing import Callable
 import numpy as np
 
 from ..errors import ModelError, TapmError
+from ..models.catenary import as_table
 
 __all__ = ["LineSet", "FEMLines", "SimulationDiverged", "KERNELS", "set_default_kernel"]
 
@@ -104,7 +106,9 @@ class LineSet:
     ``sections`` (optional) makes lines composite: one entry per line, ``None`` for a homogeneous
     line (its properties are the per-line arrays) or a dict of per-section arrays from the anchor
     up (:data:`SECTION_KEYS`: ``L, EA, w, mass, d, Cdn, Cdt, Can, Cat, damping_ratio, mu`` and the
-    int ``segments``, shape (n_sections,)) and of per-point arrays (:data:`POINT_KEYS`: ``W`` net
+    int ``segments``, shape (n_sections,); optionally ``EA_table``, per section a tension-strain
+    table (:class:`~tapm_opt.strain_table.StrainTable`, nonlinear EA) or None, whose ``EA`` is the
+    table's secant, the stiffness of the damping ratio) and of per-point arrays (:data:`POINT_KEYS`: ``W`` net
     submerged weight [N] positive down, ``point_mass`` [kg], ``point_volume`` [m^3],
     ``point_CdA`` [m^2], ``point_Ca`` [-], shape (n_sections - 1,), point k joining section k to
     section k + 1). A composite line's ``segments`` is the sum of its sections' and its ``L`` their
@@ -201,6 +205,7 @@ class FEMLines:
         ok = self.bond_ok
         lb = self.line_of_bond
         self._EA = np.where(ok, ls.EA[lb], 0.0)
+        self._EA_max = self._EA.copy()  # the stiffest slope of each bond (its table's largest)
         self._w = np.where(ok, ls.w[lb], 0.0)
         self._m = np.where(ok, ls.mass[lb], 0.0)
         self._zeta_int = np.where(ok, ls.damping_ratio[lb], 0.0)
@@ -267,6 +272,9 @@ class FEMLines:
         self._l0_sec = np.ones(nb)
         self._point_mass = np.zeros(self.n_nodes)  # point mass [kg] and net weight [N] at the joint nodes
         self._point_W = np.zeros(self.n_nodes)
+        self._bond_table = np.full(nb, -1, dtype=np.int64)  # index into self.tables, -1: constant EA
+        self.tables: list = []
+        """The tension-strain tables of the lines' sections (:class:`~tapm_opt.strain_table.StrainTable`)."""
         rows: list[list[float]] = []
         nodes: list[int] = []
         if sections is not None:
@@ -302,9 +310,19 @@ class FEMLines:
                 area = 0.25 * np.pi * a["d"] ** 2
                 can = 0.5 * (a["Can"] * rho * area)
                 cat = 0.5 * (a["Cat"] * rho * area)
+                tabs = tuple(sec.get("EA_table", ())) or (None,) * ns
+                if len(tabs) != ns:
+                    raise ModelError(f"sections of line {lid!r}: EA_table has {len(tabs)} entries, expected {ns}")
                 for k in range(ns):
                     bonds = slice(b0 + cum[k], b0 + cum[k + 1])
                     self._EA[bonds] = a["EA"][k]
+                    self._EA_max[bonds] = a["EA"][k]
+                    if tabs[k] is not None:
+                        tk = as_table(tabs[k])
+                        if tk not in self.tables:
+                            self.tables.append(tk)
+                        self._bond_table[bonds] = self.tables.index(tk)
+                        self._EA_max[bonds] = tk.max_slope
                     self._w[bonds] = a["w"][k]
                     self._m[bonds] = a["mass"][k]
                     self._zeta_int[bonds] = a["damping_ratio"][k]
@@ -348,6 +366,30 @@ class FEMLines:
         self._joint_c4 = self.joint_c[:, :8].reshape(-1, 4, 2)  # (lo, hi) of cdn, cdt, can, cat
         self._joint_bonds = np.column_stack([self.joint_node, self.joint_node + 1])  # rows of epsp: below, above
         self._has_points = bool(np.any(self._point_mass) or np.any(self._point_W))
+        # the tables packed for the compiled kernel: rows (strain, tension, slope of the segment from
+        # the row; the last row's is the last segment's), each bond's rows [start, stop) or (-1, -1)
+        packed, start = [], [0]
+        for tk in self.tables:
+            packed.append(np.column_stack([tk.strain, tk.tension, np.r_[tk.slope, tk.slope[-1]]]))
+            start.append(start[-1] + tk.strain.size)
+        self._tab = np.ascontiguousarray(np.concatenate(packed) if packed else np.zeros((0, 3)))
+        self._tab_idx = np.full((nb, 2), -1, dtype=np.int64)
+        on = self._bond_table >= 0
+        self._tab_idx[on, 0] = np.asarray(start[:-1], dtype=np.int64)[self._bond_table[on]]
+        self._tab_idx[on, 1] = np.asarray(start[1:], dtype=np.int64)[self._bond_table[on]]
+        self._has_tables = bool(on.any())
+
+    def _table_tension(self, T: np.ndarray, strain: np.ndarray, bonds: np.ndarray | None) -> None:
+        """The tension of the bonds of tension-strain tables (in ``T``, in place) from their strain:
+        ``T_j + s_j (e - e_j)`` on the row j at or below ``e`` (the first row below the table, the
+        segment before the last row beyond it), in the compiled kernel's operations."""
+        tid = self._bond_table if bonds is None else self._bond_table[bonds]
+        for k, tk in enumerate(self.tables):
+            m = tid == k
+            if m.any():
+                e = strain[m]
+                j = np.clip(np.searchsorted(tk.strain, e, side="right") - 1, 0, tk.strain.size - 2)
+                T[m] = tk.tension[j] + tk.slope[j] * (e - tk.strain[j])
 
     def _node_factors(self, epsp: np.ndarray) -> tuple[np.ndarray, ...]:
         """Per node, for the padded stretched bond lengths ``epsp`` (n_nodes + 1,): the normal and
@@ -434,7 +476,7 @@ class FEMLines:
         free = ~self.fixed
         m_node = np.maximum(self.node_mass, 1e-300)[free]
         ok = self.bond_ok
-        k_ax = np.where(ok, self._EA / self.l0, 0.0)
+        k_ax = np.where(ok, self._EA_max / self.l0, 0.0)  # a table's stiffest slope
         c_ax = np.where(ok, self._c_int / self.l0, 0.0)
         k_row = (2.0 * (np.append(k_ax, 0.0) + np.insert(k_ax, 0, 0.0)))[free]
         c_row = (2.0 * (np.append(c_ax, 0.0) + np.insert(c_ax, 0, 0.0)))[free]
@@ -470,6 +512,8 @@ class FEMLines:
         eps = np.sqrt((lv * lv).sum(axis=1))
         strain = eps / l0 - 1.0
         T = EA * strain
+        if self._has_tables:
+            self._table_tension(T, strain, bonds)
         if self._has_int_damping:
             dv = v[1:] - v[:-1] if bonds is None else v[bonds + 1] - v[bonds]
             T += c * (dv * lv).sum(axis=1) / (eps * l0)
@@ -623,7 +667,7 @@ class FEMLines:
         c = self._kc
         if c is not None and c[0] is self.l0 and c[-1] is self._attached:
             return c
-        c = self._kc = (self.l0, self._EA, self._c_int, self.bond_ok, self.node_weight, self.node_mass,
+        c = self._kc = (self.l0, self._EA, self._tab_idx, self._tab, self._c_int, self.bond_ok, self.node_weight, self.node_mass,
                 self._cdn_node, self._cdt_node, self._can_half, self._cat_half, self.joint_node, self.joint_c,
                 self._kb, self._cb, self._mu,
                 float(self.depth), bool(self._has_int_damping), bool(self._has_friction),
@@ -782,6 +826,7 @@ class FEMLines:
 
         shape = (self.n_nodes, 3)
         return fem_kernel.end_tensions(_as_f64(self.r, shape, "r"), _as_f64(self.v, shape, "v"), self.l0, self._EA,
+                                       self._tab_idx, self._tab,
                                        self._c_int, bool(self._has_int_damping), self.node_weight, self.fairlead_seg,
                                        self.fairlead_idx, self.anchor_seg, self.active)
 
@@ -793,7 +838,14 @@ class FEMLines:
         """
         lv, eps, T = self.segment_state(self.r, self.v)
         strain = np.maximum(eps / self.l0 - 1.0, 0.0)
-        elastic = 0.5 * np.sum(self._EA * strain**2 * self.l0 * self.bond_ok)
+        if not self.tables:
+            elastic = 0.5 * np.sum(self._EA * strain**2 * self.l0 * self.bond_ok)
+        else:  # a table's bonds: its strain energy int_0^e T de
+            density = 0.5 * self._EA * strain**2
+            for k, tk in enumerate(self.tables):
+                m = self._bond_table == k
+                density[m] = tk.strain_energy(strain[m])
+            elastic = np.sum(density * self.l0 * self.bond_ok)
         kin = 0.5 * np.sum(self.node_mass * np.einsum("ij,ij->i", self.v, self.v))
         pot = -np.sum(self.node_weight * self.r[:, 2])
         return float(kin + elastic + pot)

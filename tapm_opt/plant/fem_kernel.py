@@ -51,6 +51,22 @@ if not AVAILABLE:
 
 
 @_jit
+def _table_tension(tab, j0, j1, strain):  # pragma: no cover - compiled
+    """Tension [N] of a tension-strain table (rows ``tab[j0:j1]``: strain, tension, slope of the
+    segment from the row) at ``strain``: ``T_j + s_j (e - e_j)`` on the last row j <= j1 - 2 with
+    ``e_j <= e`` (j0 below the table), as ``FEMLines._table_tension`` (numpy's searchsorted)."""
+    lo = j0
+    hi = j1 - 2
+    while lo < hi:
+        mid = (lo + hi + 1) // 2
+        if tab[mid, 0] <= strain:
+            lo = mid
+        else:
+            hi = mid - 1
+    return tab[lo, 1] + tab[lo, 2] * (strain - tab[lo, 0])
+
+
+@_jit
 def _bond(r, v, i, l0, EA, c_int, has_int_damping):  # pragma: no cover - compiled
     """Bond i (node i to node i + 1): vector (lx, ly, lz) [m], stretched length e [m] and tension
     t [N] (tension only, with internal damping), as :meth:`FEMLines.segment_state
@@ -71,6 +87,49 @@ def _bond(r, v, i, l0, EA, c_int, has_int_damping):  # pragma: no cover - compil
     elif t < 0.0:  # NaN and -0.0 kept, as np.maximum(t, 0.0)
         t = 0.0
     return lx, ly, lz, e, t
+
+
+@_jit
+def _bond_any(r, v, i, l0, EA, tabi, tab, c_int, has_int_damping):  # pragma: no cover - compiled
+    """:func:`_bond` where a bond may be of a tension-strain table (``tabi[i] = (start, stop)`` rows
+    of ``tab``, else (-1, -1)): its elastic tension read from the table (:func:`_table_tension`)."""
+    if tab.shape[0] == 0 or tabi[i, 0] < 0:
+        return _bond(r, v, i, l0, EA, c_int, has_int_damping)
+    lx = r[i + 1, 0] - r[i, 0]
+    ly = r[i + 1, 1] - r[i, 1]
+    lz = r[i + 1, 2] - r[i, 2]
+    e = math.sqrt(0.0 + lx * lx + ly * ly + lz * lz)
+    strain = e / l0[i] - 1.0
+    t = _table_tension(tab, tabi[i, 0], tabi[i, 1], strain)
+    if has_int_damping:
+        dx = v[i + 1, 0] - v[i, 0]
+        dy = v[i + 1, 1] - v[i, 1]
+        dz = v[i + 1, 2] - v[i, 2]
+        t += c_int[i] * (0.0 + dx * lx + dy * ly + dz * lz) / (e * l0[i])
+    if strain <= 0.0:
+        t = 0.0
+    elif t < 0.0:  # NaN and -0.0 kept, as np.maximum(t, 0.0)
+        t = 0.0
+    return lx, ly, lz, e, t
+
+
+@_jit
+def _keep_bond(i, lx, ly, lz, e, t, bond_ok, T, qp, tvp, epsp):  # pragma: no cover - compiled
+    """Bond i's tension into T, its tangent, tension vector and stretched length into the padded
+    buffers (0 on a non-segment bond)."""
+    T[i] = t
+    ok = 1.0 if bond_ok[i] else 0.0
+    inv = ok / e
+    qx = lx * inv
+    qy = ly * inv
+    qz = lz * inv
+    qp[i + 1, 0] = qx
+    qp[i + 1, 1] = qy
+    qp[i + 1, 2] = qz
+    tvp[i + 1, 0] = t * qx
+    tvp[i + 1, 1] = t * qy
+    tvp[i + 1, 2] = t * qz
+    epsp[i + 1] = e * ok
 
 
 @_jit
@@ -165,7 +224,7 @@ def _joints(r, v, vc, dt, extra_damping, node_weight, node_mass, joint, joint_c,
 
 @_jit
 def _step(r, v, vc, dt, extra_damping, fl_r, fl_v,
-          l0, EA, c_int, bond_ok, node_weight, node_mass, cdn, cdt, can_half, cat_half, joint, joint_c,
+          l0, EA, tabi, tab, c_int, bond_ok, node_weight, node_mass, cdn, cdt, can_half, cat_half, joint, joint_c,
           kb, cb, mu, depth, has_int_damping, has_friction,
           anchor_idx, anchors, fairlead_idx, attached,
           r_out, v_out, T, qp, tvp, epsp, F_node):  # pragma: no cover - compiled
@@ -176,22 +235,16 @@ def _step(r, v, vc, dt, extra_damping, fl_r, fl_v,
     the numpy path (row i + 1 holds bond i; rows 0 and n_nodes stay zero).
     """
     n = r.shape[0]
-    # bonds: tangent, tension vector and stretched length (0 on the non-segment bonds)
-    for i in range(n - 1):
-        lx, ly, lz, e, t = _bond(r, v, i, l0, EA, c_int, has_int_damping)
-        T[i] = t
-        ok = 1.0 if bond_ok[i] else 0.0
-        inv = ok / e
-        qx = lx * inv
-        qy = ly * inv
-        qz = lz * inv
-        qp[i + 1, 0] = qx
-        qp[i + 1, 1] = qy
-        qp[i + 1, 2] = qz
-        tvp[i + 1, 0] = t * qx
-        tvp[i + 1, 1] = t * qy
-        tvp[i + 1, 2] = t * qz
-        epsp[i + 1] = e * ok
+    # bonds: tangent, tension vector and stretched length (0 on the non-segment bonds); without a
+    # tension-strain table the loop of constant EA alone
+    if tab.shape[0] == 0:
+        for i in range(n - 1):
+            lx, ly, lz, e, t = _bond(r, v, i, l0, EA, c_int, has_int_damping)
+            _keep_bond(i, lx, ly, lz, e, t, bond_ok, T, qp, tvp, epsp)
+    else:
+        for i in range(n - 1):
+            lx, ly, lz, e, t = _bond_any(r, v, i, l0, EA, tabi, tab, c_int, has_int_damping)
+            _keep_bond(i, lx, ly, lz, e, t, bond_ok, T, qp, tvp, epsp)
     # nodes: forces, accelerations, velocity and position updates, in the runs of ordinary
     # nodes between the joints of composite lines (one run over all nodes without joints)
     start = 0
@@ -286,7 +339,7 @@ def _step(r, v, vc, dt, extra_damping, fl_r, fl_v,
 
 @_jit
 def advance(r, v, vc, dt, extra_damping, fl_r_seq, fl_v_seq,
-            l0, EA, c_int, bond_ok, node_weight, node_mass, cdn, cdt, can_half, cat_half, joint, joint_c,
+            l0, EA, tabi, tab, c_int, bond_ok, node_weight, node_mass, cdn, cdt, can_half, cat_half, joint, joint_c,
             kb, cb, mu, depth, has_int_damping, has_friction,
             anchor_idx, anchors, fairlead_idx, attached, F_fl_seq):  # pragma: no cover - compiled
     """``n_steps = len(fl_r_seq)`` (>= 1) symplectic-Euler steps of the FEM lines.
@@ -302,7 +355,8 @@ def advance(r, v, vc, dt, extra_damping, fl_r_seq, fl_v_seq,
     fl_r_seq, fl_v_seq : ndarray (n_steps, n_lines, 3)
         Prescribed fairlead positions and velocities at the end of each step.
     l0 ... attached
-        The constants of :class:`~tapm_opt.plant.fem.FEMLines` (bond and node arrays, the joint
+        The constants of :class:`~tapm_opt.plant.fem.FEMLines` (bond and node arrays, the rows of
+        the tension-strain tables and each bond's, the joint
         nodes of composite lines and their drag and added-mass factors, seabed depth, flags,
         anchor and fairlead node indices, the attached lines).
     F_fl_seq : ndarray (n_steps, n_lines, 3) or (0, n_lines, 3)
@@ -335,7 +389,7 @@ def advance(r, v, vc, dt, extra_damping, fl_r_seq, fl_v_seq,
         else:
             r_out, v_out = rb, vb
         _step(r_in, v_in, vc, dt, extra_damping, fl_r_seq[s], fl_v_seq[s],
-              l0, EA, c_int, bond_ok, node_weight, node_mass, cdn, cdt, can_half, cat_half, joint, joint_c,
+              l0, EA, tabi, tab, c_int, bond_ok, node_weight, node_mass, cdn, cdt, can_half, cat_half, joint, joint_c,
               kb, cb, mu, depth, has_int_damping, has_friction,
               anchor_idx, anchors, fairlead_idx, attached,
               r_out, v_out, T, qp, tvp, epsp, F_node)
@@ -550,7 +604,7 @@ def _fairleads(eta, p_cot, p_T, turret_angle, locked, fx, fy, rx, ry):  # pragma
 
 @_jit
 def mooring_step(pose0, pose1, rate_prev, h, n_sub, p_cot, p_T, turret_angle, locked, z_fl,
-                 r, v, vc, l0, EA, c_int, bond_ok, node_weight, node_mass, cdn, cdt, can_half, cat_half,
+                 r, v, vc, l0, EA, tabi, tab, c_int, bond_ok, node_weight, node_mass, cdn, cdt, can_half, cat_half,
                  joint, joint_c, kb, cb, mu, depth, has_int_damping, has_friction,
                  anchor_idx, anchors, fairlead_idx, attached, fairlead_seg, anchor_seg, active,
                  near_tension, max_speed):  # pragma: no cover - compiled
@@ -610,7 +664,7 @@ def mooring_step(pose0, pose1, rate_prev, h, n_sub, p_cot, p_T, turret_angle, lo
             fl_v[s, j, 1] = rate[1] + rate[2] * rx[j]
             fl_v[s, j, 2] = 0.0
     r, v, T = advance(r, v, vc, h / n_sub, 0.0, fl_r, fl_v,
-                      l0, EA, c_int, bond_ok, node_weight, node_mass, cdn, cdt, can_half, cat_half, joint, joint_c,
+                      l0, EA, tabi, tab, c_int, bond_ok, node_weight, node_mass, cdn, cdt, can_half, cat_half, joint, joint_c,
                       kb, cb, mu, depth, has_int_damping, has_friction,
                       anchor_idx, anchors, fairlead_idx, attached, np.zeros((0, nl, 3)))
     # fairlead accelerations at pose1 (rigid body)
@@ -644,7 +698,7 @@ def mooring_step(pose0, pose1, rate_prev, h, n_sub, p_cot, p_T, turret_angle, lo
         if not active[j]:
             continue
         fl = fairlead_idx[j]
-        lx, ly, lz, eps, t = _bond(r, v, fairlead_seg[j], l0, EA, c_int, has_int_damping)
+        lx, ly, lz, eps, t = _bond_any(r, v, fairlead_seg[j], l0, EA, tabi, tab, c_int, has_int_damping)
         qx = lx / eps
         qy = ly / eps
         qz = lz / eps
@@ -858,7 +912,7 @@ def plant_pre_step(h, f, alpha, f_cmd, alpha_cmd, decay, rate_dt, alpha_rate_dt,
 
 
 @_jit
-def end_tensions(r, v, l0, EA, c_int, has_int_damping, node_weight, fairlead_seg, fairlead_idx, anchor_seg,
+def end_tensions(r, v, l0, EA, tabi, tab, c_int, has_int_damping, node_weight, fairlead_seg, fairlead_idx, anchor_seg,
                  active):  # pragma: no cover - compiled
     """Fairlead and anchor tension of every line [N], each (n_lines,): :meth:`FEMLines.fairlead_tension
     <tapm_opt.plant.fem.FEMLines.fairlead_tension>` (the top segment's tension vector plus the
@@ -868,11 +922,11 @@ def end_tensions(r, v, l0, EA, c_int, has_int_damping, node_weight, fairlead_seg
     T_fl = np.empty(nl)
     T_an = np.empty(nl)
     for j in range(nl):
-        lx, ly, lz, e, t = _bond(r, v, fairlead_seg[j], l0, EA, c_int, has_int_damping)
+        lx, ly, lz, e, t = _bond_any(r, v, fairlead_seg[j], l0, EA, tabi, tab, c_int, has_int_damping)
         s = -(t / e)
         fx = s * lx
         fy = s * ly
         fz = s * lz + node_weight[fairlead_idx[j]]
         T_fl[j] = math.sqrt(0.0 + fx * fx + fy * fy + fz * fz) if active[j] else 0.0
-        T_an[j] = _bond(r, v, anchor_seg[j], l0, EA, c_int, has_int_damping)[4]
+        T_an[j] = _bond_any(r, v, anchor_seg[j], l0, EA, tabi, tab, c_int, has_int_damping)[4]
     return T_fl, T_an

@@ -37,22 +37,26 @@ def _section_segments(line: Any, segments: int | None) -> tuple[int, ...]:
 def line_set_from_scenario(scenario: Any, *, segments: int | None = None) -> LineSet:
     """Per-line FEM properties of a scenario; ``segments`` overrides every line's count (a
     composite line's shared among its sections by length). Composite lines carry their sections
-    and points (:attr:`LineSet.sections`)."""
+    and points (:attr:`LineSet.sections`), and so does a homogeneous line of a tension-strain
+    table (nonlinear EA), as one section with its table."""
     if segments is not None and (not isinstance(segments, (int, np.integer)) or segments < 2):
         raise ModelError(f"segments = {segments!r} must be a whole number >= 2")
     la = scenario.line_arrays
     types = [scenario.line_type(ln) for ln in scenario.lines]
     n = len(types)
     sections = None
-    if any(ln.composite for ln in scenario.lines):
+    tabled = [any(t is not None for t in sec["EA_table"]) for sec in scenario.line_sections]
+    if any(ln.composite for ln in scenario.lines) or any(tabled):
         sections = []
-        for ln, sec in zip(scenario.lines, scenario.line_sections):
-            if not ln.composite:
+        for ln, sec, tb in zip(scenario.lines, scenario.line_sections, tabled):
+            if not ln.composite and not tb:
                 sections.append(None)
                 continue
             d = {k: np.array(sec[k], dtype=float) for k in SECTION_KEYS + POINT_KEYS if k not in ("mu", "segments")}
             d["mu"] = np.array(sec["CB"], dtype=float)
-            d["segments"] = np.array(_section_segments(ln, segments), dtype=int)
+            d["segments"] = np.array(_section_segments(ln, segments) if ln.composite
+                                     else [segments or ln.segments], dtype=int)
+            d["EA_table"] = tuple(sec["EA_table"])
             sections.append(d)
         sections = tuple(sections)
     nseg = np.array([int(s["segments"].sum()) if s is not None else (segments or la["segments"][i])
@@ -202,16 +206,19 @@ class MooringFEM:
             u = d / XF if XF > 0 else np.array([1.0, 0.0])
             ns = int(fem.lines.segments[j])
             L, EA, w, mu = fem.L[j], fem.lines.EA[j], fem.lines.w[j], fem.lines.mu[j]
+            table = None
             if fem.composite[j] and len(fem.lines.sections[j]["L"]) == 1:  # one section: the homogeneous line
                 sec = fem.lines.sections[j]
                 L, EA, w, mu = (float(np.ravel(sec[k])[0]) for k in ("L", "EA", "w", "mu"))
+                table = (tuple(sec.get("EA_table", ())) or (None,))[0]
             elif fem.composite[j]:
                 x, z = self._composite_nodes(j, XF, a[2] - self.fairlead_z, float(h_A[j]))
                 sl = slice(fem.node_start[j], fem.node_start[j] + ns + 1)
                 fem.r[sl, :2] = a[:2] + x[:, None] * u
                 fem.r[sl, 2] = depth - z
                 continue
-            prof = catenary.line_profile(XF, a[2] - self.fairlead_z, L, EA, w, CB=mu, h_A=h_A[j], n=ns + 1)
+            prof = catenary.line_profile(XF, a[2] - self.fairlead_z, L, EA, w, CB=mu, h_A=h_A[j], n=ns + 1,
+                                         table=table)
             sl = slice(fem.node_start[j], fem.node_start[j] + ns + 1)
             fem.r[sl, :2] = a[:2] + prof["x"][:, None] * u
             fem.r[sl, 2] = a[2] - prof["z"]
@@ -231,9 +238,11 @@ class MooringFEM:
         a catenary cannot be solved (a configuration out of its reach) the nodes are spread on the
         chord instead, and settling does the rest."""
         sec = self.fem.lines.sections[j]
+        tabs = tuple(sec.get("EA_table", ()))
         line = composite.CompositeLine(L=np.asarray(sec["L"], float), EA=np.asarray(sec["EA"], float),
                                        w=np.asarray(sec["w"], float), CB=np.asarray(sec["mu"], float),
-                                       W=np.asarray(sec["W"], float))
+                                       W=np.asarray(sec["W"], float),
+                                       tables=tabs if any(t is not None for t in tabs) else ())
         seg = np.asarray(sec["segments"], dtype=int)
         try:
             px, pz = composite.points(XF, ZF, line, h_A=h_A)
@@ -250,7 +259,8 @@ class MooringFEM:
             sgn = 1.0 if xe[hi] >= xe[lo] else -1.0
             try:
                 pr = catenary.line_profile(abs(xe[hi] - xe[lo]), ze[hi] - ze[lo], line.L[k], line.EA[k], line.w[k],
-                                           CB=line.CB[k], h_A=max(ze[lo], 0.0), n=int(seg[k]) + 1)
+                                           CB=line.CB[k], h_A=max(ze[lo], 0.0), n=int(seg[k]) + 1,
+                                           table=line.table(k))
                 x, z = xe[lo] + sgn * pr["x"], ze[lo] + pr["z"]
                 if not up:
                     x, z = x[::-1], z[::-1]
