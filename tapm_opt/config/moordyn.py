@@ -55,6 +55,7 @@ import numpy as np
 from .._io import toml_key, toml_value
 from ..errors import TapmError
 from ..geometry import fairleads_B
+from ..strain_table import table_problem
 from .loader import BUILTIN_DIR, fairlead_reach, hangoff_depth_limit, load_scenario
 from .schema import Line, LineType, Scenario, Section
 
@@ -137,6 +138,15 @@ class MDLineType:
     CdAx: float
     CaAx: float
     lineno: int
+    EA_table: tuple[tuple[float, float], ...] | None = None
+    """The tension-strain curve (rows strain, tension) when the EA column names a curve file; EA
+    is then its secant at the last row (MoorDyn-C's one EA of a curve)."""
+    EA_file: str = ""
+    """The curve file as the EA column names it."""
+
+
+#: Most rows of a curve MoorDyn-C reads (its ``nCoef``).
+MAX_CURVE_ROWS = 30
 
 
 @dataclass(frozen=True)
@@ -407,8 +417,9 @@ def _raise_all(problems: list[MoorDynError], source: str) -> None:
 
 
 class _Reader:
-    def __init__(self, text: str, source: str):
+    def __init__(self, text: str, source: str, base_dir: Path | None = None):
         self.source = source
+        self.base_dir = Path(".") if base_dir is None else Path(base_dir)
         self.rows = text.splitlines()
         self.notes: list[str] = []
         # what the file has that cannot be imported, all of it: said at once at the end
@@ -505,12 +516,14 @@ class _Reader:
             raise self.err(f"line type {name!r}: the Syrope model (EA = {ea}) is not supported", i)
         if "|" in ea:
             raise self.err(f"line type {name!r}: viscoelastic stiffness EA = {ea} is not supported "
-                           "(tapm_opt lines are linear elastic)", i)
+                           "(tapm_opt lines are elastic: a constant EA or a tension-strain curve)", i)
+        curve, curve_file = None, ""
         try:
             EA = float(ea)
         except ValueError:
-            raise self.err(f"line type {name!r}: EA = {ea!r} names a nonlinear stiffness curve, which is not "
-                           "supported (tapm_opt lines are linear elastic)", i) from None
+            curve_file = ea
+            curve = self._curve(name, ea, i)
+            EA = curve[-1][1] / curve[-1][0]
         if "|" in t[4]:
             raise self.err(f"line type {name!r}: static|dynamic damping BA = {t[4]} is not supported", i)
         try:
@@ -538,7 +551,55 @@ class _Reader:
                 raise self.err(f"line type {name!r}: {col} = {v:g} must be >= 0", i)
         if any(lt.name == name for lt in out):
             raise self.err(f"line type {name!r} is defined twice", i)
-        return MDLineType(name, d, mass, EA, BA, EI, Cd, Ca, CdAx, CaAx, i)
+        return MDLineType(name, d, mass, EA, BA, EI, Cd, Ca, CdAx, CaAx, i, EA_table=curve, EA_file=curve_file)
+
+    def _curve(self, name: str, entry: str, i: int) -> tuple[tuple[float, float], ...]:
+        """The tension-strain curve a line type's EA column names, read as MoorDyn-C reads it: a
+        file next to the input file (or at an absolute path), three header lines, then rows
+        ``strain tension``. Also read: MoorPy's quoted name (``"poly.txt"``), blank lines, and an
+        end at a ``---`` line (MoorPy's). Refused, naming the file and its line: a file that cannot
+        be read, a row that is not two numbers, a curve that is not a valid law
+        (:func:`tapm_opt.strain_table.table_problem`)."""
+        fname = entry
+        if len(entry) >= 2 and entry[0] == entry[-1] and entry[0] in "\"'":
+            fname = entry[1:-1]
+            self.notes.append(f"line type {name!r}: EA = {entry} is MoorPy's quoted curve file name; MoorDyn-C reads "
+                              f"the name as written, quotes and all (write it unquoted for MoorDyn-C)")
+        path = Path(fname) if Path(fname).is_absolute() else self.base_dir / fname
+        what = f"line type {name!r}: EA = {entry!r} names a tension-strain curve"
+        try:
+            text = path.read_text(encoding="utf-8", errors="replace")
+        except OSError as exc:
+            raise self.err(f"{what}, but {path} cannot be read ({exc.strerror or exc}); MoorDyn reads it next to the "
+                           "input file", i) from None
+        rows: list[tuple[float, float]] = []
+        for k, raw in enumerate(text.splitlines()[3:], start=4):
+            if "---" in raw:
+                break
+            toks = raw.split("#", 1)[0].split()
+            if not toks:
+                continue
+            try:
+                x, y = float(toks[0]), float(toks[1])
+            except (ValueError, IndexError):
+                raise self.err(f"{what}: line {k} of {fname} ({raw.strip()!r}) is not a row of two numbers "
+                               "'strain tension' (after three header lines)", i) from None
+            rows.append((x, y))
+        bad = table_problem(rows) if rows else (None, "has no rows (three header lines, then 'strain tension' rows)")
+        if bad is not None:
+            k, msg = bad
+            raise self.err(f"{what} {fname}" + ("" if k is None else f", row {k}") + f" {msg}", i)
+        if text.endswith(("\n", "\r")):
+            self.notes.append(f"line type {name!r}: curve file {fname} ends with a line break, which MoorDyn-C 2.7 reads "
+                              "as an empty row and refuses (the file the exporter writes has none)")
+        if len(rows) > MAX_CURVE_ROWS:
+            self.notes.append(f"line type {name!r}: curve file {fname} has {len(rows)} rows; MoorDyn-C reads at most "
+                              f"{MAX_CURVE_ROWS}")
+        self.notes.append(f"line type {name!r}: nonlinear EA, {len(rows)} rows of tension-strain curve {fname} from "
+                          f"[0, 0] to [{rows[-1][0]:g}, {rows[-1][1]:g}] (EA_table; its secant {rows[-1][1] / rows[-1][0]:g} "
+                          "N is the line type's EA); beyond the last row tapm_opt continues its slope, MoorDyn holds "
+                          "its tension")
+        return tuple(rows)
 
     def bodies(self, rows) -> list[MDBody]:
         out = []
@@ -872,17 +933,18 @@ def _front_matter(text: str) -> FrontMatter:
     return fm
 
 
-def parse_moordyn(text: str, *, source: str = "") -> MoorDynModel:
+def parse_moordyn(text: str, *, source: str = "", base_dir: str | Path | None = None) -> MoorDynModel:
     """Parse MoorDyn v2 input text; unsupported features raise :class:`MoorDynError`, every one of
     them in the file at once (a row whose line type or point is refused is not named again).
 
-    Supported: line types (linear EA, constant BA, EI = 0, no VIV), at most one coupled body (the
+    Supported: line types (linear EA or a tension-strain curve file, read from ``base_dir``,
+    default the directory of ``source``; constant BA, EI = 0, no VIV), at most one coupled body (the
     vessel, roll = pitch = 0), Fixed points (anchors), Coupled and Body1 points (fairleads), Free
     points joining two lines in series (:class:`MDChain`), lines from an anchor to a fairlead
     directly or through free points, and OPTIONS. Rods, free ends, bridles, other bodies, failures
     and nonlinear or viscoelastic line models are refused, naming the item and the line of the file.
     """
-    rd = _Reader(text, source)
+    rd = _Reader(text, source, Path(base_dir) if base_dir is not None else Path(source).parent if source else None)
     sec = rd.sections()
     for key, why in _UNSUPPORTED_SECTIONS.items():
         if sec.get(key):
@@ -946,7 +1008,7 @@ def read_moordyn(path: str | Path) -> MoorDynModel:
         text = p.read_text(encoding="utf-8", errors="replace")
     except OSError as exc:
         raise MoorDynError(f"cannot read the MoorDyn file: {exc.strerror or exc}", source=str(p)) from None
-    return parse_moordyn(text, source=p.name)
+    return parse_moordyn(text, source=p.name, base_dir=p.parent)
 
 
 # --------------------------------------------------------------------------------------------
@@ -967,7 +1029,10 @@ def moordyn_line_type(lt: Any, env: Any) -> dict[str, float]:
     """MoorDyn v2 LINE TYPES values of a tapm_opt line type (same forces per length).
 
     Returns ``d`` (volume-equivalent diameter giving the same submerged weight), ``mass``, ``EA``,
-    ``BA`` (``-sqrt(2) axial_damping_ratio``), ``Cd``, ``Ca``, ``CdAx``, ``CaAx``.
+    ``BA`` (``-sqrt(2) axial_damping_ratio``), ``Cd``, ``Ca``, ``CdAx``, ``CaAx``, and ``slopes``,
+    the axial stiffnesses the line takes (``(EA,)``, or the slopes of a tension-strain table's
+    segments, whose ``EA`` is the secant at its last row: the stiffness MoorDyn-C takes for the
+    damping ratio).
     """
     g, rho = float(env.gravity), float(env.water_density)
     m = float(lt.mass_per_length)
@@ -981,7 +1046,9 @@ def moordyn_line_type(lt: Any, env: Any) -> dict[str, float]:
     d = float(lt.diameter)
     r = d / d_md
     zeta = float(getattr(lt, "axial_damping_ratio", 0.0))
-    return {"d": d_md, "mass": m, "EA": float(lt.EA), "BA": -_SQRT2 * zeta if zeta > 0 else 0.0,
+    table = getattr(lt, "EA_table", None)
+    slopes = (float(lt.EA),) if table is None else tuple((b[1] - a[1]) / (b[0] - a[0]) for a, b in zip(table, table[1:]))
+    return {"d": d_md, "mass": m, "EA": float(lt.EA), "slopes": slopes, "BA": -_SQRT2 * zeta if zeta > 0 else 0.0,
             "Cd": float(lt.Cd_normal) * r, "Ca": float(lt.Ca_normal) * r * r,
             "CdAx": float(lt.Cd_tangential) * r / math.pi, "CaAx": float(lt.Ca_tangential) * r * r}
 
@@ -1041,6 +1108,8 @@ def moordyn_time_step(scenario: Scenario, *, segments: int | None = None,
     and damper added for a node on the seabed (``kBot d l``, ``cBot d l``).
     For each scheme the largest stable ``omega h`` on that damped mode follows from its
     stability polynomial; the cheaper scheme per simulated second (stages / step) is chosen, and
+    for a tension-strain table every slope of it is such a mode with the same ``BA`` (a soft slope
+    is the more heavily damped, which limits RK2 and RK4 more than the stiffest one does), and
     ``dtM = safety * h`` rounded down to 3 significant digits. RK2 (MoorDyn's default) has no
     stable step on an undamped mode, so lines without axial damping get RK4.
     """
@@ -1059,10 +1128,11 @@ def moordyn_time_step(scenario: Scenario, *, segments: int | None = None,
         kb, cb = seabed_constants(lt.w(env), md["mass"], md["d"])
         m = md["mass"] * l
         # a suspended node: internal damping only; a node on the seabed: the contact spring too
-        for k, c in ((4.0 * md["EA"] / l, 4.0 * BA / l),
-                     (4.0 * md["EA"] / l + kb * md["d"] * l, 4.0 * BA / l + cb * md["d"] * l)):
-            omega = math.sqrt(k / m)
-            modes.append((omega, c / (2.0 * m * omega)))
+        for EA in md["slopes"]:
+            for k, c in ((4.0 * EA / l, 4.0 * BA / l),
+                         (4.0 * EA / l + kb * md["d"] * l, 4.0 * BA / l + cb * md["d"] * l)):
+                omega = math.sqrt(k / m)
+                modes.append((omega, c / (2.0 * m * omega)))
     best = None
     for scheme in ("RK2", "RK4"):
         hs = [_rk_limit(scheme, z) / w for w, z in modes]
@@ -1101,6 +1171,8 @@ class ExportInfo:
     cBot: float
     n_lines: int
     notes: tuple[str, ...] = ()
+    curves: Mapping[str, str] = field(default_factory=dict)
+    """The tension-strain curve files the text names (file name -> text), to be written next to it."""
 
 
 def _sections_written(ln: Any, segments: int | None) -> list[tuple[Any, int]]:
@@ -1127,7 +1199,7 @@ def _joint_guess(anchor: np.ndarray, fairlead: np.ndarray, lengths: list[float])
 def moordyn_text(scenario: Scenario, *, segments: int | None = None, dtM: float | None = None,
                  scheme: str | None = None, outputs: bool = True, extra_options: Mapping[str, Any] | None = None,
                  ic: Mapping[str, Any] | None = None,
-                 joints: Mapping[int, Any] | None = None) -> tuple[str, ExportInfo]:
+                 joints: Mapping[int, Any] | None = None, curve_prefix: str = "") -> tuple[str, ExportInfo]:
     """MoorDyn v2 input text of the scenario's mooring at the field zero point.
 
     One ``Coupled`` body at the centre of turret with the turret's orientation (MoorDyn yaw
@@ -1144,6 +1216,12 @@ def moordyn_text(scenario: Scenario, *, segments: int | None = None, dtM: float 
     The front matter keeps what MoorDyn has no column for: each line type's tapm_opt values,
     MBS and ``max_strain``; each line's id, fairlead angle, winch and segment sharing; each
     joint's point type id (read back by the importer).
+
+    A line type with a tension-strain table (``EA_table``) names in its EA column a curve file,
+    ``EA_<curve_prefix><type id>.txt``, whose text :attr:`ExportInfo.curves` holds (written next to
+    the input file by :func:`export_moordyn`): three header lines, then the rows ``strain tension``,
+    with no line break after the last (MoorDyn-C 2.7 reads one as an empty row and refuses it); at
+    most :data:`MAX_CURVE_ROWS` rows.
 
     Parameters
     ----------
@@ -1173,6 +1251,21 @@ def moordyn_text(scenario: Scenario, *, segments: int | None = None, dtM: float 
         if re.search(r"[\s#|]", lt.id) or not lt.id:
             raise MoorDynError(f"line type id {lt.id!r} cannot be a MoorDyn TypeName (no spaces, '#' or '|')")
     types = {lt.id: moordyn_line_type(lt, env) for lt in scenario.line_types}
+    curves: dict[str, str] = {}
+    ea_column = {lt.id: _f(types[lt.id]["EA"]) for lt in scenario.line_types}
+    for lt in scenario.line_types:
+        if lt.EA_table is None:
+            continue
+        if len(lt.EA_table) > MAX_CURVE_ROWS:
+            raise MoorDynError(f"line type {lt.id!r}: EA_table has {len(lt.EA_table)} rows; MoorDyn-C reads a "
+                               f"tension-strain curve of at most {MAX_CURVE_ROWS}")
+        fname = "EA_" + re.sub(r"[^A-Za-z0-9_.-]", "_", f"{curve_prefix}{lt.id}") + ".txt"
+        ea_column[lt.id] = fname
+        curves[fname] = "\n".join([f"---- tension-strain curve of line type {lt.id} (tapm_opt EA_table) ----",
+                                    "Strain  Tension", "(-)  (N)"]
+                                   + [f"{_f(e)}  {_f(T)}" for e, T in lt.EA_table])
+        notes.append(f"line type {lt.id!r}: nonlinear EA in curve file {fname} ({len(lt.EA_table)} rows); beyond its "
+                     "last row MoorDyn holds the last tension where tapm_opt continues the last slope")
     mus = {lt.id: lt.seabed_friction for lt in scenario.line_types}
     if len(set(mus.values())) > 1:
         raise MoorDynError("line types have different seabed friction (" + ", ".join(f"{k}: {v:g}" for k, v in
@@ -1277,7 +1370,7 @@ def moordyn_text(scenario: Scenario, *, segments: int | None = None, dtM: float 
     w("(name)     (m)     (kg/m)    (N)    (N-s/-)   (N-m^2)   (-)    (-)    (-)     (-)")
     for lt in scenario.line_types:
         t = types[lt.id]
-        w(f"{lt.id}  {_f(t['d'])}  {_f(t['mass'])}  {_f(t['EA'])}  {_f(t['BA'])}  0  {_f(t['Cd'])}  {_f(t['Ca'])}  "
+        w(f"{lt.id}  {_f(t['d'])}  {_f(t['mass'])}  {ea_column[lt.id]}  {_f(t['BA'])}  0  {_f(t['Cd'])}  {_f(t['Ca'])}  "
           f"{_f(t['CdAx'])}  {_f(t['CaAx'])}")
     w("---------------------- BODIES -----------------------------------------------------------")
     w("ID  Attachment  X0   Y0   Z0   r0   p0   y0   Mass  CG*  I*  Volume  CdA*  Ca*")
@@ -1328,16 +1421,20 @@ def moordyn_text(scenario: Scenario, *, segments: int | None = None, dtM: float 
                      "free points, so they settle only in simulated time; tapm_opt.models.moordyn_import.export_moordyn "
                      "(and tapm scenario export-moordyn) start them at the quasi-static equilibrium")
     info = ExportInfo(dtM=float(dtM), scheme=str(scheme), kBot=kb, cBot=cb, n_lines=len(scenario.lines),
-                      notes=tuple(notes))
+                      notes=tuple(notes), curves=curves)
     return "\n".join(out) + "\n", info
 
 
 def export_moordyn(scenario: Scenario | str | Path, path: str | Path, **kwargs: Any) -> ExportInfo:
-    """Write :func:`moordyn_text` of a scenario (object, built-in name or TOML path) to ``path``."""
+    """Write :func:`moordyn_text` of a scenario (object, built-in name or TOML path) to ``path``,
+    and the tension-strain curve files it names next to it (``EA_<file stem>_<type id>.txt``)."""
     from .._io import atomic_write_text
 
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+    kwargs.setdefault("curve_prefix", Path(path).stem + "_")
     text, info = moordyn_text(sc, **kwargs)
+    for fname, curve in info.curves.items():
+        atomic_write_text(Path(path).parent / fname, curve)
     atomic_write_text(path, text)
     return info
 
@@ -1463,6 +1560,13 @@ def scenario_data_from_moordyn(model: MoorDynModel, vessel_data: dict, *, mbs: M
             "MBS": MBS, "MBS_std": MBS_std, "Cd_normal": lt.Cd, "Cd_tangential": math.pi * lt.CdAx,
             "Ca_normal": lt.Ca, "Ca_tangential": lt.CaAx, "seabed_friction": mu, "axial_damping_ratio": zeta,
         }
+        if lt.EA_table is not None:  # EA is the curve's secant: the table alone says it
+            del item["EA"]
+            item = {k: v for k, v in item.items() if k != "MBS"} | {"EA_table": [list(r) for r in lt.EA_table],
+                                                                   "MBS": MBS}
+            item = {k: item[k] for k in ("id", "diameter", "mass_per_length", "submerged_weight", "EA_table", "MBS",
+                                         "MBS_std", "Cd_normal", "Cd_tangential", "Ca_normal", "Ca_tangential",
+                                         "seabed_friction", "axial_damping_ratio")}
         own = _front_type_values(lt, fm, g, rho)
         if own is not None:
             item.update(own)
@@ -1477,8 +1581,10 @@ def scenario_data_from_moordyn(model: MoorDynModel, vessel_data: dict, *, mbs: M
             item["max_strain"] = fm["max_strain"]
             notes.append(f"line type {lt.name!r}: max_strain {fm['max_strain']:g} from the file's tapm_opt front matter "
                          f"(line {at})")
+        ea_said = f"EA {lt.EA:g} N" if lt.EA_table is None else (
+            f"EA curve {lt.EA_file} ({len(lt.EA_table)} rows, secant {lt.EA:g} N)")
         comments[("line_types", len(line_types))] = [
-            f"MoorDyn {lt.name} ({src}:{lt.lineno}): Diam {lt.d:g} m, Mass/m {lt.mass:g} kg/m, EA {lt.EA:g} N, "
+            f"MoorDyn {lt.name} ({src}:{lt.lineno}): Diam {lt.d:g} m, Mass/m {lt.mass:g} kg/m, {ea_said}, "
             f"BA {lt.BA:g}, Cd {lt.Cd:g}, Ca {lt.Ca:g}, CdAx {lt.CdAx:g} (on pi d), CaAx {lt.CaAx:g}",
             f"MBS from {said}" + (f"; MBS_std = {mbs_cov:g} x MBS (--mbs-cov)" if said == "--mbs" else ""),
         ]
@@ -1751,6 +1857,7 @@ _MD_COLUMNS: dict[str, tuple[str, Any]] = {
     "Cd_tangential": ("CdAx", lambda v: v / math.pi), "Cd_normal": ("Cd", None), "Ca_normal": ("Ca", None),
     "Ca_tangential": ("CaAx", None), "diameter": ("Diam", None), "mass_per_length": ("Mass/m", None),
     "submerged_weight": ("Mass/m and Diam", None), "EA": ("EA", None), "axial_damping_ratio": ("BA", None),
+    "EA_table": ("EA", None),
 }
 
 

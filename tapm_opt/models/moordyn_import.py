@@ -159,7 +159,7 @@ def composite_joints(sc: Any) -> dict[int, np.ndarray]:
     depth = sc.environment.water_depth
     out = {}
     for i, c in enumerate(model.composite):
-        if c is None:
+        if c is None or c.n_sections < 2:  # homogeneous (a line of a tension-strain table is one section)
             continue
         a = np.asarray(sc.anchors[i], dtype=float)
         d = np.array([float(fx[i]) - a[0], float(fy[i]) - a[1]])
