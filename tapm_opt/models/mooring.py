@@ -505,19 +505,9 @@ class MooringModel:
         eta = ca.MX.sym("eta", 3)
         outs, names = [], ["tau_moor"]
         if kind == "catenary":
-            self._no_symbolic_composite("force_function")
-            sol0 = self.solve_lines(eta0)
-            _, _, XF0 = self.spans(np.asarray(eta0, dtype=float))
-            _, _, XF = self.spans(eta)
-            dX = XF - XF0
-            DM = ca.DM
-            HF0 = ca.fmax(DM(sol0.HF) + DM(sol0.dHF_dXF) * dX, DM(0.1 * sol0.HF + 1.0))
-            VF0 = ca.fmax(DM(sol0.VF) + DM(sol0.dVF_dXF) * dX, DM(0.1 * sol0.VF + 1.0))
-            cat = catenary.symbolic_function().map(self.n_lines)
-            HF, _, err = cat(XF.T, self.ZF[None, :], self.L[None, :], self.EA[None, :], self.w[None, :],
-                             self.CB[None, :], self.h_A[None, :], HF0.T, VF0.T)
+            HF, _, err = self._symbolic_lines(eta, np.asarray(eta0, dtype=float))
             worst = ca.mmax(err)
-            tau = self.tau_from_H(eta, HF.T)
+            tau = self.tau_from_H(eta, HF)
             tau = ca.if_else(worst <= closure_tol, tau, ca.DM.nan(3, 1))
             outs = [tau]
             if with_closure_error:
@@ -544,21 +534,11 @@ class MooringModel:
             return self._cache[key]
         eta0 = self._check_eta(eta0)
         eta = ca.MX.sym("eta", 3)
-        sol0 = self.solve_lines(eta0)
-        _, _, XF0 = self.spans(eta0)
-        _, _, XF = self.spans(eta)
         if kind == "characteristic":
             T = self.characteristic_load(eta, self.characteristics(eta0))[1]
         elif kind == "catenary":
-            self._no_symbolic_composite("tension_function")
-            dX = XF - XF0
-            DM = ca.DM
-            HF0 = ca.fmax(DM(sol0.HF) + DM(sol0.dHF_dXF) * dX, DM(0.1 * sol0.HF + 1.0))
-            VF0 = ca.fmax(DM(sol0.VF) + DM(sol0.dVF_dXF) * dX, DM(0.1 * sol0.VF + 1.0))
-            cat = catenary.symbolic_function().map(self.n_lines)
-            HF, VF, err = cat(XF.T, self.ZF[None, :], self.L[None, :], self.EA[None, :], self.w[None, :],
-                              self.CB[None, :], self.h_A[None, :], HF0.T, VF0.T)
-            T = ca.sqrt(HF.T ** 2 + VF.T ** 2)
+            HF, VF, err = self._symbolic_lines(eta, eta0)
+            T = ca.sqrt(HF ** 2 + VF ** 2)
             T = ca.if_else(ca.mmax(err) <= closure_tol, T, ca.DM.nan(self.n_lines, 1))
         else:
             raise ModelError(f"kind = {kind!r} is not one of 'catenary', 'characteristic'")
@@ -566,13 +546,57 @@ class MooringModel:
         self._cache[key] = fn
         return fn
 
-    def _no_symbolic_composite(self, what: str) -> None:
-        if self.has_composite:
-            ids = [i for i, c in zip(self.line_ids, self.composite) if c is not None]
-            raise ModelError(
-                f"{what}(kind='catenary'): lines {ids} are composite (sections and points), whose quasi-static "
-                "solve has no symbolic form in tapm_opt; use kind='characteristic' (each line's exact characteristic "
-                "about the working point) or the tabulated load (load_evaluator)")
+    def _symbolic_lines(self, eta, eta0: np.ndarray):
+        """Symbolic fairlead tensions (HF, VF) and closure errors of every line at the pose
+        ``eta`` (CasADi), column vectors (n, 1): a homogeneous line through the catenary root
+        started from the numeric solution at ``eta0`` extrapolated to first order; a line the root
+        does not cover (composite, or with a tension-strain table) through the cubic-spline
+        interpolant of its exact solve (:mod:`tapm_opt.models.line_interpolant`), whose closure
+        error is its distance beyond the sampled range."""
+        sol0 = self.solve_lines(eta0)
+        _, _, XF0 = self.spans(eta0)
+        _, _, XF = self.spans(eta)
+        dX = XF - XF0
+        DM = ca.DM
+        HF0 = ca.fmax(DM(sol0.HF) + DM(sol0.dHF_dXF) * dX, DM(0.1 * sol0.HF + 1.0))
+        VF0 = ca.fmax(DM(sol0.VF) + DM(sol0.dVF_dXF) * dX, DM(0.1 * sol0.VF + 1.0))
+        if not self.has_composite:
+            cat = catenary.symbolic_function().map(self.n_lines)
+            HF, VF, err = cat(XF.T, self.ZF[None, :], self.L[None, :], self.EA[None, :], self.w[None, :],
+                              self.CB[None, :], self.h_A[None, :], HF0.T, VF0.T)
+            return HF.T, VF.T, err.T
+        cat = catenary.symbolic_function()
+        outs = []
+        for i in range(self.n_lines):
+            if self.composite[i] is None:
+                outs.append(cat(XF[i], self.ZF[i], self.L[i], self.EA[i], self.w[i], self.CB[i], self.h_A[i],
+                                HF0[i], VF0[i]))
+            else:
+                outs.append(self.line_interpolant(i).function(XF[i]))
+        return tuple(ca.vertcat(*(o[k] for o in outs)) for k in range(3))
+
+    def line_interpolant(self, i: int, *, max_offset: float | None = None):
+        """Cubic-spline interpolant of line ``i``'s exact ``HF(XF)``, ``VF(XF)``
+        (:func:`tapm_opt.models.line_interpolant.line_interpolant`) over the distances the line
+        takes with the body origin up to ``max_offset`` [m] from the field zero point at any
+        heading (default: 30 % of the deepest seabed below the fairleads, the load tables' range);
+        kept with the model per line physics."""
+        from .line_interpolant import line_interpolant
+
+        if max_offset is None:
+            max_offset = 0.3 * float(np.max(self.ZF + self.h_A))
+        key = ("interpolant", self.line_key(i), float(max_offset))
+        hit = self._cache.get(key)
+        if hit is not None:
+            return hit
+        _, _, XF0 = self.spans(np.zeros(3))
+        reach = max_offset + 2.0 * float(np.hypot(*self.p_cot_B)) + 2.0 * float(np.hypot(*self.p_T[i]))
+        lo, hi = max(float(XF0[i]) - reach, 0.0), float(XF0[i]) + reach
+        solve = self.line_solver(i)
+        T_ref = float(solve(np.array([XF0[i]])).TF[0]) or 1.0
+        li = line_interpolant(solve, lo, hi, T_ref=T_ref, name=f"line_{self.line_ids[i]}")
+        self._cache[key] = li
+        return li
 
     def characteristics(self, eta0) -> np.ndarray:
         """Every line's characteristic about the pose ``eta0`` (survey eq. 26–28), from the elastic
