@@ -222,6 +222,26 @@ def _line_table(solve, lo: float, hi: float, *, rtol: float, H_ref: float,
     return _LineTable(X=X, H=H, K=K, T=T, KT=KT, ok=ok, err=err)
 
 
+_TABLES: dict = {}
+_TABLES_MAX = 64
+"""Line tables shared between mooring models (a model and its reduced copies, one per broken line
+or lost point, have the same lines): keyed by the line's physics (``MooringModel.line_key``),
+the range, the tolerance and the scale; at most :data:`_TABLES_MAX`, oldest dropped first."""
+
+
+def _shared_line_table(model: Any, i: int, lo: float, hi: float, *, rtol: float, H_ref: float) -> _LineTable:
+    """:func:`_line_table` of line ``i`` of ``model``, from the shared cache when an equal line
+    was tabulated over the same range before (a composite line's table costs about a second)."""
+    key = (model.line_key(i), float(lo), float(hi), float(rtol), float(H_ref))
+    tb = _TABLES.get(key)
+    if tb is None:
+        tb = _line_table(model.line_solver(i), lo, hi, rtol=rtol, H_ref=H_ref)
+        if len(_TABLES) >= _TABLES_MAX:
+            _TABLES.pop(next(iter(_TABLES)))
+        _TABLES[key] = tb
+    return tb
+
+
 _KERNEL = None
 
 
@@ -403,7 +423,7 @@ class TabulatedMooringLoad:
                                          T=np.zeros(2), KT=np.zeros(2), ok=np.zeros(1, bool),
                                          err=np.full(1, np.inf)))
                 continue
-            tables.append(_line_table(model.line_solver(i0), lo, hi, rtol=self.rtol, H_ref=H_ref))
+            tables.append(_shared_line_table(model, i0, lo, hi, rtol=self.rtol, H_ref=H_ref))
         self._tables = tuple(tables)
         self._line_table = line_table
         self._members = tuple(np.flatnonzero(line_table == j) for j in range(len(tables)))
