@@ -211,3 +211,21 @@ def test_reliability_setpoint_leaves_the_field_zero_point_and_lifts_the_riser_in
     assert np.min(np.asarray(rel["x_d"], float)[after]) > 5.0           # north of the field zero point
     # the lowest instantaneous bottom index (no wave allowance) after the break: lifted well above 2
     assert d_rel > DELTA_S_DEFAULT + 1.0 and d_rel - d_fix > 1.0, (d_fix, d_rel)
+
+
+def test_the_reliability_paper_study_is_the_papers_case():
+    """studies/reliability_paper.toml: fang12 in [R]'s sea, 5000 s, line 10 broken at 2500 s,
+    [R]'s PID law behind the fixed, chasing, unified and reliability setpoints."""
+    from pathlib import Path
+
+    from tapm_opt.studies.spec import load_study
+
+    st = load_study(Path(__file__).resolve().parents[1] / "studies" / "reliability_paper.toml")
+    layers = {c.labels["controller"]: c.inputs["closed_loop"]["setpoint"] for c in st.cases}
+    assert layers == {"PID fixed": "fixed", "PID chasing": "chasing", "PID unified": "unified",
+                      "PID reliability": "reliability"}
+    for c in st.cases:
+        assert c.labels["scenario"] == "fang12" and c.inputs["sea_state"] == "normal"
+        assert c.inputs["duration"] == 5000.0 and c.inputs["controller"]["modes"] == "extreme_restoring"
+        faults = c.inputs["scenario"]["faults"]
+        assert [(f["kind"], f["line"], f["time"]) for f in faults] == [("line_break", "10", 2500.0)]
