@@ -30,34 +30,18 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _machine import machine_info  # noqa: E402
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from test_fem_composite import composite_fpso as _test_composite_fpso  # noqa: E402
+
 import tapm_opt  # noqa: E402
-from tapm_opt.config import scenario_from_dict, scenario_to_dict  # noqa: E402
 from tapm_opt.plant.mooring_fem import MooringFEM  # noqa: E402
 
 ZERO = np.zeros(3)
-CHAIN = {"id": "chain137", "diameter": 0.2466, "mass_per_length": 373.5, "submerged_weight": 3185.6,
-         "EA": 1.603e9, "MBS": 16.99e6, "MBS_std": 8.5e5, "Cd_normal": 2.4, "Cd_tangential": 1.15,
-         "Ca_normal": 1.0, "Ca_tangential": 0.5, "axial_damping_ratio": 0.7071}
-WIRE = {"id": "wire165", "diameter": 0.165, "mass_per_length": 108.6, "submerged_weight": 926.4, "EA": 1.100e9,
-        "MBS": 17.24e6, "MBS_std": 8.6e5, "Cd_normal": 1.2, "Cd_tangential": 0.025, "Ca_normal": 1.0,
-        "axial_damping_ratio": 0.7071}
-POINTS = [{"id": "buoy", "mass": 5000.0, "volume": 40.0, "CdA": 20.0, "Ca": 1.0},
-          {"id": "clump", "mass": 20000.0, "volume": 2.6, "CdA": 5.0, "Ca": 1.0}]
 
 
 def composite_fpso():
-    """fpso's 12 lines as chain-wire-chain with a buoy and a clump (fpso's header's line)."""
-    d = scenario_to_dict(tapm_opt.load_scenario("fpso"))
-    d["line_types"] += [dict(CHAIN), dict(WIRE)]
-    d["point_types"] = [dict(p) for p in POINTS]
-    for ln in d["lines"]:
-        del ln["type"], ln["length"]
-        for k in ("winch_max_rate", "min_length", "max_length"):
-            ln.pop(k, None)
-        ln["sections"] = [{"type": "chain137", "length": 300.0, "top": "buoy"},
-                          {"type": "wire165", "length": 1900.0, "top": "clump"},
-                          {"type": "chain137", "length": 100.0}]
-    return scenario_from_dict(d, source="composite fpso")
+    """fpso's 12 lines as chain-wire-chain with a buoy and a clump (the tests' scenario)."""
+    return _test_composite_fpso(lower="buoy", upper="clump")
 
 
 class Run:
