@@ -347,6 +347,26 @@ def _guess(XF, D, hA, line: CompositeLine):
     return y
 
 
+def _seabed_contact(y, R, J, rest: float):
+    """Residuals and Jacobian with the points that rest on the seabed held there: a point at
+    ``z <= 0`` with a net downward load (or an upward one up to ``rest`` [N]) keeps ``z = 0``, its
+    vertical equation replaced by ``dz = 0`` and its z left out of the other equations. Returns
+    the masked residuals, the masked Jacobian and the (m, n_points) contact mask."""
+    zc = np.arange(1, y.shape[1], 2)
+    on = (y[:, zc] <= 0.0) & (R[:, zc] <= rest)
+    Rm = R.copy()
+    Jm = J.copy()
+    if np.any(on):
+        Rm[:, zc] = np.where(on, 0.0, R[:, zc])
+        rows = np.zeros(y.shape, bool)
+        rows[:, zc] = on
+        Jm[rows] = 0.0
+        Jm.transpose(0, 2, 1)[rows] = 0.0  # no other equation moves it either
+        ii = np.nonzero(rows)
+        Jm[ii[0], ii[1], ii[1]] = 1.0
+    return Rm, Jm, on
+
+
 def _newton(XF, D, hA, line: CompositeLine, *, rtol: float, max_iter: int, y0=None):
     """Damped Newton with the seabed as a one-sided contact for the points."""
     y = _guess(XF, D, hA, line) if y0 is None else y0.copy()
@@ -357,19 +377,7 @@ def _newton(XF, D, hA, line: CompositeLine, *, rtol: float, max_iter: int, y0=No
     rest = _REST_FORCE * scale
 
     def contact_masked(y, R, J):
-        # a point on the seabed with a net downward load (or an upward one within rest) rests
-        # there: its z is held at 0
-        on = (y[:, zc] <= 0.0) & (R[:, zc] <= rest)
-        Rm = R.copy()
-        Jm = J.copy()
-        if np.any(on):
-            Rm[:, zc] = np.where(on, 0.0, R[:, zc])
-            rows = np.zeros(y.shape, bool)
-            rows[:, zc] = on
-            Jm[rows] = 0.0
-            Jm.transpose(0, 2, 1)[rows] = 0.0  # no other equation moves it either
-            ii = np.nonzero(rows)
-            Jm[ii[0], ii[1], ii[1]] = 1.0
+        Rm, Jm, _ = _seabed_contact(y, R, J, rest)
         return Rm, Jm
 
     n = line.n_sections
@@ -508,15 +516,9 @@ def solve(XF, ZF, line: CompositeLine, *, h_A=0.0, rtol: float = 1e-10, max_iter
     HA, VA = Fa[:, 0], Fa[:, 1]
     # sensitivities: dFf/d(XF, D) = dFf/dq - dFf/dy J^-1 dR/dq, q = (XF, D) (only the last point's
     # residual and the fairlead force depend on q and the last point)
-    zc = np.arange(1, 2 * (n - 1), 2)
-    on = (y[:, zc] <= 0.0) & (R[:, zc] <= _REST_FORCE * line.force_scale())
-    Jm = J.copy()
+    _, Jm, on = _seabed_contact(y, R, J, _REST_FORCE * line.force_scale())
     rows = np.zeros(J.shape[:2], bool)
-    rows[:, zc] = on
-    Jm[rows] = 0.0
-    Jm.transpose(0, 2, 1)[rows] = 0.0
-    ii = np.nonzero(rows)
-    Jm[ii[0], ii[1], ii[1]] = 1.0
+    rows[:, 1::2] = on
     Jf_q = J_hi[:, -1, :, 2:4]  # fairlead force w.r.t. the fairlead node (x, z)
     Jf_y = np.zeros((m, 2, J.shape[1]))
     Jf_y[:, :, -2:] = J_hi[:, -1, :, 0:2]  # ... w.r.t. the last point
