@@ -19,6 +19,7 @@ import pytest
 import tapm_opt
 from tapm_opt.control.estimate import Estimate, Setpoint
 from tapm_opt.control.mpc import LinearMPC, MPCError, MPCSettings
+from tapm_opt.control.mpc_condensed import SCREEN_MARGIN
 from tapm_opt.geometry import rot_z
 from tapm_opt.models.system import ThrusterSet
 from tapm_opt.studies.controllers import MPC_DEAD_BAND, MPC_DEFAULTS
@@ -148,6 +149,38 @@ def test_corner_of_a_polygon_costs_a_fraction_of_a_percent(fpso):
     assert np.mean(gap < 1e-6) >= 0.8
     assert np.max(gap1) > np.max(gap)                 # the passes matter here
     assert ctrl._daqp.passes == 4
+
+
+@pytest.mark.parametrize("margin", [SCREEN_MARGIN, 1e-12], ids=["default", "tiny-margin"])
+def test_screened_hard_rows_give_the_full_qps_plan(fpso, margin):
+    """Outside the safe circle, saturated (the thrust polytope and its rate rows bind): DAQP given
+    only the hard rows near the predicted plan has the plan of DAQP given all 2560 of them, to
+    1e-7 of the single-DOF maxima, with a small share of the rows. With a margin so tight that
+    the rows that bind are left out, the check against every row adds them and solves again."""
+    s = settings(fpso, horizon=20)
+    full, scr = LinearMPC(fpso, s, qp_solver="daqp"), LinearMPC(fpso, s, qp_solver="daqp")
+    full._daqp.screen = math.inf
+    scr._daqp.screen = margin
+    scale = ThrusterSet.from_scenario(fpso).max_tau()
+    kept, added, moves = [], 0, []
+    for e in outside(25, s.dt):
+        a, b = full.update(e.t, e, SP0), scr.update(e.t, e, SP0)
+        assert full.last_step().success and scr.last_step().success
+        nh, n_in, n_add = scr._daqp.screen_stats
+        kept.append(n_in / nh)
+        added += n_add
+        moves.append(a)
+        assert np.max(np.abs(b - a) / scale) < 1e-7
+        assert scr.last_step().cost == pytest.approx(full.last_step().cost, rel=1e-9, abs=1e-9)
+        scr._u_prev, scr._z = full._u_prev.copy(), full._z.copy()   # the same QP at the next step
+    assert nh == 2560
+    ths = ThrusterSet.from_scenario(fpso)
+    A, b_poly = ths.attainable_polytope(MPCSettings().polytope_directions)
+    assert np.max(np.array(moves) @ A.T / b_poly) > 0.99          # the polytope binds
+    assert np.median(kept) < 0.05
+    if margin < 1e-9:
+        assert added > 0                                          # the check had rows to add
+    assert full._daqp.screen_stats[1] == 2560
 
 
 def test_failed_daqp_solve_applies_shifted_previous_plan(fpso, monkeypatch):

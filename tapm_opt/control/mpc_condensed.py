@@ -31,12 +31,15 @@ here, each step, from the same sparse data, and solved by DAQP:
 
 The result has ``3 M`` variables (``M`` thrust moves) instead of ``6 (N + 1) + 3 M + 4 N``, and as
 rows the hard ones (the thrust polytope and its rate rows) plus one per soft group: at N = 50 with 8
-moves 24 variables and 1174 rows. DAQP is set up once and updated in place; its working set carries
-over from step to step (a hot start). The plan is expanded back to the sparse QP's variables
-(``X`` from ``U``, each ``S_k`` the largest violation of its rows), so the controller's diagnostics,
-shift and cost are those of the sparse problem. DAQP's update costs about rows x moves^2, so the
-condensed QP pays with few moves (move blocking); the sparse kernels run compiled (numba,
-``tapm_opt._jit``).
+moves 24 variables and 1174 rows, at N = 20 unblocked 60 variables and 2620 rows. DAQP's set-up and
+update cost about rows x moves^2, and nearly all hard rows are far from the plan, so only the hard
+rows the predicted plan comes near enter DAQP; the solution is checked against all of them and
+solved again with any it violates, so the plan is the full QP's (:class:`CondensedDAQP`; at fpso's
+default, about 2 of 2560 rows a step, a third of the solve time). While the rows stay, DAQP is
+updated in place and its working set carries over from step to step (a hot start). The plan is
+expanded back to the sparse QP's variables (``X`` from ``U``, each ``S_k`` the largest violation of
+its rows), so the controller's diagnostics, shift and cost are those of the sparse problem. The
+sparse kernels run compiled (numba, ``tapm_opt._jit``).
 """
 
 from __future__ import annotations
@@ -49,10 +52,13 @@ import scipy.sparse as sp
 from .._jit import jit
 from .mpc_problem import MPCError, _Problem
 
-__all__ = ["CondensedQP", "CondensedDAQP", "DAQP_INF"]
+__all__ = ["CondensedQP", "CondensedDAQP", "DAQP_INF", "SCREEN_MARGIN"]
 
 #: DAQP's infinity for one-sided rows.
 DAQP_INF = 1e30
+#: Hard rows enter the condensed QP when the predicted plan comes within this distance of their
+#: face, in the scaled moves (the row's value over its norm): :class:`CondensedDAQP`.
+SCREEN_MARGIN = 0.1
 
 
 def _forward_unit_lower(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, n: int, B: np.ndarray) -> None:
@@ -422,27 +428,99 @@ class CondensedQP:
 
 class CondensedDAQP:
     """A sparse MPC QP solved condensed by DAQP, step after step (module docstring): the condensed
-    problem (:class:`CondensedQP`), one ``daqp.Model`` set up at the first step and updated in
-    place after it with its working set kept (a hot start; started cold when a thruster's DOF is
-    held or freed), and up to ``passes`` solves of a step, the soft rows chosen again on each
-    solution, the plan of lowest sparse cost kept.
+    problem (:class:`CondensedQP`), solved by a ``daqp.Model``, and up to ``passes`` solves of a
+    step, the soft rows chosen again on each solution, the plan of lowest sparse cost kept.
+
+    **Hard rows screened** (``screen``, default :data:`SCREEN_MARGIN`; None: every row always).
+    Most hard rows — the facets of the thrust polytope and of its rate polytope at every move — are
+    far from the plan: at fpso's default (20 moves, 60 facets) 2560 rows, of which a handful bind.
+    DAQP's set-up and update cost grows with rows x moves^2, so only the hard rows the predicted
+    plan (``u_pred``) comes within ``screen`` of (the distance to the row's face over the row's
+    norm, in the scaled moves) enter DAQP. The solution is then checked against every hard row;
+    rows it violates beyond DAQP's ``primal_tol`` are added and the QP solved again, until none is.
+    The screened QP is a relaxation of the full one, so a solution feasible for every row is the
+    full QP's optimum (unique: the condensed Hessian is positive definite): the screening changes
+    the work, not the plan (``tests/test_mpc_condensed.py``). A step whose rows are those of the last
+    step updates the model in place with its working set kept (a hot start); otherwise DAQP is set
+    up afresh (also when a thruster's DOF is held or freed).
 
     ``settings``: DAQP's settings (keys of ``daqp.Model().settings``).
     """
 
-    def __init__(self, cq: CondensedQP, settings: dict, passes: int):
+    def __init__(self, cq: CondensedQP, settings: dict, passes: int, screen: float | None = None):
         import daqp
 
         from .allocation import DAQP_STATUS
 
         self._daqp_module, self._status_names = daqp, DAQP_STATUS
         self.cq, self.settings, self.passes = cq, dict(settings), int(passes)
+        self.screen = SCREEN_MARGIN if screen is None else float(screen)
+        if not self.screen > 0.0:
+            self.screen = math.inf   # every hard row
+        self._tol = float(self.settings.get("primal_tol", 1e-6))
         self._model = None
         self._sense = b""
+        self._keep: np.ndarray | None = None      # the hard rows in DAQP (a mask), None: all
+        self._norms: tuple | None = None          # the hard rows' coefficients and norms
+        self._rows = np.zeros(0, np.int64)        # DAQP's rows among cq's
+        self._cols = np.zeros(0, np.int64)        # ... and their entries of bu, bl, sense, rho, w
+        #: Screening counts of the last solve: hard rows, rows in DAQP, solves that added rows.
+        self.screen_stats = (0, 0, 0)
 
     def reset(self) -> None:
         """Set DAQP up afresh at the next solve."""
         self._model = None
+
+    def _gap(self, u: np.ndarray) -> np.ndarray:
+        """Distance of the moves ``u`` from each hard row's nearer bound (negative: violated), in
+        the row's units (NaN where ``u`` gives none)."""
+        cq = self.cq
+        nU, nh = cq.nU, len(cq.hard_rows)
+        v = cq.A[:nh] @ u
+        return np.minimum(cq.bu[nU:nU + nh] - v, v - cq.bl[nU:nU + nh])
+
+    def _screened(self, u: np.ndarray) -> np.ndarray | None:
+        """The hard rows within ``screen`` of the plan ``u`` (a mask; None: all of them)."""
+        cq = self.cq
+        nh = len(cq.hard_rows)
+        if not math.isfinite(self.screen) or nh <= cq.nU:
+            return None
+        return ~(self._gap(u) > self.screen * self._row_norms(cq.A[:nh]))   # a NaN keeps its row
+
+    def _row_norms(self, Ah: np.ndarray) -> np.ndarray:
+        """Euclidean norms of the hard rows' coefficients, kept while they stay the same."""
+        c = self._norms
+        if c is None or c[0].shape != Ah.shape or not np.array_equal(c[0], Ah):
+            c = self._norms = (Ah.copy(), np.sqrt(np.einsum("ij,ij->i", Ah, Ah)))
+        return c[1]
+
+    def _select(self, keep: np.ndarray | None) -> bool:
+        """Set DAQP's rows to the kept hard rows and every soft row; True when they changed."""
+        cq = self.cq
+        nU, nh = cq.nU, len(cq.hard_rows)
+        if keep is None:
+            rows = np.arange(cq.m)
+        else:
+            rows = np.concatenate([np.flatnonzero(keep), np.arange(nh, cq.m)])
+        prev = self._keep
+        same = self._model is not None and (prev is None if keep is None
+                                            else prev is not None and np.array_equal(prev, keep))
+        self._keep, self._rows = keep, rows
+        self._cols = np.concatenate([np.arange(nU), nU + rows])
+        return not same
+
+    def _setup(self) -> int:
+        """A new DAQP model of the selected rows (cold). Returns DAQP's set-up flag."""
+        cq, c = self.cq, self._cols
+        model = self._daqp_module.Model()
+        model.settings = dict(self.settings)
+        flag, _ = model.setup(cq.H, cq.f, cq.A[self._rows], cq.bu[c], cq.bl[c], cq.sense[c])
+        if flag < 0:
+            self._model = None
+            return flag
+        model.soft_weights(rho_u=cq.rho[c], w_u=cq.w[c])
+        self._model = model
+        return flag
 
     def solve(self, Hx: np.ndarray, Aeqx: np.ndarray, Gx: np.ndarray, q: np.ndarray, b_eq: np.ndarray,
               g_eq: np.ndarray, g_in: np.ndarray, lbz: np.ndarray, ubz: np.ndarray,
@@ -450,39 +528,48 @@ class CondensedDAQP:
         """Condense and solve (arguments of :meth:`CondensedQP.condense`). Returns ``(ok, status,
         iterations, z)``: ``z`` the sparse QP's variables of the plan (NaN when no solve succeeded),
         ``status`` DAQP's (``allocation.DAQP_STATUS`` names)."""
-        daqp, DAQP_STATUS = self._daqp_module, self._status_names
+        DAQP_STATUS = self._status_names
         cq = self.cq
         cq.condense(Hx, Aeqx, Gx, q, b_eq, g_eq, g_in, lbz, ubz, u_pred=u_pred)
         sense = cq.sense.tobytes()
-        if self._model is None:
-            self._model = daqp.Model()
-            self._model.settings = dict(self.settings)
-            flag, _ = self._model.setup(cq.H, cq.f, cq.A, cq.bu, cq.bl, cq.sense)
+        changed = self._select(self._screened(np.asarray(u_pred, float)))
+        if self._model is None or changed or sense != self._sense:
+            flag = self._setup()     # new rows, or a thruster's DOF held or freed: start cold
             if flag < 0:
-                self._model = None
+                self._sense = b""
                 return False, f"setup: {DAQP_STATUS.get(flag, flag)}", 0, np.full(cq.nz, np.nan)
-            self._model.soft_weights(rho_u=cq.rho, w_u=cq.w)
-        elif sense != self._sense:     # a thruster's DOF is held or freed: start cold
-            self._model.update(H=cq.H, f=cq.f, A=cq.A, bupper=cq.bu, blower=cq.bl, sense=cq.sense)
-        else:                          # the same rows: DAQP keeps its working set
-            self._model.update(H=cq.H, f=cq.f, A=cq.A, bupper=cq.bu, blower=cq.bl)
+        else:                        # the same rows: DAQP keeps its working set
+            c = self._cols
+            self._model.update(H=cq.H, f=cq.f, A=cq.A[self._rows], bupper=cq.bu[c], blower=cq.bl[c])
         self._sense = sense
-        best, it, status = None, 0, ""
-        for k in range(self.passes):
-            if k:
-                self._model.update(A=cq.A, bupper=cq.bu, blower=cq.bl)
+        best, it, status, added = None, 0, "", 0
+        k = 0
+        while k < self.passes:
             u, _, flag, info = self._model.solve()
             u = np.asarray(u, float)
             it += int(info["iterations"])
             status = DAQP_STATUS.get(flag, f"exitflag_{flag}")
             if not (flag > 0 and np.all(np.isfinite(u))):
                 break
+            if self._keep is not None:
+                gap = self._gap(u)   # a screened-out row violated beyond DAQP's tolerance (or NaN)
+                bad = ~self._keep & ~(gap >= -self._tol)
+                if bad.any():        # add it, and the rows near u, and solve again
+                    self._select(self._keep | bad | ~(gap > self.screen * self._norms[1]))
+                    added += 1
+                    if self._setup() < 0:
+                        break
+                    continue
             z = cq.expand(u)
             c = cq.cost(Hx, q, z)
             if best is None or c < best[0]:
                 best = (c, z, status)
-            if not cq.rechoose(u):
+            k += 1
+            if k >= self.passes or not cq.rechoose(u):
                 break
+            cols = self._cols
+            self._model.update(A=cq.A[self._rows], bupper=cq.bu[cols], blower=cq.bl[cols])
+        self.screen_stats = (len(cq.hard_rows), len(self._rows) - (cq.m - len(cq.hard_rows)), added)
         if best is None:
             return False, status, it, np.full(cq.nz, np.nan)
         return True, best[2], it, best[1]
