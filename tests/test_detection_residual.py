@@ -227,6 +227,25 @@ def test_tabulated_tensions_match_the_catenary(model):
     assert near.exact_calls == 1
 
 
+def test_tension_tables_are_built_once_per_process(model, monkeypatch):
+    """A second detector on an equal model (another run of a study) reads the tables the first
+    built: no line is solved again, the nodes are the same read-only arrays, the tensions equal."""
+    from tapm_opt.estimation import detection
+
+    first = _TensionTable(model, max_offset=37.0)
+    calls = []
+    orig = type(model).line_solver
+    monkeypatch.setattr(type(model), "line_solver", lambda self, i, **kw: calls.append(i) or orig(self, i, **kw))
+    again = _TensionTable(model, max_offset=37.0)
+    assert calls == []
+    np.testing.assert_array_equal(again._tab, first._tab)
+    assert all(not a.flags.writeable for tab in detection._PROCESS_TABLES.values() for a in tab[2:])
+    eta = np.array([12.0, -7.0, 0.2])
+    np.testing.assert_array_equal(again(eta), first(eta))
+    other = _TensionTable(model, max_offset=38.0)          # another range: its own tables
+    assert len(calls) > 0 and other._tab.shape[0] > 0
+
+
 # -- settings and measurements -----------------------------------------------------------------
 
 @pytest.mark.parametrize("kw, field", [

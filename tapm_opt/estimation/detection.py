@@ -302,6 +302,13 @@ def _kernels():
     return _KERNELS
 
 
+#: The tension tables built in this process, by line, tolerance, range and scale (a table is a
+#: function of these alone): the detectors of many runs on one scenario (a tuning study's trials)
+#: build each once. At most :data:`_PROCESS_TABLES_MAX`, the oldest dropped first.
+_PROCESS_TABLES: dict = {}
+_PROCESS_TABLES_MAX = 64
+
+
 class _TensionTable:
     """Fairlead tensions ``TF`` [N] of a model's lines at a pose, from tabulated characteristics.
 
@@ -349,14 +356,23 @@ class _TensionTable:
                 if not math.isfinite(EA):
                     b = min(b, math.sqrt(max(L * L - ZF * ZF, 0.0)) * (1.0 - 1e-9))
                 T_ref = float(np.max(T0[mine])) or w * L or 1.0
-                i0 = int(np.argmax(mine))
-                src = model.line_solver(i0)
-                if model.composite and model.composite[i0] is not None:
-                    # a composite line's TF(XF) has kinks where a joint meets the seabed, which a
-                    # uniform grid resolves only with many nodes: read those from the adaptive
-                    # table of the load evaluator (node pairs at every regime change, 1e-9)
-                    src = tension_source(src, a, b, T_ref)
-                tables[tkey] = self._table(src, a, b, rtol, T_ref)
+                pkey = (key, rtol, a, b, T_ref)
+                tab = _PROCESS_TABLES.get(pkey)
+                if tab is None:
+                    i0 = int(np.argmax(mine))
+                    src = model.line_solver(i0)
+                    if model.composite and model.composite[i0] is not None:
+                        # a composite line's TF(XF) has kinks where a joint meets the seabed, which a
+                        # uniform grid resolves only with many nodes: read those from the adaptive
+                        # table of the load evaluator (node pairs at every regime change, 1e-9)
+                        src = tension_source(src, a, b, T_ref)
+                    tab = self._table(src, a, b, rtol, T_ref)
+                    for arr in tab[2:]:
+                        arr.flags.writeable = False
+                    if len(_PROCESS_TABLES) >= _PROCESS_TABLES_MAX:
+                        _PROCESS_TABLES.pop(next(iter(_PROCESS_TABLES)))
+                    _PROCESS_TABLES[pkey] = tab
+                tables[tkey] = tab
             x0, dx, T, K = tables[tkey]
             geo[mine, 4:8] = (x0, dx, start, T.size - 1)
             parts.append(np.column_stack([T, K]))
