@@ -18,7 +18,8 @@ has three more kernels, each the compiled counterpart of a numpy path it must ma
 :func:`mooring_step` (the fairlead path, :func:`advance`, the fairlead accelerations, the
 overload and health flags and the load on the vessel); :func:`plant_pre_step` runs the rest of an
 outer step (thrusters, wind and drift loads, vessel, wave-frequency pose, riser angles, current
-at the nodes) in one call before :func:`mooring_step`.
+at the nodes) in one call before :func:`mooring_step`; :func:`plant_steps` runs the two for several
+outer steps in one call, the state passed from step to step in arrays.
 
 The per-line constants are passed as the arrays :class:`~tapm_opt.plant.fem.FEMLines` holds (no
 copies): a winch that changes the unstretched lengths (``FEMLines._update_lengths``) is seen by
@@ -39,7 +40,8 @@ import warnings
 
 import numpy as np
 
-__all__ = ["AVAILABLE", "advance", "thruster_step", "vessel_step", "mooring_step", "plant_pre_step", "end_tensions"]
+__all__ = ["AVAILABLE", "advance", "thruster_step", "vessel_step", "mooring_step", "plant_pre_step", "plant_steps",
+           "end_tensions"]
 
 from .._jit import jit as _jit, numba_available
 
@@ -930,3 +932,93 @@ def end_tensions(r, v, l0, EA, tabi, tab, c_int, has_int_damping, node_weight, f
         T_fl[j] = math.sqrt(0.0 + fx * fx + fy * fy + fz * fz) if active[j] else 0.0
         T_an[j] = _bond_any(r, v, anchor_seg[j], l0, EA, tabi, tab, c_int, has_int_damping)[4]
     return T_fl, T_an
+
+
+# plant_steps calls the step functions through these names: a test or a benchmark that wraps the
+# public ones in Python (to count or time the per-step path's calls) leaves its compilation alone
+_plant_pre_step, _mooring_step = plant_pre_step, mooring_step
+
+
+@_jit
+def plant_steps(h, n_sub, steps0, t_fem, sums, f, alpha, f_cmd, alpha_cmd, decay, rate_dt, alpha_rate_dt,
+                eta, nu, eta_wf, tau_moor, rate, r, v, vc,
+                failed, f_min, f_max, azimuth, x_thr, y_thr, has_env, wind_dir, hull_k, wave_dir, drift_c, wf,
+                v_c, M, M_A, M_inv, D_lin, d_quad, has_riser, riser_c,
+                cur_kind, cur_clamps, cur_depths, cur_factors, cur_depth, cur_surface,
+                p_cot, p_T, turret_angle, locked, z_fl,
+                l0, EA, tabi, tab, c_int, bond_ok, node_weight, node_mass, cdn, cdt, can_half, cat_half,
+                joint, joint_c, kb, cb, mu, depth, has_int_damping, has_friction,
+                anchor_idx, anchors, fairlead_idx, attached, fairlead_seg, anchor_seg, active,
+                near_tension, max_speed):  # pragma: no cover - compiled
+    """Up to ``sums.shape[0]`` plant outer steps of ``h`` [s] in one call (``Plant._fused_steps``):
+    each :func:`plant_pre_step`, then :func:`mooring_step` in ``n_sub`` substeps, the functions and
+    arguments of the plant's per-step fused path (``Plant._fused_step``), so the same numbers. Row
+    ``i`` of ``sums`` is step i's environment sums ``(V0, q0, S0, S1, C0)``. The state passes from
+    step to step as the plant passes it: the pose, velocity, wave-frequency pose and riser angles
+    from the packed output, the mooring load and the pose rate, the node positions and velocities;
+    ``f``, ``alpha`` (thrusters) and ``vc`` (current at the nodes) are written in place;
+    ``t_fem`` gains ``h / n_sub`` per substep, as ``FEMLines`` adds it. ``steps0`` is the plant's
+    outer-step count before the first step.
+
+    The loop stops after a step that needs the plant's Python: its mooring step found a line
+    near its strength (``near``), or a suspect node state on a step whose count is a multiple of 20
+    (the plant's health check), or before a step whose :func:`plant_pre_step` reports a status.
+
+    Returns
+    -------
+    k : int
+        Outer steps completed.
+    status : int
+        0, or the status of :func:`plant_pre_step` at step ``k`` (not completed; ``outs[k]`` its
+        output).
+    outs : ndarray (n, :data:`OUT_SIZE`)
+        Each step's packed output of :func:`plant_pre_step` (rows beyond the last step: zero).
+    r, v, T, r_fl, rate, a_fl, tau, near, suspect
+        :func:`mooring_step`'s outputs of step ``k - 1`` (``r``, ``v``, ``rate``, ``tau`` the
+        inputs when ``k = 0``).
+    tau_prev : ndarray (3,)
+        The mooring load step ``k - 1`` started from (the plant's, should its health check on
+        that step raise).
+    t_fem : float
+        The FEM time after the ``k`` steps.
+    """
+    n = sums.shape[0]
+    outs = np.zeros((n, OUT_SIZE))
+    eta_c = eta.copy()
+    nu_c = nu.copy()
+    wf_c = eta_wf.copy()
+    tau_c = tau_moor.copy()
+    tau_prev = tau_c
+    rate_c = rate.copy()
+    T = np.empty(0)
+    r_fl = np.empty((0, 3))
+    a_fl = np.empty((0, 3))
+    near = False
+    suspect = False
+    dt = h / n_sub
+    for i in range(n):
+        status, out = _plant_pre_step(h, f, alpha, f_cmd, alpha_cmd, decay, rate_dt, alpha_rate_dt,
+                                     sums[i, 0], sums[i, 1], sums[i, 2], sums[i, 3], sums[i, 4],
+                                     eta_c, nu_c, wf_c, tau_c, r, vc,
+                                     failed, f_min, f_max, azimuth, x_thr, y_thr, has_env, wind_dir, hull_k, wave_dir,
+                                     drift_c, wf, v_c, M, M_A, M_inv, D_lin, d_quad, has_riser, riser_c,
+                                     cur_kind, cur_clamps, cur_depths, cur_factors, cur_depth, cur_surface)
+        outs[i, :] = out
+        if status != 0:
+            return i, status, outs, r, v, T, r_fl, rate_c, a_fl, tau_c, near, suspect, tau_prev, t_fem
+        tau_prev = tau_c
+        r, v, T, r_fl, rate_c, a_fl, tau_c, near, suspect = _mooring_step(
+            out[18:21], out[21:24], rate_c, h, n_sub, p_cot, p_T, turret_angle, locked, z_fl,
+            r, v, vc, l0, EA, tabi, tab, c_int, bond_ok, node_weight, node_mass, cdn, cdt, can_half, cat_half,
+            joint, joint_c, kb, cb, mu, depth, has_int_damping, has_friction,
+            anchor_idx, anchors, fairlead_idx, attached, fairlead_seg, anchor_seg, active,
+            near_tension, max_speed)
+        for _ in range(n_sub):  # the same sum as n single steps (FEMLines._advance_compiled)
+            t_fem += dt
+        if near or (suspect and (steps0 + i + 1) % 20 == 0):
+            return i + 1, 0, outs, r, v, T, r_fl, rate_c, a_fl, tau_c, near, suspect, tau_prev, t_fem
+        for c in range(3):
+            eta_c[c] = out[c]
+            nu_c[c] = out[3 + c]
+            wf_c[c] = out[6 + c]
+    return n, 0, outs, r, v, T, r_fl, rate_c, a_fl, tau_c, near, suspect, tau_prev, t_fem
