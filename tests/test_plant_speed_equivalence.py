@@ -59,15 +59,23 @@ def _cmd(n, f=2.0e5):
 
 @pytest.fixture
 def count_kernel(monkeypatch):
-    """Counts the calls of the compiled mooring step (to check the compiled path did run)."""
+    """Counts the outer steps of the compiled mooring step (to check the compiled path did run):
+    its calls from Python (one outer step each) and the outer steps the multi-step call
+    ``plant_steps`` took (it calls the mooring step from compiled code)."""
     calls = []
-    real = fem_kernel.mooring_step
+    real, multi = fem_kernel.mooring_step, fem_kernel.plant_steps
 
     def counted(*args):
         calls.append(1)
         return real(*args)
 
+    def counted_steps(*args):
+        out = multi(*args)
+        calls.extend([1] * out[0])
+        return out
+
     monkeypatch.setattr(fem_kernel, "mooring_step", counted)
+    monkeypatch.setattr(fem_kernel, "plant_steps", counted_steps)
     return calls
 
 

@@ -144,13 +144,19 @@ def test_off_grid_and_changing_outer_steps_follow_the_scalar_sums(fpso, outer_dt
 @compiled_only
 def test_fused_step_runs_and_equals_the_numpy_path_through_a_turn_and_a_break(fpso, monkeypatch):
     calls = []
-    real = fem_kernel.plant_pre_step
+    real, multi = fem_kernel.plant_pre_step, fem_kernel.plant_steps
 
     def counted(*a):
         calls.append(1)
         return real(*a)
 
+    def counted_steps(*a):   # plant_pre_step called from compiled code, once per outer step taken
+        out = multi(*a)
+        calls.extend([1] * out[0])
+        return out
+
     monkeypatch.setattr(fem_kernel, "plant_pre_step", counted)
+    monkeypatch.setattr(fem_kernel, "plant_steps", counted_steps)
     brk = [schema.Fault(kind="line_break", time=12.0, line=fpso.lines[0].id)]
     res = []
     for compiled in (True, False):
@@ -168,8 +174,10 @@ def test_fused_step_runs_and_equals_the_numpy_path_through_a_turn_and_a_break(fp
 
 @compiled_only
 def test_fused_kernel_equals_its_plain_python_fallback(fpso, monkeypatch):
-    """plant_pre_step compiled and as the plain Python function the module holds without numba."""
+    """plant_pre_step compiled and as the plain Python function the module holds without numba
+    (called from Python on the per-step path, ``Plant._multi_step`` False)."""
     p = Plant(fpso, sea_state="storm", seed=3, segments=6)
+    p._multi_step = False
     p.step(1.0, ThrusterCommand(np.full(len(fpso.thrusters), 4.0e5), np.full(len(fpso.thrusters), 0.4)))
     args = []
 

@@ -31,7 +31,10 @@ With numba, an outer step without a winch or a turning current is two compiled c
 and drift loads, vessel, wave-frequency pose, riser angles, current at the nodes) and
 ``mooring_step`` (the lines); otherwise the thrusters, the vessel and the lines are compiled
 apart. Either way the kernels repeat the numpy path's operations in its order, so both give the
-same numbers.
+same numbers. :meth:`Plant.step` runs its fused outer steps in one compiled call
+(``plant_steps``: the two calls of each step in a loop, the same numbers), up to a step at whose
+start a fault is due or where the plant's Python must look (a line near its strength, a health
+check, a failed step), which then finishes as the single fused step does.
 
 The controller sees the plant only through :meth:`Plant.measure` (sensors), as a real one would.
 """
@@ -110,6 +113,11 @@ class Plant:
     """
 
     compiled: bool = True
+    #: Run the fused outer steps of a :meth:`step` in one compiled call (:meth:`_fused_steps`,
+    #: :func:`~tapm_opt.plant.fem_kernel.plant_steps`); False: one :meth:`_fused_step` per outer
+    #: step. The same numbers either way (``tests/test_plant_multistep.py``); the switch is for the
+    #: tests and the benchmarks.
+    _multi_step: bool = True
 
     def __init__(self, scenario: Any, *, sea_state: Any = None, seed: int = 0, segments: int | None = None,
                  wave_frequency: bool = True, faults: Sequence[Any] | None = None, outer_dt: float = 0.1,
@@ -263,6 +271,16 @@ class Plant:
             self._winching = bool(self._winch.any())
         n = max(1, int(math.ceil(dt / self.outer_dt - 1e-9)))
         h = dt / n
+        if (self._multi_step and self.compiled and not self._winching and not self._current_turns
+                and self.mooring.fem._kernel_fn is not None):
+            k = 0
+            while k < n:   # runs of fused steps in one call; a step it cannot take, on its own
+                done = self._fused_steps(h, n - k)
+                if not done:
+                    self._outer_step(h)
+                    done = 1
+                k += done
+            return
         for _ in range(n):
             self._outer_step(h)
 
@@ -386,7 +404,15 @@ class Plant:
             rows = [env.waves.block(t, h, 1) for t in times]
             S, C = np.concatenate([r[0] for r in rows]), np.concatenate([r[1] for r in rows])
             V = env.wind.block(times[0], h, 1) + env.wind.block(times[1], h, 1)
-        self._blk = (times, V, C[:, 1].tolist(), S[:, 0].tolist(), S[:, 1].tolist(), C[:, 0].tolist())
+        # the sums of each step from the block's time i to i + 1, packed for the compiled steps
+        # (Plant._fused_steps): V and q at i, S[0], S[1], C[0] at i + 1, as _env_sums gives them
+        packed = np.empty((len(times) - 1, 5))
+        packed[:, 0] = V[:-1]
+        packed[:, 1] = C[:-1, 1]
+        packed[:, 2] = S[1:, 0]
+        packed[:, 3] = S[1:, 1]
+        packed[:, 4] = C[1:, 0]
+        self._blk = (times, V, C[:, 1].tolist(), S[:, 0].tolist(), S[:, 1].tolist(), C[:, 0].tolist(), packed)
         self._blk_j = 0
 
     def _env_sums(self, t0: float, t1: float, h: float) -> tuple[float, float, float, float, float]:
@@ -603,6 +629,102 @@ class Plant:
         if self.riser is not None:
             self._riser_angles = out[24:28]
         self._loads = out
+
+    def _fused_steps(self, h: float, n: int) -> int:
+        """Up to ``n`` outer steps of ``h`` [s] as :meth:`_fused_step` takes them, in one compiled
+        call (:func:`~tapm_opt.plant.fem_kernel.plant_steps`); the number taken, 0 when the first
+        cannot be (the fused step does not apply, or a fault is due: :meth:`_outer_step` takes it).
+
+        The steps' times (``round(t + h, 9)`` each) and environment sums (from the block of
+        :meth:`_env_block`, a new one as :meth:`_env_sums` would start it) are found here first;
+        the call covers the steps up to the one at whose start a fault is due and those the block
+        holds. It stops after a step that needs this method: a line near its strength (the
+        overload check and the load without a broken line) or a suspect node state on a health
+        check's step, which it finishes as :meth:`_fused_step` does; a step whose pre-step failed
+        is reported as :meth:`_fused_step` reports it."""
+        m = self.mooring
+        fem = m.fem
+        f = self._fused
+        if not (f[2] is not None if f is not None and f[0] is fem._kernel_constants() and f[1] is m.current
+                else self._fused_ok()):
+            return 0
+        t0 = t = self.t
+        times = [t0]
+        fi = self._fault_i
+        t_fault = self._faults[fi].time if fi < len(self._faults) else math.inf
+        for _ in range(n):
+            if t_fault <= t + 1e-9:   # _apply_faults at the start of this step
+                break
+            t = round(t + h, 9)
+            times.append(t)
+        n = len(times) - 1
+        if n == 0:
+            return 0
+        env = self.env
+        j = 0
+        if env is not None:   # _env_sums of each step, from one block
+            j, b = self._blk_j, self._blk
+            if b is None or j + 1 >= len(b[0]) or b[0][j] != t0 or b[0][j + 1] != times[1]:
+                self._env_block(t0, h)
+                j, b = 0, self._blk
+            bt = b[0]
+            c, nb = 1, len(bt)
+            while c < n and j + c + 1 < nb and bt[j + c + 1] == times[c + 1]:
+                c += 1
+            n = c
+            sums = b[6][j:j + n]
+        else:
+            sums = np.zeros((n, 5))
+        th = self.thrusters
+        if th._dt_decay != h:
+            th._lag(h)
+        n_sub = self._n_sub if h == self._h_last and self._dt_stable is not None else self._substeps(h, False)
+        r, v = fem.r, fem.v
+        if r is not self._r_last or v is not self._v_last:  # set from outside: the kernel's layout
+            shape = (fem.n_nodes, 3)
+            r, v = _as_f64(r, shape, "r"), _as_f64(v, shape, "v")
+        pre, geo, lines = self._fused[2]
+        cmd = self._cmd
+        steps0 = self._steps
+        (k, status, outs, r, v, T_bonds, r_fl, rate, a_fl, tau_moor, near, suspect, tau_prev,
+         t_fem) = _fem_kernel().plant_steps(
+            h, n_sub, steps0, fem.t, sums, th._f, th._alpha, cmd.f, cmd.alpha, th._decay, th._rate_dt,
+            th._alpha_rate_dt, self.eta, self.nu, self._eta_wf, self._tau_moor, self._rate, r, v, m._vc, *pre, *geo,
+            *lines, OVERLOAD_NEAR * self.strength, MAX_NODE_SPEED)
+        self._tension_cache = None
+        if env is not None:
+            self._blk_j = j + k + (1 if status else 0)
+        if k:
+            self.t = times[k]
+            out = outs[k - 1]
+            self.eta, self.nu, self._eta_wf = out[0:3], out[3:6], out[6:9]
+            self._steps = steps0 + k
+            m.dt = h / n_sub
+            fem.r, fem.v = self._r_last, self._v_last = r, v
+            fem.t = t_fem
+            m._r_fl, self._rate = r_fl, rate
+            if suspect and self._steps % 20 == 0:
+                if k > 1:   # should it raise: the plant of the step before, as _fused_step leaves it
+                    self._tau_moor, self._loads = tau_prev, outs[k - 2]
+                    if self.riser is not None:
+                        self._riser_angles = outs[k - 2, 24:28]
+                fem.check_health()
+            if near:  # a line may break: the load without it
+                self._check_overload(T_bonds)
+                tau_moor = m.tau(out[21:24], a_fl)
+            self._tau_moor = tau_moor
+            if self.riser is not None:
+                self._riser_angles = out[24:28]
+            self._loads = out
+        if status:   # step k's pre-step failed: reported as _fused_step reports it
+            out = outs[k]
+            if status == 1:
+                self._diverged(times[k], out[0:3], out[3:6])
+            self.t = times[k + 1]
+            self.eta, self.nu, self._eta_wf = out[0:3], out[3:6], out[6:9]
+            fem.check_health()
+            raise SimulationDiverged(f"FEM mooring state non-finite at t = {fem.t:.3f} s", time=fem.t)
+        return k
 
     @property
     def loads(self) -> dict[str, np.ndarray]:
