@@ -14,9 +14,15 @@ EKF with the statistical tension test and the reliability monitor), ``dt_control
   steps it — ``plant.step(dt_control, cmd)`` once per control period (ten 0.1 s outer steps, each
   with its FEM substeps) and ``plant.sample_row()`` once per ``dt_log`` (the plant's share of
   the loop's logging) — with one fixed thruster command (every thruster at 30 % of its
-  largest thrust, at its initial azimuth). The time inside the FEM kernel alone (the compiled
-  ``fem_kernel.mooring_step``: every outer step's FEM substeps, fairlead kinematics and mooring
-  load in one call) is printed too, and the loops' ratios to it.
+  largest thrust, at its initial azimuth), on the plant's default path: the outer steps of a
+  control period in one compiled call (``fem_kernel.plant_steps``).
+- **FEM kernel**: the time inside the FEM kernel alone (the compiled ``fem_kernel.mooring_step``:
+  an outer step's FEM substeps, fairlead kinematics and mooring load in one call), timed around
+  each call from Python. ``plant_steps`` calls it from compiled code, where it cannot be timed
+  apart, so this is a second run of the same plant, the same steps and the same command with the
+  per-outer-step path forced (``Plant._multi_step = False``: ``plant_pre_step`` then
+  ``mooring_step`` from Python for every outer step; the same numbers): the kernel's own time for
+  those steps, as before the multi-step call. The loops' ratios to it are printed too.
 - **closed loop**: a ``Plant`` built the same way, the controller from
   ``tapm_opt.design.build(system, kind)`` at the registry's defaults (``--shipped``: at fpso's shipped
   tuned designs, what ``tapm compare`` runs), and ``run_closed_loop``
@@ -52,16 +58,36 @@ def _plant(system):
     return Plant(system, sea_state=SEA_STATE, seed=SEED, segments=SEGMENTS)
 
 
-def plant_alone(system, settings) -> tuple[float, float]:
-    """Wall time of the plant stepped as the closed loop steps it, and of the FEM kernel in it
-    (``fem_kernel.mooring_step``, the compiled substeps of every outer step)."""
+def _step_plant(plant, settings) -> float:
+    """Wall time of ``plant`` stepped as the closed loop steps it, with one fixed command."""
     from tapm_opt.interfaces import ThrusterCommand
-    from tapm_opt.plant import fem_kernel
 
-    plant = _plant(system)
     th = plant.thrusters
     f_max = np.asarray(th.limits.f_max, float)
     cmd = ThrusterCommand(f=0.3 * f_max, alpha=th.alpha.copy())
+    n_steps = int(round(settings.duration / settings.dt_control))
+    log_every = int(round(settings.dt_log / settings.dt_control))
+    rows = []
+    w0 = time.perf_counter()
+    for step in range(n_steps + 1):
+        if step % log_every == 0:
+            rows.append(plant.sample_row())
+        if step == n_steps:
+            break
+        plant.step(settings.dt_control, cmd)
+    return time.perf_counter() - w0
+
+
+def plant_alone(system, settings) -> tuple[float, float]:
+    """Wall time of the plant stepped as the closed loop steps it (its default path, the outer
+    steps of a control period in one compiled call), and of the FEM kernel in the same steps
+    (``fem_kernel.mooring_step``, the compiled substeps of every outer step, timed on a second run
+    with the per-outer-step path forced)."""
+    from tapm_opt.plant import fem_kernel
+
+    wall = _step_plant(_plant(system), settings)
+    plant = _plant(system)
+    plant._multi_step = False   # mooring_step called from Python, once per outer step
     inner = fem_kernel.mooring_step
     fem_time = [0.0]
 
@@ -71,19 +97,9 @@ def plant_alone(system, settings) -> tuple[float, float]:
         fem_time[0] += time.perf_counter() - w
         return out
 
-    n_steps = int(round(settings.duration / settings.dt_control))
-    log_every = int(round(settings.dt_log / settings.dt_control))
-    rows = []
     fem_kernel.mooring_step = timed   # the kernel's time, timed apart: its wrapper adds ~0.3 us a call
     try:
-        w0 = time.perf_counter()
-        for step in range(n_steps + 1):
-            if step % log_every == 0:
-                rows.append(plant.sample_row())
-            if step == n_steps:
-                break
-            plant.step(settings.dt_control, cmd)
-        wall = time.perf_counter() - w0
+        _step_plant(plant, settings)
     finally:
         fem_kernel.mooring_step = inner
     return wall, fem_time[0]
