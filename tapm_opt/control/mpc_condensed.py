@@ -269,6 +269,9 @@ class CondensedQP:
                          if len(self.hard_rows) else np.zeros(0, np.int64))
         self._hard_in_moves = bool(np.all(self._Ri[self._hard_nz] >= self.nX))
         self._hard_vals: np.ndarray | None = None
+        #: Counts the times the hard rows' coefficients (``A[:nh]``) were written: equal counts,
+        #: equal rows.
+        self.hard_version = 0
         self._hard_bounds = (self.ub_in[self.hard_rows], self.lb_in[self.hard_rows])
         self.groups = cols[soft]
         self._grp_curv, self._grp_lin = curv[soft], lin[soft]
@@ -341,6 +344,7 @@ class CondensedQP:
         else:
             self._set_rows(self.hard_rows, 0)
             self._hard_vals = self._Gr_vals[self._hard_nz]
+            self.hard_version += 1
         if len(self._order):
             self.chosen[:] = self._largest(self._z_of(u_pred))
             self._set_rows(self.chosen, nh)
@@ -461,7 +465,8 @@ class CondensedDAQP:
         self._model = None
         self._sense = b""
         self._keep: np.ndarray | None = None      # the hard rows in DAQP (a mask), None: all
-        self._norms: tuple | None = None          # the hard rows' coefficients and norms
+        self._hard_cache: tuple | None = None     # (hard_version, hard rows, their norms, solve)
+        self._solves = 0
         self._rows = np.zeros(0, np.int64)        # DAQP's rows among cq's
         self._cols = np.zeros(0, np.int64)        # ... and their entries of bu, bl, sense, rho, w
         #: Screening counts of the last solve: hard rows, rows in DAQP, solves that added rows.
@@ -476,23 +481,28 @@ class CondensedDAQP:
         the row's units (NaN where ``u`` gives none)."""
         cq = self.cq
         nU, nh = cq.nU, len(cq.hard_rows)
-        v = cq.A[:nh] @ u
+        v = self._hard()[0] @ u
         return np.minimum(cq.bu[nU:nU + nh] - v, v - cq.bl[nU:nU + nh])
 
     def _screened(self, u: np.ndarray) -> np.ndarray | None:
         """The hard rows within ``screen`` of the plan ``u`` (a mask; None: all of them)."""
         cq = self.cq
-        nh = len(cq.hard_rows)
-        if not math.isfinite(self.screen) or nh <= cq.nU:
+        if not math.isfinite(self.screen) or len(cq.hard_rows) <= cq.nU:
             return None
-        return ~(self._gap(u) > self.screen * self._row_norms(cq.A[:nh]))   # a NaN keeps its row
+        return ~(self._gap(u) > self.screen * self._hard()[1])   # a NaN keeps its row
 
-    def _row_norms(self, Ah: np.ndarray) -> np.ndarray:
-        """Euclidean norms of the hard rows' coefficients, kept while they stay the same."""
-        c = self._norms
-        if c is None or c[0].shape != Ah.shape or not np.array_equal(c[0], Ah):
-            c = self._norms = (Ah.copy(), np.sqrt(np.einsum("ij,ij->i", Ah, Ah)))
-        return c[1]
+    def _hard(self) -> tuple:
+        """The hard rows ``A[:nh]`` and their Euclidean norms, kept while the rows stay
+        (``hard_version``); from the second step with the same rows a sparse copy (each row holds a
+        move or two: the polytope and rate rows), cheaper to multiply."""
+        cq = self.cq
+        c = self._hard_cache
+        if c is None or c[0] != cq.hard_version:
+            Ah = cq.A[:len(cq.hard_rows)]
+            c = self._hard_cache = (cq.hard_version, Ah, np.sqrt(np.einsum("ij,ij->i", Ah, Ah)), self._solves)
+        elif not sp.issparse(c[1]) and self._solves > c[3]:
+            c = self._hard_cache = (c[0], sp.csr_matrix(c[1]), c[2], c[3])
+        return c[1:3]
 
     def _select(self, keep: np.ndarray | None) -> bool:
         """Set DAQP's rows to the kept hard rows and every soft row; True when they changed."""
@@ -530,6 +540,7 @@ class CondensedDAQP:
         ``status`` DAQP's (``allocation.DAQP_STATUS`` names)."""
         DAQP_STATUS = self._status_names
         cq = self.cq
+        self._solves += 1
         cq.condense(Hx, Aeqx, Gx, q, b_eq, g_eq, g_in, lbz, ubz, u_pred=u_pred)
         sense = cq.sense.tobytes()
         changed = self._select(self._screened(np.asarray(u_pred, float)))
@@ -555,7 +566,7 @@ class CondensedDAQP:
                 gap = self._gap(u)   # a screened-out row violated beyond DAQP's tolerance (or NaN)
                 bad = ~self._keep & ~(gap >= -self._tol)
                 if bad.any():        # add it, and the rows near u, and solve again
-                    self._select(self._keep | bad | ~(gap > self.screen * self._norms[1]))
+                    self._select(self._keep | bad | ~(gap > self.screen * self._hard()[1]))
                     added += 1
                     if self._setup() < 0:
                         break
