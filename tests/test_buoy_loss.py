@@ -45,7 +45,7 @@ def buoyed_fpso(tops=(None, "buoy"), *, homogeneous=(), other=None):
         if ln["id"] in homogeneous:
             continue
         del ln["type"], ln["length"]
-        for k in ("winch_max_rate", "min_length", "max_length"):   # composite lines have no winch
+        for k in ("winch_max_rate", "min_length", "max_length"):   # no winches (tests/test_winch_composite.py)
             ln.pop(k, None)
         secs = [{"type": "chain137", "length": 300.0}, {"type": "wire165", "length": 1900.0},
                 {"type": "chain137", "length": 100.0}]

@@ -181,7 +181,7 @@ def composite_fpso(buoy: bool = True):
     d["point_types"] = [{"id": "buoy", "mass": 5000.0, "volume": 40.0, "CdA": 20.0, "Ca": 1.0}]
     for ln in d["lines"]:
         del ln["type"], ln["length"]
-        for k in ("winch_max_rate", "min_length", "max_length"):  # composite lines have no winch
+        for k in ("winch_max_rate", "min_length", "max_length"):  # no winches (tests/test_winch_composite.py)
             ln.pop(k, None)
         ln["sections"] = [{"type": "chain137", "length": 300.0, **({"top": "buoy"} if buoy else {})},
                           {"type": "wire165", "length": 1900.0}, {"type": "chain137", "length": 100.0}]

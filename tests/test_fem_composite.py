@@ -60,7 +60,7 @@ def composite_fpso(*, lower: str | None = "buoy", upper: str | None = None, line
     seg = segments or (None, None, None)
     for ln in d["lines"]:
         del ln["type"], ln["length"]
-        for k in ("winch_max_rate", "min_length", "max_length"):  # composite lines have no winch
+        for k in ("winch_max_rate", "min_length", "max_length"):  # no winches (tests/test_winch_composite.py)
             ln.pop(k, None)
         secs = [{"type": "chain137", "length": 300.0}, {"type": "wire165", "length": 1900.0},
                 {"type": "chain137", "length": 100.0}]
@@ -557,11 +557,12 @@ def test_the_stable_step_is_the_stiffest_sections_and_is_honoured():
 # --------------------------------------------------------------------------------------------
 
 
-def test_homogeneous_lines_winch_beside_composite_lines_which_refuse_a_length_change():
-    """fpso with its lines 1, 5 and 9 composite and the others homogeneous with their winches: the
-    plant pays out a homogeneous line (its length and segments change, the composite lines' do
-    not); a winch command on a composite line is refused (it has no winch), and so is a length
-    change of a composite line in the FEM."""
+def test_homogeneous_lines_winch_beside_composite_lines():
+    """fpso with its lines 1, 5 and 9 composite (without winches) and the others homogeneous with
+    their winches: the plant pays out a homogeneous line (its length and segments change, the
+    composite lines' do not); a winch command on a composite line without a winch is refused, and
+    in the FEM a composite line's length may not drop by its fairlead section (100 m) or more
+    (``tests/test_winch_composite.py``: winches on composite lines)."""
     from tapm_opt.plant.environment import PlantError
     from tapm_opt.plant.simulator import Plant, run_open_loop
 
@@ -586,8 +587,8 @@ def test_homogeneous_lines_winch_beside_composite_lines_which_refuse_a_length_ch
     w[0] = 0.1
     with pytest.raises(PlantError, match="has no winch"):
         p.step(1.0, winch_cmd=w)
-    fem.L[0] += 5.0
-    with pytest.raises(ModelError, match="composite line"):
+    fem.L[0] -= 100.0
+    with pytest.raises(ModelError, match="composite line.*fairlead section is 100 m"):
         fem._update_lengths()
 
 

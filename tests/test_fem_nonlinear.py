@@ -212,8 +212,9 @@ def test_the_stable_step_is_the_tables_largest_slope_and_is_honoured():
         f.check_health()
 
 
-def test_a_polyester_line_refuses_a_length_change():
-    """A line of a table is a one-section line in the FEM: its length is its section's (no winch)."""
+def test_a_polyester_line_changes_length_as_its_one_section():
+    """A line of a table is a one-section line in the FEM: a change of its length is its section's
+    (every segment's ``l0`` scales), and its length cannot drop to zero."""
     from tapm_opt.errors import ModelError
 
     sc = polyester_fpso(lines=(0, 4), chain=(4,))
@@ -222,7 +223,11 @@ def test_a_polyester_line_refuses_a_length_change():
     assert f.composite.tolist() == [True, False]
     f.L = f.L + np.array([0.0, 5.0])
     f._update_lengths()   # the chain line winches
+    l0 = f.l0[f.line_of_bond == 0][:10].copy()
     f.L = f.L + np.array([5.0, 0.0])
+    f._update_lengths()
+    assert np.allclose(f.l0[f.line_of_bond == 0][:10], l0 + 0.5)
+    f.L = f.L - np.array([f.L[0], 0.0])
     with pytest.raises(ModelError, match="composite line"):
         f._update_lengths()
 

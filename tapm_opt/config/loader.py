@@ -845,11 +845,15 @@ def validate(sc: Scenario) -> list[ScenarioIssue]:
                 issues.append(ScenarioIssue(f"{p}.segments", (
                     f"= {ln.segments} is fewer than the line's {len(ln.sections)} sections (each needs one)")))
                 bad = True
-            if ln.winch_max_rate > 0 and ln.composite:
-                issues.append(ScenarioIssue(f"{p}.winch_max_rate", (
-                    f"= {ln.winch_max_rate:g} m/s: a composite line has no winch in tapm_opt (the winch pays out a "
-                    "homogeneous line); give 0")))
-                bad = True
+            if ln.winch_max_rate > 0 and ln.composite and ln.min_length is not None:
+                # the winch pays out and hauls in the fairlead section: it must keep a length
+                below = sum(float(s.length) for s in ln.sections[:-1])
+                if not ln.min_length > below:
+                    issues.append(ScenarioIssue(f"{p}.min_length", (
+                        f"= {ln.min_length:g} m: the winch hauls in the fairlead section ({ln.sections[-1].length:g} m "
+                        f"of {ln.sections[-1].type!r}), so the line stays longer than its other sections' "
+                        f"{below:g} m; give more than that")))
+                    bad = True
             if bad:
                 continue
         elif ln.type is None or ln.length is None:

@@ -407,9 +407,11 @@ class Line:
                                 default=None, check=positive)
     segments: int = spec("Number of FEM segments n (nodes 0..n, 0 at the anchor); for a composite line the total "
                          "when its sections do not give theirs.", default=20, check=fem_segments)
-    winch_max_rate: float = spec("Largest winch pay-out/haul-in speed (0: no winch).", "m/s", default=0.0,
+    winch_max_rate: float = spec("Largest winch pay-out/haul-in speed (0: no winch); on a composite line the winch "
+                                 "pays out and hauls in the fairlead section.", "m/s", default=0.0,
                                  check=bounded(0.0, 10.0, "mooring winches run at about 0.1-0.5 m/s"))
-    min_length: float | None = spec("Shortest unstretched length the winch may haul in to; absent: length.", "m",
+    min_length: float | None = spec("Shortest unstretched length the winch may haul in to; absent: length. On a "
+                                    "composite line more than its other sections' length.", "m",
                                     default=None, check=positive)
     max_length: float | None = spec("Longest unstretched length the winch may pay out to; absent: length.", "m",
                                     default=None, check=positive)

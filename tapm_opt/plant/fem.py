@@ -270,6 +270,9 @@ class FEMLines:
         self.composite = np.zeros(nl, dtype=bool)
         self._sec_bond = np.zeros(nb, dtype=bool)
         self._l0_sec = np.ones(nb)
+        self._top_bond = np.zeros(nb, dtype=bool)   # bonds of a composite line's fairlead section
+        self._top_L = np.zeros(nl)                  # its length [m] in the line's sections, and segments
+        self._top_seg = np.ones(nl, dtype=np.int64)
         self._point_mass = np.zeros(self.n_nodes)  # point mass [kg] and net weight [N] at the joint nodes
         self._point_W = np.zeros(self.n_nodes)
         self._bond_table = np.full(nb, -1, dtype=np.int64)  # index into self.tables, -1: constant EA
@@ -328,6 +331,9 @@ class FEMLines:
                     self._zeta_int[bonds] = a["damping_ratio"][k]
                     self._sec_bond[bonds] = True
                     self._l0_sec[bonds] = a["L"][k] / seg[k]
+                    if k == ns - 1:   # the fairlead section: a winch pays it out and hauls it in
+                        self._top_bond[bonds] = True
+                        self._top_L[j], self._top_seg[j] = a["L"][k], seg[k]
                     inner = slice(b0 + cum[k] + (0 if k == 0 else 1), b0 + cum[k + 1] + (1 if k == ns - 1 else 0))
                     self._cdn_node[inner] = cdn[k]
                     self._cdt_node[inner] = cdt[k]
@@ -416,17 +422,23 @@ class FEMLines:
     # -- geometry and constants ------------------------------------------------------------
     def _update_lengths(self) -> None:
         """Recompute per-segment/per-node constants from the current unstretched lengths L (a
-        composite line's sections keep their lengths: its ``L`` may not change)."""
+        composite line's change of ``L`` is its fairlead section's: a winch pays that section out
+        and hauls it in, the other sections keep their lengths)."""
         ok = self.bond_ok
         self.l0 = np.where(ok, (self.L / self._seg_per_line)[self.line_of_bond], 1.0)  # (n_bonds,)
         if self.composite.any():
-            changed = self.composite & (self.L != self._L_composite)
-            if changed.any():
-                j = int(np.argmax(changed))
-                raise ModelError(f"line {self.lines.ids[j]!r} is a composite line: its unstretched length is its "
-                                 f"sections' ({self._L_composite[j]:g} m) and cannot change to {self.L[j]:g} m (a "
-                                 "composite line has no winch)")
-            self.l0[self._sec_bond] = self._l0_sec[self._sec_bond]
+            # a composite line's winch pays out its fairlead section: the other sections keep theirs
+            top_L = np.where(self.composite, self._top_L + (self.L - self._L_composite), 1.0)
+            if not np.all(top_L > 0.0):
+                j = int(np.argmax(~(top_L > 0.0)))
+                raise ModelError(f"line {self.lines.ids[j]!r} is a composite line of {self._L_composite[j]:g} m whose "
+                                 f"fairlead section is {self._top_L[j]:g} m: its length cannot change to "
+                                 f"{self.L[j]:g} m (the winch would haul in more than that section)")
+            l0_sec = self._l0_sec.copy()
+            tb = self._top_bond
+            lb = self.line_of_bond[tb]
+            l0_sec[tb] = top_L[lb] / self._top_seg[lb]
+            self.l0[self._sec_bond] = l0_sec[self._sec_bond]
         l0 = np.where(ok, self.l0, 0.0)
         self.node_len = 0.5 * (np.append(l0, 0.0) + np.insert(l0, 0, 0.0))  # unstretched length per node
         ml = self._m * l0
