@@ -54,15 +54,22 @@ from .._checks import finite, vector
 from .._io import readonly
 from ..errors import TapmError
 from ..geometry import rot_z
+from ..models import catenary
 
 __all__ = ["WinchError", "WinchSettings", "WinchTensionController", "configuration_matrix", "horizontal_force",
-           "AF_KC", "CEILING_MARGIN"]
+           "AF_KC", "CEILING_MARGIN", "LENGTH_GRID"]
 
 #: Gain k_c of [AF] Table I [(m/s)/N].
 AF_KC = 2.5e-7
 
 #: Default tension ceiling of the winch guard as a fraction of ``limits.tension_utilisation`` [-].
 CEILING_MARGIN = 0.95
+
+#: Step [m] of the length grid of a composite line's tension tables in the controller's model
+#: (``models.characteristics.LengthTables``: linear in length between grid lengths). On the
+#: chain-wire-chain fpso the horizontal share H/T is then within 3e-4 of the exact solve's (1e-3
+#: of the pretension in T); a table costs about a second, built when the length first needs it.
+LENGTH_GRID = 5.0
 
 
 class WinchError(TapmError, ValueError):
@@ -215,6 +222,26 @@ class WinchTensionController:
         #: Tension floor of each line [N].
         self.T_min = readonly(hang + s.T_min_fraction * np.maximum(T0 - hang, 0.0))
         self._B_fixed = configuration_matrix(model)
+        # composite lines (and lines of a tension-strain table): their solve costs ~13 ms, so the
+        # horizontal share comes from tables in distance and length (models.characteristics.LengthTables)
+        self._tables: dict[int, Any] = {}
+        comp = [i for i, c in enumerate(model.composite or ()) if c is not None and self.rate_max[i] > 0]
+        if comp:
+            from ..models.characteristics import LengthTables
+
+            _, _, XF0 = model.spans(np.zeros(3))
+            reach = (0.3 * float(np.max(np.asarray(model.ZF) + np.asarray(model.h_A)))
+                     + 2.0 * float(np.hypot(*model.p_cot_B)) + 2.0 * np.hypot(model.p_T[:, 0], model.p_T[:, 1]))
+            H_ref = float(np.max(T0[comp]))   # one scale and one range per line key: equal lines share tables
+            rng: dict = {}
+            for i in comp:
+                lo, hi = rng.get(model.line_key(i), (math.inf, -math.inf))
+                rng[model.line_key(i)] = (min(lo, float(XF0[i] - reach[i])), max(hi, float(XF0[i] + reach[i])))
+            for i in comp:
+                lo, hi = rng[model.line_key(i)]
+                self._tables[i] = LengthTables(model, i, max(lo, 0.0), hi, L0=float(self.L0[i]), dL=LENGTH_GRID,
+                                               H_ref=H_ref)
+        self._simple = np.array([i not in self._tables for i in range(len(self.line_ids))])
         self.reset()
 
     # -- state -----------------------------------------------------------------------------
@@ -283,8 +310,20 @@ class WinchTensionController:
         m = self.model
         eta = _vec("eta", eta, 3, "m, m, rad")
         _, _, XF = m.spans(eta)
-        sol = m.solve_xf(np.asarray(XF, float), L=self._L)
-        HF, TF = np.asarray(sol.HF, float), np.asarray(sol.TF, float)
+        XF = np.asarray(XF, float)
+        if not self._tables:
+            sol = m.solve_xf(XF, L=self._L)
+            HF, TF = np.asarray(sol.HF, float), np.asarray(sol.TF, float)
+        else:   # homogeneous lines by their catenary at the tracked lengths, the others from tables
+            HF, TF = np.zeros(XF.size), np.zeros(XF.size)
+            simple = self._simple
+            if simple.any():
+                sol = catenary.solve(XF[simple], np.asarray(m.ZF)[simple], self._L[simple], np.asarray(m.EA)[simple],
+                                     np.asarray(m.w)[simple], CB=np.asarray(m.CB)[simple],
+                                     h_A=np.asarray(m.h_A)[simple])
+                HF[simple], TF[simple] = sol.HF, sol.TF
+            for i, tab in self._tables.items():
+                HF[i], TF[i] = tab(XF[i], self._L[i])
         T = TF.copy() if tensions is None else _vec("estimate.tensions", tensions, len(self.line_ids), "N")
         H = np.maximum(T, 0.0) * np.where(TF > 0, HF / np.where(TF > 0, TF, 1.0), 0.0)
         H[[lid in broken for lid in self.line_ids]] = 0.0

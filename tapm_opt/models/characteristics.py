@@ -18,8 +18,8 @@ import numpy as np
 
 from ..errors import ModelError
 
-__all__ = ["LineCharacteristics", "OffsetCurves", "TabulatedMooringLoad", "line_characteristics", "offset_curves",
-           "tension_source"]
+__all__ = ["LineCharacteristics", "LengthTables", "OffsetCurves", "TabulatedMooringLoad", "line_characteristics",
+           "offset_curves", "tension_source"]
 
 
 @dataclass(frozen=True)
@@ -229,17 +229,75 @@ or lost point, have the same lines): keyed by the line's physics (``MooringModel
 the range, the tolerance and the scale; at most :data:`_TABLES_MAX`, oldest dropped first."""
 
 
-def _shared_line_table(model: Any, i: int, lo: float, hi: float, *, rtol: float, H_ref: float) -> _LineTable:
-    """:func:`_line_table` of line ``i`` of ``model``, from the shared cache when an equal line
-    was tabulated over the same range before (a composite line's table costs about a second)."""
-    key = (model.line_key(i), float(lo), float(hi), float(rtol), float(H_ref))
+def _shared_line_table(model: Any, i: int, lo: float, hi: float, *, rtol: float, H_ref: float,
+                       L: float | None = None) -> _LineTable:
+    """:func:`_line_table` of line ``i`` of ``model`` (at the unstretched length ``L`` [m] if given,
+    ``MooringModel.line_solver``), from the shared cache when an equal line was tabulated over the
+    same range before (a composite line's table costs about a second)."""
+    key = (model.line_key(i), float(lo), float(hi), float(rtol), float(H_ref), None if L is None else float(L))
     tb = _TABLES.get(key)
     if tb is None:
-        tb = _line_table(model.line_solver(i), lo, hi, rtol=rtol, H_ref=H_ref)
+        tb = _line_table(model.line_solver(i, L=L), lo, hi, rtol=rtol, H_ref=H_ref)
         if len(_TABLES) >= _TABLES_MAX:
             _TABLES.pop(next(iter(_TABLES)))
         _TABLES[key] = tb
     return tb
+
+
+class LengthTables:
+    """A line's fairlead tensions at horizontal distances and unstretched lengths (a winch's), from
+    tables: ``(HF, TF) = tables(XF, L)`` [N] at ``XF`` [m] and ``L`` [m].
+
+    Per length on the grid ``L0 + k dL`` (k whole), the adaptive cubic Hermite tables of HF(XF) and
+    TF(XF) over [``lo``, ``hi``] (:func:`_line_table`, to ``rtol``; ``MooringModel.line_solver``
+    at that length: a composite line's change of length is its fairlead section's), built when a
+    length first needs them and shared in the process; at ``L``, linear between the two grid
+    lengths around it. Outside [lo, hi], or in an interval a table marks unusable, the line's exact
+    solve at ``L``. For a controller's model of a line whose exact solve is expensive (a composite
+    line: ~13 ms a call) and whose length changes every step; ``tests/test_winch_composite.py``
+    measures the interpolation in L against the exact solve.
+    """
+
+    def __init__(self, model: Any, i: int, lo: float, hi: float, *, L0: float, dL: float, H_ref: float,
+                 rtol: float = 1e-7):
+        if not (math.isfinite(dL) and dL > 0):
+            raise ValueError(f"dL = {dL!r} m must be a positive length")
+        self.model, self.i, self.lo, self.hi = model, int(i), float(lo), float(hi)
+        self.L0, self.dL, self.H_ref, self.rtol = float(L0), float(dL), float(H_ref), float(rtol)
+        self._tabs: dict[int, _LineTable] = {}
+        self.exact_calls = 0
+
+    def _table(self, k: int) -> _LineTable:
+        tb = self._tabs.get(k)
+        if tb is None:
+            tb = self._tabs[k] = _shared_line_table(self.model, self.i, self.lo, self.hi, rtol=self.rtol,
+                                                    H_ref=self.H_ref, L=self.L0 + k * self.dL)
+        return tb
+
+    def __call__(self, XF: float, L: float) -> tuple[float, float]:
+        XF, L = float(XF), float(L)
+        q = (L - self.L0) / self.dL
+        k = math.floor(q)
+        f = q - k
+        out = np.zeros(2)
+        for kk, wgt in ((k, 1.0 - f), (k + 1, f)):
+            if wgt == 0.0:
+                continue
+            tb = self._table(kk)
+            if not (tb.X[0] <= XF <= tb.X[-1]):
+                return self._exact(XF, L)
+            j = min(max(int(np.searchsorted(tb.X, XF, side="right")) - 1, 0), tb.X.size - 2)
+            if not tb.ok[j]:
+                return self._exact(XF, L)
+            x0, x1 = tb.X[j], tb.X[j + 1]
+            out[0] += wgt * _hermite(x0, x1, tb.H[j], tb.H[j + 1], tb.K[j], tb.K[j + 1], XF)
+            out[1] += wgt * _hermite(x0, x1, tb.T[j], tb.T[j + 1], tb.KT[j], tb.KT[j + 1], XF)
+        return float(out[0]), float(out[1])
+
+    def _exact(self, XF: float, L: float) -> tuple[float, float]:
+        self.exact_calls += 1
+        sol = self.model.line_solver(self.i, L=L)(XF)
+        return float(sol.HF), float(sol.TF)
 
 
 _KERNEL = None

@@ -35,6 +35,7 @@ changes wherever any section's regime changes).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -128,6 +129,20 @@ class CompositeLine:
             return None
         ids = np.array([-1 if t is None else k for k, t in enumerate(self.tables)], dtype=np.int64)
         return np.broadcast_to(ids, (m, self.n_sections)).ravel()
+
+    def with_length(self, length: float) -> "CompositeLine":
+        """The line with a total unstretched length of ``length`` [m] by its fairlead section's: a
+        winch pays that section out (``length`` longer) or hauls it in; the other sections and the
+        points keep theirs."""
+        top = float(self.L[-1]) + (float(length) - self.length)
+        if not (math.isfinite(top) and top > 0.0):
+            raise CatenaryError(f"length = {length!r} m leaves the fairlead section of this composite line (sections "
+                                f"L = {self.L.tolist()} m) {top:g} m: it must stay longer than the other sections")
+        if top == float(self.L[-1]):
+            return self
+        L = np.array(self.L, dtype=float)
+        L[-1] = top
+        return CompositeLine(readonly(L), self.EA, self.w, self.CB, self.W, tables=self.tables)
 
     def force_scale(self) -> float:
         """A force scale [N] of the line: its weights in water, for tolerances."""

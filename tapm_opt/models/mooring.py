@@ -270,17 +270,22 @@ class MooringModel:
         """True when any line is composite (sections and points)."""
         return any(c is not None for c in self.composite)
 
-    def line_solver(self, i: int, ZF: float | None = None):
+    def line_solver(self, i: int, ZF: float | None = None, *, L: float | None = None):
         """Quasi-static solution of line ``i`` at horizontal anchor-fairlead distances ``XF`` (any
         shape) [m]: a function ``XF -> CatenarySolution`` (:func:`tapm_opt.models.catenary.solve`
         for a homogeneous line, :func:`tapm_opt.models.composite.solve` for a composite one), at the
-        line's fairlead height ``ZF`` unless another is given."""
+        line's fairlead height ``ZF`` unless another is given, and with the unstretched length ``L``
+        [m] (a winch's) if given: a composite line's change of length is its fairlead section's
+        (:meth:`CompositeLine.with_length <tapm_opt.models.composite.CompositeLine.with_length>`)."""
         zf = float(self.ZF[i]) if ZF is None else ZF
         hA = float(self.h_A[i])
         c = self.composite[i] if self.composite else None
         if c is None:
-            L, EA, w, CB = (float(a[i]) for a in (self.L, self.EA, self.w, self.CB))
-            return lambda XF: catenary.solve(XF, zf, L, EA, w, CB=CB, h_A=hA)
+            EA, w, CB = (float(a[i]) for a in (self.EA, self.w, self.CB))
+            Li = float(self.L[i]) if L is None else float(L)
+            return lambda XF: catenary.solve(XF, zf, Li, EA, w, CB=CB, h_A=hA)
+        if L is not None:
+            c = c.with_length(L)
         return lambda XF: _composite.solve(XF, zf, c, h_A=hA)
 
     def line_key(self, i: int) -> tuple:
@@ -292,8 +297,8 @@ class MooringModel:
 
     def solve_xf(self, XF, *, L=None) -> catenary.CatenarySolution:
         """Quasi-static solution of every line at horizontal distances ``XF`` [m] of shape
-        (..., n) (lines on the last axis); ``L`` (n,) [m] replaces the homogeneous lines'
-        unstretched lengths (a winch's), composite lines keep theirs."""
+        (..., n) (lines on the last axis); ``L`` (n,) [m] replaces the lines' unstretched lengths
+        (a winch's; a composite line's change is its fairlead section's, :meth:`line_solver`)."""
         XF = np.asarray(XF, dtype=float)
         Ls = self.L if L is None else np.asarray(L, dtype=float)
         if not self.has_composite:
@@ -301,14 +306,26 @@ class MooringModel:
         XF = np.broadcast_to(XF, XF.shape[:-1] + (self.n_lines,)) if XF.ndim else np.full(self.n_lines, XF)
         idx = np.broadcast_to(np.arange(self.n_lines), XF.shape)
         homo = np.array([c is None for c in self.composite])
-        if L is None or not homo.any():
+        if L is None:
             return self.solve_at(XF, idx)
-        # winch lengths on the homogeneous lines: their catenary directly, the composite ones as usual
-        sol_c = self.solve_at(XF, idx)
-        sol_h = catenary.solve(XF, self.ZF, Ls, self.EA, self.w, CB=self.CB, h_A=self.h_A)
-        pick = np.broadcast_to(homo, XF.shape)
-        out = {k: np.where(pick, getattr(sol_h, k), getattr(sol_c, k)) for k in _SOLUTION_ARRAYS}
-        return catenary.CatenarySolution(iterations=max(sol_c.iterations, sol_h.iterations), **out)
+        # winch lengths: the homogeneous lines' catenary directly, each composite line at its length
+        # (lines of equal physics and length in one call)
+        if homo.any():
+            sol = catenary.solve(XF, self.ZF, Ls, self.EA, self.w, CB=self.CB, h_A=self.h_A)
+            out = {k: np.array(getattr(sol, k)) for k in _SOLUTION_ARRAYS}
+            it = sol.iterations
+        else:
+            out = {k: np.zeros(XF.shape, dtype=np.int64 if k == "regime" else float) for k in _SOLUTION_ARRAYS}
+            it = 0
+        groups: dict = {}
+        for i in np.flatnonzero(~homo):
+            groups.setdefault((self.line_key(int(i)), float(Ls[i])), []).append(int(i))
+        for (_, Li), members in groups.items():
+            si = self.line_solver(members[0], L=Li)(XF[..., members])
+            it = max(it, si.iterations)
+            for k in _SOLUTION_ARRAYS:
+                out[k][..., members] = getattr(si, k)
+        return catenary.CatenarySolution(iterations=it, **out)
 
     def solve_at(self, XF, line) -> catenary.CatenarySolution:
         """Quasi-static solution at horizontal distances ``XF`` [m] of the lines ``line`` (indices,
