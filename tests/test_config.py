@@ -436,9 +436,22 @@ def test_ea_and_its_table_must_agree_and_one_of_them_be_given():
     assert "is missing: give the axial stiffness EA" in issue_at(issues_of(data), "line_types[0].EA").message
 
 
-def test_a_winch_on_a_line_of_a_table_is_refused():
-    message = issue_at(issues_of(tabled(winch=True)), "lines[0].winch_max_rate").message
-    assert "has a tension-strain table (nonlinear EA)" in message
+def test_a_winch_on_a_line_of_a_table_pays_out_its_one_section():
+    """A line of a tension-strain table is a one-section composite line: its winch is accepted, and
+    the model at another length is the catenary of the table at that length."""
+    from tapm_opt.models import catenary
+
+    sc = scenario_from_dict(tabled(winch=True))
+    assert sc.lines[0].winch_max_rate > 0
+    m = MooringModel.from_scenario(sc)
+    _, _, XF = m.spans(np.zeros(3))
+    L = np.array(m.L, float)
+    L[0] += 12.0
+    sol = m.solve_xf(XF, L=L)
+    ref = catenary.solve(XF[0], float(m.ZF[0]), L[0], float(m.EA[0]), float(m.w[0]), CB=float(m.CB[0]),
+                         h_A=float(m.h_A[0]), table=sc.line_types[0].strain_table)
+    assert float(sol.TF[0]) == pytest.approx(float(ref.TF), rel=1e-12)
+    assert sol.TF[0] < m.solve_xf(XF).TF[0]
 
 
 def test_plausibility_reads_the_strain_at_mbs_from_the_table():

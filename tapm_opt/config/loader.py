@@ -867,11 +867,6 @@ def validate(sc: Scenario) -> list[ScenarioIssue]:
                 f"{p}.type", f"= {ln.type!r} is not a line type" + (f"; did you mean {hint[0]!r}?" if hint else
                                                                      f"; defined: {sorted(type_ids)}")))
             continue
-        if not ln.sections and ln.winch_max_rate > 0 and sc.line_type(ln).EA_table is not None:
-            issues.append(ScenarioIssue(f"{p}.winch_max_rate", (
-                f"= {ln.winch_max_rate:g} m/s: line type {ln.type!r} has a tension-strain table (nonlinear EA), and "
-                "the winch in tapm_opt pays out a line of constant EA; give 0")))
-            continue
         if len(ln.anchor) not in (2, 3):
             issues.append(ScenarioIssue(f"{p}.anchor", f"must be (x, y) or (x, y, z), got {len(ln.anchor)} numbers"))
             continue
