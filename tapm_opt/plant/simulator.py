@@ -579,6 +579,21 @@ class Plant:
         self._fused = (kc, cur_fn, (pre, geo, lines))
         return True
 
+    def _fused_prologue(self, h: float) -> tuple[int, np.ndarray, np.ndarray]:
+        """What the fused paths need before their compiled calls for outer steps of ``h`` [s]: the
+        thrusters' lag factors for ``h``, the FEM substeps, and the node positions and velocities
+        in the kernels' layout (copied only when set from outside)."""
+        th = self.thrusters
+        if th._dt_decay != h:
+            th._lag(h)
+        n_sub = self._n_sub if h == self._h_last and self._dt_stable is not None else self._substeps(h, False)
+        fem = self.mooring.fem
+        r, v = fem.r, fem.v
+        if r is not self._r_last or v is not self._v_last:  # set from outside: the kernel's layout
+            shape = (fem.n_nodes, 3)
+            r, v = _as_f64(r, shape, "r"), _as_f64(v, shape, "v")
+        return n_sub, r, v
+
     def _fused_step(self, h: float, t0: float, t1: float, sums) -> None:
         """:meth:`_outer_step` in two compiled calls, :func:`~tapm_opt.plant.fem_kernel.plant_pre_step`
         (thrusters, loads, vessel, wave-frequency pose, riser, current at the nodes) and
@@ -588,13 +603,7 @@ class Plant:
         m = self.mooring
         fem = m.fem
         th = self.thrusters
-        if th._dt_decay != h:
-            th._lag(h)
-        n_sub = self._n_sub if h == self._h_last and self._dt_stable is not None else self._substeps(h, False)
-        r, v = fem.r, fem.v
-        if r is not self._r_last or v is not self._v_last:  # set from outside: the kernel's layout
-            shape = (fem.n_nodes, 3)
-            r, v = _as_f64(r, shape, "r"), _as_f64(v, shape, "v")
+        n_sub, r, v = self._fused_prologue(h)
         V0, q0, S0, S1, C0 = sums if sums is not None else _NO_SUMS
         kern = _fem_kernel()
         vc = m._vc
@@ -676,13 +685,7 @@ class Plant:
         else:
             sums = np.zeros((n, 5))
         th = self.thrusters
-        if th._dt_decay != h:
-            th._lag(h)
-        n_sub = self._n_sub if h == self._h_last and self._dt_stable is not None else self._substeps(h, False)
-        r, v = fem.r, fem.v
-        if r is not self._r_last or v is not self._v_last:  # set from outside: the kernel's layout
-            shape = (fem.n_nodes, 3)
-            r, v = _as_f64(r, shape, "r"), _as_f64(v, shape, "v")
+        n_sub, r, v = self._fused_prologue(h)
         pre, geo, lines = self._fused[2]
         cmd = self._cmd
         steps0 = self._steps
