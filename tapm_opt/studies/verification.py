@@ -1,0 +1,395 @@
+"""Statistics for a class society's mooring-line limit-state checks (DNV-OS-E301).
+
+Pure numpy/scipy functions, no study machinery: the characteristic tension from several
+realisations (Gumbel most probable maximum), the partial safety factors of the line strength
+check (ULS/ALS), the utilisation against the characteristic capacity, and the fatigue damage of
+a tension record (rainflow counting, T-N curves, Miner's sum) with its annual value and the
+fatigue life.
+
+Units: tensions and tension ranges in N, diameters in m, areas in m², stresses in MPa,
+durations in s, lives in years.
+
+Sources and what is unchecked
+-----------------------------
+Every number of a standard below (partial safety factors, capacity factor 0.95, T-N curves,
+nominal areas) is transcribed from the project's standards notes, which were themselves read
+from **secondary transcriptions** of DNV-OS-E301 (October 2008 edition for the strength check;
+"as commonly transcribed" for the fatigue curves). None has been checked against the standard
+itself; the wire-rope T-N curves in particular come from secondary sources. The safety factors
+and the capacity factor are the ones of :mod:`tapm_opt.standards` (one definition, shared with
+the KPIs' line check and the capability envelopes). See ``docs/verification.md``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from ..errors import TapmError
+from ..standards import DNV_CAPACITY_FACTOR, DNV_E301_2008_FACTORS, DNV_E301_QUASI_STATIC_FACTORS
+
+__all__ = [
+    "VerificationError",
+    "GumbelFit",
+    "gumbel_mpm",
+    "MIN_REALISATIONS",
+    "RECOMMENDED_REALISATIONS",
+    "recommended_realisations",
+    "partial_safety_factors",
+    "characteristic_tension",
+    "utilisation",
+    "TNCurve",
+    "TN_CURVES",
+    "nominal_area",
+    "rainflow_ranges",
+    "miner_damage",
+    "SECONDS_PER_YEAR",
+    "annual_damage",
+    "fatigue_life",
+]
+
+
+class VerificationError(TapmError, ValueError):
+    """An input of a limit-state statistic is invalid; the message names the argument and value."""
+
+
+# -- helpers -------------------------------------------------------------------------------------
+
+def _finite_array(name: str, x: object, *, min_len: int = 0) -> np.ndarray:
+    try:
+        a = np.asarray(x, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise VerificationError(f"{name}: expected a sequence of numbers, got {x!r}") from exc
+    if a.ndim != 1:
+        raise VerificationError(f"{name}: expected a 1-D sequence, got an array of shape {a.shape}")
+    if a.size < min_len:
+        raise VerificationError(f"{name}: need at least {min_len} values, got {a.size} ({a.tolist()!r})")
+    bad = np.flatnonzero(~np.isfinite(a))
+    if bad.size:
+        i = int(bad[0])
+        raise VerificationError(f"{name}[{i}] = {float(a[i])!r} is not finite")
+    return a
+
+
+def _finite(name: str, x: object, *, positive: bool = False, nonnegative: bool = False) -> float:
+    try:
+        v = float(x)  # type: ignore[arg-type]
+    except (TypeError, ValueError) as exc:
+        raise VerificationError(f"{name}: expected a number, got {x!r}") from exc
+    if not math.isfinite(v):
+        raise VerificationError(f"{name} = {v!r} is not finite")
+    if positive and not v > 0:
+        raise VerificationError(f"{name} = {v!r} must be > 0")
+    if nonnegative and not v >= 0:
+        raise VerificationError(f"{name} = {v!r} must be >= 0")
+    return v
+
+
+# -- characteristic tension: Gumbel most probable maximum -----------------------------------------
+
+#: The Euler-Mascheroni constant.
+EULER_GAMMA = 0.5772156649015329
+
+
+class GumbelFit(NamedTuple):
+    """A Gumbel (type I, maxima) fit to per-realisation maxima.
+
+    ``mpm`` [N] is the most probable maximum, the mode of the fitted distribution, which for the
+    Gumbel is its location ``mu`` [N]; ``beta`` [N] is the scale; ``method`` "moments" or "mle";
+    ``n`` the number of maxima fitted.
+    """
+
+    mpm: float
+    mu: float
+    beta: float
+    method: str
+    n: int
+
+
+def gumbel_mpm(maxima: Sequence[float] | np.ndarray, method: str = "moments") -> GumbelFit:
+    """Most probable maximum [N] of the per-realisation maxima, from a fitted Gumbel distribution.
+
+    Parameters
+    ----------
+    maxima : sequence of float
+        The maximum tension [N] of each realisation (one storm record per seed, e.g. 3 h). At
+        least 2, all finite.
+    method : {"moments", "mle"}
+        ``"moments"``: method of moments, ``beta = s sqrt(6) / pi`` and ``mu = mean - gamma beta``
+        with ``s`` the sample standard deviation (ddof = 1) and ``gamma`` the Euler-Mascheroni
+        constant (Gumbel mean ``mu + gamma beta``, variance ``pi^2 beta^2 / 6``).
+        ``"mle"``: maximum likelihood, :func:`scipy.stats.gumbel_r.fit`.
+
+    Returns
+    -------
+    GumbelFit
+        ``(mpm, mu, beta, method, n)``; ``mpm == mu``, the mode of the Gumbel density
+        ``f(x) = exp(-(z + exp(-z))) / beta``, ``z = (x - mu) / beta``. With all maxima equal the
+        fit is degenerate: ``beta = 0`` and ``mu`` the common value (both methods).
+
+    Source: the characteristic dynamic tension is the most probable maximum of the storm, estimated
+    from several realisations as the mode of a Gumbel fitted to their maxima (the project's notes on
+    DNV-OS-E301, secondary transcription). The moment formulas are the standard Gumbel moments; the
+    recommendation of ten 3-hour records fitted by maximum likelihood is the SNAME bulletin's as
+    quoted by Bai, *Marine Structural Design* (secondary). See :func:`recommended_realisations`.
+    """
+    x = _finite_array("maxima", maxima, min_len=2)
+    if method not in ("moments", "mle"):
+        raise VerificationError(f"method = {method!r}: expected 'moments' or 'mle'")
+    n = int(x.size)
+    if float(np.ptp(x)) == 0.0:
+        v = float(x[0])
+        return GumbelFit(v, v, 0.0, method, n)
+    if method == "moments":
+        beta = float(np.std(x, ddof=1)) * math.sqrt(6.0) / math.pi
+        mu = float(np.mean(x)) - EULER_GAMMA * beta
+    else:
+        from scipy.stats import gumbel_r
+
+        # scale the data to order 1 so the optimiser's tolerances do not depend on N vs kN
+        c, s = float(np.mean(x)), float(np.std(x))
+        loc, scale = gumbel_r.fit((x - c) / s)
+        mu, beta = c + s * float(loc), s * float(scale)
+    return GumbelFit(mu, mu, beta, method, n)
+
+
+#: Fewest realisations accepted without a warning of "below the floor" (the project's requirement;
+#: not a number from a standard).
+MIN_REALISATIONS = 3
+#: Realisations recommended: ten 3-hour records (SNAME bulletin, as quoted by Bai, Marine
+#: Structural Design; a secondary source). The number DNV-OS-E301 (October 2008) asks for is
+#: unsourced here.
+RECOMMENDED_REALISATIONS = 10
+
+
+def recommended_realisations(n_given: int) -> tuple[int, str | None]:
+    """How many realisations (seeds) are recommended for the Gumbel fit, and a warning if fewer
+    were given.
+
+    Returns ``(RECOMMENDED_REALISATIONS, warning)``; ``warning`` is ``None`` when
+    ``n_given >= RECOMMENDED_REALISATIONS``, else a sentence saying which threshold is not met and
+    where it comes from: below :data:`MIN_REALISATIONS` (3, the project's floor) the estimate is
+    flagged as not usable for a check; between 3 and 9 as fewer than recommended. The 10 is the
+    SNAME bulletin's ten 3-hour records as quoted by Bai, *Marine Structural Design* (secondary);
+    the number the DNV-OS-E301 edition asks for is **unsourced** in this project.
+    """
+    if isinstance(n_given, bool) or not isinstance(n_given, (int, np.integer)) or n_given < 0:
+        raise VerificationError(f"n_given = {n_given!r}: expected a non-negative integer")
+    n = int(n_given)
+    rec = RECOMMENDED_REALISATIONS
+    if n >= rec:
+        return rec, None
+    src = ("10 per the SNAME bulletin as quoted by Bai, Marine Structural Design (secondary source); "
+           "the number DNV-OS-E301 asks for is unsourced here")
+    if n < MIN_REALISATIONS:
+        return rec, (f"only {n} realisation(s): below the floor of {MIN_REALISATIONS}; the most probable "
+                     f"maximum is not fit for a limit-state check (recommended: {src})")
+    return rec, f"only {n} realisations: fewer than recommended ({src})"
+
+
+# -- strength check: partial safety factors (DNV-OS-E301, October 2008) ---------------------------
+
+def _class_and_state(consequence_class: object, limit_state: object) -> tuple[int, str]:
+    if isinstance(consequence_class, bool) or consequence_class not in (1, 2):
+        raise VerificationError(f"consequence_class = {consequence_class!r}: expected 1 or 2")
+    ls = limit_state.upper() if isinstance(limit_state, str) else limit_state
+    if ls not in ("ULS", "ALS"):
+        raise VerificationError(f"limit_state = {limit_state!r}: expected 'ULS' or 'ALS'")
+    return int(consequence_class), str(ls)  # type: ignore[arg-type]
+
+
+def partial_safety_factors(consequence_class: int, limit_state: str,
+                           analysis: str = "dynamic") -> tuple[float, float]:
+    """Partial safety factors ``(gamma_mean, gamma_dyn)`` of the DNV-OS-E301 line strength check.
+
+    ``consequence_class`` 1 or 2; ``limit_state`` "ULS" (intact) or "ALS" (one line broken);
+    ``analysis`` "dynamic" or "quasi-static". For a quasi-static analysis the standard gives one
+    factor on the whole tension; it is returned twice, ``(gamma, gamma)``, so that
+    :func:`characteristic_tension` applies it to ``T_mean + T_dyn``.
+
+    ==========  ============  =============  =============
+    limit state analysis      class 1        class 2
+    ==========  ============  =============  =============
+    ULS         dynamic       1.10 / 1.50    1.40 / 2.10
+    ALS         dynamic       1.00 / 1.10    1.00 / 1.25
+    ULS         quasi-static  1.70           2.50
+    ALS         quasi-static  1.10           1.35
+    ==========  ============  =============  =============
+
+    Source: DNV-OS-E301, October 2008 edition, as transcribed in the project's standards notes
+    from secondary sources; **unchecked** against the standard. The values are those of
+    :data:`tapm_opt.standards.DNV_E301_2008_FACTORS` and ``DNV_E301_QUASI_STATIC_FACTORS``. Not
+    applied here: the class-1 common factor 1.3 (see :func:`characteristic_tension`) and the factor
+    1.2 on all factors for non-redundant single-point moorings.
+    """
+    cc, ls = _class_and_state(consequence_class, limit_state)
+    if analysis == "dynamic":
+        return DNV_E301_2008_FACTORS[(ls, cc)]
+    if analysis == "quasi-static":
+        g = DNV_E301_QUASI_STATIC_FACTORS[(ls, cc)]
+        return g, g
+    raise VerificationError(f"analysis = {analysis!r}: expected 'dynamic' or 'quasi-static'")
+
+
+def characteristic_tension(T_mean: float, T_dyn: float, consequence_class: int, limit_state: str,
+                           analysis: str = "dynamic") -> float:
+    """Design line tension [N] of the strength check, ``gamma_mean T_mean + gamma_dyn T_dyn``.
+
+    ``T_mean`` [N] is the characteristic mean tension (>= 0) and ``T_dyn`` [N] the characteristic
+    dynamic tension (>= 0), ``T_dyn = T_mpm - T_mean`` with ``T_mpm`` the most probable maximum
+    (:func:`gumbel_mpm`). The factors are :func:`partial_safety_factors`; the check is
+    ``S_C >= characteristic_tension(...)``, i.e. :func:`utilisation` <= 1.
+
+    Source: DNV-OS-E301 (October 2008), secondary transcription, unchecked.
+
+    **Not applied:** the class-1 rule "with the mean tension above 2/3 of the dynamic tension a
+    single factor 1.3 applies". As transcribed it does not say whether it holds in ULS only or in
+    ALS too, nor whether it replaces the two factors or bounds them (for 2/3 T_dyn < T_mean < T_dyn
+    the replacement gives a *lower* design tension than 1.10/1.50). The KPIs' line check
+    (:mod:`tapm_opt.studies.kpis`) applies it as a replacement in ULS class 1 by default; results of
+    this function therefore differ from that check in that case.
+    """
+    tm = _finite("T_mean", T_mean, nonnegative=True)
+    td = _finite("T_dyn", T_dyn, nonnegative=True)
+    g_mean, g_dyn = partial_safety_factors(consequence_class, limit_state, analysis)
+    return g_mean * tm + g_dyn * td
+
+
+def utilisation(T_c: float, MBS: float, capacity_factor: float = DNV_CAPACITY_FACTOR) -> float:
+    """Utilisation of the strength check, ``T_c / S_C`` with ``S_C = capacity_factor * MBS``.
+
+    ``T_c`` [N] the design tension (:func:`characteristic_tension`, >= 0), ``MBS`` [N] the minimum
+    breaking strength (> 0). ``capacity_factor`` defaults to 0.95, the characteristic capacity of
+    chain ``S_C = 0.95 MBS`` (DNV-OS-E301 definition, October 2008, secondary transcription,
+    unchecked); pass the factor of the component's own definition for wire or fibre rope
+    (0 < factor <= 1). A value <= 1 passes.
+    """
+    tc = _finite("T_c", T_c, nonnegative=True)
+    mbs = _finite("MBS", MBS, positive=True)
+    cf = _finite("capacity_factor", capacity_factor, positive=True)
+    if cf > 1.0:
+        raise VerificationError(f"capacity_factor = {cf!r} must be in (0, 1]")
+    return tc / (cf * mbs)
+
+
+# -- fatigue: T-N curves, rainflow, Miner ---------------------------------------------------------
+
+@dataclass(frozen=True)
+class TNCurve:
+    """A T-N curve ``n_c(s) = a_D s^(-m)``: cycles to failure at the nominal stress range ``s``
+    [MPa]. ``bars`` is how many bar cross-sections of diameter ``d`` make the nominal area
+    (2 for a chain link, 1 for a wire rope)."""
+
+    m: float
+    a_D: float
+    bars: int
+
+
+#: T-N curves of DNV-OS-E301 as commonly transcribed (project standards notes; edition unchecked;
+#: the wire-rope values from secondary sources, unchecked).
+TN_CURVES: dict[str, TNCurve] = {
+    "studlink_chain": TNCurve(m=3.0, a_D=1.2e11, bars=2),
+    "studless_chain": TNCurve(m=3.0, a_D=6.0e10, bars=2),
+    "six_strand_wire": TNCurve(m=4.0, a_D=3.4e14, bars=1),
+    "spiral_strand_wire": TNCurve(m=4.8, a_D=1.7e17, bars=1),
+}
+
+
+def nominal_area(component: str, d: float) -> float:
+    """Nominal cross-section area [m²] used to turn a tension range into a stress range.
+
+    Chain (``"studlink_chain"``, ``"studless_chain"``): the two bars of a link, ``2 pi d^2 / 4``
+    with ``d`` [m] the bar (nominal chain) diameter. Wire rope (``"six_strand_wire"``,
+    ``"spiral_strand_wire"``): ``pi d^2 / 4`` with ``d`` the nominal rope diameter (the project's
+    convention; the standard's definition of the wire's nominal area is unchecked).
+    Source: DNV-OS-E301 as transcribed in the project's standards notes (chain).
+    """
+    if component not in TN_CURVES:
+        raise VerificationError(f"component = {component!r}: expected one of {', '.join(TN_CURVES)}")
+    dd = _finite("d", d, positive=True)
+    return TN_CURVES[component].bars * math.pi * dd * dd / 4.0
+
+
+def rainflow_ranges(series: Sequence[float] | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rainflow-counted ranges of a record (ASTM E1049-85, rainflow counting, section 5.4.4).
+
+    ``series`` [N, or any unit]: the tension record, at least 2 finite samples. Returns
+    ``(ranges, counts)``, ranges ascending in the unit of ``series``, counts in cycles with each
+    half cycle (the residue, and ranges containing the start point) counted as 0.5. Equal ranges
+    are merged; ranges of zero (a constant record) are left out, as they do no damage. Counting
+    is done by the ``rainflow`` package (``rainflow.count_cycles``), which reduces the record to
+    its reversals first.
+    """
+    import rainflow
+
+    x = _finite_array("series", series, min_len=2)
+    pairs = [(r, n) for r, n in rainflow.count_cycles(x) if r > 0]
+    if not pairs:
+        return np.zeros(0), np.zeros(0)
+    r, n = zip(*pairs)
+    return np.asarray(r, dtype=float), np.asarray(n, dtype=float)
+
+
+def miner_damage(series: Sequence[float] | np.ndarray, a_D: float, m: float, area: float) -> float:
+    """Miner's fatigue damage of a tension record (dimensionless).
+
+    ``D = sum_i n_i / n_c(s_i) = sum_i n_i s_i^m / a_D``, with ``(R_i, n_i)`` the rainflow ranges
+    [N] and counts of ``series`` (:func:`rainflow_ranges`), ``s_i = R_i / area / 1e6`` the nominal
+    stress range [MPa], ``area`` [m²] the nominal area (:func:`nominal_area`), and ``a_D``, ``m``
+    the T-N curve (:data:`TN_CURVES`). Source: DNV-OS-E301 fatigue limit state as transcribed in
+    the project's standards notes (unchecked); counting per ASTM E1049.
+    """
+    aD = _finite("a_D", a_D, positive=True)
+    mm = _finite("m", m, positive=True)
+    A = _finite("area", area, positive=True)
+    ranges, counts = rainflow_ranges(series)
+    s = ranges / A / 1e6
+    return float(np.sum(counts * s ** mm) / aD)
+
+
+#: Seconds in a year (365.25 days).
+SECONDS_PER_YEAR = 365.25 * 24.0 * 3600.0
+
+
+def annual_damage(damages: Sequence[float] | np.ndarray, probabilities: Sequence[float] | np.ndarray,
+                  record_duration: float) -> float:
+    """Annual fatigue damage [1/year] from the damage of one record per sea state.
+
+    ``D_year = (SECONDS_PER_YEAR / record_duration) * sum_i p_i D_i``, with ``D_i`` the damage of a
+    record of ``record_duration`` [s] in sea state ``i`` (:func:`miner_damage`, >= 0) and ``p_i``
+    its probability of occurrence (the share of the year, each in [0, 1], summing to at most 1; a
+    sum below 1 leaves the rest of the year undamaged). Source: damage summed over the sea states
+    weighted by their occurrence (DNV-OS-E301 FLS, project standards notes).
+    """
+    D = _finite_array("damages", damages, min_len=1)
+    p = _finite_array("probabilities", probabilities, min_len=1)
+    if D.size != p.size:
+        raise VerificationError(f"probabilities: {p.size} values for {D.size} damages; give one per sea state")
+    if np.any(D < 0):
+        i = int(np.flatnonzero(D < 0)[0])
+        raise VerificationError(f"damages[{i}] = {float(D[i])!r} must be >= 0")
+    if np.any((p < 0) | (p > 1)):
+        i = int(np.flatnonzero((p < 0) | (p > 1))[0])
+        raise VerificationError(f"probabilities[{i}] = {float(p[i])!r} must be in [0, 1]")
+    if p.sum() > 1.0 + 1e-9:
+        raise VerificationError(f"probabilities sum to {float(p.sum())!r}, more than 1")
+    T = _finite("record_duration", record_duration, positive=True)
+    return float(np.dot(p, D)) * SECONDS_PER_YEAR / T
+
+
+def fatigue_life(annual_damage: float, design_fatigue_factor: float) -> float:
+    """Fatigue life [years], ``1 / (DFF * D_year)``; ``inf`` for zero damage.
+
+    ``annual_damage`` [1/year] (:func:`annual_damage`, >= 0); ``design_fatigue_factor`` (DFF,
+    >= 1) multiplies the damage (values of 5-10 are quoted where the line cannot be inspected;
+    project standards notes, secondary). The line passes when the life is at least the design life.
+    """
+    D = _finite("annual_damage", annual_damage, nonnegative=True)
+    dff = _finite("design_fatigue_factor", design_fatigue_factor, positive=True)
+    if dff < 1.0:
+        raise VerificationError(f"design_fatigue_factor = {dff!r} must be >= 1")
+    return math.inf if D == 0.0 else 1.0 / (dff * D)
