@@ -473,6 +473,39 @@ def test_a_trial_drawing_parameters_already_run_is_pruned_not_run(pd_kind, tmp_p
     assert calls[:3] == first
 
 
+def test_a_trial_killed_before_its_first_heartbeat_does_not_hold_a_resumed_run(pd_kind, tmp_path, monkeypatch):
+    """A worker killed between starting a trial and its first heartbeat leaves a running trial
+    without a heartbeat, which optuna's stale-trial check never fails. A resumed run whose budget
+    that trial holds gives it one heartbeat, fails it after the grace period and finishes the
+    budget, instead of waiting for ever (measured: it waited until killed)."""
+    import threading
+
+    import optuna
+
+    from tapm_opt.studies import tuning
+    from tapm_opt.studies.tuning import WorkerJob, create_study, run_worker
+
+    monkeypatch.setattr(tuning, "HEARTBEAT", 1)
+    monkeypatch.setattr(tuning, "GRACE", 2)
+    settings = TuningSettings(objectives=(Objective.parse("thrust_energy"),), trials=3, seed=1)
+    params, fixed = search_space("pd_test", {})
+    url = f"sqlite:///{tmp_path / 't.db'}"
+    create_study(url, "dead", settings, {})
+    job = WorkerJob(url, "dead", TrialEvaluator({"type": "pd_test"}, params, fixed, settings, _lqr_evaluate), trials=2)
+    run_worker(job)
+    st = optuna.load_study(study_name="dead", storage=tuning._storage(url))
+    st.ask()                         # the dead worker's trial: running, never beaten
+    assert [t.state.name for t in st.get_trials()].count("RUNNING") == 1
+    done = []
+    worker = threading.Thread(target=lambda: done.append(run_worker(dataclasses.replace(job, trials=3))),
+                              daemon=True)
+    worker.start()
+    worker.join(timeout=120)
+    assert not worker.is_alive(), "the resumed run waited for the dead trial"
+    states = [t.state.name for t in st.get_trials()]
+    assert states.count("COMPLETE") == 3 and states.count("FAIL") == 1 and "RUNNING" not in states
+
+
 def test_selection_rules_are_tried_in_order_and_name_the_one_that_chose():
     from tapm_opt.studies.tuning import TrialRow, select_with
     from tapm_opt.studies.tuning_space import TuningError, tuning_settings

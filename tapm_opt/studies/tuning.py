@@ -281,15 +281,34 @@ def run_worker(job: WorkerJob) -> int:
     study = optuna.load_study(study_name=job.study_name, storage=storage,
                               sampler=_sampler(ev.settings, bool(ev.settings.constraints), job.worker, held))
     before = _count(study, ("COMPLETE",))
+    beaten: set[int] = set()
     while _count(study, ("COMPLETE",)) < job.trials:
         _check_failures(study, job.trials)
         if _count(study, ("COMPLETE", "RUNNING")) >= job.trials:
+            _beat_once(study, storage, beaten)
             optuna.storages.fail_stale_trials(study)   # a dead worker's trial: failed after its grace
             time.sleep(min(HEARTBEAT, 2.0))
             continue
         study.optimize(_Budgeted(ev, job.trials), callbacks=[_Enough(job.trials), _GiveUp(job.trials)],
                        catch=(Exception,), gc_after_trial=False)
     return _count(study, ("COMPLETE",)) - before
+
+
+def _beat_once(study: Any, storage: Any, beaten: set[int]) -> None:
+    """One heartbeat for each running trial not seen running before (``beaten``, updated): a
+    worker killed between starting a trial and its first heartbeat leaves a trial that optuna's
+    ``fail_stale_trials`` never fails (it has no heartbeat to grow old), and a resumed run would
+    wait for it for ever. With this beat it fails :data:`GRACE` seconds later; a live trial beats
+    on its own, so one extra beat does not fail it."""
+    from optuna.trial import TrialState
+
+    if not hasattr(storage, "record_heartbeat"):
+        return
+    sid = storage.get_study_id_from_name(study.study_name)
+    for t in study.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
+        if t.number not in beaten:
+            beaten.add(t.number)
+            storage.record_heartbeat(storage.get_trial_id_from_study_id_trial_number(sid, t.number))
 
 
 def _worker_entry(job: WorkerJob) -> int:   # a process pool's target (module level: picklable)
