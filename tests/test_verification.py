@@ -93,10 +93,29 @@ def test_characteristic_tension_and_utilisation_hand_example():
     assert v.characteristic_tension(t_mean, 1.5e6, 1, "ULS", "quasi-static") == pytest.approx(4.25e6, rel=1e-12)
 
 
-def test_class1_common_factor_is_not_applied():
-    # T_mean = 1.2 MN > 2/3 * T_dyn = 1.0 MN, ULS class 1: 1.10 * 1.2 + 1.50 * 1.5 = 1.32 + 2.25 = 3.57 MN
-    # (the common factor would give 1.3 * 2.7 = 3.51 MN)
-    assert v.characteristic_tension(1.2e6, 1.5e6, 1, "ULS") == pytest.approx(3.57e6, rel=1e-12)
+def test_class1_common_factor_replaces_the_two_factors_in_uls_class_1():
+    # T_mean = 1.2 MN > 2/3 * T_dyn = 1.0 MN, ULS class 1: the common factor, 1.3 * 2.7 = 3.51 MN,
+    # where the two factors would give 1.10 * 1.2 + 1.50 * 1.5 = 1.32 + 2.25 = 3.57 MN
+    assert v.characteristic_tension(1.2e6, 1.5e6, 1, "ULS") == pytest.approx(3.51e6, rel=1e-12)
+    assert v.characteristic_tension(1.2e6, 1.5e6, 1, "ULS", common_factor=False) == pytest.approx(3.57e6, rel=1e-12)
+    # not in class 2, not in ALS, not below 2/3 T_dyn: T_mean = 0.9 MN < 1.0 MN -> 0.99 + 2.25 = 3.24 MN
+    assert v.characteristic_tension(1.2e6, 1.5e6, 2, "ULS") == pytest.approx(1.4 * 1.2e6 + 2.1 * 1.5e6, rel=1e-12)
+    assert v.characteristic_tension(1.2e6, 1.5e6, 1, "ALS") == pytest.approx(1.0 * 1.2e6 + 1.1 * 1.5e6, rel=1e-12)
+    assert v.characteristic_tension(0.9e6, 1.5e6, 1, "ULS") == pytest.approx(3.24e6, rel=1e-12)
+
+
+def test_the_kpis_line_check_is_this_design_tension():
+    """The KPIs' DNV line check (kpis._dnv_ratio) is characteristic_tension / utilisation on the
+    record's time-weighted mean and its maximum, with and without the common factor."""
+    from tapm_opt.studies import kpis
+
+    t = np.linspace(0.0, 100.0, 101)
+    T = 2.0e6 + 0.5e6 * np.sin(t / 7.0)
+    t_mean = kpis._tmean(t, T)
+    for cf in (True, False):
+        want = v.utilisation(v.characteristic_tension(t_mean, T.max() - t_mean, 1, "ULS", common_factor=cf), 17e6)
+        assert kpis._dnv_ratio(t, T, 17e6, "ULS", 1, cf) == want
+    assert kpis._dnv_ratio(t, T, 17e6, "ULS", 1, True) != kpis._dnv_ratio(t, T, 17e6, "ULS", 1, False)
 
 
 # -- fatigue ---------------------------------------------------------------------------------------

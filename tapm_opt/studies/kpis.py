@@ -30,7 +30,8 @@ from ..errors import TapmError
 from ..estimation.reliability import LP_WINDOW_DEFAULT, SIGMA_WINDOW_DEFAULT, causal_reliability, gumbel_k
 from ..geometry import ssa, turret_offset
 from ..results import Result
-from ..standards import DNV_CAPACITY_FACTOR, DNV_CLASS1_COMMON_FACTOR, DNV_E301_2008_FACTORS
+from ..standards import DNV_CAPACITY_FACTOR, DNV_E301_2008_FACTORS  # noqa: F401  (re-exported)
+from .verification import characteristic_tension, utilisation
 from .kpi_catalogue import kpi as _catalogue_kpi
 from .kpi_catalogue import kpi_order, kpi_unit, per_line_kpis
 
@@ -286,13 +287,10 @@ def _dnv_ratio(t: np.ndarray, T: np.ndarray, mbs: float, limit_state: str, conse
                common_factor: bool, peak: float = -math.inf) -> float:
     """LHS / S_C of the line check on the record (t, T); ``peak`` [N]: a maximum the samples
     missed (the tension of the line's break)."""
-    g_mean, g_dyn = DNV_E301_2008_FACTORS[(limit_state, consequence_class)]
     t_mean = _tmean(t, T)
     t_dyn = max(float(T.max()), peak) - t_mean
-    lhs = g_mean * t_mean + g_dyn * t_dyn
-    if common_factor and limit_state == "ULS" and consequence_class == 1 and t_mean > 2.0 / 3.0 * t_dyn:
-        lhs = DNV_CLASS1_COMMON_FACTOR * (t_mean + t_dyn)
-    return lhs / (DNV_CAPACITY_FACTOR * mbs)
+    lhs = characteristic_tension(t_mean, t_dyn, consequence_class, limit_state, common_factor=common_factor)
+    return utilisation(lhs, mbs)
 
 
 # -- case KPIs ---------------------------------------------------------------------------------

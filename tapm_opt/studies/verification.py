@@ -30,7 +30,8 @@ from typing import NamedTuple
 import numpy as np
 
 from ..errors import TapmError
-from ..standards import DNV_CAPACITY_FACTOR, DNV_E301_2008_FACTORS, DNV_E301_QUASI_STATIC_FACTORS
+from ..standards import (DNV_CAPACITY_FACTOR, DNV_CLASS1_COMMON_FACTOR, DNV_E301_2008_FACTORS,
+                         DNV_E301_QUASI_STATIC_FACTORS)
 
 __all__ = [
     "VerificationError",
@@ -236,7 +237,7 @@ def partial_safety_factors(consequence_class: int, limit_state: str,
 
 
 def characteristic_tension(T_mean: float, T_dyn: float, consequence_class: int, limit_state: str,
-                           analysis: str = "dynamic") -> float:
+                           analysis: str = "dynamic", *, common_factor: bool = True) -> float:
     """Design line tension [N] of the strength check, ``gamma_mean T_mean + gamma_dyn T_dyn``.
 
     ``T_mean`` [N] is the characteristic mean tension (>= 0) and ``T_dyn`` [N] the characteristic
@@ -244,18 +245,22 @@ def characteristic_tension(T_mean: float, T_dyn: float, consequence_class: int, 
     (:func:`gumbel_mpm`). The factors are :func:`partial_safety_factors`; the check is
     ``S_C >= characteristic_tension(...)``, i.e. :func:`utilisation` <= 1.
 
-    Source: DNV-OS-E301 (October 2008), secondary transcription, unchecked.
+    ``common_factor`` (default True): in ULS, consequence class 1, dynamic analysis, with
+    ``T_mean > 2/3 T_dyn`` the design tension is ``1.3 (T_mean + T_dyn)``
+    (:data:`~tapm_opt.standards.DNV_CLASS1_COMMON_FACTOR`), read as replacing the two factors: the
+    table note of DNV-OS-E301 (2008) as transcribed ("a common factor 1.3 applies"). Between
+    ``2/3 T_dyn`` and ``T_dyn`` of mean tension that gives a design tension up to 0.2 (T_dyn -
+    T_mean) lower than 1.10/1.50; pass False for the two factors throughout. The KPIs' line check
+    (:mod:`tapm_opt.studies.kpis`, ``dnv_class1_common_factor``) is this function.
 
-    **Not applied:** the class-1 rule "with the mean tension above 2/3 of the dynamic tension a
-    single factor 1.3 applies". As transcribed it does not say whether it holds in ULS only or in
-    ALS too, nor whether it replaces the two factors or bounds them (for 2/3 T_dyn < T_mean < T_dyn
-    the replacement gives a *lower* design tension than 1.10/1.50). The KPIs' line check
-    (:mod:`tapm_opt.studies.kpis`) applies it as a replacement in ULS class 1 by default; results of
-    this function therefore differ from that check in that case.
+    Source: DNV-OS-E301 (October 2008), secondary transcription, unchecked.
     """
     tm = _finite("T_mean", T_mean, nonnegative=True)
     td = _finite("T_dyn", T_dyn, nonnegative=True)
-    g_mean, g_dyn = partial_safety_factors(consequence_class, limit_state, analysis)
+    cc, ls = _class_and_state(consequence_class, limit_state)
+    g_mean, g_dyn = partial_safety_factors(cc, ls, analysis)
+    if common_factor and analysis == "dynamic" and ls == "ULS" and cc == 1 and tm > 2.0 / 3.0 * td:
+        return DNV_CLASS1_COMMON_FACTOR * (tm + td)
     return g_mean * tm + g_dyn * td
 
 
