@@ -288,7 +288,8 @@ def _dnv_ratio(t: np.ndarray, T: np.ndarray, mbs: float, limit_state: str, conse
     """LHS / S_C of the line check on the record (t, T); ``peak`` [N]: a maximum the samples
     missed (the tension of the line's break)."""
     t_mean = _tmean(t, T)
-    t_dyn = max(float(T.max()), peak) - t_mean
+    # the time-weighted mean of a constant record can exceed its maximum by a rounding
+    t_dyn = max(max(float(T.max()), peak) - t_mean, 0.0)
     lhs = characteristic_tension(t_mean, t_dyn, consequence_class, limit_state, common_factor=common_factor)
     return utilisation(lhs, mbs)
 
