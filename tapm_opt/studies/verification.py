@@ -29,6 +29,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .._checks import finite
 from ..errors import TapmError
 from ..standards import (DNV_CAPACITY_FACTOR, DNV_CLASS1_COMMON_FACTOR, DNV_E301_2008_FACTORS,
                          DNV_E301_QUASI_STATIC_FACTORS)
@@ -77,17 +78,9 @@ def _finite_array(name: str, x: object, *, min_len: int = 0) -> np.ndarray:
 
 
 def _finite(name: str, x: object, *, positive: bool = False, nonnegative: bool = False) -> float:
-    try:
-        v = float(x)  # type: ignore[arg-type]
-    except (TypeError, ValueError) as exc:
-        raise VerificationError(f"{name}: expected a number, got {x!r}") from exc
-    if not math.isfinite(v):
-        raise VerificationError(f"{name} = {v!r} is not finite")
-    if positive and not v > 0:
-        raise VerificationError(f"{name} = {v!r} must be > 0")
-    if nonnegative and not v >= 0:
-        raise VerificationError(f"{name} = {v!r} must be >= 0")
-    return v
+    """``x`` as a finite float (> 0 with ``positive``, >= 0 with ``nonnegative``), else a
+    :class:`VerificationError` naming ``name`` and the value (:func:`tapm_opt._checks.finite`)."""
+    return finite(name, x, lo=0.0 if (positive or nonnegative) else None, strict=positive, error=VerificationError)
 
 
 # -- characteristic tension: Gumbel most probable maximum -----------------------------------------
