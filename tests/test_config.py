@@ -34,7 +34,7 @@ from tapm_opt.errors import ScenarioError, ScenarioIssue
 from tapm_opt.models.mooring import MooringModel
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "scenarios.md"
-EXPECTED_BUILTINS = {"aamo4", "fang12", "fpso", "fpso_deep", "ren8"}
+EXPECTED_BUILTINS = {"aamo4", "fang12", "fpso", "fpso_deep", "fpso_equivalent", "ren8"}
 
 
 # ------------------------------------------------------------------------------------------

@@ -34,8 +34,9 @@ from tapm_opt.plant.forced_motion import forced_motion
 from tapm_opt.plant.mooring_fem import line_set_from_scenario
 from tapm_opt.plant.moordyn_reference import MoorDynMooring, MoorDynUnavailable, moordyn_forced_motion, moordyn_module
 
-BUILTINS = ("aamo4", "fpso", "ren8")
-MBS = {"aamo4": {"cable": 5.0e6}, "fpso": {"cwc137": 1.699e7}, "ren8": {"cable": 5.0e6}}
+BUILTINS = ("aamo4", "fpso", "fpso_equivalent", "ren8")
+MBS = {"aamo4": {"cable": 5.0e6}, "fpso": {"cwc137": 1.699e7}, "fpso_equivalent": {"cwc137": 1.699e7},
+       "ren8": {"cable": 5.0e6}}
 
 # A MoorDyn v2 file as a user keeps one: front matter, '---' headers, column and unit lines,
 # trailing comments (MoorDyn-C refuses comment-only rows inside a table), a coupled vessel body at the hull origin with the fairleads given relative to it
