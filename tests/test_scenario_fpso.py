@@ -63,8 +63,8 @@ def test_both_load_validate_and_are_builtins(sc, eq):
         assert sec["L"].tolist() == [300.0, 1900.0, 100.0] and sec["segments"].tolist() == [3, 16, 1]
         assert ln.length == 2300.0 and ln.winch_max_rate == 0.15
         assert ln.length_limits == (2250.0, 2350.0)   # the winch hauls in at most half the top chain
-        # anchors on the 2021.7 m circle about the COT, rounded to 1 mm
-        assert np.hypot(*(np.array(ln.anchor[:2]) - COT)) == pytest.approx(2021.7, abs=1e-3)
+        # anchors on the 2021.7 m circle about the COT, rounded to 0.1 mm
+        assert np.hypot(*(np.array(ln.anchor[:2]) - COT)) == pytest.approx(2021.7, abs=1e-4)
     for ln in eq.lines:
         assert not ln.composite and ln.type == "cwc137" and ln.length == 2300.0
         assert np.hypot(*(np.array(ln.anchor[:2]) - COT)) == pytest.approx(1970.0, abs=1e-3)
@@ -94,12 +94,12 @@ def test_header_pretension_touchdown_and_net_load(sc, model):
     np.testing.assert_allclose(np.degrees(np.arctan2(sol.VF, sol.HF)), 48.2, atol=0.05)
     np.testing.assert_allclose(sol.TF / sc.line_type_by_id("chain137").EA, 0.0020, atol=5e-5)
     tau = model.force(ZERO)
-    assert abs(tau[0]) < 30.0 and abs(tau[1]) < 1e-3 and abs(tau[2]) < 1e-3   # |X| = 22 N
+    assert abs(tau[0]) < 2.0 and abs(tau[1]) < 1e-3 and abs(tau[2]) < 1e-3   # |X| = 1 N
 
 
 def test_header_stiffness_periods_and_restoring_curve(sc, model):
     K = model.stiffness(ZERO)
-    assert K[0, 0] == pytest.approx(1.398e5, rel=1e-3) and K[1, 1] == pytest.approx(K[0, 0], rel=1e-5)
+    assert K[0, 0] == pytest.approx(1.398e5, rel=1e-3) and K[1, 1] == pytest.approx(K[0, 0], rel=1e-6)
     assert K[2, 2] == pytest.approx(1.169e9, rel=1e-3) and K[1, 2] == pytest.approx(1.278e7, rel=1e-3)
     T = 2 * np.pi * np.sqrt(np.diag(sc.vessel.M) / np.diag(K))
     np.testing.assert_allclose(T, [258.7, 358.9, 295.4], atol=0.1)
