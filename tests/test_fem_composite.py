@@ -49,10 +49,12 @@ CLUMP = {"id": "clump", "mass": 20000.0, "volume": 2.6, "CdA": 5.0, "Ca": 1.0}
 
 def composite_fpso(*, lower: str | None = "buoy", upper: str | None = None, lines: tuple[int, ...] | None = None,
                    segments: tuple[int, int, int] | None = None):
-    """fpso with its lines as the chain-wire-chain its header describes (300 m chain, 1900 m
-    wire, 100 m chain from the anchor up), point types ``lower`` and ``upper`` at the two joints,
-    only the lines ``lines`` (indices) when given, each section's ``segments`` when given."""
-    d = scenario_to_dict(load_scenario("fpso"))
+    """fpso_equivalent (fpso's former homogeneous mooring, 1970 m anchor circle) with its lines as
+    the chain-wire-chain they stand for (300 m chain, 1900 m wire, 100 m chain from the anchor up),
+    point types ``lower`` and ``upper`` at the two joints, only the lines ``lines`` (indices) when
+    given, each section's ``segments`` when given. (fpso itself is composite, without points and
+    on a wider anchor circle.)"""
+    d = scenario_to_dict(load_scenario("fpso_equivalent"))
     d["line_types"] += [dict(CHAIN), dict(WIRE)]
     d["point_types"] = [dict(BUOY), dict(CLUMP)]
     if lines is not None:
@@ -500,7 +502,7 @@ def _stiff_pendant_scenario():
     """Three lines whose stiffest segments are a 20 m wire pendant in 10 segments in the middle
     (2 m: l0 sqrt(m / EA) = 0.63 ms), a float of 1 kg and 20 m^3 below it and a 20 t clump lower
     down; no internal damping, so the stability limit is sharp."""
-    d = scenario_to_dict(load_scenario("fpso"))
+    d = scenario_to_dict(load_scenario("fpso_equivalent"))
     d["line_types"] += [dict(CHAIN, axial_damping_ratio=0.0), dict(WIRE, axial_damping_ratio=0.0)]
     d["point_types"] = [{"id": "float", "mass": 1.0, "volume": 20.0, "CdA": 10.0, "Ca": 1.0}, dict(CLUMP)]
     d["lines"] = [d["lines"][i] for i in (0, 4, 8)]
@@ -558,7 +560,7 @@ def test_the_stable_step_is_the_stiffest_sections_and_is_honoured():
 
 
 def test_homogeneous_lines_winch_beside_composite_lines():
-    """fpso with its lines 1, 5 and 9 composite (without winches) and the others homogeneous with
+    """fpso_equivalent with its lines 1, 5 and 9 composite (without winches) and the others homogeneous with
     their winches: the plant pays out a homogeneous line (its length and segments change, the
     composite lines' do not); a winch command on a composite line without a winch is refused, and
     in the FEM a composite line's length may not drop by its fairlead section (100 m) or more
@@ -567,7 +569,7 @@ def test_homogeneous_lines_winch_beside_composite_lines():
     from tapm_opt.plant.simulator import Plant, run_open_loop
 
     d = scenario_to_dict(composite_fpso(lower="buoy", upper=None))
-    fp = scenario_to_dict(load_scenario("fpso"))
+    fp = scenario_to_dict(load_scenario("fpso_equivalent"))
     for i, ln in enumerate(d["lines"]):
         if i % 4:
             d["lines"][i] = fp["lines"][i]
