@@ -249,19 +249,13 @@ def test_dynamic_amplification_tends_to_quasi_static_for_slow_motion(surge):
         assert 1.0 <= p200.amplification[i] < ref.amplification[i]
 
 
-FPSO_TEN_SEGMENTS = (
-    "fpso at 10 FEM segments per line: the split by length (1 / 8 / 1) puts the 300 m bottom chain, "
-    "which lies partly on the seabed, in one segment; the settled fairlead tension is 4.1 % above the "
-    "quasi-static one (2 / 7 / 1: 0.3 %; fpso's own 3 / 16 / 1: 0.12 %)")
-
-
 @pytest.mark.parametrize("name,dof,amplitude,segments", [
     ("aamo4", "surge", 5.0, 10), ("ren8", "sway", 5.0, 10), ("fpso", "yaw", math.radians(3.0), None),
-    pytest.param("fpso", "yaw", math.radians(3.0), 10, marks=pytest.mark.known_defect(reason=FPSO_TEN_SEGMENTS))])
+    ("fpso", "yaw", math.radians(3.0), 10)])
 def test_forced_motion_on_every_builtin(name, dof, amplitude, segments):
     """Short runs on each built-in scenario: finite histories that start at the catenary
     tensions, a positive damping estimate, and a table with one column per line (fpso at its own
-    segments; at the studies' 10 a known defect)."""
+    segments and at the studies' 10, where the 300 m bottom chain gets two segments)."""
     sc = scenario(name)
     r = forced_motion(sc, dof=dof, amplitude=amplitude, period=50.0, duration=100.0, segments=segments)
     assert np.all(np.isfinite(r.T)) and np.all(np.isfinite(r.force))

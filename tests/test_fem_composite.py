@@ -117,7 +117,8 @@ def settled(sc, segments=None, **kw) -> MooringFEM:
 
 def test_settled_composite_lines_approach_the_quasi_static_solution():
     """Fairlead tension and point positions of the settled FEM against ``models.composite``, for a
-    buoy at the lower joint and a clump at the upper one, at 20, 40 and 80 segments per line.
+    buoy at the lower joint and a clump at the upper one, at 20, 40 and 80 segments per line, each
+    section's segments doubled (3 / 16 / 1, 6 / 32 / 2, 12 / 64 / 4), so every segment is halved.
 
     The tolerance is the FEM's discretisation: each section's catenary becomes chords of length
     ``l0`` with the weight lumped at the nodes, which misplaces the line by O(l0^2 / R) where the
@@ -126,10 +127,11 @@ def test_settled_composite_lines_approach_the_quasi_static_solution():
     the segments (second order); at 80 segments (25 m of wire, 15 m of chain) the tension is within
     1e-4 and the points within 0.2 m. Settled to 1e-9 per 5 s, so settling does not decide them.
     """
-    sc = composite_fpso(lower="buoy", upper="clump", lines=(0, 4, 8))
     errs = []
     for n in (20, 40, 80):
-        m = settled(sc, n, tol=1e-9, speed_tol=1e-4, max_time=2000.0)
+        k = n // 20
+        sc = composite_fpso(lower="buoy", upper="clump", lines=(0, 4, 8), segments=(3 * k, 16 * k, k))
+        m = settled(sc, tol=1e-9, speed_tol=1e-4, max_time=2000.0)
         eT, eP = 0.0, 0.0
         for j in range(3):
             sol, px, pz = quasi_static(m, j)
@@ -594,10 +596,23 @@ def test_homogeneous_lines_winch_beside_composite_lines():
         fem._update_lengths()
 
 
+@pytest.mark.parametrize("n,split", [(3, [1, 1, 1]), (4, [1, 2, 1]), (10, [2, 7, 1]), (16, [2, 13, 1]),
+                                     (20, [3, 16, 1]), (40, [6, 32, 2])])
+def test_a_line_s_segments_are_shared_so_the_longest_segment_is_shortest(n, split):
+    """300 / 1900 / 100 m with n segments in all: the split whose longest segment is shortest,
+    checked against every split by brute force (each section at least one segment)."""
+    sc = composite_fpso(lines=(0,))
+    got = line_set_from_scenario(sc, segments=n).sections[0]["segments"].tolist()
+    assert got == split
+    L = np.array([300.0, 1900.0, 100.0])
+    best = min(max(L / np.array([a, b, n - a - b])) for a in range(1, n) for b in range(1, n - a))
+    assert max(L / np.array(got)) == pytest.approx(best, rel=1e-12)
+
+
 def test_line_set_sections_are_checked():
     sc = composite_fpso(lines=(0,))
     ls = line_set_from_scenario(sc, segments=20)
-    assert ls.sections[0]["segments"].tolist() == [2, 16, 2] and int(ls.segments[0]) == 20
+    assert ls.sections[0]["segments"].tolist() == [3, 16, 1] and int(ls.segments[0]) == 20
     env = sc.environment
 
     def build(**kw):
@@ -607,7 +622,7 @@ def test_line_set_sections_are_checked():
 
     build()
     with pytest.raises(ModelError, match="add up to the line's 20"):
-        build(segments=np.array([3, 16, 2]))
+        build(segments=np.array([3, 16, 2]))  # 21
     with pytest.raises(ModelError, match="one per joint"):
         build(W=np.zeros(3))
     with pytest.raises(ModelError, match="sections 2301"):
