@@ -35,10 +35,11 @@ CLUMP_W = (20000.0 - 1025.0 * 2.6) * 9.81
 
 
 def buoyed_fpso(tops=(None, "buoy"), *, homogeneous=(), other=None):
-    """fpso with its lines as chain-wire-chain (300 m chain, 1900 m wire, 100 m chain) and the
-    points ``tops`` at joints 0 (bottom) and 1 (upper, 100 m below the fairlead); the lines in
-    ``homogeneous`` keep fpso's own line, the lines of ``other`` ({id: tops}) get other points."""
-    d = scenario_to_dict(load_scenario("fpso"))
+    """fpso_equivalent (fpso's former homogeneous mooring, 1970 m anchor circle) with its lines as
+    chain-wire-chain (300 m chain, 1900 m wire, 100 m chain) and the points ``tops`` at joints 0
+    (bottom) and 1 (upper, 100 m below the fairlead); the lines in ``homogeneous`` keep the
+    equivalent line, the lines of ``other`` ({id: tops}) get other points."""
+    d = scenario_to_dict(load_scenario("fpso_equivalent"))
     d["line_types"] += [dict(CHAIN), dict(WIRE)]
     d["point_types"] = [dict(BUOY), dict(CLUMP)]
     for ln in d["lines"]:

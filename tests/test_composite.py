@@ -169,9 +169,10 @@ def test_bad_input_is_named():
 # ------------------------------------------------------------------------------------------
 
 def composite_fpso(buoy: bool = True):
-    """fpso with its lines as the chain-wire-chain its header describes (300 m chain, 1900 m wire,
-    100 m chain), with a buoy at the bottom joint when ``buoy``."""
-    d = scenario_to_dict(load_scenario("fpso"))
+    """fpso_equivalent (fpso's former homogeneous mooring, 1970 m anchor circle) with its lines as
+    the chain-wire-chain they stand for (300 m chain, 1900 m wire, 100 m chain), with a buoy at the
+    bottom joint when ``buoy``."""
+    d = scenario_to_dict(load_scenario("fpso_equivalent"))
     d["line_types"] += [
         {"id": "chain137", "diameter": 0.2466, "mass_per_length": 373.5, "submerged_weight": 3185.6, "EA": 1.603e9,
          "MBS": 16.99e6, "MBS_std": 0.1 * 16.99e6, "Cd_normal": 2.4, "Cd_tangential": 1.15, "Ca_normal": 1.0},
@@ -261,7 +262,7 @@ def test_composite_differs_from_its_homogeneous_equivalent():
     """The chain-wire-chain line is not its length-weighted equivalent: its fairlead tension at the
     same geometry differs (heavier chain at the bottom, lighter wire in the water column)."""
     comp = MooringModel.from_scenario(composite_fpso(buoy=False))
-    homo = MooringModel.from_scenario(load_scenario("fpso"))
+    homo = MooringModel.from_scenario(load_scenario("fpso_equivalent"))
     Tc, Th = comp.tensions(np.zeros(3)), homo.tensions(np.zeros(3))
     assert not np.allclose(Tc, Th, rtol=0.01)
 

@@ -34,7 +34,7 @@ from tapm_opt.errors import ScenarioError, ScenarioIssue
 from tapm_opt.models.mooring import MooringModel
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "scenarios.md"
-EXPECTED_BUILTINS = {"aamo4", "fang12", "fpso", "fpso_deep", "ren8"}
+EXPECTED_BUILTINS = {"aamo4", "fang12", "fpso", "fpso_deep", "fpso_equivalent", "ren8"}
 
 
 # ------------------------------------------------------------------------------------------
@@ -187,9 +187,13 @@ def test_builtin_pretension_below_mbs_and_strain_within_limit(name):
         assert np.all(T / sec["EA"] < [sc.line_type_by_id(s.type).strain_limit for s in ln.parts]), ln.id
 
 
-def test_fpso_lines_touch_down_with_realistic_pretension_and_periods():
-    sc, model, sol = at_rest("fpso")
-    assert set(sol.regime_names()) == {"touchdown"}
+@pytest.mark.parametrize("name, regime", [("fpso", "composite"), ("fpso_equivalent", "touchdown")])
+def test_fpso_lines_touch_down_with_realistic_pretension_and_periods(name, regime):
+    """fpso on its chain-wire-chain composite lines and fpso_equivalent on the homogeneous
+    equivalent line: both with chain on the seabed at rest, at the same pretension."""
+    sc, model, sol = at_rest(name)
+    assert set(sol.regime_names()) == {regime}
+    assert all(ln.composite == (regime == "composite") for ln in sc.lines)
     assert np.all(sol.LBot > 0.05 * sc.line_arrays["L"])
     utilisation = sol.TF / sc.line_arrays["MBS"]
     assert np.all((utilisation > 0.10) & (utilisation < 0.20))
@@ -385,8 +389,9 @@ POLY_TABLE = [[0.0, 0.0], [0.005, 1.0e6], [0.01, 2.4e6], [0.02, 5.6e6], [0.03, 9
 
 
 def tabled(table=POLY_TABLE, *, EA=None, winch=False) -> dict:
-    """fpso with its line type given by a tension-strain table instead of EA (its winches off)."""
-    data = base("fpso")
+    """fpso_equivalent (homogeneous lines of one line type) with its line type given by a
+    tension-strain table instead of EA (its winches off)."""
+    data = base("fpso_equivalent")
     lt = data["line_types"][0]
     del lt["EA"]
     lt["EA_table"] = table
@@ -431,7 +436,7 @@ def test_a_bad_tension_strain_table_is_named_with_its_value(table, path, message
 def test_ea_and_its_table_must_agree_and_one_of_them_be_given():
     assert "differs from EA_table's secant at its last row, T_n / eps_n = 340000000 N" in issue_at(
         issues_of(tabled(EA=1.163e9)), "line_types[0].EA").message
-    data = base("fpso")
+    data = base("fpso_equivalent")
     del data["line_types"][0]["EA"]
     assert "is missing: give the axial stiffness EA" in issue_at(issues_of(data), "line_types[0].EA").message
 

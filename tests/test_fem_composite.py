@@ -49,10 +49,12 @@ CLUMP = {"id": "clump", "mass": 20000.0, "volume": 2.6, "CdA": 5.0, "Ca": 1.0}
 
 def composite_fpso(*, lower: str | None = "buoy", upper: str | None = None, lines: tuple[int, ...] | None = None,
                    segments: tuple[int, int, int] | None = None):
-    """fpso with its lines as the chain-wire-chain its header describes (300 m chain, 1900 m
-    wire, 100 m chain from the anchor up), point types ``lower`` and ``upper`` at the two joints,
-    only the lines ``lines`` (indices) when given, each section's ``segments`` when given."""
-    d = scenario_to_dict(load_scenario("fpso"))
+    """fpso_equivalent (fpso's former homogeneous mooring, 1970 m anchor circle) with its lines as
+    the chain-wire-chain they stand for (300 m chain, 1900 m wire, 100 m chain from the anchor up),
+    point types ``lower`` and ``upper`` at the two joints, only the lines ``lines`` (indices) when
+    given, each section's ``segments`` when given. (fpso itself is composite, without points and
+    on a wider anchor circle.)"""
+    d = scenario_to_dict(load_scenario("fpso_equivalent"))
     d["line_types"] += [dict(CHAIN), dict(WIRE)]
     d["point_types"] = [dict(BUOY), dict(CLUMP)]
     if lines is not None:
@@ -115,7 +117,8 @@ def settled(sc, segments=None, **kw) -> MooringFEM:
 
 def test_settled_composite_lines_approach_the_quasi_static_solution():
     """Fairlead tension and point positions of the settled FEM against ``models.composite``, for a
-    buoy at the lower joint and a clump at the upper one, at 20, 40 and 80 segments per line.
+    buoy at the lower joint and a clump at the upper one, at 20, 40 and 80 segments per line, each
+    section's segments doubled (3 / 16 / 1, 6 / 32 / 2, 12 / 64 / 4), so every segment is halved.
 
     The tolerance is the FEM's discretisation: each section's catenary becomes chords of length
     ``l0`` with the weight lumped at the nodes, which misplaces the line by O(l0^2 / R) where the
@@ -124,10 +127,11 @@ def test_settled_composite_lines_approach_the_quasi_static_solution():
     the segments (second order); at 80 segments (25 m of wire, 15 m of chain) the tension is within
     1e-4 and the points within 0.2 m. Settled to 1e-9 per 5 s, so settling does not decide them.
     """
-    sc = composite_fpso(lower="buoy", upper="clump", lines=(0, 4, 8))
     errs = []
     for n in (20, 40, 80):
-        m = settled(sc, n, tol=1e-9, speed_tol=1e-4, max_time=2000.0)
+        k = n // 20
+        sc = composite_fpso(lower="buoy", upper="clump", lines=(0, 4, 8), segments=(3 * k, 16 * k, k))
+        m = settled(sc, tol=1e-9, speed_tol=1e-4, max_time=2000.0)
         eT, eP = 0.0, 0.0
         for j in range(3):
             sol, px, pz = quasi_static(m, j)
@@ -500,7 +504,7 @@ def _stiff_pendant_scenario():
     """Three lines whose stiffest segments are a 20 m wire pendant in 10 segments in the middle
     (2 m: l0 sqrt(m / EA) = 0.63 ms), a float of 1 kg and 20 m^3 below it and a 20 t clump lower
     down; no internal damping, so the stability limit is sharp."""
-    d = scenario_to_dict(load_scenario("fpso"))
+    d = scenario_to_dict(load_scenario("fpso_equivalent"))
     d["line_types"] += [dict(CHAIN, axial_damping_ratio=0.0), dict(WIRE, axial_damping_ratio=0.0)]
     d["point_types"] = [{"id": "float", "mass": 1.0, "volume": 20.0, "CdA": 10.0, "Ca": 1.0}, dict(CLUMP)]
     d["lines"] = [d["lines"][i] for i in (0, 4, 8)]
@@ -558,7 +562,7 @@ def test_the_stable_step_is_the_stiffest_sections_and_is_honoured():
 
 
 def test_homogeneous_lines_winch_beside_composite_lines():
-    """fpso with its lines 1, 5 and 9 composite (without winches) and the others homogeneous with
+    """fpso_equivalent with its lines 1, 5 and 9 composite (without winches) and the others homogeneous with
     their winches: the plant pays out a homogeneous line (its length and segments change, the
     composite lines' do not); a winch command on a composite line without a winch is refused, and
     in the FEM a composite line's length may not drop by its fairlead section (100 m) or more
@@ -567,7 +571,7 @@ def test_homogeneous_lines_winch_beside_composite_lines():
     from tapm_opt.plant.simulator import Plant, run_open_loop
 
     d = scenario_to_dict(composite_fpso(lower="buoy", upper=None))
-    fp = scenario_to_dict(load_scenario("fpso"))
+    fp = scenario_to_dict(load_scenario("fpso_equivalent"))
     for i, ln in enumerate(d["lines"]):
         if i % 4:
             d["lines"][i] = fp["lines"][i]
@@ -592,10 +596,23 @@ def test_homogeneous_lines_winch_beside_composite_lines():
         fem._update_lengths()
 
 
+@pytest.mark.parametrize("n,split", [(3, [1, 1, 1]), (4, [1, 2, 1]), (10, [2, 7, 1]), (16, [2, 13, 1]),
+                                     (20, [3, 16, 1]), (40, [6, 32, 2])])
+def test_a_line_s_segments_are_shared_so_the_longest_segment_is_shortest(n, split):
+    """300 / 1900 / 100 m with n segments in all: the split whose longest segment is shortest,
+    checked against every split by brute force (each section at least one segment)."""
+    sc = composite_fpso(lines=(0,))
+    got = line_set_from_scenario(sc, segments=n).sections[0]["segments"].tolist()
+    assert got == split
+    L = np.array([300.0, 1900.0, 100.0])
+    best = min(max(L / np.array([a, b, n - a - b])) for a in range(1, n) for b in range(1, n - a))
+    assert max(L / np.array(got)) == pytest.approx(best, rel=1e-12)
+
+
 def test_line_set_sections_are_checked():
     sc = composite_fpso(lines=(0,))
     ls = line_set_from_scenario(sc, segments=20)
-    assert ls.sections[0]["segments"].tolist() == [2, 16, 2] and int(ls.segments[0]) == 20
+    assert ls.sections[0]["segments"].tolist() == [3, 16, 1] and int(ls.segments[0]) == 20
     env = sc.environment
 
     def build(**kw):
@@ -605,7 +622,7 @@ def test_line_set_sections_are_checked():
 
     build()
     with pytest.raises(ModelError, match="add up to the line's 20"):
-        build(segments=np.array([3, 16, 2]))
+        build(segments=np.array([3, 16, 2]))  # 21
     with pytest.raises(ModelError, match="one per joint"):
         build(W=np.zeros(3))
     with pytest.raises(ModelError, match="sections 2301"):

@@ -65,11 +65,14 @@ def numba_kernel_compiled():
 
 def twin_lines(name: str, *, friction: float):
     """The scenario's lines on both kernels, placed on the catenary, with seabed friction
-    ``friction`` on every other line; the MooringFEM that gives the fairlead kinematics."""
+    ``friction`` on every other line (on every section of a composite line, whose sections carry
+    their own friction); the MooringFEM that gives the fairlead kinematics."""
     sc = scenario(name)
     ls = line_set_from_scenario(sc)
     mu = np.where(np.arange(len(ls.ids)) % 2 == 0, friction, 0.0)
-    ls = dataclasses.replace(ls, mu=mu)
+    sections = ls.sections if ls.sections is None else tuple(
+        None if s is None else dict(s, mu=np.full_like(s["mu"], mu[j])) for j, s in enumerate(ls.sections))
+    ls = dataclasses.replace(ls, mu=mu, sections=sections)
     env = sc.environment
     m = MooringFEM(sc)
     fems = {k: FEMLines(ls, np.array(sc.anchors), water_depth=env.water_depth, rho_w=env.water_density, kernel=k)

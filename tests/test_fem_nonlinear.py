@@ -39,10 +39,10 @@ CHAIN = {"id": "chain137", "diameter": 0.2466, "mass_per_length": 373.5, "submer
 
 
 def polyester_fpso(lines=(0, 4, 8), *, length=2170.0, table=None, damping=0.7071, chain=(), composite=()):
-    """fpso with its lines ``lines`` of polyester (2170 m: taut, 1.1 % strain at rest), those in
-    ``chain`` of fpso's own chain, those in ``composite`` chain-polyester-chain (300 m, 1770 m,
-    100 m from the anchor up)."""
-    d = scenario_to_dict(load_scenario("fpso"))
+    """fpso_equivalent with its lines ``lines`` of polyester (2170 m: taut, 1.1 % strain at rest),
+    those in ``chain`` of its equivalent chain-wire-chain line, those in ``composite``
+    chain-polyester-chain (300 m, 1770 m, 100 m from the anchor up)."""
+    d = scenario_to_dict(load_scenario("fpso_equivalent"))
     t = dict(POLY, axial_damping_ratio=damping)
     if table is not None:
         t["EA_table"] = table

@@ -114,16 +114,18 @@ def test_column_order_is_the_catalogues():
 # -- the catalogue against what the cases write ------------------------------------------------
 
 def _overload_case(mbs: float = 3.7e6, line: str = "4") -> tuple[Result, object]:
-    """fpso in the storm with one line's MBS lowered so that it breaks from overload about 35 s in
-    (PID, 60 s, 1 s logging, 6 segments: ~3 s)."""
+    """fpso_equivalent (fpso's homogeneous-line mooring, so one line type makes a weak line) in the
+    storm with one line's MBS lowered so that it breaks from overload about 35 s in (PID, 60 s, 1 s
+    logging, 6 segments: ~3 s)."""
     from tapm_opt.plant.simulator import Plant
     from tapm_opt.studies.closed_loop import ClosedLoopSettings, run_closed_loop
     from tapm_opt.studies.controllers import build_controller
 
-    weak = dataclasses.replace(FPSO.line_types[0], id="weak", MBS=mbs)
-    lines = tuple(dataclasses.replace(ln, type="weak") if ln.id == line else ln for ln in FPSO.lines)
-    sc = dataclasses.replace(FPSO, line_types=FPSO.line_types + (weak,), lines=lines,
-                             plant=dataclasses.replace(FPSO.plant, break_on_overload="mbs"))
+    base = tapm_opt.load_scenario("fpso_equivalent")
+    weak = dataclasses.replace(base.line_types[0], id="weak", MBS=mbs)
+    lines = tuple(dataclasses.replace(ln, type="weak") if ln.id == line else ln for ln in base.lines)
+    sc = dataclasses.replace(base, line_types=base.line_types + (weak,), lines=lines,
+                             plant=dataclasses.replace(base.plant, break_on_overload="mbs"))
     plant = Plant(sc, sea_state="storm", seed=1, segments=6)
     res = run_closed_loop(plant, build_controller(sc, {"type": "pid"}), ClosedLoopSettings(duration=60.0, dt_log=1.0))
     return res, sc

@@ -34,8 +34,10 @@ from tapm_opt.plant.forced_motion import forced_motion
 from tapm_opt.plant.mooring_fem import line_set_from_scenario
 from tapm_opt.plant.moordyn_reference import MoorDynMooring, MoorDynUnavailable, moordyn_forced_motion, moordyn_module
 
-BUILTINS = ("aamo4", "fpso", "ren8")
-MBS = {"aamo4": {"cable": 5.0e6}, "fpso": {"cwc137": 1.699e7}, "ren8": {"cable": 5.0e6}}
+BUILTINS = ("aamo4", "fpso_equivalent", "ren8")
+"""The built-ins on homogeneous lines (one MoorDyn line per line); the composite ones (fpso, fpso_deep,
+fang12) are exported and read back in tests/test_moordyn_composite.py."""
+MBS = {"aamo4": {"cable": 5.0e6}, "fpso_equivalent": {"cwc137": 1.699e7}, "ren8": {"cable": 5.0e6}}
 
 # A MoorDyn v2 file as a user keeps one: front matter, '---' headers, column and unit lines,
 # trailing comments (MoorDyn-C refuses comment-only rows inside a table), a coupled vessel body at the hull origin with the fairleads given relative to it
@@ -174,7 +176,7 @@ def test_positive_ba_maps_to_the_same_damping(tmp_path):
 def test_seabed_constants_match_the_fem_seabed():
     """MoorDyn's contact force (kBot pen - cBot v) d l per node equals the FEM node spring w l / 0.01
     with 50 % of critical damping."""
-    sc = load_scenario("fpso")
+    sc = load_scenario("fpso_equivalent")
     lt, env = sc.line_types[0], sc.environment
     d = moordyn_line_type(lt, env)["d"]
     kb, cb = seabed_constants(lt.w(env), lt.mass_per_length, d)
@@ -326,7 +328,7 @@ def test_coupled_points_reversed_line_and_turret_angle(tmp_path):
     from tapm_opt.config import scenario_to_dict
     from tapm_opt.config.moordyn import scenario_toml
 
-    sc = load_scenario("fpso")
+    sc = load_scenario("fpso_equivalent")
     sc = dataclasses.replace(sc, turret=dataclasses.replace(sc.turret, position=(60.0, 12.0),
                                                             angle=math.radians(30.0), mode="locked"))
     vessel = tmp_path / "vessel.toml"
@@ -354,10 +356,10 @@ def test_coupled_points_reversed_line_and_turret_angle(tmp_path):
 
 def test_cli_export_import_validate_and_run(tmp_path, capsys):
     md_file, toml = tmp_path / "fpso.dat", tmp_path / "fpso_md.toml"
-    code, out, err = run(capsys, "scenario", "export-moordyn", "fpso", "--out", str(md_file))
+    code, out, err = run(capsys, "scenario", "export-moordyn", "fpso_equivalent", "--out", str(md_file))
     assert code == 0, err
     assert "dtM" in out and md_file.is_file()
-    code, out, err = run(capsys, "scenario", "import-moordyn", str(md_file), "--vessel", "fpso", "--out", str(toml),
+    code, out, err = run(capsys, "scenario", "import-moordyn", str(md_file), "--vessel", "fpso_equivalent", "--out", str(toml),
                          "--mbs", "cwc137=1.699e7")
     assert code == 0, err
     assert "12 lines" in out

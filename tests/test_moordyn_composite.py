@@ -307,10 +307,11 @@ def test_exported_composite_lines_run_in_moordyn_c(tmp_path):
 
 
 def _composite_scenario() -> dict:
-    """fpso with six composite lines (chain-wire-chain, a clump and a buoy, sections sharing the
-    line's segments or giving their own) and six homogeneous ones with winches, ids that are not
-    the file's numbers, a line type given by density with a max_strain."""
-    d = scenario_to_dict(load_scenario("fpso"))
+    """fpso_equivalent (fpso's former homogeneous lines) with six composite lines (chain-wire-chain,
+    a clump and a buoy, sections sharing the line's segments or giving their own) and six
+    homogeneous ones with winches, ids that are not the file's numbers, a line type given by
+    density with a max_strain."""
+    d = scenario_to_dict(load_scenario("fpso_equivalent"))
     d["line_types"] = [
         dict(id="chain", diameter=0.2466, mass_per_length=374.0, submerged_weight=3190.0, EA=1.6e9, MBS=1.7e7,
              MBS_std=8.5e5, Cd_normal=2.4, Cd_tangential=1.15, Ca_normal=1.0, Ca_tangential=0.5,

@@ -33,6 +33,13 @@ def fpso():
     return tapm_opt.load_scenario("fpso")
 
 
+@pytest.fixture(scope="module")
+def equivalent():
+    """fpso_equivalent: fpso on its former homogeneous equivalent lines, whose softer restoring
+    leaves the MPC the saturating work the tests below were set up for."""
+    return tapm_opt.load_scenario("fpso_equivalent")
+
+
 def settings(sc, **kw) -> MPCSettings:
     """The study defaults (dead band 0.6 of the safe radius, MPC_DEFAULTS) with ``kw``."""
     return MPCSettings(**{**MPC_DEFAULTS, "dead_band": MPC_DEAD_BAND * sc.limits.safe_radius, **kw})
@@ -227,10 +234,12 @@ def test_condensing_refuses_a_changed_slack_cost(fpso):
 
 
 @pytest.mark.parametrize("decision", ["tau", "thrusters"])
-def test_failed_thrusters_in_the_condensed_qp(fpso, decision):
+def test_failed_thrusters_in_the_condensed_qp(equivalent, decision):
     """Two azimuths fail while the thrust is saturated: both paths keep the thrust inside what the
     remaining thrusters can deliver and agree (with ``decision="thrusters"`` the failed thrusters'
-    columns are held at zero)."""
+    columns are held at zero). On fpso_equivalent: on fpso's stiffer chain-wire-chain lines the
+    mooring does more of the work and the thrust reaches only 74 % of the reduced set's bound."""
+    fpso = equivalent
     s = settings(fpso, horizon=8, decision=decision, w_position=50.0)
     failed = frozenset(t.id for t in fpso.thrusters[:2])
     out = {}

@@ -187,8 +187,11 @@ def test_wave_frequency_estimate_follows_the_true_wf_motion(runs):
 def thrust_step(system):
     """Still water, a constant thrust from t = 0 (all six thrusters ahead at 40 % of capacity,
     2.9 MN surge once the thrusters have ramped up); both observers are told tau_thr = None.
-    Returns times, the tau_env estimates ({B}) of each and the delivered thrust."""
-    plant = Plant(system, sea_state="none", seed=2, segments=10)
+    Returns times, the tau_env estimates ({B}) of each and the delivered thrust. The plant at
+    fpso's own segments (3 / 16 / 1 per line): at 10 (split 1 / 8 / 1) the FEM mooring is 13 %
+    stiffer than the quasi-static model the observers carry (the 300 m bottom chain in one
+    segment), and that error, not the observer, would set the bias (12-15 %)."""
+    plant = Plant(system, sea_state="none", seed=2)
     cmd = ThrusterCommand(0.4 * np.asarray(plant.thrusters.limits.f_max, float), np.zeros(plant.thrusters.n))
     obs = {"passive": PassiveObserver.from_scenario(system), "ekf": EKFObserver.from_scenario(system)}
     ts, tau_true, tau_hat = [], [], {k: [] for k in obs}
@@ -457,7 +460,10 @@ def test_estimate_fields_heading_wrap_and_reset(system, cls):
         est = obs.update(m.t, m)
     assert isinstance(est, Estimate) and est.eta_wf.shape == (3,) and est.tau_env.shape == (3,)
     assert -np.pi <= est.eta[2] < np.pi
-    assert abs(ssa(est.eta[2] - (np.pi - 0.2 + 0.39))) < 0.1   # no 2 pi jump (the passive lags the ramp 0.06 rad)
+    # no 2 pi jump; the model's yaw spring makes the estimate lag the ramp: the passive 0.12 rad and
+    # the EKF 0.035 rad on fpso's chain-wire-chain mooring (K33 1.17e9 N m/rad), half that on the
+    # softer fpso_equivalent (7.2e8 N m/rad: 0.063 and 0.019 rad)
+    assert abs(ssa(est.eta[2] - (np.pi - 0.2 + 0.39))) < 0.2
     assert est.tensions is not None and np.allclose(est.tensions, T0)
     assert est.broken_lines == frozenset() and est.reliability is None
     assert obs.innovation.shape == (3,)

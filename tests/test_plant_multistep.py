@@ -179,10 +179,11 @@ def test_a_diverging_plant_is_reported_as_by_the_per_step_path(fpso, spy, case):
     """The same exception, at the same time, with the plant in the same state: the FEM stepped
     at 30x its stable step (a non-finite node: status 2 at a later step of a call), a vessel
     pushed off at once (status 1 at the first step) or after a step (status 1 later), a large
-    push whose lines race (the health check on the 20th step ends a call)."""
+    push whose lines race (the health check on the 20th step ends a call; the lines may not break
+    from overload there, or fpso's chain-wire-chain lines all break within 1.4 s instead)."""
     def make():
         p = Plant(fpso, sea_state="storm", seed=1, segments=10,
-                  break_on_overload="never" if case == "vessel_at_later_step" else None)
+                  break_on_overload="never" if case in ("vessel_at_later_step", "fast_nodes") else None)
         p.step(0.3 if case != "fem_blows_up" else 0.1)
         if case == "fem_blows_up":
             p._dt_stable *= 30.0

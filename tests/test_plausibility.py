@@ -63,9 +63,12 @@ def set_path(d: dict, path: str, value) -> None:
 
 def set_length(d: dict, i: int, value: float) -> dict:
     """Set ``lines[i].length`` and drop that line's winch (its length limits would be the first
-    problem found), so a test of the length rule sees the length rule."""
+    problem found), so a test of the length rule sees the length rule. On a composite line the
+    fairlead section takes the change (a length that is not the sections' sum is another problem)."""
     ln = d["lines"][i]
     ln["length"] = value
+    if ln.get("sections"):
+        ln["sections"][-1]["length"] = value - sum(s["length"] for s in ln["sections"][:-1])
     for k in ("min_length", "max_length", "winch_max_rate"):
         ln.pop(k, None)
     return d
@@ -218,11 +221,12 @@ CROSS_FIELD = [
      ["= 1e+300 N", "strain at MBS", "1.7e-293"]),
     ("EA = MBS: strain at MBS 100 %", "aamo4", lambda d: _lt(d, EA=5.0e6), "line_types[0].EA",
      ["= 5e+06 N", "strain at MBS (MBS/EA) of 1"]),
-    ("axial wave speed", "fpso", lambda d: _lt(d, EA=1e12, MBS=1e10, MBS_std=1e8), "line_types[0].EA",
+    ("axial wave speed", "fpso_equivalent", lambda d: _lt(d, EA=1e12, MBS=1e10, MBS_std=1e8), "line_types[0].EA",
      ["= 1e+12 N", "axial wave speed", "8.04e+04 m/s"]),
-    ("density of the cross-section", "fpso", lambda d: _lt(d, mass_per_length=1e4), "line_types[0].mass_per_length",
+    ("density of the cross-section", "fpso_equivalent", lambda d: _lt(d, mass_per_length=1e4),
+     "line_types[0].mass_per_length",
      ["= 10000 kg/m", "3.97e+05 kg/m^3"]),
-    ("submerged weight above the weight in air", "fpso", lambda d: _lt(d, submerged_weight=5000.0),
+    ("submerged weight above the weight in air", "fpso_equivalent", lambda d: _lt(d, submerged_weight=5000.0),
      "line_types[0].submerged_weight", ["= 5000 N/m", "1518 N/m"]),
     ("MBS_std above half the MBS", "aamo4", lambda d: _lt(d, MBS_std=3.0e6), "line_types[0].MBS_std",
      ["= 3e+06 N", "0.5 x MBS"]),
