@@ -529,9 +529,9 @@ MPC_SEARCH_SPACE = {
     "w_thrust": Dimension(0.3, 3000.0, log=True),
     "w_rate": Dimension(0.1, 50.0, log=True),
     "w_velocity": Dimension(0.1, 50.0, log=True),
-    "w_position": Dimension(0.1, 30.0, log=True),
-    "w_heading": Dimension(0.1, 30.0, log=True),
-    "dead_band": Dimension(0.2, 0.9, relative_to="safe_radius"),
+    "w_position": Dimension(0.1, 100.0, log=True),
+    "w_heading": Dimension(0.1, 100.0, log=True),
+    "dead_band": Dimension(0.0, 0.9, relative_to="safe_radius"),
     "load_time_constant": Dimension(0.0, 400.0),
 }
 
