@@ -27,6 +27,7 @@ _EXPORTS = {
     "Case": ".spec",
     "run_study": ".runner",
     "StudySummary": ".runner",
+    "verify_study": ".verification_study",
 }
 
 __all__ = sorted(_EXPORTS)

@@ -4,7 +4,9 @@
 at a time), writes ``study.toml`` and ``study.json``, skips the finished cases, runs the others on
 local processes or a Dask cluster (:mod:`tapm_opt.studies.executors`; each case is one
 :func:`~tapm_opt.studies.jobs.run_case`) and writes ``kpis.csv`` and ``kpis.md``
-(:func:`write_tables`). The layout is in :mod:`tapm_opt.studies.store`.
+(:func:`write_tables`), and with a ``[verification]`` table ``verification.csv`` and
+``verification.json`` (:func:`write_study_verification`). The layout is in
+:mod:`tapm_opt.studies.store`.
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ from . import executors, store
 from .spec import Study
 from .store import StudyRunError
 
-__all__ = ["StudySummary", "run_study", "write_tables"]
+__all__ = ["StudySummary", "run_study", "write_tables", "write_study_verification"]
 
 
 @dataclass(frozen=True)
@@ -148,7 +150,9 @@ def run_study(study: Study, out_dir: str | Path, *, workers: int | None = None, 
     call (``KeyboardInterrupt``) kills them before it raises. Every file is written atomically, so
     killing the run at any point keeps every case finished so far. A case that raises gets
     ``error.json`` (type, message, traceback); the other cases go on. At the end ``kpis.csv`` and
-    ``kpis.md`` list every finished case and every failed one (with its error).
+    ``kpis.md`` list every finished case and every failed one (with its error), and a study with a
+    ``[verification]`` table gets ``verification.csv`` and ``verification.json``
+    (:func:`write_study_verification`).
     """
     t0 = time.perf_counter()
     if not isinstance(study, Study):
@@ -208,9 +212,25 @@ def _run_locked(study: Study, out: Path, workers: int | None, client: Any, progr
     finally:
         bar.close()
     write_tables(study, out)
+    if study.verification is not None:
+        write_study_verification(study, out)
     if study.capability is not None:
         write_study_capability(study, out, workers=min(2, workers or os.cpu_count() or 1))
     return outcomes, todo, skipped
+
+
+def write_study_verification(study: Study, out_dir: str | Path) -> Any:
+    """The limit-state checks a study's ``[verification]`` table asks for, from the stored results
+    of its finished cases, into ``DIR/verification.csv`` and ``DIR/verification.json``
+    (:func:`tapm_opt.studies.verification_study.verify_study`; the study writes data, the report
+    draws). Returns the :class:`~tapm_opt.studies.verification_study.Verification` (None when
+    the study asks for none)."""
+    if study.verification is None:
+        return None
+    from .verification_study import verify_study
+
+    return verify_study(out_dir, study.verification,
+                        source=str(study.path) if study.path is not None else study.name)
 
 
 def write_study_capability(study: Study, out_dir: str | Path, *, workers: int = 1) -> Path | None:

@@ -75,6 +75,10 @@ class Study:
         of its scenario are computed into ``DIR/capability`` and shown in the report; None: none.
     scenario : dict or None
         The study's scenario (as loaded, without the cases' faults), for the capability envelopes.
+    verification : dict or None
+        The study's ``[verification]`` table (checked,
+        :func:`~tapm_opt.studies.verification_study.check_verification`): the limit-state checks
+        written into ``DIR/verification.csv`` after the run and shown in the report; None: none.
     """
 
     name: str
@@ -84,6 +88,7 @@ class Study:
     text: str = field(default="", repr=False)
     capability: dict | None = None
     scenario: dict | None = field(default=None, repr=False)
+    verification: dict | None = field(default=None, repr=False)
 
     def case(self, key: str) -> Case:
         """The case with this id or name."""
@@ -99,7 +104,7 @@ _STUDY_KEYS = {"name", "description", "scenario", "duration", "segments", "break
                "dt_log", "heading",
                "setpoint", "setpoint_options", "true_state", "seeds", "mode", "estimator", "detector", "winch",
                "winch_options"}
-_TOP_KEYS = {"study", "sea_states", "controllers", "conditions", "cases", "capability", "tuning"}
+_TOP_KEYS = {"study", "sea_states", "controllers", "conditions", "cases", "capability", "tuning", "verification"}
 _CONDITION_KEYS = {"name", "line_break", "thruster_failure", "buoy_loss"}
 _FAULT_KEYS = {"line_break": {"line", "time", "time_fraction"}, "thruster_failure": {"thruster", "time", "time_fraction"},
                "buoy_loss": {"line", "joint", "point", "time", "time_fraction"}}
@@ -422,6 +427,17 @@ def _parse_tuning(ck: Checker, data: Mapping) -> None:
         tuning_settings(data["tuning"])
     except TuningError as exc:
         ck.err("", str(exc))
+
+
+def _parse_verification(ck: Checker, data: Mapping, out: _Parsed) -> None:
+    """The ``[verification]`` table (limit-state checks after the run), checked against the
+    study's scenario (line types), sea states (probabilities) and duration (``t_start``)."""
+    if "verification" not in data:
+        return
+    from .verification_study import check_verification
+
+    sea = [s for s, _ in out.sea_states] if all(s is not None for s, _ in out.sea_states) else None
+    check_verification(ck, data["verification"], out.sc, sea, duration=out.duration)
 
 
 def _embedded_design(ck: Checker, path: Any, base_dir: Path, where: str) -> dict | None:
@@ -793,6 +809,7 @@ def expand_cases(data: Mapping[str, Any], *, base_dir: str | Path = ".", source:
     _parse_conditions(ck, data, parsed)
     _parse_listed(ck, data, parsed)
     _parse_tuning(ck, data)
+    _parse_verification(ck, data, parsed)
     if not ck.issues:
         cases = _expand(ck, parsed)
     if ck.issues:
@@ -809,8 +826,9 @@ def study_from_dict(data: Mapping[str, Any], *, base_dir: str | Path = ".", sour
     sc_dict = None
     if cap is not None:   # the study's scenario as loaded: every sea state, no fault
         sc_dict = {**scenario_to_dict(load_scenario(_resolve_scenario(st["scenario"], Path(base_dir)))), "faults": []}
+    ver = dict(data["verification"]) if "verification" in data else None
     return Study(name=st["name"], description=st.get("description", ""), path=None if path is None else Path(path),
-                 cases=cases, text=text or _to_toml(data), capability=cap, scenario=sc_dict)
+                 cases=cases, text=text or _to_toml(data), capability=cap, scenario=sc_dict, verification=ver)
 
 
 def _capability_table(data: Mapping[str, Any], base_dir: str | Path, source: str) -> dict | None:

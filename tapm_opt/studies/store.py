@@ -16,6 +16,9 @@ A study run directory ``DIR`` (the shared contract of the study workbench)::
     DIR/cases/<id>/kpis.json       flat {kpi_name: number}
     DIR/cases/<id>/error.json      a failed case only: {"type", "message", "traceback"}
     DIR/kpis.csv, DIR/kpis.md      one row per case
+    DIR/verification.csv, .json    with a [verification] table: the limit-state checks, one row per
+                                   controller, condition, sea state, line and limit state
+                                   (:mod:`tapm_opt.studies.verification_study`)
 
 ``<id>`` is :func:`case_id` of the case's ``inputs``: the first 12 hex digits of the SHA-256 of their
 canonical JSON, so the same inputs always land in the same folder and a re-run finds them.

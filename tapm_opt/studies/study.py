@@ -54,6 +54,11 @@ Study file
     duration = 600.0                 # optional: overrides study.duration for this case
     name = "..."                     # optional: display name of the case
 
+    [verification]                   # optional: DNV-OS-E301 limit-state checks after the run
+    consequence_class = 1            # required: 1 or 2 (standard = "DNV-OS-E301", mpm_method,
+                                     # t_start, design_fatigue_factor, design_life, probabilities,
+                                     # [verification.line_types.<id>]: docs/verification.md)
+
 Everything is checked when the file is loaded — unknown keys (with a suggestion), types, ranges,
 the scenario (its own errors are passed on under ``study.scenario``), sea-state ids, controller
 types, options and values (each controller is built once, which takes about a second for a
