@@ -1,4 +1,4 @@
-"""The ``tapm report``, ``tapm study run`` and ``tapm compare`` commands."""
+"""The ``tapm report``, ``tapm study run``, ``tapm study verify`` and ``tapm compare`` commands."""
 
 from __future__ import annotations
 
@@ -84,7 +84,60 @@ def study_run(study_file: str, out_dir: str, workers: int | None, scheduler: str
     summary = run_study(st, out_dir, workers=workers, scheduler=scheduler, progress=not no_progress,
                         announce=True)   # the case count before anything is written, with or without the bar
     click.echo(str(summary))
+    if st.verification is not None:
+        _echo_verification(Path(out_dir))
     _exit_if_failed(summary)
+
+
+def _echo_verification(out: Path, res=None) -> None:
+    """One line per limit state (rows, passed, failed), the warnings, and the files written."""
+    import json
+
+    from ..studies.verification_study import VERIFICATION_CSV, VERIFICATION_JSON
+
+    if res is None:
+        try:
+            data = json.loads((out / VERIFICATION_JSON).read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            return
+        rows, warnings = data.get("rows", []), data.get("warnings", [])
+    else:
+        rows, warnings = res.rows, res.warnings
+    parts = []
+    for ls in ("ULS", "ALS", "FLS"):
+        sel = [r for r in rows if r.get("limit_state") == ls]
+        if sel:
+            n_p = sum(r.get("verdict") == "pass" for r in sel)
+            n_f = sum(r.get("verdict") == "fail" for r in sel)
+            parts.append(f"{ls} {len(sel)} rows ({n_p} pass, {n_f} fail)" if (n_p or n_f) else f"{ls} {len(sel)} rows")
+    click.echo(f"verification: {'; '.join(parts) or 'no rows'} -> {out / VERIFICATION_CSV}")
+    for w in warnings:
+        click.echo(f"  warning: {terminal_text(str(w))}", err=True)
+
+
+@study.command("verify")
+@click.argument("study_dir", metavar="DIR", type=click.Path(file_okay=False))
+@click.option("--study", "study_file", type=click.Path(dir_okay=False), default=None,
+              help="Take the [verification] table from this study file (default DIR/study.toml, the file as run).")
+def study_verify(study_dir: str, study_file: str | None) -> None:
+    """Limit-state checks (ULS, ALS, FLS; DNV-OS-E301) of the study run in DIR from its stored
+    results: writes DIR/verification.csv and DIR/verification.json.
+
+    `tapm study run` does this itself for a study file with a [verification] table; this command
+    recomputes it on an existing directory (after editing the table, or for a study run without
+    one: pass --study FILE with the table), without running any case.
+    """
+    from ..studies.verification_study import read_verification_table, verify_study
+
+    if not study_dir.strip():
+        raise click.BadParameter(f"{study_dir!r} is empty: give the study directory", param_hint="DIR")
+    table = read_verification_table(study_dir, study_file)
+    if table is None:
+        where = study_file or str(Path(study_dir) / "study.toml")
+        raise click.BadParameter(f"{where} has no [verification] table (docs/verification.md)",
+                                 param_hint="'--study'" if study_file else "DIR")
+    res = verify_study(study_dir, table, source=study_file or str(Path(study_dir) / "study.toml"))
+    _echo_verification(Path(study_dir), res)
 
 
 def _compare_sea_state(sc, requested: str | None) -> tuple[str, str | None]:
