@@ -10,7 +10,9 @@ Sections: 1 Study, 2 Scenario, 3 Controllers compared (per condition, every cont
 turret offset, heading, max line tension, thrust power; the setpoint layers and lowest causal
 reliability indices; with a riser or an optimal setpoint, the reliability-safe region, tracks,
 setpoints and delta(t), :mod:`tapm_opt.report.reliability`), 4 Cases, 5 KPIs (bar charts of the
-headline KPIs, then the tables), 6 Gains, 7 Failed cases. Each result is read once: the case
+headline KPIs, then the tables), 6 Gains, 7 Failed cases, then with ``verification.json`` 8
+Verification (:mod:`tapm_opt.report.verification`) and with a capability computation the
+capability envelopes. Each result is read once: the case
 sections are built first and keep the reduced curves the comparison figures need.
 
 The document model and its renderers are in :mod:`tapm_opt.report.document`, the KPI tables in
@@ -388,10 +390,17 @@ def _build(study: StudyData, fig_dir_rel: str, kpi_csv_rel: str) -> tuple[list, 
                        + (f", {n_inc} not finished" if n_inc else "") + ". "
                        "Everything below comes from the saved results; nothing was re-simulated."))
     from .capability import study_capability_section
+    from .verification import study_verification_section
 
-    capability = study_capability_section(study.path, problems)   # None unless DIR/capability/capability.json
+    styles = figs.controller_styles([c.controller for c in study.cases])
+    # None unless DIR/verification.json (or a [verification] table in study.toml)
+    verification = study_verification_section(study.path, problems, styles=styles)
+    cap_n = 8 + (verification is not None)
+    # None unless DIR/capability/capability.json
+    capability = study_capability_section(study.path, problems, heading=f"{cap_n} Capability")
     blocks.append(Para("Contents: 1 Study · 2 Scenario · 3 Controllers compared · 4 Cases · 5 KPIs · 6 Gains · "
-                       "7 Failed cases" + (" · 8 Capability" if capability is not None else "")))
+                       "7 Failed cases" + (" · 8 Verification" if verification is not None else "")
+                       + (f" · {cap_n} Capability" if capability is not None else "")))
 
     # 1. study
     blocks.append(Heading(2, "1 Study", anchor="study"))
@@ -451,7 +460,6 @@ def _build(study: StudyData, fig_dir_rel: str, kpi_csv_rel: str) -> tuple[list, 
             problems.append(f"layout figure of {sc.name} not drawn: {exc}")
 
     # the case sections first (each result is read once), placed after the comparison
-    styles = figs.controller_styles([c.controller for c in study.cases])
     done = [c for c in study.cases if c.status == "finished"]
     case_blocks: list = []
     overlay: dict = {}
@@ -538,7 +546,11 @@ def _build(study: StudyData, fig_dir_rel: str, kpi_csv_rel: str) -> tuple[list, 
     if incomplete:
         blocks.append(Para("Not finished (no result and no error yet): "
                            + ", ".join(f"{c.name} (`{c.id}`)" for c in incomplete), css="note"))
-    # 8. capability envelopes (the study's [capability], or tapm capability SCENARIO --out DIR/capability)
+    # 8. limit-state verification (the study's [verification], or tapm study verify DIR)
+    if verification is not None:
+        blocks.extend(verification[0])
+        fig_list.extend(verification[1])
+    # 8 or 9. capability envelopes (the study's [capability], or tapm capability SCENARIO --out DIR/capability)
     if capability is not None:
         blocks.extend(capability[0])
         fig_list.extend(capability[1])
@@ -586,7 +598,7 @@ def write_report(study_dir: str | Path, *, out_html: str | Path | None = None,
         names.add(f"{f.name}.png")
     for old in fig_dir.glob("*.png"):
         if old.name not in names and old.name.startswith(
-                ("case_", "layout", "compare_", "kpi_bars", "reliability_", "capability")):
+                ("case_", "layout", "compare_", "kpi_bars", "reliability_", "capability", "verification_")):
             old.unlink(missing_ok=True)
     atomic_write_text(out_md, md)
     atomic_write_text(out_html, page)
