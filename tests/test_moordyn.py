@@ -448,8 +448,10 @@ BAD_FILES = {
                      "point 2: Mass = 500"),
     "EI": (lambda t: _edit(t, "-1.0       0      1.2", "-1.0       1e12   1.2"),
            "line type 'poly160' (file line 7): EI = 1e+12 N m^2 matters: EI / (H l^2) ="),
-    "VIV": (lambda t: _edit(t, "0.05    0.1    # main leg", "0.05    0.1   0.8"), "Cl = 0.8"),
-    "viscoelastic": (lambda t: _edit(t, "1.2e9     -1.0", "1.2e9|2e9     -1.0"), "viscoelastic"),
+    "dynamic damping of an elastic line": (lambda t: _edit(t, "1.2e9     -1.0", "1.2e9     -1.0|1e6"),
+                                           "static|dynamic damping BA = -1.0|1e6 needs a viscoelastic EA"),
+    "viscoelastic without a rest state": (lambda t: _edit(t, "1.2e9     -1.0", "1.2e9|1e9     -1.0"),
+                                          "the dynamic stiffness EA_d = 1e+09 N must be greater than the static"),
     "second body": (lambda t: _edit(t, "1     Vessel     0      0     0      0       0      0       0     0     0        0"
                                        "       0      0\n",
                                     "1     Vessel     0      0     0      0       0      0       0     0     0        0"
@@ -690,13 +692,13 @@ def test_hull_fixed_fairleads_lock_the_turret_unless_they_form_one(tmp_path, cap
 
 
 def test_every_problem_in_a_file_is_said_at_once(tmp_path, capsys):
-    """A rod, a free point and a line type with VIV in one file: all three named with
-    their file lines in one error, and the lines that use the refused type or point not named again."""
+    """A rod, a free point and a line type with a bending stiffness curve in one file: all three named
+    with their file lines in one error, and the lines that use the refused type or point not named again."""
     text = HAND_WRITTEN
     for case in ("rod", "free point"):
         text = BAD_FILES[case][0](text)
     text = text.replace("---------------------- BODIES",
-                        "stiff      0.16    120.0      1.2e9     -1.0       0      1.2    1.0    0.05    0.1   0.8\n"
+                        "stiff      0.16    120.0      1.2e9     -1.0       EI.txt 1.2    1.0    0.05    0.1\n"
                         "---------------------- BODIES", 1)
     text = text.replace("9     poly160", "9     stiff  ")
     path = _write(tmp_path, text)
@@ -704,7 +706,7 @@ def test_every_problem_in_a_file_is_said_at_once(tmp_path, capsys):
         parse_moordyn(path.read_text(), source=str(path))
     msg = str(exc.value)
     assert msg.startswith(f"{path}: 3 problems: "), msg
-    for needle in ("rod 1: rods are not supported", "line type 'stiff': Cl = 0.8 > 0",
+    for needle in ("rod 1: rods are not supported", "line type 'stiff': EI = 'EI.txt' names a bending stiffness curve",
                    "point 7 is a free point ('Free')"):
         assert needle in msg, (needle, msg)
     # three, not more: lines 4 (on point 7) and 9 (of type 'stiff') are not named again

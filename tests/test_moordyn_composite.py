@@ -217,7 +217,7 @@ def test_every_problem_of_the_lines_is_said_at_once(tmp_path, capsys):
     text = CWC.replace(
         "wire       0.09    40.0       6.0e8     -1.0       0      1.2    1.0    0.008   0.0\n",
         "wire       0.09    40.0       6.0e8     -1.0       0      1.2    1.0    0.008   0.0\n"
-        "rope       0.12    12.0       1e8|2e8   -1.0       0      1.2    1.0    0.008   0.0\n").replace(
+        "rope       0.12    12.0       2e8|1e8   -1.0       0      1.2    1.0    0.008   0.0\n").replace(
         "12   Body1       87.4400     6.9282  -18.0    0      0     0    0\n",
         "12   Body1       87.4400     6.9282  -18.0    0      0     0    0\n"
         "13   Fixed      500.0      500.0    -300.0   0      0     0    0\n"
@@ -239,7 +239,7 @@ def test_every_problem_of_the_lines_is_said_at_once(tmp_path, capsys):
         parse_moordyn(text, source="all.dat")
     msg = str(exc.value)
     said = [
-        "line 8: line type 'rope': viscoelastic stiffness EA = 1e8|2e8 is not supported",
+        "line 8: line type 'rope': viscoelastic EA = 2e8|1e8: the dynamic stiffness EA_d = 1e+08 N must be greater",
         "line 18: point 3 is a free point ('Free') joining 3 lines (2, 3, 15): a bridle or Y-connection",
         "line 26: point 11 is a free point ('Free') joining 3 lines (8, 9, 15): a bridle or Y-connection",
         "line 29: point 14 is a free point ('Free') at the end of line 10 alone: a free end",

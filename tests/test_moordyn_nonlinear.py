@@ -15,6 +15,7 @@
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
 
 import moordyn  # noqa: F401 - in the test extra; its absence must fail, not skip
@@ -177,9 +178,12 @@ def test_a_curve_row_that_is_not_two_numbers_is_refused(tmp_path):
         read_moordyn(path)
 
 
-def test_viscoelastic_and_syrope_stay_refused(tmp_path):
-    with pytest.raises(MoorDynError, match="viscoelastic stiffness EA = 1.1e9|2e9 is not supported"):
-        parse_moordyn(LEGS.format(ea="1.1e9|2e9", n=40))
+def test_a_curve_as_viscoelastic_static_ea_and_syrope_stay_refused(tmp_path):
+    """A viscoelastic EA reads as its static stiffness (tests/test_moordyn_import_more.py), which
+    must be a number: MoorDyn's viscoelastic model takes a curve's secant as a constant."""
+    with pytest.raises(MoorDynError, match=re.escape("viscoelastic EA = rope_EA.txt|2e9: its static stiffness "
+                                                     "'rope_EA.txt' is not a number")):
+        parse_moordyn(LEGS.format(ea="rope_EA.txt|2e9", n=40))
     with pytest.raises(MoorDynError, match="Syrope model"):
         parse_moordyn(LEGS.format(ea="SYROPE:syrope.dat|1.5e8|23", n=40))
 

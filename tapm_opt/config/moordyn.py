@@ -143,6 +143,19 @@ class MDLineType:
     is then its secant at the last row (MoorDyn-C's one EA of a curve)."""
     EA_file: str = ""
     """The curve file as the EA column names it."""
+    EA_dynamic: str = ""
+    """A viscoelastic EA's dynamic part as written after the first bar (``EA_d``, or
+    ``EA_Dc|EA_D_Lm`` for a load-dependent one); EA is then the static stiffness, the tension at
+    rest (MoorDyn's static and dynamic springs in series). Empty for an elastic line."""
+    BA_dynamic: float | None = None
+    """A viscoelastic line's dynamic damping ``BA_d`` [N s] (the value after the bar of BA, the
+    damper across the dynamic spring); None when BA has no bar. BA is then the static damping."""
+    Cl: float = 0.0
+    """The cross-flow VIV lift coefficient (0: no VIV)."""
+
+    @property
+    def viscoelastic(self) -> bool:
+        return bool(self.EA_dynamic)
 
 
 #: Most rows of a curve MoorDyn-C reads (its ``nCoef``).
@@ -514,9 +527,20 @@ class _Reader:
         ea = t[3]
         if ea.upper().startswith("SYROPE"):
             raise self.err(f"line type {name!r}: the Syrope model (EA = {ea}) is not supported", i)
-        if "|" in ea:
-            raise self.err(f"line type {name!r}: viscoelastic stiffness EA = {ea} is not supported "
-                           "(tapm_opt lines are elastic: a constant EA or a tension-strain curve)", i)
+        parts = ea.split("|")
+        if len(parts) > 3:
+            raise self.err(f"line type {name!r}: EA = {ea} has {len(parts)} bar-separated values; MoorDyn takes EA, "
+                           "EA_s|EA_d (viscoelastic) or EA_s|EA_Dc|EA_D_Lm (viscoelastic, the dynamic stiffness "
+                           "growing with the mean load)", i)
+        dynamic = "|".join(parts[1:])
+        if dynamic:
+            try:
+                float(parts[0])
+            except ValueError:
+                raise self.err(f"line type {name!r}: viscoelastic EA = {ea}: its static stiffness {parts[0]!r} is not a "
+                               "number; a tension-strain curve as the static part is not supported (MoorDyn's "
+                               "viscoelastic model takes the curve's secant as a constant)", i) from None
+            ea = parts[0]
         curve, curve_file = None, ""
         try:
             EA = float(ea)
@@ -524,10 +548,22 @@ class _Reader:
             curve_file = ea
             curve = self._curve(name, ea, i)
             EA = curve[-1][1] / curve[-1][0]
-        if "|" in t[4]:
-            raise self.err(f"line type {name!r}: static|dynamic damping BA = {t[4]} is not supported", i)
+        ba = t[4].split("|")
+        BA_d = None
+        if len(ba) > 1:
+            if not dynamic:
+                raise self.err(f"line type {name!r}: static|dynamic damping BA = {t[4]} needs a viscoelastic EA "
+                               f"(EA_s|EA_d); EA = {t[3]} has one value, and MoorDyn refuses more BA values than EA "
+                               "values", i)
+            if len(ba) > 2:
+                raise self.err(f"line type {name!r}: BA = {t[4]} has {len(ba)} bar-separated values; MoorDyn takes "
+                               "at most 2 (static|dynamic damping)", i)
+            BA_d = self.num(ba[1], f"line type {name!r} BA (dynamic damping, after the bar)", i)
+            if BA_d < 0:
+                raise self.err(f"line type {name!r}: BA = {t[4]}: the dynamic damping {ba[1]} must be >= 0 N s "
+                               "(MoorDyn takes no damping ratio for it)", i)
         try:
-            BA = float(t[4])
+            BA = float(ba[0])
         except ValueError:
             raise self.err(f"line type {name!r}: BA = {t[4]!r} names a nonlinear damping curve, which is not "
                            "supported", i) from None
@@ -540,8 +576,7 @@ class _Reader:
             raise self.err(f"line type {name!r}: EI = {t[5]} N m^2 must be >= 0", i)
         vals = [self.num(t[k], f"line type {name!r} {col}", i)
                 for k, col in ((1, "Diam"), (2, "Mass/m"), (6, "Cd"), (7, "Ca"), (8, "CdAx"), (9, "CaAx"))]
-        if len(t) >= 11 and self.num(t[10], f"line type {name!r} Cl", i) > 0:
-            raise self.err(f"line type {name!r}: Cl = {t[10]} > 0: vortex-induced vibration is not supported", i)
+        Cl = self.num(t[10], f"line type {name!r} Cl", i) if len(t) >= 11 else 0.0
         d, mass, Cd, Ca, CdAx, CaAx = vals
         for col, v in (("Diam", d), ("Mass/m", mass), ("EA", EA)):
             if not v > 0:
@@ -549,9 +584,47 @@ class _Reader:
         for col, v in (("Cd", Cd), ("Ca", Ca), ("CdAx", CdAx), ("CaAx", CaAx)):
             if v < 0:
                 raise self.err(f"line type {name!r}: {col} = {v:g} must be >= 0", i)
+        if dynamic:
+            self._viscoelastic(name, t[3], EA, [self.num(x, f"line type {name!r} EA (dynamic part)", i)
+                                                for x in parts[1:]], i)
         if any(lt.name == name for lt in out):
             raise self.err(f"line type {name!r} is defined twice", i)
-        return MDLineType(name, d, mass, EA, BA, EI, Cd, Ca, CdAx, CaAx, i, EA_table=curve, EA_file=curve_file)
+        if Cl > 0:
+            self.notes.append(
+                f"line type {name!r}: Cl = {t[10]} (line {i}): MoorDyn's vortex-induced vibration, a cross-flow lift "
+                "0.5 rho_w d Cl |v_n|^2 cos(phi) per unit length on the inner nodes (v_n the line's velocity normal to "
+                "it, relative to the water), is neglected: it is zero with the line at rest and off in MoorDyn's "
+                "initial condition, so the statics are unchanged; under current or motion the FEM's lines have no "
+                "such lift")
+        return MDLineType(name, d, mass, EA, BA, EI, Cd, Ca, CdAx, CaAx, i, EA_table=curve, EA_file=curve_file,
+                          EA_dynamic=dynamic, BA_dynamic=BA_d, Cl=max(Cl, 0.0))
+
+    def _viscoelastic(self, name: str, entry: str, EA: float, dyn: list[float], i: int) -> None:
+        """Check a viscoelastic EA (``EA_s|EA_d`` or ``EA_s|EA_Dc|EA_D_Lm``) and say how it is read:
+        its static stiffness EA_s is the line's EA, exact at rest; the dynamic one is neglected."""
+        if len(dyn) == 1:
+            if not dyn[0] > EA:
+                raise self.err(f"line type {name!r}: viscoelastic EA = {entry}: the dynamic stiffness EA_d = {dyn[0]:g} N "
+                               f"must be greater than the static EA_s = {EA:g} N (MoorDyn's static spring "
+                               "EA_d EA_s / (EA_d - EA_s), in series with EA_d, is otherwise negative or infinite, and "
+                               "the line has no rest state)", i)
+            said = f"the dynamic EA_d = {dyn[0]:g} N"
+        else:
+            Dc, Lm = dyn
+            if not Dc > EA:
+                raise self.err(f"line type {name!r}: viscoelastic EA = {entry}: the dynamic stiffness at zero mean load "
+                               f"EA_Dc = {Dc:g} N must be greater than the static EA_s = {EA:g} N (MoorDyn refuses a "
+                               "dynamic stiffness equal to the static one, and a smaller one has no rest state)", i)
+            if Lm < 0:
+                raise self.err(f"line type {name!r}: viscoelastic EA = {entry}: EA_D_Lm = {Lm:g}, the growth of the "
+                               "dynamic stiffness with the mean load, must be >= 0", i)
+            said = f"the dynamic EA_Dc + EA_D_Lm x mean load = {Dc:g} N + {Lm:g} x mean load"
+        self.notes.append(
+            f"line type {name!r}: viscoelastic EA = {entry} (line {i}): the static stiffness EA_s = {EA:g} N is the line's "
+            f"EA, its tension at rest as MoorDyn's (a static spring EA_1 = EA_d EA_s / (EA_d - EA_s) in series with "
+            f"the dynamic EA_d: EA_1 EA_d / (EA_1 + EA_d) = EA_s whatever EA_d, once the dampers carry nothing); {said} "
+            "is neglected: under motion MoorDyn's line is stiffer, up to EA_d, so the FEM's dynamic tensions differ "
+            "from MoorDyn's")
 
     def _curve(self, name: str, entry: str, i: int) -> tuple[tuple[float, float], ...]:
         """The tension-strain curve a line type's EA column names, read as MoorDyn-C reads it: a
@@ -1485,6 +1558,10 @@ def scenario_data_from_moordyn(model: MoorDynModel, vessel_data: dict, *, mbs: M
     g, rho, depth = model.gravity, model.water_density, model.water_depth
     if not depth > 0:
         raise MoorDynError("no water depth: set option WtrDpth (or put the anchors on the seabed)", source=src)
+    if not g > 0:
+        got = model.option("g", "gravity")
+        raise MoorDynError(f"option g = {g:g} m/s^2: tapm_opt's lines hang under gravity, which must be > 0 (a "
+                           "weightless line has no catenary)", source=src, lineno=got[1] if got else None)
     wd = model.number_option("wtrdpth", "depth", "waterdepth", default=0.0) or 0.0
     if 0.0 < wd < depth:
         deepest = max(model.points, key=lambda p: -model.global_position(p)[2])
@@ -1525,21 +1602,26 @@ def scenario_data_from_moordyn(model: MoorDynModel, vessel_data: dict, *, mbs: M
                                          f"submerged weight {w:g} N/m); buoyant lines are not supported (a buoy is a "
                                          "free point with a volume)", source=src, lineno=lt.lineno))
             continue
-        if lt.BA < 0:
-            zeta = -lt.BA / _SQRT2
-        elif lt.BA > 0:
+        BA = lt.BA if not lt.viscoelastic else (lt.BA_dynamic or 0.0)   # the damper across the whole segment
+        if BA < 0:
+            zeta = -BA / _SQRT2
+        elif BA > 0:
             seg = {ln.length / ln.segments for ln in model.lines if ln.type == lt.name}
             if max(seg) - min(seg) > 1e-9 * max(seg):
+                what = f"BA = {lt.BA:g} N s" if not lt.viscoelastic else f"the dynamic damping BA_d = {BA:g} N s"
                 problems.append(MoorDynError(
-                    f"line type {lt.name!r}: BA = {lt.BA:g} N s with lines of different segment lengths "
+                    f"line type {lt.name!r}: {what} with lines of different segment lengths "
                     f"({', '.join(f'{s:g}' for s in sorted(seg))} m); tapm_opt's axial damping is one ratio per line type: "
-                    "give the lines the same UnstrLen/NumSegs, or BA as a negative damping ratio", source=src,
-                    lineno=lt.lineno))
+                    "give the lines the same UnstrLen/NumSegs" + ("" if lt.viscoelastic else
+                                                                   ", or BA as a negative damping ratio"),
+                    source=src, lineno=lt.lineno))
                 continue
             l = seg.pop()
-            zeta = lt.BA / (_SQRT2 * l * math.sqrt(lt.EA * lt.mass))
+            zeta = BA / (_SQRT2 * l * math.sqrt(lt.EA * lt.mass))
         else:
             zeta = 0.0
+        if lt.viscoelastic:
+            zeta = _viscoelastic_damping(lt, zeta, notes)
         if zeta > 1.0:
             problems.append(MoorDynError(f"line type {lt.name!r}: BA = {lt.BA:g} is {zeta:.3g} of the critical damping "
                                          "of tapm_opt's segment mode; at most 1 (BA = -1.414) is allowed", source=src,
@@ -1583,9 +1665,13 @@ def scenario_data_from_moordyn(model: MoorDynModel, vessel_data: dict, *, mbs: M
                          f"(line {at})")
         ea_said = f"EA {lt.EA:g} N" if lt.EA_table is None else (
             f"EA curve {lt.EA_file} ({len(lt.EA_table)} rows, secant {lt.EA:g} N)")
+        if lt.viscoelastic:
+            ea_said = f"EA {lt.EA:g}|{lt.EA_dynamic} N (viscoelastic: the static {lt.EA:g} N used)"
+        ba_said = f"BA {lt.BA:g}" + (f"|{lt.BA_dynamic:g}" if lt.BA_dynamic is not None else "")
         comments[("line_types", len(line_types))] = [
             f"MoorDyn {lt.name} ({src}:{lt.lineno}): Diam {lt.d:g} m, Mass/m {lt.mass:g} kg/m, {ea_said}, "
-            f"BA {lt.BA:g}, Cd {lt.Cd:g}, Ca {lt.Ca:g}, CdAx {lt.CdAx:g} (on pi d), CaAx {lt.CaAx:g}",
+            f"{ba_said}, Cd {lt.Cd:g}, Ca {lt.Ca:g}, CdAx {lt.CdAx:g} (on pi d), CaAx {lt.CaAx:g}"
+            + (f", Cl {lt.Cl:g} (VIV, neglected)" if lt.Cl > 0 else ""),
             f"MBS from {said}" + (f"; MBS_std = {mbs_cov:g} x MBS (--mbs-cov)" if said == "--mbs" else ""),
         ]
         line_types.append(item)
@@ -1733,6 +1819,35 @@ def scenario_data_from_moordyn(model: MoorDynModel, vessel_data: dict, *, mbs: M
     keys = ["meta", "environment", "vessel", "turret", "line_types", "lines", "point_types"]
     data = {k: data[k] for k in keys if k in data} | {k: v for k, v in data.items() if k not in keys}
     return data, notes, comments
+
+
+def _viscoelastic_damping(lt: MDLineType, zeta: float, notes: list[str]) -> float:
+    """The FEM's axial damping ratio of a viscoelastic line type, from ``zeta``, the ratio its
+    dynamic damping BA_d gives: at most 1 (critical, the FEM's most), with a note saying what
+    becomes of MoorDyn's two dampers."""
+    static = f"the static damping {lt.BA:g}" + (" (a ratio)" if lt.BA < 0 else " N s")
+    head = (f"line type {lt.name!r}: viscoelastic damping BA = {lt.BA:g}" +
+            (f"|{lt.BA_dynamic:g}" if lt.BA_dynamic is not None else "") + f" (line {lt.lineno}): ")
+    tail = (f"; {static}, across MoorDyn's static spring, sets how fast the line creeps from the dynamic to the "
+            "static stiffness and is neglected with the dynamic stiffness")
+    if not lt.BA_dynamic:
+        notes.append(head + "MoorDyn's dynamic spring, which carries fast motion, has no damper (no BA_d), so the "
+                     "FEM's axial damping is 0" + tail)
+        return 0.0
+    EA_d = float(lt.EA_dynamic.split("|")[0])   # EA_d, or EA_Dc at zero mean load
+    said = (f"the FEM's axial damper, across the whole segment, is MoorDyn's dynamic damper BA_d = {lt.BA_dynamic:g} "
+            "N s across the dynamic spring, which carries fast motion")
+    if zeta <= 1.0:
+        notes.append(head + said + f" (axial_damping_ratio {zeta:.4g})" + tail)
+        return zeta
+    # capped: the damper's coefficient becomes critical's; the frequencies above which either
+    # damper matters against its spring
+    c_fem = lt.BA_dynamic / zeta
+    notes.append(head + said + f", {zeta:.3g} times the critical damping of the FEM's segment mode: the FEM takes "
+                 f"critical (axial_damping_ratio 1, its most). Both damp the segments' zig-zag mode without ringing; "
+                 f"the damping matters against the stiffness above EA_d / BA_d = {EA_d / lt.BA_dynamic:.3g} rad/s in "
+                 f"MoorDyn and EA_s / c = {lt.EA / c_fem:.3g} rad/s in the FEM" + tail)
+    return 1.0
 
 
 def _front_type_values(lt: MDLineType, fm: Mapping[str, float], g: float, rho: float) -> dict[str, float] | None:
