@@ -1,6 +1,12 @@
-"""More MoorDyn files import: viscoelastic line types (their static EA), VIV line types (Cl
-neglected); and what stays refused says why, in MoorDyn's terms.
+"""More MoorDyn files import: lines held between two fixed points (--fixed-as-fairleads), viscoelastic
+line types (their static EA), VIV line types (Cl neglected); and what stays refused says why, in
+MoorDyn's terms.
 
+* a file with no vessel point whose lines run from a fixed point on the seabed to a fixed point
+  higher up imports with ``fixed_as_fairleads`` (the CLI's ``--fixed-as-fairleads``): the upper
+  point is a fairlead on the vessel; its statics are the elastic catenary's in closed form, and a
+  composite one's the composite solver's on the file's numbers; ends at one depth, a fixed point
+  that would be both fairlead and anchor, and fixed points in a file that has a vessel are refused;
 * a viscoelastic EA (``EA_s|EA_d``, ``EA_s|EA_Dc|EA_D_Lm``) is read as its static stiffness, which
   is MoorDyn-C's own tension at rest (measured on the file), with the damping of its dynamic damper;
   the dynamic stiffness it neglects is said; what MoorDyn has no rest state for is refused;
@@ -18,13 +24,23 @@ from pathlib import Path
 import moordyn  # noqa: F401 - in the test extra; its absence must fail, not skip
 import numpy as np
 import pytest
+from scipy.optimize import fsolve
 from test_moordyn_nonlinear import moordyn_fairlead_tensions
 
+from tapm_opt.cli import main
+from tapm_opt.config import load_scenario
 from tapm_opt.config.moordyn import MoorDynError, parse_moordyn, read_moordyn
-from tapm_opt.models import MooringModel
+from tapm_opt.geometry import fairleads_E
+from tapm_opt.models import MooringModel, composite
 from tapm_opt.models.moordyn_import import import_moordyn
 
 G, RHO = 9.81, 1025.0
+
+
+def run(capsys, *args: str):
+    code = main(list(args))
+    out = capsys.readouterr()
+    return code, out.out, out.err
 
 
 def _write(tmp_path: Path, text: str, name: str = "moor.dat") -> Path:
@@ -38,9 +54,174 @@ def _w(mass: float, diam: float) -> float:
     return (mass - RHO * math.pi * diam * diam / 4.0) * G
 
 
+# --------------------------------------------------------------------------------------------
+# lines between two fixed points: the upper one is the vessel's fairlead
+# --------------------------------------------------------------------------------------------
+
+# A chain held between a point on the seabed (150 m) and one 5 m below the surface 600 m away, as
+# MoorDyn's wave-kinematics tests hold theirs; the line is written from the upper point down.
+RIG = """\
+--------------------- MoorDyn Input File ------------------------------------
+A chain held between a point on the seabed and one 5 m below the surface (a test rig, no vessel)
+----------------------- LINE TYPES ------------------------------------------
+TypeName   Diam    Mass/m     EA         BA/-zeta    EI         Cd     Ca     CdAx    CaAx
+(name)     (m)     (kg/m)     (N)        (N-s/-)     (N-m^2)    (-)    (-)    (-)     (-)
+chain      0.15    140        1.2e9      -1.0        0          1.37   1.0    0.64    0.0
+---------------------- POINT PROPERTIES --------------------------------
+ID    Type      X       Y       Z       Mass   Volume  CdA    Ca
+(#)   (-)       (m)     (m)     (m)     (kg)   (m^3)   (m^2)  (-)
+1     Fixed     0.0     0.0     -5.0    0      0       0      0
+2     Fixed    -600.0   0.0     -150.0  0      0       0      0
+---------------------- LINES ----------------------------------------
+ID   LineType   AttachA  AttachB  UnstrLen  NumSegs  LineOutputs
+(#)   (name)     (#)      (#)       (m)       (-)     (-)
+1     chain      1        2         660       40      -
+---------------------- OPTIONS -----------------------------------------
+150           WtrDpth              water depth (m)
+1025          rho                  water density (kg/m^3)
+9.81          g                    gravity (m/s^2)
+------------------------- need this line --------------------------------------
+"""
+
+
+def _touchdown(XF: float, ZF: float, L: float, w: float, EA: float) -> tuple[float, float]:
+    """H, V at the upper end of an elastic catenary resting on a frictionless seabed, from the
+    closed-form closure equations (L_B = L - V/w on the seabed):
+    XF = L - V/w + (H/w) asinh(V/H) + H L/EA,  ZF = (H/w)(sqrt(1 + (V/H)^2) - 1) + V^2/(2 EA w)."""
+
+    def res(x):
+        H, V = x
+        return [L - V / w + H / w * math.asinh(V / H) + H * L / EA - XF,
+                H / w * (math.sqrt(1.0 + (V / H) ** 2) - 1.0) + V * V / (2.0 * EA * w) - ZF]
+
+    H, V = fsolve(res, [0.2 * w * L, w * ZF * 1.2], xtol=1e-14)
+    assert max(abs(r) for r in res([H, V])) < 1e-6
+    assert V / w < L   # some of the line on the seabed
+    return float(H), float(V)
+
+
+def test_a_line_between_two_fixed_points_hangs_from_the_vessel(tmp_path):
+    """The upper fixed point is a fairlead on the vessel (said in a note, naming both points), the
+    lower one its anchor; the fairlead tension is the closed-form catenary's at rest and when the
+    vessel has moved 5 m north, the fairlead with it (as MoorPy, moving the fixed point, has it)."""
+    path = _write(tmp_path, RIG)
+    res = import_moordyn(path, "fpso", mbs={"chain": 1.2e7}, fixed_as_fairleads=True)
+    sc = res.scenario
+    note = next(n for n in res.notes if "--fixed-as-fairleads" in n)
+    assert "point 1 (z = -5 m) over point 2 (z = -150 m), line 1" in note, note
+    assert any("line 1 runs from the fairlead (end A, point 1) to the anchor (end B)" in n for n in res.notes)
+    assert sc.turret.fairlead_depth == 5.0 and sc.environment.water_depth == 150.0
+    assert sc.lines[0].anchor == pytest.approx((-600.0, 0.0, 150.0))
+    model = MooringModel.from_scenario(sc)
+    w = _w(140.0, 0.15)
+    for surge in (0.0, 5.0):
+        eta = np.array([surge, 0.0, 0.0])
+        fx, fy = fairleads_E(eta, sc.turret.position, sc.fairleads_T, sc.turret.angle)
+        assert (float(fx[0]), float(fy[0])) == pytest.approx((surge, 0.0), abs=1e-9)   # where the file has it
+        H, V = _touchdown(600.0 + surge, 145.0, 660.0, w, 1.2e9)
+        assert model.tensions(eta)[0] == pytest.approx(math.hypot(H, V), rel=1e-9), surge
+        assert model.force(eta)[0] == pytest.approx(-H, rel=1e-9)   # pulled back towards the anchor
+    # the TOML reads back as the same scenario
+    back = load_scenario(_write(tmp_path, res.toml, "rig.toml"))
+    assert back.lines == sc.lines and back.turret == sc.turret
+
+
+def test_without_the_option_the_refusal_names_it(tmp_path, capsys):
+    """Off by default: a fixed point does not move in MoorDyn, so only the user can say it stands
+    for a fairlead; the refusal names the option once, and the command takes it."""
+    path = _write(tmp_path, RIG)
+    with pytest.raises(MoorDynError) as exc:
+        import_moordyn(path, "fpso", mbs={"chain": 1.2e7})
+    assert str(exc.value) == (
+        "moor.dat:15: line 1 runs between two fixed points (1 and 2); every line must run from a fixed anchor to the "
+        "vessel (the file has no vessel point: --fixed-as-fairleads takes the upper fixed point of each line, or lines "
+        "in series, between two fixed points as a fairlead on the vessel)")
+    out = tmp_path / "rig.toml"
+    code, _, err = run(capsys, "scenario", "import-moordyn", str(path), "--vessel", "fpso", "--out", str(out),
+                       "--mbs", "chain=1.2e7")
+    assert code == 2 and "--fixed-as-fairleads" in err and not out.exists()
+    code, stdout, err = run(capsys, "scenario", "import-moordyn", str(path), "--vessel", "fpso", "--out", str(out),
+                            "--mbs", "chain=1.2e7", "--fixed-as-fairleads")
+    assert code == 0, err
+    assert "taken as a fairlead on the vessel" in stdout and load_scenario(out).turret.fairlead_depth == 5.0
+
+
+# lines in series between two fixed points: 350 m of chain from the seabed, a 2 t clump, 260 m of
+# wire written from the upper point (10 m deep) down to the clump
+RIG_SERIES = """\
+--------------------- MoorDyn Input File ------------------------------------
+Chain, clump and wire between a point on the seabed and one 10 m deep
+----------------------- LINE TYPES ------------------------------------------
+TypeName   Diam    Mass/m     EA         BA/-zeta    EI    Cd     Ca     CdAx    CaAx
+(name)     (m)     (kg/m)     (N)        (N-s/-)   (N-m^2) (-)    (-)    (-)     (-)
+chain      0.15    140        1.2e9      -1.0        0     1.37   1.0    0.64    0.0
+wire       0.08    30         5.0e8      -1.0        0     1.2    1.0    0.008   0.0
+---------------------- POINTS --------------------------------
+ID    Type      X       Y       Z       Mass   Volume  CdA    Ca
+(#)   (-)       (m)     (m)     (m)     (kg)   (m^3)   (m^2)  (-)
+1     Fixed    -500.0   0.0     -200.0  0      0       0      0
+2     Free     -200.0   0.0     -120.0  2000   0       0      0
+3     Fixed     0.0     0.0     -10.0   0      0       0      0
+---------------------- LINES ----------------------------------------
+ID   LineType   AttachA  AttachB  UnstrLen  NumSegs  LineOutputs
+(#)   (name)     (#)      (#)       (m)       (-)     (-)
+1     chain      1        2         350       20      -
+2     wire       3        2         260       20      -
+---------------------- OPTIONS -----------------------------------------
+200           WtrDpth
+1025          rho
+9.81          g
+------------------------- need this line --------------------------------------
+"""
+
+
+def test_lines_in_series_between_fixed_points_are_a_composite_line_to_the_vessel(tmp_path):
+    res = import_moordyn(_write(tmp_path, RIG_SERIES), "fpso", mbs={"chain": 1.2e7, "wire": 8e6},
+                         fixed_as_fairleads=True)
+    sc = res.scenario
+    assert [ln.id for ln in sc.lines] == ["1-2"]
+    assert [(s.type, s.length, s.top) for s in sc.lines[0].sections] == [("chain", 350.0, "clump2"), ("wire", 260.0, None)]
+    assert any("point 3 (z = -10 m) over point 1 (z = -200 m), lines 1, 2 (from the anchor up)" in n for n in res.notes)
+    line = composite.CompositeLine(L=np.array([350.0, 260.0]), EA=np.array([1.2e9, 5e8]),
+                                   w=np.array([_w(140.0, 0.15), _w(30.0, 0.08)]), CB=np.zeros(2),
+                                   W=np.array([2000.0 * G]))
+    T = float(composite.solve(500.0, 190.0, line).TF)
+    assert MooringModel.from_scenario(sc).tensions(np.zeros(3))[0] == pytest.approx(T, rel=1e-12)
+
+
 def _edit(text: str, old: str, new: str) -> str:
     assert old in text
     return text.replace(old, new, 1)
+
+
+def test_what_cannot_be_a_fairlead_is_refused_with_the_reason(tmp_path):
+    """Ends at one depth (neither is the upper one), a fixed point that would be a fairlead of one
+    line and the anchor of another, all said at once; and in a file with a vessel the fixed points
+    stay fixed, the option or not."""
+    level = _edit(RIG, "2     Fixed    -600.0   0.0     -150.0", "2     Fixed    -600.0   0.0     -5.0  ")
+    with pytest.raises(MoorDynError, match=r"line 1 runs between two fixed points \(1 and 2\) at the same depth "
+                                           r"\(z = -5 m\): neither end is the upper one"):
+        parse_moordyn(level, fixed_as_fairleads=True)
+    with pytest.raises(MoorDynError, match=r"\(both at z = -5 m: neither could be taken as the fairlead\)"):
+        parse_moordyn(level)
+    # a third point above point 1, joined to it: point 1 is the top of line 2's rig and the bottom of line 3's
+    both = _edit(_edit(RIG, "2     Fixed    -600.0   0.0     -150.0  0      0       0      0\n",
+                       "2     Fixed    -600.0   0.0     -150.0  0      0       0      0\n"
+                       "3     Fixed     300.0   0.0     -1.0    0      0       0      0\n"),
+                 "1     chain      1        2         660       40      -\n",
+                 "1     chain      1        2         660       40      -\n"
+                 "2     chain      1        3         310       20      -\n")
+    with pytest.raises(MoorDynError) as exc:
+        parse_moordyn(both, source="both.dat", fixed_as_fairleads=True)
+    assert str(exc.value) == (
+        "both.dat:10: point 1 (fixed) is the upper end of line 1 and the lower end of line 2: --fixed-as-fairleads "
+        "would make it both a fairlead on the vessel and an anchor")
+    vessel = _edit(RIG, "2     Fixed    -600.0   0.0     -150.0  0      0       0      0\n",
+                   "2     Fixed    -600.0   0.0     -150.0  0      0       0      0\n"
+                   "3     Vessel    0.0     0.0     0.0     0      0       0      0\n")
+    with pytest.raises(MoorDynError, match=r"--fixed-as-fairleads applies to files without a vessel point or body: "
+                                           r"this file has one, so its fixed points stay fixed"):
+        parse_moordyn(vessel, fixed_as_fairleads=True)
 
 
 # --------------------------------------------------------------------------------------------

@@ -158,8 +158,13 @@ def _type_values(items: tuple[str, ...], option: str) -> dict[str, float]:
 @click.option("--recentre", type=click.Choice(["auto", "no"]), default="auto", show_default=True,
               help="auto: move the mooring so the vessel sits at the field zero point (a vessel body off the file's "
                    "origin, or fairleads beyond the hull about the centre of turret); no: the file's coordinates.")
+@click.option("--fixed-as-fairleads", is_flag=True, default=False,
+              help="For a FILE with no vessel point (no coupled point or body): take the upper fixed point of each "
+                   "line (or lines in series) between two fixed points as a fairlead on the vessel, the lower one as "
+                   "its anchor.")
 def scenario_import_moordyn(file: str, vessel: str, out: str, mbs: tuple[str, ...], mbs_cov: float,
-                            name: str | None, riser: str, turret: str, recentre: str) -> None:
+                            name: str | None, riser: str, turret: str, recentre: str,
+                            fixed_as_fairleads: bool) -> None:
     """Build a scenario from MoorDyn v2 input FILE and a vessel scenario.
 
     From FILE: line types, lines, anchors, fairleads, water depth, water density and gravity.
@@ -169,7 +174,8 @@ def scenario_import_moordyn(file: str, vessel: str, out: str, mbs: tuple[str, ..
     from ..models.moordyn_import import import_moordyn
 
     res = import_moordyn(file, vessel, mbs=_type_values(mbs, "--mbs"), mbs_cov=mbs_cov,
-                         name=name or Path(out).stem, riser=riser, turret=turret, recentre=recentre)
+                         name=name or Path(out).stem, riser=riser, turret=turret, recentre=recentre,
+                         fixed_as_fairleads=fixed_as_fairleads)
     atomic_write_text(out, res.toml)
     sc = res.scenario
     click.echo(f"wrote {out}: scenario {sc.name}, {len(sc.lines)} lines, {len(sc.line_types)} line types, depth "

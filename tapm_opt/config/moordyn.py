@@ -30,6 +30,14 @@ Conventions (all of them, with the evidence, in ``docs/moordyn.md``):
 * **Composite lines.** Reading, lines in series through free points that each join two lines, from
   a fixed point to the vessel, are one composite line (:class:`MDChain`); a free point with a mass,
   volume, drag or added mass is a point type at its joint.
+* **Fixed points as fairleads.** With ``fixed_as_fairleads``, in a file without a vessel point or
+  body, a line (or lines in series) between two fixed points runs from the lower one (the anchor)
+  to the upper one, a fairlead on the vessel; ends at one depth, or a point that would be both,
+  are refused.
+* **Viscoelastic EA.** ``EA_s|EA_d`` (or ``EA_s|EA_Dc|EA_D_Lm``) is read as ``EA_s``, MoorDyn's
+  tension at rest exactly (its static and dynamic springs in series); the dynamic stiffness is
+  neglected, and the FEM's damper is the dynamic damper ``BA_d``, at most critical. A VIV ``Cl``
+  is neglected (no lift at rest). Each with a note.
 
 Every problem is a :class:`MoorDynError` (a :class:`~tapm_opt.errors.TapmError`) naming the file,
 its line number and the item: the ``tapm`` command prints it on one line.
@@ -211,7 +219,8 @@ class MDLine:
 
 @dataclass(frozen=True)
 class MDChain:
-    """Lines in series from a fixed point (the anchor) up to a vessel point (the fairlead),
+    """Lines in series from a fixed point (the anchor) up to a vessel point (the fairlead; with
+    ``fixed_as_fairleads``, the upper fixed point of a file without a vessel point),
     joined by free points that each join exactly two lines: one tapm_opt line, composite when it
     has more than one section. ``lines`` and ``flipped`` run from the anchor up (``flipped[k]``:
     line k's end B is its lower end in the chain); ``points`` are the point ids from the anchor
@@ -282,6 +291,9 @@ class MoorDynModel:
     chains: tuple[MDChain, ...] = ()
     #: What a tapm_opt front matter (written by :func:`moordyn_text`) gives; empty otherwise.
     front: FrontMatter = field(default_factory=FrontMatter)
+    #: The fixed points read as fairleads on the vessel (``fixed_as_fairleads``, a file without a
+    #: vessel point); empty otherwise.
+    fixed_fairleads: tuple[int, ...] = ()
 
     @property
     def max_strain(self) -> dict[str, tuple[float, int]]:
@@ -430,8 +442,13 @@ def _raise_all(problems: list[MoorDynError], source: str) -> None:
 
 
 class _Reader:
-    def __init__(self, text: str, source: str, base_dir: Path | None = None):
+    def __init__(self, text: str, source: str, base_dir: Path | None = None, fixed_as_fairleads: bool = False):
         self.source = source
+        self.fixed_as_fairleads = fixed_as_fairleads
+        # a row of BODIES or a coupled or body point, refused or not: the file has a vessel
+        self.has_vessel = False
+        #: the fixed points taken as fairleads (fixed_as_fairleads)
+        self.fixed_fairleads: list[int] = []
         self.base_dir = Path(".") if base_dir is None else Path(base_dir)
         self.rows = text.splitlines()
         self.notes: list[str] = []
@@ -683,6 +700,7 @@ class _Reader:
             bid = int(self.num(t[0], "body ID", i))
             if bid != k:
                 raise self.err(f"body ID {t[0]} is out of sequence (IDs run 1, 2, ...; expected {k})", i)
+            self.has_vessel = True
             word, _ = _word_number(t[1])
             try:
                 if word not in _COUPLED:
@@ -716,6 +734,8 @@ class _Reader:
             pid = int(self.num(t[0], "point ID", i))
             if pid != k:
                 raise self.err(f"point ID {t[0]} is out of sequence (IDs run 1, 2, ...; expected {k})", i)
+            word = _word_number(t[1])[0]
+            self.has_vessel = self.has_vessel or word in _COUPLED or word == "BODY"
             try:
                 out.append(self._point(pid, t, i, n_bodies))
             except MoorDynError as exc:
@@ -876,6 +896,7 @@ class _Reader:
         out = []
         visited = set(loops)
         vessel = ("coupled", "body")
+        hinted = False
         for k0, (_, a0, b0, _) in enumerate(self.ends):
             if k0 in visited or not (terminal(a0) or terminal(b0)):
                 continue
@@ -897,20 +918,39 @@ class _Reader:
                 continue   # said at the rod, the refused point or the free point
             ids = [self.ends[j][0] for j in rows]
             first = self.ends[rows[0]][3]
+            said = f"line {ids[0]} runs" if len(rows) == 1 else f"lines {', '.join(map(str, ids))} run in series"
+            through = "" if len(rows) == 1 else (f" through free point{'s' * (len(pts) > 3)} "
+                                                 f"{', '.join(map(str, pts[1:-1]))}")
             if ka in vessel and kb == "fixed":
                 rows, flips, pts = rows[::-1], [not f for f in flips[::-1]], pts[::-1]
+            elif ka == kb == "fixed" and self.fixed_as_fairleads and not self.has_vessel:
+                za, zb = by_id[pts[0]].r[2], by_id[pts[-1]].r[2]
+                if abs(za - zb) <= 1e-6:
+                    self.problems.append(self.err(
+                        f"{said} between two fixed points ({pts[0]} and {pts[-1]}){through} at the same depth (z = "
+                        f"{za:g} m): neither end is the upper one, which --fixed-as-fairleads takes as the fairlead", first))
+                    continue
+                if za > zb:   # end A is the upper one: the fairlead last
+                    rows, flips, pts = rows[::-1], [not f for f in flips[::-1]], pts[::-1]
             elif not (ka == "fixed" and kb in vessel):
-                what = "fixed" if ka == "fixed" else "vessel"   # both ends fixed, or both on the vessel
-                if len(rows) == 1:
-                    self.problems.append(self.err(
-                        f"line {ids[0]} runs between two {what} points ({pts[0]} and {pts[-1]}); every line must run "
-                        "from a fixed anchor to the vessel", first))
+                if ka == "fixed":
+                    why = "every line must run from a fixed anchor to the vessel"
+                    level = abs(by_id[pts[0]].r[2] - by_id[pts[-1]].r[2]) <= 1e-6
+                    if self.fixed_as_fairleads and self.has_vessel:
+                        why += (" (--fixed-as-fairleads applies to files without a vessel point or body: this file "
+                                "has one, so its fixed points stay fixed)")
+                    elif not self.has_vessel and not level and not hinted:
+                        hinted = True   # said once
+                        why += (" (the file has no vessel point: --fixed-as-fairleads takes the upper fixed point of "
+                                "each line, or lines in series, between two fixed points as a fairlead on the vessel)")
+                    elif not self.has_vessel and level:
+                        why += f" (both at z = {by_id[pts[0]].r[2]:g} m: neither could be taken as the fairlead)"
                 else:
-                    joints = ", ".join(map(str, pts[1:-1]))
-                    self.problems.append(self.err(
-                        f"lines {', '.join(map(str, ids))} run in series between two {what} points ({pts[0]} and "
-                        f"{pts[-1]}) through free point{'s' * (len(pts) > 3)} {joints}; every line must run from a "
-                        "fixed anchor to the vessel", first))
+                    why = ("a line with both ends on the vessel moves with it, its end forces cancel: it is no mooring "
+                           "line; every line must run from a fixed anchor to the vessel")
+                what = "fixed" if ka == "fixed" else "vessel"   # both ends fixed, or both on the vessel
+                self.problems.append(self.err(
+                    f"{said} between two {what} points ({pts[0]} and {pts[-1]}){through}; {why}", first))
                 continue
             mdl = [good.get(self.ends[j][0]) for j in rows]
             if any(ln is None for ln in mdl):
@@ -920,6 +960,8 @@ class _Reader:
                                               "2 segments on a line of one section", first))
                 continue
             out.append(MDChain(tuple(mdl), tuple(flips), tuple(int(p) for p in pts)))  # type: ignore[arg-type]
+        if self.fixed_as_fairleads and not self.has_vessel:
+            out = self._fixed_fairleads(out, points)
         left = [k for k in range(len(self.ends)) if k not in visited]
         if left:
             self.problems.append(self.err(
@@ -929,6 +971,33 @@ class _Reader:
         if not out and not self.problems:
             raise self.err("no line runs from a fixed point (an anchor) to the vessel")
         return out
+
+    def _fixed_fairleads(self, chains: list[MDChain], points: list[MDPoint]) -> list[MDChain]:
+        """With ``fixed_as_fairleads`` in a file without a vessel point: the chains between two fixed
+        points, each read from its lower end (the anchor) to its upper end (the fairlead, on the
+        vessel). A fixed point that is the upper end of one and the lower end of another is a
+        problem (it would be both fairlead and anchor), said once per point; the others are said in
+        a note."""
+        tops = {ch.fairlead for ch in chains}
+        both = sorted(tops & {ch.anchor for ch in chains})
+        by_id = {p.id: p for p in points}
+        for pid in both:
+            up = [ch.said() for ch in chains if ch.fairlead == pid]
+            down = [ch.said() for ch in chains if ch.anchor == pid]
+            self.problems.append(self.err(
+                f"point {pid} (fixed) is the upper end of {', '.join(up)} and the lower end of {', '.join(down)}: "
+                "--fixed-as-fairleads would make it both a fairlead on the vessel and an anchor", by_id[pid].lineno))
+        chains = [ch for ch in chains if ch.fairlead not in both and ch.anchor not in both]
+        if chains:
+            self.fixed_fairleads = sorted({ch.fairlead for ch in chains})
+            rows = "; ".join(
+                f"point {ch.fairlead} (z = {by_id[ch.fairlead].r[2]:g} m) over point {ch.anchor} (z = "
+                f"{by_id[ch.anchor].r[2]:g} m), {ch.said()}" for ch in sorted(chains, key=lambda c: c.top.id))
+            self.notes.append(
+                "the file has no vessel point (no coupled point or body); --fixed-as-fairleads: the upper fixed point "
+                "of each line (or lines in series) between two fixed points is taken as a fairlead on the vessel, held "
+                f"where the file has it at rest, the lower one as its anchor: {rows}")
+        return chains
 
 
 def _nonzero(text: str) -> bool:
@@ -1006,18 +1075,27 @@ def _front_matter(text: str) -> FrontMatter:
     return fm
 
 
-def parse_moordyn(text: str, *, source: str = "", base_dir: str | Path | None = None) -> MoorDynModel:
+def parse_moordyn(text: str, *, source: str = "", base_dir: str | Path | None = None,
+                  fixed_as_fairleads: bool = False) -> MoorDynModel:
     """Parse MoorDyn v2 input text; unsupported features raise :class:`MoorDynError`, every one of
     them in the file at once (a row whose line type or point is refused is not named again).
 
     Supported: line types (linear EA or a tension-strain curve file, read from ``base_dir``,
-    default the directory of ``source``; constant BA, EI = 0, no VIV), at most one coupled body (the
-    vessel, roll = pitch = 0), Fixed points (anchors), Coupled and Body1 points (fairleads), Free
-    points joining two lines in series (:class:`MDChain`), lines from an anchor to a fairlead
-    directly or through free points, and OPTIONS. Rods, free ends, bridles, other bodies, failures
-    and nonlinear or viscoelastic line models are refused, naming the item and the line of the file.
+    default the directory of ``source``; a viscoelastic EA read as its static stiffness; constant
+    BA, or static|dynamic BA of a viscoelastic line; EI, checked on import; VIV ``Cl``, neglected
+    with a note), at most one coupled body (the vessel, roll = pitch = 0), Fixed points (anchors),
+    Coupled and Body1 points (fairleads), Free points joining two lines in series
+    (:class:`MDChain`), lines from an anchor to a fairlead directly or through free points, and
+    OPTIONS. Rods, free ends, bridles, other bodies, failures, the Syrope model and nonlinear
+    damping or bending are refused, naming the item and the line of the file.
+
+    ``fixed_as_fairleads``: in a file with no vessel point (no coupled point, no body), lines (or
+    lines in series) between two fixed points run from the lower one (the anchor) to the upper one,
+    taken as a fairlead on the vessel (:attr:`MoorDynModel.fixed_fairleads`, with a note); ends at
+    the same depth, and a fixed point that would be both a fairlead and an anchor, are refused.
     """
-    rd = _Reader(text, source, Path(base_dir) if base_dir is not None else Path(source).parent if source else None)
+    rd = _Reader(text, source, Path(base_dir) if base_dir is not None else Path(source).parent if source else None,
+                 fixed_as_fairleads=fixed_as_fairleads)
     sec = rd.sections()
     for key, why in _UNSUPPORTED_SECTIONS.items():
         if sec.get(key):
@@ -1063,7 +1141,7 @@ def parse_moordyn(text: str, *, source: str = "", base_dir: str | Path | None = 
                         "MoorDyn-C 2.7 reads only 'rho' or 'WtrDnsty' and would run with 1025 kg/m^3")
     model = MoorDynModel(source=source, line_types=tuple(types), bodies=tuple(bodies), points=tuple(points),
                          lines=tuple(lines), options=options, notes=tuple(rd.notes), chains=tuple(chains),
-                         front=_front_matter(text))
+                         front=_front_matter(text), fixed_fairleads=tuple(rd.fixed_fairleads))
     wd = model.option("wtrdpth", "depth", "waterdepth")
     if wd is not None:
         try:
@@ -1074,14 +1152,14 @@ def parse_moordyn(text: str, *, source: str = "", base_dir: str | Path | None = 
     return model
 
 
-def read_moordyn(path: str | Path) -> MoorDynModel:
+def read_moordyn(path: str | Path, *, fixed_as_fairleads: bool = False) -> MoorDynModel:
     """Read and parse a MoorDyn v2 input file (see :func:`parse_moordyn`)."""
     p = Path(path)
     try:
         text = p.read_text(encoding="utf-8", errors="replace")
     except OSError as exc:
         raise MoorDynError(f"cannot read the MoorDyn file: {exc.strerror or exc}", source=str(p)) from None
-    return parse_moordyn(text, source=p.name, base_dir=p.parent)
+    return parse_moordyn(text, source=p.name, base_dir=p.parent, fixed_as_fairleads=fixed_as_fairleads)
 
 
 # --------------------------------------------------------------------------------------------

@@ -77,7 +77,7 @@ def bending_notes(model: MoorDynModel, sc: Any) -> list[str]:
 def import_moordyn(path: str | Path, vessel: str | Path, *, mbs: Mapping[str, float] | None = None,
                    mbs_cov: float = 0.05,
                    name: str | None = None, riser: str = "auto", turret: str = "auto",
-                   recentre: str = "auto") -> ImportResult:
+                   recentre: str = "auto", fixed_as_fairleads: bool = False) -> ImportResult:
     """A scenario from a MoorDyn v2 file and a vessel scenario.
 
     From the MoorDyn file: line types, lines (length, segments), anchors, fairleads, water depth,
@@ -117,6 +117,14 @@ def import_moordyn(path: str | Path, vessel: str | Path, *, mbs: Mapping[str, fl
     locks the turret to the hull otherwise (a spread mooring: the mooring's yaw stiffness kept);
     ``"locked"`` and ``"free"`` choose. A mode that differs from the vessel scenario's, or a free
     turret with fairleads not on one circle, is said in a note.
+
+    ``fixed_as_fairleads``: a file with no vessel point (no coupled point, no body) whose lines run
+    between two fixed points (a test rig holding a line between a point on the seabed and one
+    higher up) imports with the upper fixed point of each line, or lines in series, as a fairlead
+    on the vessel, the lower one as its anchor, said in a note; ends at the same depth, or a fixed
+    point that would be both a fairlead and an anchor, are refused. Off by default: a fixed point
+    in MoorDyn does not move, and only the user can say that it stands for a vessel's fairlead
+    (the refusal of such a file names this option).
     """
     if riser not in RISER_CHOICES:
         raise MoorDynError(f"riser = {riser!r} must be one of {', '.join(RISER_CHOICES)}")
@@ -124,7 +132,7 @@ def import_moordyn(path: str | Path, vessel: str | Path, *, mbs: Mapping[str, fl
         raise MoorDynError(f"turret = {turret!r} must be one of {', '.join(TURRET_CHOICES)}")
     if recentre not in RECENTRE_CHOICES:
         raise MoorDynError(f"recentre = {recentre!r} must be one of {', '.join(RECENTRE_CHOICES)}")
-    model = read_moordyn(path)
+    model = read_moordyn(path, fixed_as_fairleads=fixed_as_fairleads)
     vdata, vname = vessel_data_of(vessel)
     data, notes, comments = scenario_data_from_moordyn(model, vdata, mbs=mbs or {}, mbs_cov=mbs_cov, name=name,
                                                        vessel_name=vname, riser=riser, turret=turret,
