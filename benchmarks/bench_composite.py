@@ -13,7 +13,10 @@ machine is shared, so only ratios are meaningful):
 2. the mooring model's load tables (``MooringModel.load_evaluator``: adaptive Hermite tables of
    every distinct line, checked to 1e-9) of the composite fpso against fpso;
 3. one evaluation of the tabulated load at a pose (the control loop's path), composite against
-   homogeneous — the tables make the composite lines as cheap as the homogeneous ones.
+   homogeneous — the tables make the composite lines as cheap as the homogeneous ones;
+4. equilibria of fpso's chain-wire-chain mooring under eight mean loads (``MooringModel.equilibrium``,
+   the path of gain tables, capability and setpoints), each line's solve started from its last
+   solution (``composite.WarmStart``) against started afresh every time.
 """
 
 from __future__ import annotations
@@ -50,7 +53,7 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=7)
     a = ap.parse_args()
     print(machine_info())
-    homo = MooringModel.from_scenario(load_scenario("fpso"))
+    homo = MooringModel.from_scenario(load_scenario("fpso_equivalent"))
     comp = MooringModel.from_scenario(composite_fpso(buoy=True))
     line = comp.composite[0]
     XF = np.linspace(1900.0, 2030.0, a.n)
@@ -80,6 +83,31 @@ def main() -> None:
     t_eh = median_time(lambda: [ev_h(eta) for _ in range(n_ev)], 3) / n_ev
     print(f"3. tabulated load per call: composite {t_ec * 1e6:.2f} us, homogeneous {t_eh * 1e6:.2f} us, "
           f"ratio {t_ec / t_eh:.2f}")
+
+    fpso = load_scenario("fpso")
+    loads = [2.5e6 * np.array([np.cos(b), np.sin(b), 0.0]) for b in np.linspace(0.0, np.pi, 8)]
+
+    def equilibria():
+        m = MooringModel.from_scenario(fpso)
+        return [m.equilibrium(tau, psi=0.0) for tau in loads]
+
+    keep = composite.WarmStart.start
+
+    def cold():
+        composite.WarmStart.start = lambda self, *args: None
+        try:
+            return equilibria()
+        finally:
+            composite.WarmStart.start = keep
+
+    e_w, e_c = equilibria(), cold()
+    diff = max(float(np.max(np.abs(x - y))) for x, y in zip(e_w, e_c))
+    t_w, t_0 = [], []
+    for _ in range(reps):      # interleaved
+        t_0.append(median_time(cold, 1))
+        t_w.append(median_time(equilibria, 1))
+    print(f"4. eight equilibria of fpso: warm start {np.median(t_w):.2f} s, afresh {np.median(t_0):.2f} s, "
+          f"ratio {np.median(t_0) / np.median(t_w):.1f}; poses agree to {diff:.1e}")
 
 
 if __name__ == "__main__":

@@ -11,7 +11,7 @@ from tapm_opt.config import load_scenario, scenario_from_dict
 from tapm_opt.config.loader import scenario_to_dict
 from tapm_opt.errors import CatenaryError, ScenarioError
 from tapm_opt.models import catenary
-from tapm_opt.models.composite import CompositeLine, points, profile, solve
+from tapm_opt.models.composite import CompositeLine, WarmStart, points, profile, solve
 from tapm_opt.models.mooring import MooringModel
 from tapm_opt.strain_table import StrainTable
 
@@ -142,6 +142,35 @@ def test_stiffness_is_the_derivative_of_the_tensions():
     sp, sm = solve(XF, ZF + e, ln), solve(XF, ZF - e, ln)
     np.testing.assert_allclose((sp.HF - sm.HF) / (2 * e), s.dHF_dZF, rtol=1e-5)
     np.testing.assert_allclose((sp.VF - sm.VF) / (2 * e), s.dVF_dZF, rtol=1e-5)
+
+
+def test_a_warm_start_gives_the_same_solution_in_fewer_iterations():
+    """fpso's chain-wire-chain line: solved from the last solution's points (a fairlead moved
+    0.3 m) the answer is the usual start's to the solve's tolerance, in fewer Newton iterations; a
+    start from distances farther than its reach is not used, and a start that does not converge
+    falls back to the usual one."""
+    mm = MooringModel.from_scenario(load_scenario("fpso"))
+    c, zf, hA = mm.composite[0], float(mm.ZF[0]), float(mm.h_A[0])
+    XF = np.linspace(1950.0, 2080.0, 12)
+    warm = WarmStart()
+    solve(XF, zf, c, h_A=hA, warm=warm)
+    cold = solve(XF + 0.3, zf, c, h_A=hA)
+    hot = solve(XF + 0.3, zf, c, h_A=hA, warm=warm)
+    scale = c.force_scale()
+    for k in ("HF", "VF", "HA", "VA"):
+        np.testing.assert_allclose(getattr(hot, k), getattr(cold, k), rtol=0, atol=1e-9 * scale)
+    np.testing.assert_allclose(hot.dHF_dXF, cold.dHF_dXF, rtol=1e-6)
+    assert hot.iterations < cold.iterations
+    # out of reach (200 m on): not used, so the usual start's iterations
+    far = solve(XF + 200.0, zf, c, h_A=hA, warm=warm)
+    assert far.iterations == solve(XF + 200.0, zf, c, h_A=hA).iterations
+    # a poisoned start: the points put far off; the answer is still the line's
+    warm.y = warm.y + np.where(np.arange(warm.y.shape[1]) % 2 == 0, -400.0, 300.0)
+    again = solve(XF + 200.1, zf, c, h_A=hA, warm=warm)  # within reach of the last (XF + 200)
+    ref = solve(XF + 200.1, zf, c, h_A=hA)
+    np.testing.assert_allclose(again.HF, ref.HF, rtol=0, atol=1e-9 * scale)
+    # another fairlead height: not used
+    assert warm.start(XF, np.full(12, zf + 1.0), np.full(12, hA), 100.0) is None
 
 
 def test_profile_is_continuous_and_ends_at_the_fairlead():

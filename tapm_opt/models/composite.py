@@ -431,7 +431,7 @@ def _newton(XF, D, hA, line: CompositeLine, *, rtol: float, max_iter: int, y0=No
             Rn, Jn, sn, *_ = _evaluate(yn, XF[a], D[a], hA[a], line, guess=(gH[a].ravel(), gV[a].ravel()))
             Rnm, Jnm = contact_masked(yn, Rn, Jn)
             en = np.max(np.abs(Rnm), axis=1)
-            ok = en < err[a] * (1.0 - 1e-4 * step[:, 0]) + 1e-300
+            ok = (en < err[a] * (1.0 - 1e-4 * step[:, 0]) + 1e-300) | (en <= tol)  # decrease, or converged
             if np.all(ok):
                 break
             step = np.where(ok[:, None], step, 0.5 * step)
@@ -466,8 +466,52 @@ def _continuation_start(XF, ZF, hA, line: CompositeLine, *, rtol: float, max_ite
     return y0
 
 
+_WARM_REACH = 0.01
+"""A warm start is used for distances within this fraction of the line's length of the last ones."""
+_WARM_ITERATIONS = 8
+"""Newton iterations allowed from a warm start before the configuration is solved from the usual one."""
+
+
+class WarmStart:
+    """The points of a line's last solution, kept to start the next solve of the same line
+    (:func:`solve`'s ``warm``): each new distance starts from the nearest kept configuration's
+    points moved by their exact sensitivity to the distance (a first-order predictor), for the same
+    fairlead and anchor height only. A solve from such a start converges to the same tolerance as
+    one from the equivalent line's shape, so the two differ by at most that tolerance; it is
+    cheaper where calls move the fairlead a little (an equilibrium search, a stiffness by
+    differences, a gain table's rows)."""
+
+    __slots__ = ("ZF", "h_A", "XF", "y", "dy")
+
+    def __init__(self) -> None:
+        self.ZF = self.h_A = None
+        self.XF = self.y = self.dy = None
+
+    def start(self, XF: np.ndarray, ZF: np.ndarray, hA: np.ndarray, reach: float) -> np.ndarray | None:
+        """The start at distances ``XF`` [m]; None when some distance is farther than ``reach``
+        [m] from every kept one, or there is no last solution at these heights."""
+        if self.y is None or np.ptp(ZF) > 0 or np.ptp(hA) > 0 or ZF[0] != self.ZF or hA[0] != self.h_A:
+            return None
+        j = np.clip(np.searchsorted(self.XF, XF), 1, self.XF.size - 1) if self.XF.size > 1 else np.zeros(XF.size, int)
+        if self.XF.size > 1:
+            j = np.where(np.abs(XF - self.XF[j - 1]) < np.abs(XF - self.XF[j]), j - 1, j)
+        d = XF - self.XF[j]
+        if np.max(np.abs(d)) > reach:
+            return None
+        return self.y[j] + self.dy[j] * d[:, None]
+
+    def keep(self, XF: np.ndarray, ZF: np.ndarray, hA: np.ndarray, y: np.ndarray, dy: np.ndarray) -> None:
+        """Keep a converged solution: points ``y`` and their derivative ``dy`` with respect to the
+        distance (configurations at one fairlead and anchor height only)."""
+        if XF.size == 0 or np.ptp(ZF) > 0 or np.ptp(hA) > 0 or not np.all(np.isfinite(dy)):
+            return
+        xs, keep = np.unique(XF, return_index=True)
+        self.XF, self.y, self.dy = xs, y[keep].copy(), dy[keep].copy()
+        self.ZF, self.h_A = float(ZF[0]), float(hA[0])
+
+
 def solve(XF, ZF, line: CompositeLine, *, h_A=0.0, rtol: float = 1e-10, max_iter: int = 80,
-          continuation: bool = True) -> CatenarySolution:
+          continuation: bool = True, warm: WarmStart | None = None) -> CatenarySolution:
     """Quasi-static solution of a composite line for arrays of fairlead positions.
 
     Parameters
@@ -484,6 +528,9 @@ def solve(XF, ZF, line: CompositeLine, *, h_A=0.0, rtol: float = 1e-10, max_iter
         For many configurations that differ only in XF: start from every 16th solved and the
         points interpolated between them (the same answer to the tolerance; about 3 times fewer
         section solves on a table of 257 distances).
+    warm : WarmStart, optional
+        The line's last solution: the start when it has one at these heights (configurations that
+        do not converge from it are solved again from the usual start); updated with this one.
 
     Returns
     -------
@@ -512,8 +559,15 @@ def solve(XF, ZF, line: CompositeLine, *, h_A=0.0, rtol: float = 1e-10, max_iter
         raise CatenaryError(f"section submerged weights {line.w.tolist()} N/m must be >= 0 (buoyant sections are "
                             "not supported; a buoy is a point)")
     D = hA + ZF
-    y0 = _continuation_start(XF, ZF, hA, line, rtol=rtol, max_iter=max_iter) if continuation else None
-    y, err, tol, it = _newton(XF, D, hA, line, rtol=rtol, max_iter=max_iter, y0=y0)
+    y0 = warm.start(XF, ZF, hA, _WARM_REACH * line.length) if warm is not None else None
+    started = y0 is not None
+    if y0 is None and continuation:
+        y0 = _continuation_start(XF, ZF, hA, line, rtol=rtol, max_iter=max_iter)
+    y, err, tol, it = _newton(XF, D, hA, line, rtol=rtol, max_iter=_WARM_ITERATIONS if started else max_iter, y0=y0)
+    if started and not np.all(err <= tol):   # the last solution was not a good start: the usual one
+        again = np.flatnonzero(~(err <= tol))
+        ya, ea, _, ita = _newton(XF[again], D[again], hA[again], line, rtol=rtol, max_iter=max_iter)
+        y[again], err[again], it = ya, ea, max(it, ita)
     bad = ~(err <= max(tol, 1e-7 * line.force_scale()))
     if np.any(bad):
         i = int(np.argmax(bad))
@@ -545,6 +599,8 @@ def solve(XF, ZF, line: CompositeLine, *, h_A=0.0, rtol: float = 1e-10, max_iter
             sens = np.linalg.solve(Jm, dR_q)  # (m, nv, 2)
         except np.linalg.LinAlgError:  # a slack joint (no stiffness along the line): least squares
             sens = np.stack([np.linalg.lstsq(Jm[k], dR_q[k], rcond=None)[0] for k in range(m)])
+    if warm is not None:
+        warm.keep(XF, ZF, hA, y, -sens[:, :, 0])   # dy/dXF = -J^-1 dR/dXF
     dFf = Jf_q - np.einsum("mij,mjk->mik", Jf_y, sens)  # (m, 2, 2): d(Fx, Fz)/d(XF, D)
     dHX, dHZ = -dFf[:, 0, 0], -dFf[:, 0, 1]
     dVX, dVZ = -dFf[:, 1, 0], -dFf[:, 1, 1]

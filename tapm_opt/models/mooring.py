@@ -286,7 +286,9 @@ class MooringModel:
             return lambda XF: catenary.solve(XF, zf, Li, EA, w, CB=CB, h_A=hA)
         if L is not None:
             c = c.with_length(L)
-        return lambda XF: _composite.solve(XF, zf, c, h_A=hA)
+        warm = self._cache.setdefault(("warm", self.line_key(i), None if L is None else float(L), zf),
+                                      _composite.WarmStart())
+        return lambda XF: _composite.solve(XF, zf, c, h_A=hA, warm=warm)
 
     def line_key(self, i: int) -> tuple:
         """Hashable description of line ``i``'s quasi-static physics (lines with equal keys share
