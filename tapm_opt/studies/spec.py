@@ -10,7 +10,6 @@ turns the product of sea states, controllers, conditions and seeds, plus the lis
 from __future__ import annotations
 
 import difflib
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
@@ -885,17 +884,5 @@ def load_study(path: str | Path) -> Study:
         If the file is missing, is not valid TOML, or has any problem (all of them are listed).
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8-sig")   # a byte-order mark, as the scenario loader
-    except FileNotFoundError:
-        raise StudyError(f"no study file {path}") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise StudyError(f"cannot read {path}: {exc}") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise StudyError(f"{path.name} is not valid TOML: {exc}", source=str(path)) from None
-    except RecursionError:
-        raise StudyError(f"{path.name} nests arrays or tables too deeply to be read as TOML",
-                         source=str(path)) from None
+    data, text = store.read_study_file(path)
     return study_from_dict(data, base_dir=path.resolve().parent, source=str(path), path=path.resolve(), text=text)

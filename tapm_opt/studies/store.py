@@ -49,6 +49,7 @@ import hashlib
 import json
 import os
 import socket
+import tomllib
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
@@ -65,6 +66,7 @@ __all__ = [
     "StudyRunError",
     "StudyBusyError",
     "study_lock",
+    "read_study_file",
     "CaseRecord",
     "case_id",
     "case_id_and_size",
@@ -475,3 +477,26 @@ def load_study_results(out_dir: str | Path) -> list[CaseRecord]:
             meta={k: v for k, v in meta.items() if k not in ("id", "name", "labels", "inputs")}))
     return records
 
+
+def read_study_file(path: str | Path) -> tuple[dict, str]:
+    """The parsed TOML of a study file and its text, not yet validated.
+
+    Raises
+    ------
+    StudyError
+        If the file is missing, unreadable or not valid TOML.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8-sig")   # a byte-order mark, as the scenario loader
+    except FileNotFoundError:
+        raise StudyError(f"no study file {path}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise StudyError(f"cannot read {path}: {exc}") from None
+    try:
+        return tomllib.loads(text), text
+    except tomllib.TOMLDecodeError as exc:
+        raise StudyError(f"{path.name} is not valid TOML: {exc}", source=str(path)) from None
+    except RecursionError:
+        raise StudyError(f"{path.name} nests arrays or tables too deeply to be read as TOML",
+                         source=str(path)) from None

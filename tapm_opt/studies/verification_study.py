@@ -31,7 +31,6 @@ records, groups them and writes the files. Conventions, columns and sources: ``d
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping, Sequence
@@ -447,16 +446,7 @@ def read_verification_table(study_dir: str | Path, study_file: str | Path | None
         The file is missing or not valid TOML.
     """
     path = Path(study_file) if study_file is not None else Path(study_dir) / store.STUDY_TOML
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise StudyError(f"no study file {path}") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise StudyError(f"cannot read {path}: {exc}") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise StudyError(f"{path.name} is not valid TOML: {exc}", source=str(path)) from None
+    data, _ = store.read_study_file(path)
     return data.get("verification")
 
 
