@@ -4,7 +4,7 @@ Printed figures, not a timed test. Run from the repository root::
 
     python benchmarks/bench_fem_composite.py [--segments 40] [--steps 4000] [--repeats 7]
 
-Two line systems of the same size: ``fpso`` (12 homogeneous lines of ``--segments`` segments) and
+Two line systems of the same size: ``fpso_equivalent`` (12 homogeneous lines of ``--segments`` segments) and
 the same 12 lines as chain-wire-chain composite lines (300 m chain, 1900 m wire, 100 m chain from
 the anchor up, the segments shared by length) with a 353 kN buoy at the lower joint and a 20 t
 clump at the upper one (24 joint nodes with their own drag, added mass and weight). Both are
@@ -84,7 +84,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--repeats", type=int, default=7)
     a = ap.parse_args(argv)
     print(machine_info())
-    runs = {"homogeneous": Run(tapm_opt.load_scenario("fpso"), a.segments, a.steps),
+    runs = {"homogeneous": Run(tapm_opt.load_scenario("fpso_equivalent"), a.segments, a.steps),
             "composite": Run(composite_fpso(), a.segments, a.steps)}
     h, c = runs["homogeneous"].m.fem, runs["composite"].m.fem
     assert h.n_nodes == c.n_nodes

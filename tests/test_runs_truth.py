@@ -292,7 +292,7 @@ def test_inputs_too_large_for_every_case_to_store_are_refused(tmp_path, monkeypa
     from tapm_opt.studies import spec
     from tapm_opt.studies.study import StudyError, load_study
 
-    monkeypatch.setattr(spec, "MAX_CASE_INPUT_BYTES", 4 * 2**10, raising=False)   # fpso's inputs: about 7 kB
+    monkeypatch.setattr(spec, "MAX_CASE_INPUT_BYTES", 4 * 2**10, raising=False)   # fpso's inputs: about 9 kB
     with pytest.raises(StudyError) as ei:
         load_study(_study_file(tmp_path, seeds=[1]))
     msg = str(ei.value)

@@ -655,7 +655,7 @@ def _parse_listed(ck: Checker, data: Mapping, out: _Parsed) -> None:
 MAX_CASES = 10_000
 
 #: Most bytes of one case's inputs as JSON (the scenario, the controller with any embedded gain
-#: table, the settings: about 7 kB for fpso), which ``cases/<id>/case.json`` stores in full.
+#: table, the settings: about 9 kB for fpso), which ``cases/<id>/case.json`` stores in full.
 MAX_CASE_INPUT_BYTES = 16 * 2**20
 
 #: Most bytes of the inputs of all the cases of a study together (what the ``case.json`` files
