@@ -6,7 +6,7 @@ Printed figures, not a timed test. Run from the repository root::
 
 Two line systems of the same size: ``fpso_equivalent`` (12 homogeneous lines of ``--segments`` segments) and
 the same 12 lines as chain-wire-chain composite lines (300 m chain, 1900 m wire, 100 m chain from
-the anchor up, the segments shared by length) with a 353 kN buoy at the lower joint and a 20 t
+the anchor up, the segments shared so the longest is shortest) with a 353 kN buoy at the lower joint and a 20 t
 clump at the upper one (24 joint nodes with their own drag, added mass and weight). Both are
 settled at the field zero point and stepped along the same surging and yawing fairlead path;
 for each kernel ("numba", the compiled kernel, and "numpy", the reference path) the time of
