@@ -120,8 +120,8 @@ def test_linearised_at_the_offset_equilibrium(fpso, table):
         # mooring balances the horizontal mean load; the heading controller holds the yaw moment
         np.testing.assert_allclose(tau_moor[:2] + r.tau_env[:2], 0.0,
                                    atol=1e-8 * np.abs(r.tau_env[:2]).max())
-        # to the composite solve's tolerance (1e-10 of a line's weight; its warm start makes the last
-        # digits depend on the model's earlier solves)
+        # to the solves' tolerance (the table's equilibria start each composite line's solve from its
+        # last one: the same answer to 1e-10 of the line's weight, not to the bit)
         assert tau_moor[2] + r.tau_env[2] + r.tau_thr[2] == pytest.approx(0.0, abs=1e-3 + 1e-8 * abs(r.tau_thr[2]))
         np.testing.assert_array_equal(r.tau_thr[:2], 0.0)
         assert r.eta[2] == r.condition.heading

@@ -286,8 +286,10 @@ class MooringModel:
             return lambda XF: catenary.solve(XF, zf, Li, EA, w, CB=CB, h_A=hA)
         if L is not None:
             c = c.with_length(L)
-        warm = self._cache.setdefault(("warm", self.line_key(i), None if L is None else float(L), zf),
-                                      _composite.WarmStart())
+        warm = None
+        if self._cache.get("warm_starts"):   # inside equilibrium(): each line starts from its last solve
+            warm = self._cache.setdefault(("warm", self.line_key(i), None if L is None else float(L), zf),
+                                          _composite.WarmStart())
         return lambda XF: _composite.solve(XF, zf, c, h_A=hA, warm=warm)
 
     def line_key(self, i: int) -> tuple:
@@ -718,6 +720,9 @@ class MooringModel:
                 return -self.stiffness(np.r_[xy, psi])[:2, :2] / scale
 
             start = guess[:2]
+        # the composite lines' solves of this search start from their last (composite.WarmStart),
+        # kept for this call only, so the answer depends on the inputs alone
+        self._cache["warm_starts"] = True
         try:
             root = solve_equilibrium(residual, jacobian, start, tol=tol)
         except EquilibriumError as exc:
@@ -730,6 +735,9 @@ class MooringModel:
                 f"no mooring equilibrium for tau_env = {tau_env.tolist()} (heading {held}) with "
                 f"lines {list(self.line_ids)}: {exc.reason}{hint}",
                 residual=exc.residual, reason=exc.reason) from None
+        finally:
+            for k in [k for k in self._cache if k == "warm_starts" or (isinstance(k, tuple) and k[0] == "warm")]:
+                del self._cache[k]
         return root if psi is None else np.r_[root, psi]
 
 
