@@ -19,7 +19,6 @@ from a saved study as the command does from a fresh computation:
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 from typing import Any, Sequence
@@ -28,7 +27,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from .._io import atomic_write_bytes
-from .document import Cell, Fig, Heading, Para, Table
+from .document import Cell, Fig, Heading, Para, Table, json_section
 from .figures import png_bytes
 
 __all__ = ["CAPABILITY_DIR", "capability_figure", "cases_figure", "capability_files", "write_capability",
@@ -248,16 +247,7 @@ def study_capability_section(study_dir: str | Path, problems: list[str] | None =
     path = Path(study_dir) / CAPABILITY_DIR / "capability.json"
     if not path.is_file():
         return None
-    blocks: list = [Heading(2, heading, anchor="capability")]
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-        if data.get("format") != "tapm-capability/1":
-            raise ValueError(f"format = {data.get('format')!r}, expected 'tapm-capability/1'")
-        more, figs = capability_blocks(data, source=f"{CAPABILITY_DIR}/capability.json")
-    except Exception as exc:  # noqa: BLE001 - a broken file must not stop the report
-        msg = f"capability section not drawn: {path.name}: {exc}"
-        if problems is not None:
-            problems.append(msg)
-        blocks.append(Para(f"**Capability not shown:** {exc}", css="error"))
-        return blocks, []
-    return blocks + more, figs
+    more, figs = json_section(path, "tapm-capability/1",
+                              lambda data: capability_blocks(data, source=f"{CAPABILITY_DIR}/capability.json"),
+                              "capability", problems)
+    return [Heading(2, heading, anchor="capability"), *more], figs

@@ -7,11 +7,12 @@ import base64
 import html
 import re
 from dataclasses import dataclass, field
-from typing import Any, Sequence
+from pathlib import Path
+from typing import Any, Callable, Sequence
 
 from ..studies.kpis import format_number
 
-__all__ = ["BEST_MARK", "Cell", "Table", "Fig", "Heading", "Para", "Pre", "Details", "RawMarkdown",
+__all__ = ["json_section", "BEST_MARK", "Cell", "Table", "Fig", "Heading", "Para", "Pre", "Details", "RawMarkdown",
            "render_markdown", "render_html"]
 
 #: Mark of the better value in the side-by-side KPI tables.
@@ -328,3 +329,22 @@ def render_html(blocks: Sequence[Any], title: str) -> str:
     return ("<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
             f"<title>{html.escape(title)}</title>\n<style>{_CSS}</style>\n</head>\n<body>\n"
             + "\n".join(body) + "\n</body>\n</html>\n")
+
+
+def json_section(path: Path, fmt: str, draw: Callable[[dict], tuple[list, list]], what: str,
+                 problems: list[str] | None = None) -> tuple[list, list]:
+    """The blocks and figures ``draw`` makes of the JSON file ``path`` of format ``fmt`` (its
+    ``"format"`` field); a file that cannot be read or drawn gives one error paragraph instead (and
+    a line in ``problems``), since a broken file must not stop the report. ``what`` names the
+    section in those messages ("capability", "verification")."""
+    import json
+
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+        if data.get("format") != fmt:
+            raise ValueError(f"format = {data.get('format')!r}, expected {fmt!r}")
+        return draw(data)
+    except Exception as exc:  # noqa: BLE001 - a broken file must not stop the report
+        if problems is not None:
+            problems.append(f"{what} section not drawn: {path.name}: {exc}")
+        return [Para(f"**{what.capitalize()} not shown:** {exc}", css="error")], []

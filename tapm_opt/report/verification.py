@@ -10,12 +10,11 @@ line of every limit state. Nothing is recomputed: every number is read from the 
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 from typing import Any, Sequence
 
-from .document import Cell, Fig, Heading, Para, Table, _fmt
+from .document import Cell, Fig, Heading, Para, Table, _fmt, json_section
 from .figures import ALERT_COLOR, kpi_bar_figure, png_bytes
 
 __all__ = ["study_verification_section", "verification_blocks", "reference_controller"]
@@ -340,32 +339,21 @@ def study_verification_section(study_dir: str | Path, problems: list[str] | None
     or whose ``study.toml`` has a ``[verification]`` table (then a short section saying how to
     compute it); None otherwise. An unreadable file gives a short section saying so (and a line
     in ``problems``)."""
-    from ..studies.verification_study import VERIFICATION_JSON
+    from ..studies.store import StudyError
+    from ..studies.verification_study import VERIFICATION_JSON, read_verification_table
 
     d = Path(study_dir)
     path = d / VERIFICATION_JSON
-    blocks: list = [Heading(2, heading, anchor="verification")]
+    head = Heading(2, heading, anchor="verification")
     if not path.is_file():
         try:
-            import tomllib
-
-            has = "verification" in tomllib.loads((d / "study.toml").read_text(encoding="utf-8-sig"))
-        except (OSError, ValueError):
+            has = read_verification_table(d) is not None
+        except StudyError:
             has = False
         if not has:
             return None
-        blocks.append(Para(f"The study has a [verification] table but no `{VERIFICATION_JSON}`: run "
-                           f"`tapm study verify {d}` and write the report again.", css="note"))
-        return blocks, []
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-        if data.get("format") != "tapm-verification/1":
-            raise ValueError(f"format = {data.get('format')!r}, expected 'tapm-verification/1'")
-        more, figs = verification_blocks(data, styles=styles)
-    except Exception as exc:  # noqa: BLE001 - a broken file must not stop the report
-        msg = f"verification section not drawn: {path.name}: {exc}"
-        if problems is not None:
-            problems.append(msg)
-        blocks.append(Para(f"**Verification not shown:** {exc}", css="error"))
-        return blocks, []
-    return blocks + more, figs
+        return [head, Para(f"The study has a [verification] table but no `{VERIFICATION_JSON}`: run "
+                           f"`tapm study verify {d}` and write the report again.", css="note")], []
+    more, figs = json_section(path, "tapm-verification/1", lambda data: verification_blocks(data, styles=styles),
+                              "verification", problems)
+    return [head, *more], figs

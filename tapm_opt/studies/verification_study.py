@@ -458,10 +458,6 @@ class _Group:
     records: list = field(default_factory=list)
 
 
-def _finite_or_none(x: float | None) -> float | None:
-    return None if x is None or not math.isfinite(x) else float(x)
-
-
 def verify_study(study_dir: str | Path, table: Any = None, *, write: bool = True,
                  source: str = "") -> Verification:
     """The verification of the study run in ``study_dir`` from its stored results.
@@ -560,10 +556,10 @@ def _groups(done: Sequence[Any]) -> list[_Group]:
 def _sea_state_of(record: Any) -> Any:
     """The sea state a case ran in (None for still water)."""
     sid = record.inputs.get("sea_state")
-    for ss in record.scenario().sea_states:
-        if ss.id == sid:
-            return ss
-    return None
+    try:
+        return None if sid is None else record.scenario().sea_state(sid)
+    except KeyError:
+        return None
 
 
 def _fit(values: Sequence[float], method: str) -> Any:
