@@ -19,15 +19,14 @@ tests instead of skipping them. MoorPy is not used.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import moordyn  # noqa: F401 - in the test extra; its absence must fail, not skip
 import numpy as np
 import pytest
 from scipy.optimize import fsolve
+from test_moordyn import _write, run
 from test_moordyn_nonlinear import moordyn_fairlead_tensions
 
-from tapm_opt.cli import main
 from tapm_opt.config import load_scenario
 from tapm_opt.config.moordyn import MoorDynError, parse_moordyn, read_moordyn
 from tapm_opt.geometry import fairleads_E
@@ -35,18 +34,6 @@ from tapm_opt.models import MooringModel, composite
 from tapm_opt.models.moordyn_import import import_moordyn
 
 G, RHO = 9.81, 1025.0
-
-
-def run(capsys, *args: str):
-    code = main(list(args))
-    out = capsys.readouterr()
-    return code, out.out, out.err
-
-
-def _write(tmp_path: Path, text: str, name: str = "moor.dat") -> Path:
-    p = tmp_path / name
-    p.write_text(text, encoding="utf-8")
-    return p
 
 
 def _w(mass: float, diam: float) -> float:
