@@ -287,9 +287,9 @@ class MooringModel:
         if L is not None:
             c = c.with_length(L)
         warm = None
-        if self._cache.get("warm_starts"):   # inside equilibrium(): each line starts from its last solve
-            warm = self._cache.setdefault(("warm", self.line_key(i), None if L is None else float(L), zf),
-                                          _composite.WarmStart())
+        starts = self._cache.get("warm_starts")   # inside equilibrium(): each line starts from its last solve
+        if starts is not None:
+            warm = starts.setdefault((self.line_key(i), None if L is None else float(L), zf), _composite.WarmStart())
         return lambda XF: _composite.solve(XF, zf, c, h_A=hA, warm=warm)
 
     def line_key(self, i: int) -> tuple:
@@ -722,7 +722,7 @@ class MooringModel:
             start = guess[:2]
         # the composite lines' solves of this search start from their last (composite.WarmStart),
         # kept for this call only, so the answer depends on the inputs alone
-        self._cache["warm_starts"] = True
+        self._cache["warm_starts"] = {}
         try:
             root = solve_equilibrium(residual, jacobian, start, tol=tol)
         except EquilibriumError as exc:
@@ -736,8 +736,7 @@ class MooringModel:
                 f"lines {list(self.line_ids)}: {exc.reason}{hint}",
                 residual=exc.residual, reason=exc.reason) from None
         finally:
-            for k in [k for k in self._cache if k == "warm_starts" or (isinstance(k, tuple) and k[0] == "warm")]:
-                del self._cache[k]
+            self._cache.pop("warm_starts", None)
         return root if psi is None else np.r_[root, psi]
 
 
