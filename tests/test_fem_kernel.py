@@ -258,7 +258,7 @@ def test_fairlead_states_equal_fairlead_state_pose_by_pose(mode):
     for i in range(len(t)):
         ri, vi = m.fairlead_state(eta[i], eta_dot[i])
         assert rel_diff(ri, r[i]) <= 1e-14 and rel_diff(vi, v[i]) <= 1e-14
-    with pytest.raises(ModelError, match=r"expected \(n, 3\) each"):
+    with pytest.raises(ModelError, match=r"expected \(n, 3\) or \(n, 6\) each"):
         m.fairlead_states(eta[:, :2], eta_dot[:, :2])
 
 

@@ -51,7 +51,10 @@ def _scalar_sums(plant):
 
     def sums(t0, t1, h):
         S, C = env.waves._sums(t1)
-        return env.wind.speed(t0), float(env.waves._sums(t0)[1][1]), float(S[0]), float(S[1]), float(C[0])
+        w = env.waves
+        th = t1 * w.omega + w.phase
+        vg = np.concatenate([np.cos(th), np.sin(th)]) @ w._Wv   # the heave, roll and pitch sums (none here)
+        return (env.wind.speed(t0), float(env.waves._sums(t0)[1][1]), float(S[0]), float(S[1]), float(C[0]), vg)
 
     return sums
 

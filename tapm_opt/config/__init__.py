@@ -23,6 +23,7 @@ from .schema import (
     Thruster,
     Turret,
     Vessel,
+    WaveMotion,
 )
 
 __all__ = [
@@ -46,4 +47,5 @@ __all__ = [
     "Thruster",
     "Turret",
     "Vessel",
+    "WaveMotion",
 ]

@@ -753,6 +753,26 @@ def _axial_law_issues(sc: Scenario, issues: list[ScenarioIssue]) -> None:
                 "with a table EA is that secant (leave EA out)")))
 
 
+def _wave_motion_issues(v: Any, issues: list[ScenarioIssue]) -> None:
+    """``vessel.wave_motion``: the six-degree-of-freedom model needs the hull's block coefficient,
+    GM_T and roll period, and a water-plane coefficient not below the block coefficient."""
+    wm = v.wave_motion
+    p = "vessel.wave_motion"
+    if wm.model == "six_dof":
+        for name, what in (("block_coefficient", "the block coefficient C_B [-]"),
+                           ("GM_T", "the transverse metacentric height [m]"),
+                           ("roll_period", "the natural roll period [s]")):
+            if getattr(wm, name) is None:
+                issues.append(ScenarioIssue(f"{p}.{name}", (
+                    f"is missing: model = 'six_dof' needs {what} for the closed-form heave, roll and pitch "
+                    "transfer functions (or model = 'horizontal')")))
+    if wm.block_coefficient is not None and wm.waterplane_coefficient is not None \
+            and wm.waterplane_coefficient < wm.block_coefficient:
+        issues.append(ScenarioIssue(f"{p}.waterplane_coefficient", (
+            f"= {wm.waterplane_coefficient:g} is below block_coefficient = {wm.block_coefficient:g}: a hull's "
+            "water-plane is at least as full as its block")))
+
+
 def validate(sc: Scenario) -> list[ScenarioIssue]:
     """Physical and cross-field checks of a parsed scenario.
 
@@ -782,6 +802,7 @@ def validate(sc: Scenario) -> list[ScenarioIssue]:
                     "vessel.added_mass",
                     f"leaves a rigid-body mass M - M_A that is not positive definite (eigenvalue {eig.min():g})"))
     _matrix_checks(v.D_lin, "vessel.linear_damping", issues, pd=False, psd=True)
+    _wave_motion_issues(v, issues)
 
     if sc.turret.fairlead_depth >= env.water_depth:
         issues.append(ScenarioIssue(

@@ -188,6 +188,29 @@ class Environment:
 
 
 @dataclass(frozen=True, kw_only=True)
+class WaveMotion:
+    """First-order (wave-frequency) motion of the hull that the plant puts on the fairleads: surge,
+    sway and yaw always (``docs/plant_environment.md``); heave, roll and pitch from the closed-form
+    transfer functions of Jensen, Mansour and Olsen (2004) when ``model = "six_dof"``."""
+
+    model: Literal["horizontal", "six_dof"] = spec(
+        "'horizontal': surge, sway and yaw only; 'six_dof': heave, roll and pitch too, from the closed-form "
+        "RAOs (Jensen et al. 2004) of the hull's main dimensions and the fields below.",
+        default="horizontal")
+    block_coefficient: float | None = spec("Block coefficient C_B of the hull (six_dof).",
+                                           default=None, check=in_range(0.3, 1.0))
+    waterplane_coefficient: float | None = spec(
+        "Water-plane area coefficient C_WP (six_dof); absent: (1 + 2 C_B) / 3.", default=None,
+        check=in_range(0.3, 1.0))
+    GM_T: float | None = spec("Transverse metacentric height (six_dof).", "m", default=None,
+                              check=positive_at_most(50.0, "ships have GM_T of 0.3-10 m"))
+    roll_period: float | None = spec("Natural roll period T_4 (six_dof).", "s", default=None,
+                                     check=positive_at_most(60.0, "ships roll with periods of 8-30 s"))
+    roll_damping: float = spec("Roll damping as a fraction of critical, zeta_4 (six_dof).", default=0.05,
+                               check=bounded(0.0, 0.99, "below critical"))
+
+
+@dataclass(frozen=True, kw_only=True)
 class Vessel:
     """Hull and low-frequency hydrodynamics in 3 DOF (surge, sway, yaw) about the body origin CO."""
 
@@ -225,6 +248,7 @@ class Vessel:
         default=(math.nan, 0.0, math.nan),
         shape=(3,),
     )
+    wave_motion: WaveMotion = spec("Wave-frequency motion of the hull at the fairleads.", default=WaveMotion())
 
     @cached_property
     def M(self) -> np.ndarray:

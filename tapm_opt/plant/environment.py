@@ -23,7 +23,7 @@ from ..errors import ModelError, TapmError
 from ..models.environment import CurrentProfile, HullWindLoad, finite_array, finite_number
 
 __all__ = ["PlantError", "jonswap", "npd_spectrum", "CurrentProfile", "WaveParams", "WaveField",
-           "WindParams", "Wind", "Environment"]
+           "WindParams", "Wind", "Environment", "hull_rao", "heading_interp", "N_HEADINGS"]
 
 
 class PlantError(TapmError, ValueError):
@@ -47,6 +47,33 @@ def _time(t: Any) -> float | np.ndarray:
 #: Most outer-step times of one block of precomputed wave and wind sums (:meth:`WaveField.block`,
 #: :meth:`Wind.block`): 512 steps of 0.1 s are 51.2 s of simulated time, (512, 200) work arrays.
 BLOCK_MAX = 512
+
+
+#: Relative wave headings of the six-degree-of-freedom motion's sums (:meth:`WaveField.vertical_block`):
+#: every 5 degrees, interpolated linearly between them (:func:`heading_interp`).
+N_HEADINGS = 72
+
+
+def heading_interp(grid: Any, direction: float, psi: float) -> np.ndarray:
+    """Linear interpolation (3,) of sums on the heading grid ``grid`` (3 G,) (column ``3 g + d`` at
+    the relative heading ``beta_g = 2 pi g / G``) at ``beta = direction - psi`` [rad] taken into
+    [0, 2 pi). Plain float arithmetic, the same operations as the compiled plant's
+    (:func:`tapm_opt.plant.fem_kernel.plant_pre_step`)."""
+    G = np.shape(grid)[-1] // 3
+    b = direction - psi
+    b = b - 2.0 * math.pi * math.floor(b / (2.0 * math.pi))
+    x = b * (G / (2.0 * math.pi))
+    g0 = min(int(x), G - 1)
+    f = x - g0
+    g1 = 0 if g0 == G - 1 else g0 + 1
+    if np.ndim(grid) > 1:   # rows of sums (a time series): the same operations, elementwise
+        v0 = grid[..., 3 * g0:3 * g0 + 3]
+        return v0 + f * (grid[..., 3 * g1:3 * g1 + 3] - v0)
+    out = np.empty(3)
+    for d in range(3):
+        v0 = float(grid[3 * g0 + d])
+        out[d] = v0 + f * (float(grid[3 * g1 + d]) - v0)
+    return out
 
 
 def _rotations(omega: np.ndarray, h: float, n: int, cache: dict) -> tuple[np.ndarray, np.ndarray]:
@@ -183,7 +210,7 @@ class WaveField:
     """
 
     def __init__(self, sea_state: schema.SeaState, vessel: schema.Vessel, env: schema.Environment,
-                 seed: Any = None, *, params: WaveParams = WaveParams()):
+                 seed: Any = None, *, params: WaveParams = WaveParams(), rao: Any = None):
         self.Hs = _num("sea_state.Hs", sea_state.Hs, lo=0.0, unit="m")
         self.Tp = _num("sea_state.Tp", sea_state.Tp, lo=0.0, strict=True, unit="s")
         self.direction = _num("sea_state.wave_direction", sea_state.wave_direction, unit="rad")
@@ -210,6 +237,27 @@ class WaveField:
         # work arrays of the scalar-time sums (theta, sin theta, cos theta), shape (N,)
         self._th, self._sin, self._cos = np.empty(N), np.empty(N), np.empty(N)
         self._rot_cache: dict = {}  # rotation tables of the block sums, per step length
+        self._vertical_weights(rao)
+
+    def _vertical_weights(self, rao: Any) -> None:
+        """The weights of the heave, roll and pitch sums on the relative-heading grid
+        (:data:`N_HEADINGS` headings ``beta_g = 2 pi g / G``), rows ``[cos theta; sin theta]``,
+        column ``3 g + d``: ``x_d(t, beta_g) = sum_k a_k (Re H_kgd cos theta_k - Im H_kgd sin theta_k)``
+        with ``H = rao(omega (N,), beta (G,))`` complex (N, G, 3) per metre of wave amplitude
+        (:func:`tapm_opt.models.rao.closed_form_rao`); none (``six_dof`` False) without ``rao``."""
+        self.six_dof = rao is not None
+        N, G = self.omega.size, N_HEADINGS
+        if rao is None:
+            self._Wv = self._Wv_dot = np.zeros((2 * N, 0))
+            return
+        H = np.asarray(rao(self.omega, 2.0 * math.pi / G * np.arange(G)))
+        if H.shape != (N, G, 3) or not np.isfinite(H).all():
+            raise PlantError(f"the heave, roll and pitch transfer functions have shape {H.shape} (expected "
+                             f"{(N, G, 3)}) or are not finite")
+        a = self.amplitude[:, None, None]
+        aw = (self.amplitude * self.omega)[:, None, None]
+        self._Wv = np.concatenate([(a * H.real).reshape(N, 3 * G), (-a * H.imag).reshape(N, 3 * G)])
+        self._Wv_dot = np.concatenate([(-aw * H.imag).reshape(N, 3 * G), (-aw * H.real).reshape(N, 3 * G)])
 
     def _sums(self, t: Any) -> tuple[np.ndarray, np.ndarray]:
         """(W_sin @ sin theta, W_cos @ cos theta), shapes (3, ...) and (4, ...); last t cached."""
@@ -233,6 +281,39 @@ class WaveField:
         phases (:func:`_block_trig`; the sums in another order)."""
         sin_th, cos_th = _block_trig(float(t0), float(h), int(n), self.omega, self.phase, self._rot_cache)
         return sin_th @ self._Ws.T, cos_th @ self._Wc.T
+
+    def vertical_block(self, t0: float, h: float, n: int) -> np.ndarray:
+        """The heave, roll and pitch sums on the heading grid at the n times ``t0 + j h`` [s],
+        shape (n, 3 G) (column ``3 g + d``, :meth:`_vertical_weights`); (n, 0) without the
+        six-degree-of-freedom motion. The same angle sums as :meth:`block`."""
+        if not self.six_dof:
+            return np.zeros((int(n), 0))
+        sin_th, cos_th = _block_trig(float(t0), float(h), int(n), self.omega, self.phase, self._rot_cache)
+        return np.concatenate([cos_th, sin_th], axis=1) @ self._Wv
+
+    def vertical_of(self, grid: Any, psi: float) -> np.ndarray:
+        """Heave [m, down], roll [rad, starboard down] and pitch [rad, bow up] (3,) at the LF heading
+        psi [rad] from the sums on the heading grid (3 G,) (:meth:`vertical_block`): linear
+        interpolation in the relative heading ``beta = beta_wave - psi`` (:func:`heading_interp`)."""
+        return heading_interp(grid, self.direction, float(psi))
+
+    def _vertical(self, t: Any, psi: float, W: np.ndarray) -> np.ndarray:
+        t = _time(t)
+        if not self.six_dof:
+            return np.zeros(np.shape(t) + (3,))
+        th = np.multiply.outer(t, self.omega) + self.phase
+        return heading_interp(np.concatenate([np.cos(th), np.sin(th)], axis=-1) @ W, self.direction,
+                              _num("psi", psi, unit="rad"))
+
+    def vertical(self, t: Any, psi: float) -> np.ndarray:
+        """Heave [m, down], roll [rad, starboard down] and pitch [rad, bow up] of the hull at time(s)
+        t [s] and LF heading psi [rad], shape t.shape + (3,) (zeros without the six-degree-of-freedom
+        motion)."""
+        return self._vertical(t, psi, self._Wv)
+
+    def vertical_dot(self, t: Any, psi: float) -> np.ndarray:
+        """Time derivative of :meth:`vertical` at fixed LF heading [m/s, rad/s, rad/s]."""
+        return self._vertical(t, psi, self._Wv_dot)
 
     def _dirs(self, psi: float) -> tuple[float, float, float, np.ndarray]:
         """cos beta, sin beta, sin 2beta and the drift factor c(beta) (3,) at heading psi; cached."""
@@ -379,6 +460,29 @@ class Wind:
         return self.hull.tau(self.speed(t), self.direction, psi, u, v)
 
 
+def hull_rao(vessel: schema.Vessel, env: schema.Environment) -> Any:
+    """The heave, roll and pitch transfer functions ``rao(omega, beta) -> complex (N, G, 3)`` of
+    the hull (``vessel.wave_motion``; :func:`tapm_opt.models.rao.closed_form_rao`), or None for
+    the horizontal model."""
+    wm = vessel.wave_motion
+    if wm.model != "six_dof":
+        return None
+    from ..models import rao as rao_mod
+
+    cb = float(wm.block_coefficient)
+    cwp = float(wm.waterplane_coefficient) if wm.waterplane_coefficient is not None else (1.0 + 2.0 * cb) / 3.0
+    try:
+        hull = rao_mod.HullMotionParams(
+            length_pp=float(vessel.length_pp), breadth=float(vessel.breadth), draught=float(vessel.draught),
+            block_coefficient=cb, waterplane_coefficient=cwp, GM_T=float(wm.GM_T),
+            roll_period=float(wm.roll_period), roll_damping=float(wm.roll_damping))
+    except ModelError as exc:
+        raise PlantError(f"vessel.wave_motion: {exc}") from None
+    g = float(env.gravity)
+    return lambda omega, beta: rao_mod.closed_form_rao(np.asarray(omega)[:, None], np.asarray(beta)[None, :],
+                                                       hull, g=g)
+
+
 class Environment:
     """Current, waves and wind of one sea state of a scenario, with independent random streams.
 
@@ -412,7 +516,7 @@ class Environment:
             self.current = CurrentProfile(sea_state, env.water_depth)
         except ModelError as exc:
             raise PlantError(str(exc)) from None
-        self.waves = WaveField(sea_state, ves, env, s_wave, params=wave_params)
+        self.waves = WaveField(sea_state, ves, env, s_wave, params=wave_params, rao=hull_rao(ves, env))
         self.wind = Wind(sea_state, ves, env, s_wind, params=wind_params)
         self.eta_wf, self.eta_wf_dot = self.waves.eta_wf, self.waves.eta_wf_dot
         self.current_at = self.current.velocity

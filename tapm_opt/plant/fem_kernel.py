@@ -605,7 +605,25 @@ def _fairleads(eta, p_cot, p_T, turret_angle, locked, fx, fy, rx, ry):  # pragma
 
 
 @_jit
-def mooring_step(pose0, pose1, rate_prev, h, n_sub, p_cot, p_T, turret_angle, locked, z_fl,
+def _vertical_offset(hz, ph, th, dx, dy, z_fl, c, s):  # pragma: no cover - compiled
+    """Displacement (x, y, z) in {E} [m] of a fairlead by the hull's heave ``hz`` [m, down], roll
+    ``ph`` [rad, starboard down] and pitch ``th`` [rad, bow up] (small rotations about the body
+    origin on the water line): ``(th z, -ph z, hz + ph y - th x)`` in {B} for the fairlead at
+    ``(x, y, z)`` in {B} — ``(dx, dy)`` its horizontal offset from the body origin in {E},
+    ``z = z_fl`` its depth — turned to {E} by the heading (``c, s`` its cosine and sine). Linear
+    in ``(hz, ph, th)``: rates and accelerations give the fairlead's velocity and acceleration
+    (the levers' own change, second order, left out). :meth:`MooringFEM.fairlead_state
+    <tapm_opt.plant.mooring_fem.MooringFEM.fairlead_state>` is the numpy twin."""
+    bx = c * dx + s * dy
+    by = c * dy - s * dx
+    ox = th * z_fl
+    oy = -(ph * z_fl)
+    oz = (hz + ph * by) - th * bx
+    return c * ox - s * oy, s * ox + c * oy, oz
+
+
+@_jit
+def mooring_step(pose0, pose1, vert0, vert1, rate_prev, h, n_sub, p_cot, p_T, turret_angle, locked, z_fl,
                  r, v, vc, l0, EA, tabi, tab, c_int, bond_ok, node_weight, node_mass, cdn, cdt, can_half, cat_half,
                  joint, joint_c, kb, cb, mu, depth, has_int_damping, has_friction,
                  anchor_idx, anchors, fairlead_idx, attached, fairlead_seg, anchor_seg, active,
@@ -613,7 +631,9 @@ def mooring_step(pose0, pose1, rate_prev, h, n_sub, p_cot, p_T, turret_angle, lo
     """The mooring part of the plant's outer step of ``h`` seconds in ``n_sub`` FEM substeps.
 
     The fairleads follow the total pose interpolated linearly from ``pose0`` to ``pose1`` (each
-    (3,) [m, m, rad]) at the constant rate ``(pose1 - pose0) / h`` (:meth:`MooringFEM.advance
+    (3,) [m, m, rad]) at the constant rate ``(pose1 - pose0) / h``, and the hull's heave, roll
+    and pitch from ``vert0`` to ``vert1`` (each (3,) [m, rad, rad]; zeros: none) likewise
+    (:func:`_vertical_offset`) (:meth:`MooringFEM.advance
     <tapm_opt.plant.mooring_fem.MooringFEM.advance>`); then, at ``pose1``, the fairlead
     accelerations from the change of rate since ``rate_prev`` (:meth:`MooringFEM.fairlead_acceleration
     <tapm_opt.plant.mooring_fem.MooringFEM.fairlead_acceleration>`) and the load of the lines on
@@ -627,8 +647,9 @@ def mooring_step(pose0, pose1, rate_prev, h, n_sub, p_cot, p_T, turret_angle, lo
         Bond tensions at the start of the last substep [N].
     r_fl : ndarray (n_lines, 3)
         Fairlead positions of the last substep [m].
-    rate : ndarray (3,)
-        The pose rate over the step [m/s, m/s, rad/s].
+    rate : ndarray (6,)
+        The pose rate over the step [m/s, m/s, rad/s], then the heave, roll and pitch rates
+        [m/s, rad/s, rad/s] (``rate_prev`` the same of the step before).
     a_fl : ndarray (n_lines, 3)
         Fairlead accelerations [m/s^2].
     tau : ndarray (3,)
@@ -641,11 +662,16 @@ def mooring_step(pose0, pose1, rate_prev, h, n_sub, p_cot, p_T, turret_angle, lo
         reports it).
     """
     nl = p_T.shape[0]
-    rate = np.empty(3)
-    d = np.empty(3)
+    rate = np.empty(6)
+    d = np.empty(6)
+    six = False
     for c in range(3):
         d[c] = pose1[c] - pose0[c]
         rate[c] = d[c] / h
+        d[3 + c] = vert1[c] - vert0[c]
+        rate[3 + c] = d[3 + c] / h
+        if vert0[c] != 0.0 or vert1[c] != 0.0 or rate_prev[3 + c] != 0.0:
+            six = True
     fl_r = np.empty((n_sub, nl, 3))
     fl_v = np.empty((n_sub, nl, 3))
     fx = np.empty(nl)
@@ -653,10 +679,12 @@ def mooring_step(pose0, pose1, rate_prev, h, n_sub, p_cot, p_T, turret_angle, lo
     rx = np.empty(nl)
     ry = np.empty(nl)
     e = np.empty(3)
+    ev = np.empty(3)
     for s in range(n_sub):
         frac = (s + 1) / n_sub
         for c in range(3):
             e[c] = pose0[c] + frac * d[c]
+            ev[c] = vert0[c] + frac * d[3 + c]
         _fairleads(e, p_cot, p_T, turret_angle, locked, fx, fy, rx, ry)
         for j in range(nl):
             fl_r[s, j, 0] = fx[j]
@@ -665,6 +693,18 @@ def mooring_step(pose0, pose1, rate_prev, h, n_sub, p_cot, p_T, turret_angle, lo
             fl_v[s, j, 0] = rate[0] - rate[2] * ry[j]
             fl_v[s, j, 1] = rate[1] + rate[2] * rx[j]
             fl_v[s, j, 2] = 0.0
+        if six:
+            cp = math.cos(e[2])
+            sp = math.sin(e[2])
+            for j in range(nl):
+                ox, oy, oz = _vertical_offset(ev[0], ev[1], ev[2], fx[j] - e[0], fy[j] - e[1], z_fl, cp, sp)
+                vx, vy, vz = _vertical_offset(rate[3], rate[4], rate[5], fx[j] - e[0], fy[j] - e[1], z_fl, cp, sp)
+                fl_r[s, j, 0] += ox
+                fl_r[s, j, 1] += oy
+                fl_r[s, j, 2] += oz
+                fl_v[s, j, 0] += vx
+                fl_v[s, j, 1] += vy
+                fl_v[s, j, 2] += vz
     r, v, T = advance(r, v, vc, h / n_sub, 0.0, fl_r, fl_v,
                       l0, EA, tabi, tab, c_int, bond_ok, node_weight, node_mass, cdn, cdt, can_half, cat_half, joint, joint_c,
                       kb, cb, mu, depth, has_int_damping, has_friction,
@@ -679,6 +719,16 @@ def mooring_step(pose0, pose1, rate_prev, h, n_sub, p_cot, p_T, turret_angle, lo
     for j in range(nl):
         a_fl[j, 0] = a0 - rdd * ry[j] - rd * rd * rx[j]
         a_fl[j, 1] = a1 + rdd * rx[j] - rd * rd * ry[j]
+    if six:
+        cp = math.cos(pose1[2])
+        sp = math.sin(pose1[2])
+        for j in range(nl):
+            ax, ay, az = _vertical_offset((rate[3] - rate_prev[3]) / h, (rate[4] - rate_prev[4]) / h,
+                                          (rate[5] - rate_prev[5]) / h, fx[j] - pose1[0], fy[j] - pose1[1], z_fl,
+                                          cp, sp)
+            a_fl[j, 0] += ax
+            a_fl[j, 1] += ay
+            a_fl[j, 2] += az
     # overload bound (Plant._check_overload) and health (FEMLines.check_health) flags
     near = False
     for j in range(nl):
@@ -759,11 +809,11 @@ def mooring_step(pose0, pose1, rate_prev, h, n_sub, p_cot, p_T, turret_angle, lo
 
 #: Layout of the packed float output of :func:`plant_pre_step`: slices of eta, nu, eta_wf,
 #: tau_thr, tau_wind, tau_drift, the total poses at the start and the end of the step, the riser
-#: angles.
-OUT_ETA, OUT_NU, OUT_WF, OUT_THR, OUT_WIND, OUT_DRIFT, OUT_POSE0, OUT_POSE1, OUT_RISER = (
+#: angles, the hull's heave, roll and pitch at the end of the step.
+OUT_ETA, OUT_NU, OUT_WF, OUT_THR, OUT_WIND, OUT_DRIFT, OUT_POSE0, OUT_POSE1, OUT_RISER, OUT_VERT = (
     slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), slice(12, 15), slice(15, 18), slice(18, 21),
-    slice(21, 24), slice(24, 28))
-OUT_SIZE = 28
+    slice(21, 24), slice(24, 28), slice(28, 31))
+OUT_SIZE = 31
 
 #: Kinds of the current at the nodes of :func:`plant_pre_step`: held (none: ``vc`` untouched),
 #: uniform, linear, piecewise (``CurrentProfile.kind``).
@@ -827,7 +877,22 @@ def _current_at_nodes(r, vc, kind, clamps, depths, factors, water_depth, surface
 
 
 @_jit
-def plant_pre_step(h, f, alpha, f_cmd, alpha_cmd, decay, rate_dt, alpha_rate_dt, V0, q0, S0, S1, C0,
+def _heading_interp(grid, direction, psi, out, o):  # pragma: no cover - compiled
+    """:func:`tapm_opt.plant.environment.heading_interp` into ``out[o:o + 3]``: the same operations."""
+    G = grid.shape[0] // 3
+    b = direction - psi
+    b = b - 2.0 * math.pi * math.floor(b / (2.0 * math.pi))
+    x = b * (G / (2.0 * math.pi))
+    g0 = min(int(x), G - 1)
+    f = x - g0
+    g1 = 0 if g0 == G - 1 else g0 + 1
+    for d in range(3):
+        v0 = grid[3 * g0 + d]
+        out[o + d] = v0 + f * (grid[3 * g1 + d] - v0)
+
+
+@_jit
+def plant_pre_step(h, f, alpha, f_cmd, alpha_cmd, decay, rate_dt, alpha_rate_dt, V0, q0, S0, S1, C0, vgrid,
                    eta, nu, eta_wf_prev, tau_moor_prev, r, vc,
                    failed, f_min, f_max, azimuth, x_thr, y_thr, has_env, wind_dir, hull_k, wave_dir, drift_c, wf,
                    v_c, M, M_A, M_inv, D_lin, d_quad, has_riser, riser_c,
@@ -839,7 +904,8 @@ def plant_pre_step(h, f, alpha, f_cmd, alpha_cmd, decay, rate_dt, alpha_rate_dt,
     ``drift_c`` the constants of ``WaveField._dirs``) at the start of the step (zero unless
     ``has_env``), :func:`vessel_step` on their sum with the thrust and ``tau_moor_prev``, the
     wave-frequency pose at the end (the sums ``S0, S1, C0`` of ``WaveField._motion`` there; zero
-    unless ``wf``), the total poses ``eta + eta_wf_prev`` and the new one, the riser angles at the
+    unless ``wf``; and the heave, roll and pitch from ``vgrid``, the sums on the heading grid of
+    ``WaveField.vertical_block``, empty: none), the total poses ``eta + eta_wf_prev`` and the new one, the riser angles at the
     new (``riser_c``: hang-off (x, y) in {B}, wellhead (x, y), c_t, c_b, h_t, h_b, g(v_c) (x, y)
     of ``RiserModel._affine``) and the current at the nodes ``r`` (into ``vc`` unless ``cur_kind``
     is :data:`CURRENT_HELD`, :func:`_current_at_nodes`). The arguments that change from step to
@@ -895,6 +961,8 @@ def plant_pre_step(h, f, alpha, f_cmd, alpha_cmd, decay, rate_dt, alpha_rate_dt,
         out[6] = c * xb - s * yb
         out[7] = s * xb + c * yb
         out[8] = s2b * C0
+        if vgrid.shape[0] > 0:  # heave, roll and pitch at the new heading (WaveField.vertical_of)
+            _heading_interp(vgrid, wave_dir, psi1, out, 28)
     for i in range(3):
         out[18 + i] = eta[i] + eta_wf_prev[i]
         out[21 + i] = eta1[i] + out[6 + i]
@@ -941,7 +1009,7 @@ _plant_pre_step, _mooring_step = plant_pre_step, mooring_step
 
 @_jit
 def plant_steps(h, n_sub, steps0, t_fem, sums, f, alpha, f_cmd, alpha_cmd, decay, rate_dt, alpha_rate_dt,
-                eta, nu, eta_wf, tau_moor, rate, r, v, vc,
+                eta, nu, eta_wf, vert, tau_moor, rate, r, v, vc,
                 failed, f_min, f_max, azimuth, x_thr, y_thr, has_env, wind_dir, hull_k, wave_dir, drift_c, wf,
                 v_c, M, M_A, M_inv, D_lin, d_quad, has_riser, riser_c,
                 cur_kind, cur_clamps, cur_depths, cur_factors, cur_depth, cur_surface,
@@ -953,7 +1021,8 @@ def plant_steps(h, n_sub, steps0, t_fem, sums, f, alpha, f_cmd, alpha_cmd, decay
     """Up to ``sums.shape[0]`` plant outer steps of ``h`` [s] in one call (``Plant._fused_steps``):
     each :func:`plant_pre_step`, then :func:`mooring_step` in ``n_sub`` substeps, the functions and
     arguments of the plant's per-step fused path (``Plant._fused_step``), so the same numbers. Row
-    ``i`` of ``sums`` is step i's environment sums ``(V0, q0, S0, S1, C0)``. The state passes from
+    ``i`` of ``sums`` is step i's environment sums ``(V0, q0, S0, S1, C0)`` and the heave, roll and
+    pitch sums on the heading grid (none without them); ``vert`` the heave, roll and pitch at the start. The state passes from
     step to step as the plant passes it: the pose, velocity, wave-frequency pose and riser angles
     from the packed output, the mooring load and the pose rate, the node positions and velocities;
     ``f``, ``alpha`` (thrusters) and ``vc`` (current at the nodes) are written in place;
@@ -987,6 +1056,7 @@ def plant_steps(h, n_sub, steps0, t_fem, sums, f, alpha, f_cmd, alpha_cmd, decay
     eta_c = eta.copy()
     nu_c = nu.copy()
     wf_c = eta_wf.copy()
+    vert_c = vert.copy()
     tau_c = tau_moor.copy()
     tau_prev = tau_c
     rate_c = rate.copy()
@@ -998,7 +1068,7 @@ def plant_steps(h, n_sub, steps0, t_fem, sums, f, alpha, f_cmd, alpha_cmd, decay
     dt = h / n_sub
     for i in range(n):
         status, out = _plant_pre_step(h, f, alpha, f_cmd, alpha_cmd, decay, rate_dt, alpha_rate_dt,
-                                     sums[i, 0], sums[i, 1], sums[i, 2], sums[i, 3], sums[i, 4],
+                                     sums[i, 0], sums[i, 1], sums[i, 2], sums[i, 3], sums[i, 4], sums[i, 5:],
                                      eta_c, nu_c, wf_c, tau_c, r, vc,
                                      failed, f_min, f_max, azimuth, x_thr, y_thr, has_env, wind_dir, hull_k, wave_dir,
                                      drift_c, wf, v_c, M, M_A, M_inv, D_lin, d_quad, has_riser, riser_c,
@@ -1008,7 +1078,7 @@ def plant_steps(h, n_sub, steps0, t_fem, sums, f, alpha, f_cmd, alpha_cmd, decay
             return i, status, outs, r, v, T, r_fl, rate_c, a_fl, tau_c, near, suspect, tau_prev, t_fem
         tau_prev = tau_c
         r, v, T, r_fl, rate_c, a_fl, tau_c, near, suspect = _mooring_step(
-            out[18:21], out[21:24], rate_c, h, n_sub, p_cot, p_T, turret_angle, locked, z_fl,
+            out[18:21], out[21:24], vert_c, out[28:31], rate_c, h, n_sub, p_cot, p_T, turret_angle, locked, z_fl,
             r, v, vc, l0, EA, tabi, tab, c_int, bond_ok, node_weight, node_mass, cdn, cdt, can_half, cat_half,
             joint, joint_c, kb, cb, mu, depth, has_int_damping, has_friction,
             anchor_idx, anchors, fairlead_idx, attached, fairlead_seg, anchor_seg, active,
@@ -1021,4 +1091,5 @@ def plant_steps(h, n_sub, steps0, t_fem, sums, f, alpha, f_cmd, alpha_cmd, decay
             eta_c[c] = out[c]
             nu_c[c] = out[3 + c]
             wf_c[c] = out[6 + c]
+            vert_c[c] = out[28 + c]
     return n, 0, outs, r, v, T, r_fl, rate_c, a_fl, tau_c, near, suspect, tau_prev, t_fem

@@ -103,7 +103,8 @@ class ForcedMotionResult:
 
 def forced_motion(scenario: Any, *, dof: Literal["surge", "sway", "yaw"] = "surge", amplitude: float,
                   period: float, duration: float, segments: int | None = None, dt_out: float = 1.0,
-                  current: Any = None, sea_state: Any = None, safety: float = 0.9) -> ForcedMotionResult:
+                  current: Any = None, sea_state: Any = None, safety: float = 0.9, waves: bool = False,
+                  seed: int = 0) -> ForcedMotionResult:
     """Drive the fairleads with a sinusoidal vessel motion and record the line response.
 
     Parameters
@@ -125,9 +126,19 @@ def forced_motion(scenario: Any, *, dof: Literal["surge", "sway", "yaw"] = "surg
         ``current(z) -> (n, 3)`` current velocity in {E} on the line nodes (default: still water).
     sea_state : str or SeaState, optional
         Take the current profile of this sea state of the scenario (instead of ``current``); its
-        waves and wind do not act (the vessel motion is prescribed).
+        wind does not act (the vessel motion is prescribed), its waves only with ``waves``.
     safety : float
         Fraction of the FEM stability limit used as step.
+    waves : bool
+        Add the sea state's wave-frequency motion of the hull to the forced one (needs
+        ``sea_state``): surge, sway and yaw, and with the scenario's ``vessel.wave_motion.model =
+        "six_dof"`` heave, roll and pitch (:class:`tapm_opt.plant.environment.WaveField`, the
+        plant's, at heading 0 and the realisation of ``seed``). The damping is still the energy
+        the lines dissipate against the forced motion's velocity, so it is the low-frequency
+        damping with the wave-frequency motion acting on the lines (survey §2.4).
+    seed : int
+        Seed of the wave realisation (``waves``), as the plant's: the same waves as a
+        :class:`~tapm_opt.plant.simulator.Plant` of that seed.
 
     Raises
     ------
@@ -159,11 +170,29 @@ def forced_motion(scenario: Any, *, dof: Literal["surge", "sway", "yaw"] = "surg
         ss_id = ss.id
         if ss.current_speed > 0:
             current = CurrentProfile(ss, scenario.environment.water_depth).velocity
+    wf = None
+    if waves:
+        if sea_state is None:
+            raise ModelError("waves = True needs a sea_state (whose waves move the hull)")
+        from .environment import Environment
+
+        ss_seed = int(np.random.SeedSequence(seed).spawn(3)[0].generate_state(1)[0])   # the plant's waves
+        wf = Environment(scenario, ss, seed=ss_seed).waves
+        if wf.Hs <= 0:
+            wf = None
     plant = MooringFEM(scenario, segments=segments, current=current, safety=safety)
     # a whole number of FEM steps per output interval, each no longer than the stable step
     every = int(math.ceil(dt_out / plant.dt - 1e-9))
     plant.dt = dt = dt_out / every
-    eta0 = np.zeros(3)
+    def wave_pose(ts: np.ndarray):
+        """The hull's wave-frequency pose and rate (n, 6) at the times ts [s] (zeros without waves)."""
+        e, ed = np.zeros((ts.size, 6)), np.zeros((ts.size, 6))
+        if wf is not None:
+            e[:, :3], ed[:, :3] = wf.eta_wf(ts, 0.0), wf.eta_wf_dot(ts, 0.0)
+            e[:, 3:], ed[:, 3:] = wf.vertical(ts, 0.0), wf.vertical_dot(ts, 0.0)
+        return e, ed
+
+    eta0 = wave_pose(np.zeros(1))[0][0]
     plant.initialise(eta0)
     info = plant.settle(eta0)
     omega = 2.0 * math.pi / period
@@ -180,14 +209,13 @@ def forced_motion(scenario: Any, *, dof: Literal["surge", "sway", "yaw"] = "surg
     g = plant.geometry
 
     def pose(t: float):
-        e = np.zeros(3)
-        ed = np.zeros(3)
-        e[k] = amplitude * math.sin(omega * t)
-        ed[k] = amplitude * omega * math.cos(omega * t)
+        e, ed = (q[0] for q in wave_pose(np.array([t])))
+        e[k] += amplitude * math.sin(omega * t)
+        ed[k] += amplitude * omega * math.cos(omega * t)
         return e, ed
 
     def load_E(eta, eta_dot, t):
-        edd = np.zeros(3)
+        edd = np.zeros(6)   # the forced motion's acceleration (the waves' is left out of the inertia)
         edd[k] = -amplitude * omega * omega * math.sin(omega * t)
         tau_b = plant.tau(eta, plant.fairlead_acceleration(eta, eta_dot, edd))
         return rot_z(eta[2]) @ tau_b
@@ -207,7 +235,7 @@ def forced_motion(scenario: Any, *, dof: Literal["surge", "sway", "yaw"] = "surg
     j = 0
     e, ed = pose(0.0)
     F = load_E(e, ed, 0.0)
-    t_out[0], eta_out[0], T_out[0], F_out[0] = 0.0, e, plant.fairlead_tension(), F
+    t_out[0], eta_out[0], T_out[0], F_out[0] = 0.0, e[:3], plant.fairlead_tension(), F
     # the steps run in blocks (MooringFEM.advance) that end where the loop looks at the state (an
     # output, a health check) and, with a current, at least every 0.1 s: the current is evaluated
     # at the start of a block and held over it
@@ -219,13 +247,13 @@ def forced_motion(scenario: Any, *, dof: Literal["surge", "sway", "yaw"] = "surg
         i = min(n_steps, (i0 // every + 1) * every, (i0 // 200 + 1) * 200, (i0 // every_c + 1) * every_c)
         nb = i - i0
         ts = np.arange(i0, i + 1) * dt           # start of each step, then the end of the block
-        e_seq = np.zeros((nb + 1, 3))
-        ed_seq = np.zeros((nb + 1, 3))
-        e_seq[:, k] = amplitude * np.sin(omega * ts)
-        ed_seq[:, k] = amplitude * omega * np.cos(omega * ts)
+        e_seq, ed_seq = wave_pose(ts)
+        v_forced = amplitude * omega * np.cos(omega * ts)
+        e_seq[:, k] += amplitude * np.sin(omega * ts)
+        ed_seq[:, k] += v_forced
         f_seq = f_buf[:nb]
         plant.advance(e_seq[1:], ed_seq[1:], fairlead_force_out=f_seq)
-        power[i0:i] = -load_dof(f_seq, e_seq[:-1]) * ed_seq[:-1, k]
+        power[i0:i] = -load_dof(f_seq, e_seq[:-1, :3]) * v_forced[:-1]
         t = i * dt
         e, ed = pose(t)
         if i % 200 == 0:
@@ -233,11 +261,12 @@ def forced_motion(scenario: Any, *, dof: Literal["surge", "sway", "yaw"] = "surg
         if i % every == 0:
             j += 1
             F = load_E(e, ed, t)
-            t_out[j], eta_out[j], T_out[j], F_out[j] = t, e, plant.fairlead_tension(), F
+            t_out[j], eta_out[j], T_out[j], F_out[j] = t, e[:3], plant.fairlead_tension(), F
     plant.fem.check_health()
     if n_steps:  # the last instant, from the same forces as the others (no inertia)
         vc = plant._vc[plant.fem.fairlead_idx] if plant.current is not None else None
-        power[n_steps] = -load_dof(plant.fem.fairlead_forces(vc)[None], e[None])[0] * ed[k]
+        power[n_steps] = -load_dof(plant.fem.fairlead_forces(vc)[None], e[None, :3])[0] * (
+            amplitude * omega * math.cos(omega * n_steps * dt))
     power_t = np.arange(n_steps + 1) * dt
     t_out, eta_out, T_out, F_out = t_out[: j + 1], eta_out[: j + 1], T_out[: j + 1], F_out[: j + 1]
 

@@ -10,6 +10,7 @@ fairlead geometry and the assembly of the load in {B} are those of
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
 from dataclasses import dataclass
 from typing import Any, Callable
@@ -107,6 +108,23 @@ class SettlingNotConverged(TapmError, RuntimeError):
         super().__init__(message)
 
 
+def vertical_offset(hz, ph, th, dx, dy, z_fl, c, s):
+    """Displacement (x, y, z) in {E} [m] of fairleads by the hull's heave ``hz`` [m, down], roll
+    ``ph`` [rad, starboard down] and pitch ``th`` [rad, bow up], small rotations about the body
+    origin on the water line: ``(th z, -ph z, hz + ph y - th x)`` in {B} for a fairlead at
+    ``(x, y, z)`` in {B} — ``(dx, dy)`` its horizontal offset from the body origin in {E}, ``z =
+    z_fl`` its depth [m] — turned to {E} by the heading (``c, s`` its cosine and sine). Linear in
+    ``(hz, ph, th)``: their rates and accelerations give the fairleads' velocities and
+    accelerations (the change of the levers, second order, is left out). Arrays broadcast; the
+    compiled plant's twin is ``fem_kernel._vertical_offset`` (the same operations)."""
+    bx = c * dx + s * dy
+    by = c * dy - s * dx
+    ox = th * z_fl
+    oy = -(ph * z_fl)
+    oz = (hz + ph * by) - th * bx
+    return c * ox - s * oy, s * ox + c * oy, oz
+
+
 class MooringFEM:
     """All mooring lines of a scenario as lumped-mass FEM lines, moved by the vessel.
 
@@ -163,16 +181,12 @@ class MooringFEM:
         """Fairlead positions and velocities in {E}, each (n_lines, 3), for the vessel pose and rate.
 
         Rigid-body kinematics of eq. (5): ``v = p_dot + psi_dot k x (p_f - p)`` (locked turret) or
-        ``v = p_dot + psi_dot k x R2(psi) p_cot`` plus no turret rotation (free turret).
+        ``v = p_dot + psi_dot k x R2(psi) p_cot`` plus no turret rotation (free turret). A pose
+        of six, ``(x, y, psi, heave, roll, pitch)`` [m, m, rad, m, rad, rad] (and its rate), adds
+        the hull's wave-frequency heave, roll and pitch (:func:`vertical_offset`).
         """
-        g = self.geometry
-        fx, fy = g.fairleads(eta)
-        r = np.column_stack((fx, fy, np.full(fx.shape[0], self.fairlead_z)))
-        rx, ry = self._levers(eta, fx, fy)
-        v = np.zeros_like(r)
-        v[:, 0] = eta_dot[0] - eta_dot[2] * ry
-        v[:, 1] = eta_dot[1] + eta_dot[2] * rx
-        return r, v
+        r, v = self.fairlead_states(np.asarray(eta, float)[None, :], np.asarray(eta_dot, float)[None, :])
+        return r[0], v[0]
 
     def _update_current(self) -> np.ndarray:
         """The current at the nodes [m/s] (n_nodes, 3) for their present depths. Nodes that are no
@@ -195,7 +209,8 @@ class MooringFEM:
         (:meth:`_composite_nodes`): the joint nodes exactly at its points' equilibrium, each
         section's nodes on its own catenary between them."""
         fem = self.fem
-        r_fl, _ = self.fairlead_state(np.asarray(eta, float), np.zeros(3))
+        eta = np.asarray(eta, float)
+        r_fl, _ = self.fairlead_state(eta, np.zeros_like(eta))
         depth = fem.depth
         h_A = np.asarray(self.geometry.h_A, dtype=float)
         for j in range(fem.n_lines):  # set-up only, not in the time step
@@ -212,12 +227,12 @@ class MooringFEM:
                 L, EA, w, mu = (float(np.ravel(sec[k])[0]) for k in ("L", "EA", "w", "mu"))
                 table = (tuple(sec.get("EA_table", ())) or (None,))[0]
             elif fem.composite[j]:
-                x, z = self._composite_nodes(j, XF, a[2] - self.fairlead_z, float(h_A[j]))
+                x, z = self._composite_nodes(j, XF, a[2] - r_fl[j, 2], float(h_A[j]))
                 sl = slice(fem.node_start[j], fem.node_start[j] + ns + 1)
                 fem.r[sl, :2] = a[:2] + x[:, None] * u
                 fem.r[sl, 2] = depth - z
                 continue
-            prof = catenary.line_profile(XF, a[2] - self.fairlead_z, L, EA, w, CB=mu, h_A=h_A[j], n=ns + 1,
+            prof = catenary.line_profile(XF, a[2] - r_fl[j, 2], L, EA, w, CB=mu, h_A=h_A[j], n=ns + 1,
                                          table=table)
             sl = slice(fem.node_start[j], fem.node_start[j] + ns + 1)
             fem.r[sl, :2] = a[:2] + prof["x"][:, None] * u
@@ -291,7 +306,7 @@ class MooringFEM:
         """
         w0 = time.perf_counter()
         eta = np.asarray(eta, float)
-        r_fl, v_fl = self.fairlead_state(eta, np.zeros(3))
+        r_fl, v_fl = self.fairlead_state(eta, np.zeros_like(eta))
         fem = self.fem
         dt = min(self.dt, fem.stable_dt(self.safety, extra_damping=damping))
         n_check = max(1, int(round(check_every / dt)))
@@ -355,12 +370,12 @@ class MooringFEM:
         fairlead positions and velocities in {E}, each (n, n_lines, 3)."""
         eta_seq = np.asarray(eta_seq, dtype=float)
         eta_dot_seq = np.asarray(eta_dot_seq, dtype=float)
-        if eta_seq.ndim != 2 or eta_seq.shape[1] != 3 or eta_dot_seq.shape != eta_seq.shape:
+        if eta_seq.ndim != 2 or eta_seq.shape[1] not in (3, 6) or eta_dot_seq.shape != eta_seq.shape:
             raise ModelError(f"eta_seq and eta_dot_seq have shapes {eta_seq.shape} and {eta_dot_seq.shape}, "
-                             "expected (n, 3) each")
+                             "expected (n, 3) or (n, 6) each")
         g = self.geometry
-        e = eta_seq.T[:, :, None]  # (3, n, 1): broadcasts against the fairleads
-        fx, fy = g.fairleads(e)    # (n, n_lines)
+        e = eta_seq.T[:, :, None]  # (3 or 6, n, 1): broadcasts against the fairleads
+        fx, fy = g.fairleads(e[:3])    # (n, n_lines)
         n, nl = fx.shape
         r = np.empty((n, nl, 3))
         r[:, :, 0] = fx
@@ -371,6 +386,14 @@ class MooringFEM:
         v = np.zeros_like(r)
         v[:, :, 0] = ed[0] - ed[2] * ry
         v[:, :, 1] = ed[1] + ed[2] * rx
+        if e.shape[0] == 6 and (np.any(e[3:]) or np.any(ed[3:])):
+            c, s = np.cos(e[2]), np.sin(e[2])
+            dx, dy = fx - e[0], fy - e[1]
+            for out, q in ((r, e), (v, ed)):
+                ox, oy, oz = vertical_offset(q[3], q[4], q[5], dx, dy, self.fairlead_z, c, s)
+                out[:, :, 0] += ox
+                out[:, :, 1] += oy
+                out[:, :, 2] += oz
         return r, v
 
     def advance(self, eta_seq: np.ndarray, eta_dot_seq: np.ndarray,
@@ -410,8 +433,13 @@ class MooringFEM:
         fem, g = self.fem, self.geometry
         self.dt = h / n_sub
         shape = (fem.n_nodes, 3)
+        pose0, pose1 = np.asarray(pose0, dtype=float), np.asarray(pose1, dtype=float)
+        v0, v1 = (np.ascontiguousarray(p[3:6]) if p.size == 6 else np.zeros(3) for p in (pose0, pose1))
+        rate_prev = np.asarray(rate_prev, dtype=float)
+        if rate_prev.size == 3:
+            rate_prev = np.concatenate([rate_prev, np.zeros(3)])
         r, v, T, self._r_fl, rate, a_fl, tau, near, suspect = fem_kernel.mooring_step(
-            pose0, pose1, rate_prev, float(h), int(n_sub), self._p_cot, self._p_T, float(g.turret_angle),
+            np.ascontiguousarray(pose0[:3]), np.ascontiguousarray(pose1[:3]), v0, v1, rate_prev, float(h), int(n_sub), self._p_cot, self._p_T, float(g.turret_angle),
             g.turret_mode == "locked", self.fairlead_z,
             _as_f64(fem.r, shape, "r"), _as_f64(fem.v, shape, "v"), _as_f64(self._update_current(), shape, "v_current"),
             *fem._kernel_constants(), fem.fairlead_seg, fem.anchor_seg, fem.active, near_tension, MAX_NODE_SPEED)
@@ -423,14 +451,22 @@ class MooringFEM:
 
     def fairlead_acceleration(self, eta: np.ndarray, eta_dot: np.ndarray, eta_ddot: np.ndarray) -> np.ndarray:
         """Fairlead accelerations in {E} (n_lines, 3) [m/s^2] for the vessel pose, rate and
-        acceleration (rigid body, the time derivative of :meth:`fairlead_state`'s velocity)."""
+        acceleration (rigid body, the time derivative of :meth:`fairlead_state`'s velocity; poses
+        of six add the heave, roll and pitch accelerations, :func:`vertical_offset`)."""
         g = self.geometry
-        fx, fy = g.fairleads(eta)
+        fx, fy = g.fairleads(eta[:3])
         rx, ry = self._levers(eta, fx, fy)
         rd, rdd = eta_dot[2], eta_ddot[2]
         a = np.zeros((fx.shape[0], 3))
         a[:, 0] = eta_ddot[0] - rdd * ry - rd * rd * rx
         a[:, 1] = eta_ddot[1] + rdd * rx - rd * rd * ry
+        if len(eta) == 6 and (np.any(eta[3:]) or np.any(eta_dot[3:]) or np.any(eta_ddot[3:])):
+            c, s = math.cos(eta[2]), math.sin(eta[2])
+            ax, ay, az = vertical_offset(eta_ddot[3], eta_ddot[4], eta_ddot[5], fx - eta[0], fy - eta[1],
+                                         self.fairlead_z, c, s)
+            a[:, 0] += ax
+            a[:, 1] += ay
+            a[:, 2] += az
         return a
 
     def tau(self, eta: np.ndarray, a_fairlead: np.ndarray | None = None) -> np.ndarray:
@@ -444,7 +480,7 @@ class MooringFEM:
         vc = self._vc[fem.fairlead_idx] if self.current is not None else None
         f = fem.fairlead_forces(vc, a_fairlead)
         r = self._r_fl
-        return self.geometry.tau_from_forces(eta, f[:, 0], f[:, 1], fairleads=(r[:, 0], r[:, 1]))
+        return self.geometry.tau_from_forces(eta[:3], f[:, 0], f[:, 1], fairleads=(r[:, 0], r[:, 1]))
 
     def fairlead_tension(self) -> np.ndarray:
         """Fairlead tension of every line [N] (0 for a broken line)."""

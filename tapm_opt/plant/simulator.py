@@ -69,7 +69,7 @@ OVERLOAD_NEAR = 0.98
 #: the block sums of the environment (:meth:`Plant._env_block`).
 _ULP4 = 4.0 * 2.220446049250313e-16
 _EMPTY = np.zeros(1)
-_NO_SUMS = (0.0, 0.0, 0.0, 0.0, 0.0)
+_NO_SUMS = (0.0, 0.0, 0.0, 0.0, 0.0, np.zeros(0))
 
 __all__ = ["Plant", "ThrusterCommand", "run_open_loop", "PlantError", "SimulationDiverged"]
 
@@ -195,13 +195,20 @@ class Plant:
         self._winch = np.zeros(len(self.line_ids))
         self._winching = False   # any(self._winch), set with it
         self._eta_wf = self._wf(0.0)
-        pose = self.eta + self._eta_wf
+        #: The hull's wave-frequency heave, roll and pitch move the fairleads (the scenario's
+        #: ``vessel.wave_motion.model = "six_dof"``; :meth:`WaveField.vertical`).
+        self.six_dof = self.wave_frequency and self.env.waves.six_dof
+        self._vert = self.env.waves.vertical(0.0, float(self.eta[2])) if self.six_dof else np.zeros(3)
+        pose = np.concatenate([self.eta + self._eta_wf, self._vert])
         self.mooring.initialise(pose)
         self.settle_info: SettleInfo = self.mooring.settle(pose)
         self._tau_moor = self.mooring.tau(pose)
-        self._riser_angles = self.riser.angles_at(pose) if self.riser is not None else None
-        self._rate = np.asarray(self.env.eta_wf_dot(0.0, self.eta[2]), dtype=float) if self.wave_frequency \
-            else np.zeros(3)
+        self._riser_angles = self.riser.angles_at(pose[:3]) if self.riser is not None else None
+        self._rate = np.zeros(6)   # the pose rate, then the heave, roll and pitch rates
+        if self.wave_frequency:
+            self._rate[:3] = self.env.eta_wf_dot(0.0, self.eta[2])
+        if self.six_dof:
+            self._rate[3:] = self.env.waves.vertical_dot(0.0, float(self.eta[2]))
         self._loads: Any = {"tau_wind": np.zeros(3), "tau_drift": np.zeros(3), "tau_moor": self._tau_moor.copy(),
                             "tau_thr": np.zeros(3)}
         # the environment's sums over blocks of outer steps (_env_sums) and the fused step's constants
@@ -398,27 +405,33 @@ class Plant:
         env = self.env
         if len(times) >= 2:
             S, C = env.waves.block(t0, h, len(times))
+            Vg = env.waves.vertical_block(t0, h, len(times))
             V = env.wind.block(t0, h, len(times))
         else:  # the next time is off the grid of h (rounding drift): the two times on their own
             times.append(round(t0 + h, 9))
             rows = [env.waves.block(t, h, 1) for t in times]
             S, C = np.concatenate([r[0] for r in rows]), np.concatenate([r[1] for r in rows])
+            Vg = np.concatenate([env.waves.vertical_block(t, h, 1) for t in times])
             V = env.wind.block(times[0], h, 1) + env.wind.block(times[1], h, 1)
         # the sums of each step from the block's time i to i + 1, packed for the compiled steps
-        # (Plant._fused_steps): V and q at i, S[0], S[1], C[0] at i + 1, as _env_sums gives them
-        packed = np.empty((len(times) - 1, 5))
+        # (Plant._fused_steps): V and q at i, S[0], S[1], C[0] and the heave, roll and pitch sums
+        # on the heading grid at i + 1, as _env_sums gives them
+        packed = np.empty((len(times) - 1, 5 + Vg.shape[1]))
         packed[:, 0] = V[:-1]
         packed[:, 1] = C[:-1, 1]
         packed[:, 2] = S[1:, 0]
         packed[:, 3] = S[1:, 1]
         packed[:, 4] = C[1:, 0]
-        self._blk = (times, V, C[:, 1].tolist(), S[:, 0].tolist(), S[:, 1].tolist(), C[:, 0].tolist(), packed)
+        packed[:, 5:] = Vg[1:]
+        self._blk = (times, V, C[:, 1].tolist(), S[:, 0].tolist(), S[:, 1].tolist(), C[:, 0].tolist(), packed, Vg)
         self._blk_j = 0
 
-    def _env_sums(self, t0: float, t1: float, h: float) -> tuple[float, float, float, float, float]:
+    def _env_sums(self, t0: float, t1: float, h: float) -> tuple:
         """The environment's sums of the outer step from ``t0`` to ``t1`` [s]: the wind speed V [m/s]
         and the drift sum q at ``t0`` (:meth:`Wind.speed`, ``WaveField._sums``), the motion sums
-        ``S[0], S[1], C[0]`` at ``t1``, from the block (a new one when the times are not its next)."""
+        ``S[0], S[1], C[0]`` and the heave, roll and pitch sums on the heading grid (3 G,)
+        (:meth:`WaveField.vertical_block`, empty without them) at ``t1``, from the block (a new one
+        when the times are not its next)."""
         j = self._blk_j
         b = self._blk
         if b is None or j + 1 >= len(b[0]) or b[0][j] != t0 or b[0][j + 1] != t1:
@@ -426,7 +439,7 @@ class Plant:
             j = 0
             b = self._blk
         self._blk_j = j + 1
-        return b[1][j], b[2][j], b[3][j + 1], b[4][j + 1], b[5][j + 1]
+        return b[1][j], b[2][j], b[3][j + 1], b[4][j + 1], b[5][j + 1], b[7][j + 1]
 
     def _outer_step(self, h: float) -> None:
         if self._fault_i < len(self._faults):
@@ -477,14 +490,16 @@ class Plant:
             fem.L = np.clip(fem.L + h * self._winch, self._L_limits[:, 0], self._L_limits[:, 1])
             fem._update_lengths()
         # FEM substeps with the fairleads on the interpolated total motion
-        pose0 = self.eta + self._eta_wf
+        pose0 = np.concatenate([self.eta + self._eta_wf, self._vert])
         self.t = t1
         self.eta, self.nu = eta, nu
         if self.wave_frequency:
             self._eta_wf = env.waves._motion_of(sums[2], sums[3], sums[4], float(eta[2]))
         else:
             self._eta_wf = np.zeros(3)
-        pose1 = self.eta + self._eta_wf
+        if self.six_dof:
+            self._vert = env.waves.vertical_of(sums[5], float(eta[2]))
+        pose1 = np.concatenate([self.eta + self._eta_wf, self._vert])
         n_sub = self._substeps(h, winching)
         self._steps += 1
         if compiled:  # substeps, fairlead accelerations and the load in one call, the same numbers
@@ -502,7 +517,7 @@ class Plant:
             rate = (pose1 - pose0) / h
             # all substeps in one call (the current, if any, held over the outer step: MooringFEM.advance)
             frac = np.arange(1, n_sub + 1) / n_sub
-            T_bonds = m.advance(pose0 + frac[:, None] * (pose1 - pose0), np.broadcast_to(rate, (n_sub, 3)))
+            T_bonds = m.advance(pose0 + frac[:, None] * (pose1 - pose0), np.broadcast_to(rate, (n_sub, 6)))
             if self._steps % 20 == 0:
                 m.fem.check_health()
             a_fl = m.fairlead_acceleration(pose1, rate, (rate - self._rate) / h)
@@ -510,7 +525,7 @@ class Plant:
             self._check_overload(T_bonds)
             self._tau_moor = m.tau(pose1, a_fl)
         if self.riser is not None:
-            self._riser_angles = self.riser.angles_at(pose1)
+            self._riser_angles = self.riser.angles_at(pose1[:3])
         self._loads = {"tau_wind": tau_wind, "tau_drift": tau_drift, "tau_moor": self._tau_moor, "tau_thr": tau_thr}
 
     def _substeps(self, h: float, winching: bool) -> int:
@@ -604,12 +619,12 @@ class Plant:
         fem = m.fem
         th = self.thrusters
         n_sub, r, v = self._fused_prologue(h)
-        V0, q0, S0, S1, C0 = sums if sums is not None else _NO_SUMS
+        V0, q0, S0, S1, C0, vg = sums if sums is not None else _NO_SUMS
         kern = _fem_kernel()
         vc = m._vc
         cmd = self._cmd
         status, out = kern.plant_pre_step(h, th._f, th._alpha, cmd.f, cmd.alpha, th._decay, th._rate_dt,
-                                          th._alpha_rate_dt, V0, q0, S0, S1, C0, self.eta, self.nu, self._eta_wf,
+                                          th._alpha_rate_dt, V0, q0, S0, S1, C0, vg, self.eta, self.nu, self._eta_wf,
                                           self._tau_moor, r, vc, *pre)
         if status == 1:
             self._diverged(t0, out[0:3], out[3:6])
@@ -621,9 +636,11 @@ class Plant:
         self._steps += 1
         m.dt = dt = h / n_sub
         pose1 = out[21:24]
+        vert1 = out[28:31]
         r, v, T_bonds, m._r_fl, self._rate, a_fl, tau_moor, near, suspect = kern.mooring_step(
-            out[18:21], pose1, self._rate, h, n_sub, *geo, r, v, vc, *lines, OVERLOAD_NEAR * self.strength,
+            out[18:21], pose1, self._vert, vert1, self._rate, h, n_sub, *geo, r, v, vc, *lines, OVERLOAD_NEAR * self.strength,
             MAX_NODE_SPEED)
+        self._vert = vert1
         fem.r, fem.v = self._r_last, self._v_last = r, v
         t = fem.t
         for _ in range(n_sub):  # the same sum as n single steps (FEMLines._advance_compiled)
@@ -692,7 +709,8 @@ class Plant:
         (k, status, outs, r, v, T_bonds, r_fl, rate, a_fl, tau_moor, near, suspect, tau_prev,
          t_fem) = _fem_kernel().plant_steps(
             h, n_sub, steps0, fem.t, sums, th._f, th._alpha, cmd.f, cmd.alpha, th._decay, th._rate_dt,
-            th._alpha_rate_dt, self.eta, self.nu, self._eta_wf, self._tau_moor, self._rate, r, v, m._vc, *pre, *geo,
+            th._alpha_rate_dt, self.eta, self.nu, self._eta_wf, self._vert, self._tau_moor, self._rate, r, v, m._vc, *pre,
+            *geo,
             *lines, OVERLOAD_NEAR * self.strength, MAX_NODE_SPEED)
         self._tension_cache = None
         if env is not None:
@@ -700,7 +718,7 @@ class Plant:
         if k:
             self.t = times[k]
             out = outs[k - 1]
-            self.eta, self.nu, self._eta_wf = out[0:3], out[3:6], out[6:9]
+            self.eta, self.nu, self._eta_wf, self._vert = out[0:3], out[3:6], out[6:9], out[28:31]
             self._steps = steps0 + k
             m.dt = h / n_sub
             fem.r, fem.v = self._r_last, self._v_last = r, v
@@ -724,7 +742,7 @@ class Plant:
             if status == 1:
                 self._diverged(times[k], out[0:3], out[3:6])
             self.t = times[k + 1]
-            self.eta, self.nu, self._eta_wf = out[0:3], out[3:6], out[6:9]
+            self.eta, self.nu, self._eta_wf, self._vert = out[0:3], out[3:6], out[6:9], out[28:31]
             fem.check_health()
             raise SimulationDiverged(f"FEM mooring state non-finite at t = {fem.t:.3f} s", time=fem.t)
         return k
@@ -755,6 +773,8 @@ class Plant:
         if self.riser is not None:
             ch += [("riser_top[x]", "rad"), ("riser_top[y]", "rad"), ("riser_bottom[x]", "rad"),
                    ("riser_bottom[y]", "rad"), ("riser_top_angle", "rad"), ("riser_bottom_angle", "rad")]
+        if self.six_dof:
+            ch += [("heave_wf", "m"), ("roll_wf", "rad"), ("pitch_wf", "rad")]
         return ch
 
     def sample_row(self) -> np.ndarray:
@@ -769,6 +789,8 @@ class Plant:
         if self._riser_angles is not None:
             a = self._riser_angles
             parts += [a, (math.hypot(a[0], a[1]), math.hypot(a[2], a[3]))]
+        if self.six_dof:
+            parts.append(self._vert)
         return np.concatenate(parts)
 
     def metadata(self) -> dict:
@@ -783,6 +805,7 @@ class Plant:
             "fem_dt": self.mooring.dt,
             "outer_dt": self.outer_dt,
             "wave_frequency": self.wave_frequency,
+            "wave_motion": "six_dof" if self.six_dof else "horizontal",
             "settle": {"time": self.settle_info.time, "converged": self.settle_info.converged},
             "break_on_overload": self.break_on_overload,
             "events": [[t, e] for t, e in self.events],
