@@ -913,7 +913,20 @@ def line_profile(XF: float, ZF: float, L: float, EA: float, w: float, *, CB: flo
         ``s`` unstretched arc length [m], ``x`` horizontal distance from A [m], ``z`` height above A
         [m] (the seabed is at ``z = -h_A``), ``T`` tension [N], each of shape (n,), plus the scalar
         solution.
+
+    A buoyant line (``w < 0``, a buoyant section of a composite line,
+    :mod:`tapm_opt.models.composite`) is the same catenary upside down: the line of weight ``|w|``
+    hanging from its upper end (the fairlead, here its lower end) to A, ``ZF`` below it, read back
+    from A; it arches up from its ends and never reaches the seabed (``h_A`` and ``CB`` are not
+    read), nor is a sea surface above it known here (:func:`tapm_opt.models.composite.solve` keeps
+    a buoyant section below it). ``solution`` is then that flipped catenary's.
     """
+    if w < 0:
+        # the flipped line: its lower end is the fairlead, ZF above A in the flipped frame; no
+        # seabed (the surface) within its reach, even hanging doubled (the sag is at most 10 L)
+        pr = line_profile(XF, ZF, L, EA, -w, CB=0.0, h_A=10.0 * L + ZF, n=n, table=table)
+        return {"s": L - pr["s"][::-1], "x": XF - pr["x"][::-1], "z": ZF - pr["z"][::-1], "T": pr["T"][::-1],
+                "solution": pr["solution"]}
     if table is not None:
         return _line_profile_table(XF, ZF, L, EA, w, CB, h_A, n, as_table(table))
     sol = solve(XF, ZF, L, EA, w, CB=CB, h_A=h_A)

@@ -27,6 +27,20 @@ the height of an elevated lower end for a section touching the seabed); the line
 the fairlead then follows exactly by the implicit function theorem. Vectorised over any number of
 configurations at once.
 
+Buoyant sections (``w_k < 0``: distributed buoyancy modules, a lazy wave's arch) are the same
+elastic catenary upside down: with heights measured down from the sea surface, ``z' = S - z``
+(``S`` the surface's height above the seabed, :attr:`CompositeLine.surface`), the section is the
+catenary of weight ``|w_k|`` between the same ends, its real upper end the lower one; its forces
+on its ends and their derivatives come back with the vertical components and the derivatives
+with respect to heights negated. A buoyant section arches up from its ends (its lowest points
+are its ends), so it never reaches the seabed; where the flipped catenary would reach its
+"seabed", the surface (it touches down, lies slack, or an end is above the surface), the section
+would float there, which the model does not describe: :func:`solve` and :func:`points` raise
+:class:`CatenaryError` naming the section, the configuration and the height, and a line that
+floats as a whole (its weight in water with the points not positive) is refused. Where buoyant
+sections may be in a scenario is the loader's rule
+(:func:`tapm_opt.config.loader.buoyant_line_problem`: between weighted sections).
+
 The one-section line is :func:`tapm_opt.models.catenary.solve` itself (the same numbers). The
 solution has the fields of :class:`~tapm_opt.models.catenary.CatenarySolution` with the fairlead
 (HF, VF), the anchor (HA, VA) and, for regime, one code per combination of section regimes (it
@@ -35,6 +49,7 @@ changes wherever any section's regime changes).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -45,7 +60,7 @@ from ..errors import CatenaryError
 from . import catenary
 from .catenary import SEABED, SLACK, SUSPENDED, TOUCHDOWN, CatenarySolution
 
-__all__ = ["CompositeLine", "solve", "profile"]
+__all__ = ["CompositeLine", "profile", "solve"]
 
 _BIG_STIFFNESS = 1e12
 """Finite stand-in [N/m] for the infinite vertical stiffness of a section lying straight on the
@@ -72,14 +87,20 @@ class CompositeLine:
     Attributes
     ----------
     L, EA, w, CB : ndarray, shape (n,)
-        Per section: unstretched length [m], axial stiffness [N], submerged weight [N/m] (>= 0),
-        seabed friction [-].
+        Per section: unstretched length [m], axial stiffness [N], submerged weight [N/m]
+        (negative: a buoyant section, the module docstring), seabed friction [-].
     W : ndarray, shape (n - 1,)
         Net submerged weight of each point [N], positive down (clump), negative (buoy).
     tables : tuple
         Per section, its tension-strain table (:class:`~tapm_opt.strain_table.StrainTable`, a
         nonlinear axial law; its ``EA`` is then the table's secant) or None; empty (default):
         every section of constant EA. A homogeneous line with a table is the one-section line.
+    surface : float or None
+        Height of the sea surface above the seabed [m] (the water depth), which a buoyant section
+        must stay below; None (default): not known, and the fairlead's height is taken instead
+        (a fairlead is at most at the waterline, so no buoyant section is let above the surface,
+        but one that would rise above its fairlead is refused). Lines without a buoyant section
+        do not read it.
     """
 
     L: np.ndarray
@@ -88,14 +109,17 @@ class CompositeLine:
     CB: np.ndarray
     W: np.ndarray
     tables: tuple = ()
+    surface: float | None = None
 
     @classmethod
-    def from_arrays(cls, sec: dict) -> "CompositeLine":
+    def from_arrays(cls, sec: dict) -> CompositeLine:
         """From one entry of :attr:`Scenario.line_sections <tapm_opt.config.Scenario.line_sections>`."""
         tabs = tuple(sec.get("EA_table", ()))
         tabs = tuple(None if t is None else catenary.as_table(t) for t in tabs) if any(
             t is not None for t in tabs) else ()
-        return cls(*(readonly(np.asarray(sec[k], dtype=float)) for k in ("L", "EA", "w", "CB", "W")), tables=tabs)
+        surface = sec.get("surface")
+        return cls(*(readonly(np.asarray(sec[k], dtype=float)) for k in ("L", "EA", "w", "CB", "W")), tables=tabs,
+                   surface=None if surface is None else float(surface))
 
     def table(self, k: int):
         """Section ``k``'s tension-strain table, or None (constant EA)."""
@@ -105,6 +129,11 @@ class CompositeLine:
     def has_tables(self) -> bool:
         """True when a section has a tension-strain table (nonlinear EA)."""
         return any(t is not None for t in self.tables)
+
+    @property
+    def buoyant(self) -> np.ndarray:
+        """Per section, True where it is buoyant (``w < 0``)."""
+        return np.asarray(self.w) < 0
 
     @property
     def n_sections(self) -> int:
@@ -118,6 +147,8 @@ class CompositeLine:
     def key(self) -> tuple:
         """Hashable description (equal lines share tables)."""
         base = tuple(tuple(np.asarray(a, float).tolist()) for a in (self.L, self.EA, self.w, self.CB, self.W))
+        if self.surface is not None and np.any(self.buoyant):
+            base = base + (("surface", float(self.surface)),)
         if not self.has_tables:
             return base
         return base + (tuple(None if t is None else t.key() for t in self.tables),)
@@ -130,7 +161,7 @@ class CompositeLine:
         ids = np.array([-1 if t is None else k for k, t in enumerate(self.tables)], dtype=np.int64)
         return np.broadcast_to(ids, (m, self.n_sections)).ravel()
 
-    def with_length(self, length: float) -> "CompositeLine":
+    def with_length(self, length: float) -> CompositeLine:
         """The line with a total unstretched length of ``length`` [m] by its fairlead section's: a
         winch pays that section out (``length`` longer) or hauls it in; the other sections and the
         points keep theirs."""
@@ -142,11 +173,11 @@ class CompositeLine:
             return self
         L = np.array(self.L, dtype=float)
         L[-1] = top
-        return CompositeLine(readonly(L), self.EA, self.w, self.CB, self.W, tables=self.tables)
+        return dataclasses.replace(self, L=readonly(L))
 
     def force_scale(self) -> float:
-        """A force scale [N] of the line: its weights in water, for tolerances."""
-        return float(np.sum(self.w * self.L) + np.sum(np.abs(self.W))) or 1.0
+        """A force scale [N] of the line: its weights (and buoyancies) in water, for tolerances."""
+        return float(np.sum(np.abs(self.w) * self.L) + np.sum(np.abs(self.W))) or 1.0
 
 
 # ------------------------------------------------------------------------------------------
@@ -179,8 +210,31 @@ def _solve_sections(X, Z, L, EA, w, CB, h, guess, tab_id, tables) -> CatenarySol
 _SOL_FIELDS = ("HF", "VF", "HA", "VA", "TF", "TA", "LBot", "regime", "dHF_dXF", "dHF_dZF", "dVF_dXF", "dVF_dZF")
 
 
-def _section(xlo, zlo, xhi, zhi, L, EA, w, CB, guess=None, tab_id=None, tables=()):
-    """Forces of sections on their ends and their derivatives, vectorised (flat arrays).
+def _section(xlo, zlo, xhi, zhi, L, EA, w, CB, guess=None, tab_id=None, tables=(), top=None):
+    """Forces of sections on their ends and their derivatives, vectorised (flat arrays), as
+    :func:`_hanging`; a buoyant section (``w < 0``) is the same catenary with the vertical axis
+    flipped (module docstring, "Buoyant sections"): its heights measured down from ``top`` [m]
+    (the sea surface above the seabed, per section), its weight ``|w|``, no friction; its forces
+    and their derivatives flipped back. Its entries of the returned solution are the flipped
+    catenary's (``HF``, ``VF`` >= 0; ``LBot`` its length along the surface, the regime its)."""
+    b = np.asarray(w) < 0
+    if not np.any(b):
+        return _hanging(xlo, zlo, xhi, zhi, L, EA, w, CB, guess, tab_id, tables)
+    top = np.broadcast_to(np.asarray(top, dtype=float), np.shape(xlo))
+    F_lo, F_hi, J_lo, J_hi, sol = _hanging(xlo, np.where(b, top - zlo, zlo), xhi, np.where(b, top - zhi, zhi), L, EA,
+                                           np.abs(w), np.where(b, 0.0, CB), guess, tab_id, tables)
+    # z = top - z': the vertical force and every derivative with respect to a height change sign
+    flip = np.where(b, -1.0, 1.0)
+    for F in (F_lo, F_hi):
+        F[:, 1] *= flip
+    for J in (J_lo, J_hi):
+        J[:, 1, :] *= flip[:, None]
+        J[:, :, 1::2] *= flip[:, None, None]
+    return F_lo, F_hi, J_lo, J_hi, sol
+
+
+def _hanging(xlo, zlo, xhi, zhi, L, EA, w, CB, guess=None, tab_id=None, tables=()):
+    """Forces of sections (``w >= 0``) on their ends and their derivatives, vectorised (flat arrays).
 
     Returns F_lo, F_hi (m, 2) — the section's force on its lower-index and upper-index end, (x, z)
     with z up — their Jacobians (m, 2, 4) with respect to (x_lo, z_lo, x_hi, z_hi), and the
@@ -304,7 +358,8 @@ def _evaluate(y, XF, D, hA, line: CompositeLine, guess=None):
     rep = (lambda a: np.broadcast_to(a, (m, n)).ravel())
     F_lo, F_hi, J_lo, J_hi, sol = _section(x[:, :-1].ravel(), z[:, :-1].ravel(), x[:, 1:].ravel(), z[:, 1:].ravel(),
                                            rep(line.L), rep(line.EA), rep(line.w), rep(line.CB), guess=guess,
-                                           tab_id=line._table_ids(m), tables=line.tables)
+                                           tab_id=line._table_ids(m), tables=line.tables,
+                                           top=rep(_surface(D, line)[:, None]))
     F_lo = F_lo.reshape(m, n, 2)
     F_hi = F_hi.reshape(m, n, 2)
     J_lo = J_lo.reshape(m, n, 2, 4)
@@ -324,6 +379,49 @@ def _evaluate(y, XF, D, hA, line: CompositeLine, guess=None):
         if j + 1 < npt:
             J[:, r, 2 * (j + 1):2 * (j + 2)] += J_lo[:, j + 1, :, 2:4]
     return R.reshape(m, 2 * npt), J, sol, F_lo, F_hi, J_lo, J_hi
+
+
+def _surface(D, line: CompositeLine) -> np.ndarray:
+    """Height of the sea surface above the seabed [m] per configuration: the line's
+    :attr:`~CompositeLine.surface`, or the fairlead's height ``D`` where it has none."""
+    D = np.asarray(D, dtype=float)
+    return D if line.surface is None else np.full(D.shape, float(line.surface))
+
+
+def _check_surface(y, XF, D, hA, line: CompositeLine, sol) -> None:
+    """Raise :class:`CatenaryError` where a buoyant section of a solved configuration reaches the
+    sea surface: its flipped catenary lies along the surface (the surface would carry it) or one
+    of its ends is above it. The message names the line, the section, the configuration and the
+    height."""
+    b = line.buoyant
+    if not np.any(b):
+        return
+    m, n = y.shape[0], line.n_sections
+    _, z = _nodes(y, XF, D, hA)
+    top = _surface(D, line)
+    reg = sol.regime.reshape(m, n)
+    along = sol.LBot.reshape(m, n)
+    zmax = np.maximum(z[:, :-1], z[:, 1:])
+    slack = 1e-9 * np.maximum(top, 1.0)
+    over = b[None, :] & ((zmax > top[:, None] + slack[:, None]) | (along > 0.0)
+                         | np.isin(reg, (TOUCHDOWN, SLACK, SEABED)))
+    if not np.any(over):
+        return
+    i, k = (int(a[0]) for a in np.nonzero(over))
+    where = (f"the sea surface {top[i]:g} m above the seabed" if line.surface is not None else
+             f"the sea surface, taken at the fairlead's height {top[i]:g} m above the seabed (the line is not given "
+             "the water depth, CompositeLine.surface, and a fairlead is at most at the waterline)")
+    if zmax[i, k] > top[i] + slack[i]:
+        what = f"its upper end would be {zmax[i, k]:g} m above the seabed, above {where}"
+    else:
+        what = (f"it rises to {where}, where {max(float(along[i, k]), 0.0):.4g} m of it would float; its ends are "
+                f"{z[i, k]:g} m and {z[i, k + 1]:g} m above the seabed")
+    raise CatenaryError(
+        f"composite line (sections L = {line.L.tolist()} m, w = {line.w.tolist()} N/m, point weights W = "
+        f"{line.W.tolist()} N) at XF = {XF[i]:g} m, ZF = {D[i] - hA[i]:g} m, h_A = {hA[i]:g} m: buoyant section {k} "
+        f"({line.L[k]:g} m, w = {line.w[k]:g} N/m) reaches the sea surface: {what}. A buoyant section must stay "
+        "submerged (the model has no floating line); a shorter or less buoyant section, or a longer line below it, "
+        "keeps it down")
 
 
 def _guess(XF, D, hA, line: CompositeLine):
@@ -481,7 +579,7 @@ class WarmStart:
     cheaper where calls move the fairlead a little (an equilibrium search, a stiffness by
     differences, a gain table's rows)."""
 
-    __slots__ = ("ZF", "h_A", "XF", "y", "dy")
+    __slots__ = ("XF", "ZF", "dy", "h_A", "y")
 
     def __init__(self) -> None:
         self.ZF = self.h_A = None
@@ -508,6 +606,24 @@ class WarmStart:
         xs, keep = np.unique(XF, return_index=True)
         self.XF, self.y, self.dy = xs, y[keep].copy(), dy[keep].copy()
         self.ZF, self.h_A = float(ZF[0]), float(hA[0])
+
+
+def _check_line(line: CompositeLine, D) -> None:
+    """Refuse, naming the numbers, a line the solve cannot take: a buoyant line whose weight in
+    water (sections and points) is not positive (it floats: nothing hangs from the fairlead), or a
+    fairlead above the given sea surface."""
+    if not np.any(line.buoyant):
+        return
+    total = float(np.sum(line.w * line.L) + np.sum(line.W))
+    if not total > 0.0:
+        raise CatenaryError(
+            f"composite line (sections L = {line.L.tolist()} m, w = {line.w.tolist()} N/m, point weights W = "
+            f"{line.W.tolist()} N) weighs {total:g} N in water with its buoyant sections: a line must weigh (its "
+            "sections' and points' weights summed positive) to hang from its fairlead; a line that floats as a "
+            "whole is not a mooring line")
+    if line.surface is not None and np.any(np.asarray(D) > line.surface * (1.0 + 1e-12)):
+        raise CatenaryError(f"the fairlead, {float(np.max(D)):g} m above the seabed, is above the sea surface "
+                            f"(CompositeLine.surface = {line.surface:g} m)")
 
 
 def solve(XF, ZF, line: CompositeLine, *, h_A=0.0, rtol: float = 1e-10, max_iter: int = 80,
@@ -548,6 +664,7 @@ def solve(XF, ZF, line: CompositeLine, *, h_A=0.0, rtol: float = 1e-10, max_iter
     XF, ZF, hA = (np.asarray(a, dtype=float) for a in (XF, ZF, h_A))
     shape = np.broadcast_shapes(XF.shape, ZF.shape, hA.shape)
     if line.n_sections == 1:
+        _check_line(line, np.ravel(hA + ZF))
         return catenary.solve(XF, ZF, line.L[0], line.EA[0], line.w[0], CB=line.CB[0], h_A=hA, table=line.table(0))
     XF, ZF, hA = (np.broadcast_to(a, shape).ravel().copy() for a in (XF, ZF, hA))
     for name, a, lo in (("XF", XF, 0.0), ("ZF", ZF, 0.0), ("h_A", hA, 0.0)):
@@ -555,10 +672,8 @@ def solve(XF, ZF, line: CompositeLine, *, h_A=0.0, rtol: float = 1e-10, max_iter
         if np.any(bad):
             i = int(np.argmax(bad))
             raise CatenaryError(f"{name} = {a[i]!r} at index {i} must be finite and >= {lo:g} (composite line)")
-    if np.any(line.w < 0):
-        raise CatenaryError(f"section submerged weights {line.w.tolist()} N/m must be >= 0 (buoyant sections are "
-                            "not supported; a buoy is a point)")
     D = hA + ZF
+    _check_line(line, D)
     y0 = warm.start(XF, ZF, hA, _WARM_REACH * line.length) if warm is not None else None
     started = y0 is not None
     if y0 is None and continuation:
@@ -576,6 +691,7 @@ def solve(XF, ZF, line: CompositeLine, *, h_A=0.0, rtol: float = 1e-10, max_iter
             f"equilibrium at XF = {XF[i]:g} m, ZF = {ZF[i]:g} m, h_A = {hA[i]:g} m (index {i}): residual force "
             f"{err[i]:.3g} N")
     R, J, sol, F_lo, F_hi, J_lo, J_hi = _evaluate(y, XF, D, hA, line)
+    _check_surface(y, XF, D, hA, line, sol)
     m = XF.size
     n = line.n_sections
     # fairlead: section n-1's force on its upper end; anchor: section 0's on its lower end
@@ -609,7 +725,7 @@ def solve(XF, ZF, line: CompositeLine, *, h_A=0.0, rtol: float = 1e-10, max_iter
     for k in range(n):
         code = code * 6 + reg_s[:, k]
     code = code * 2 ** (n - 1) + (on.astype(np.int64) * (2 ** np.arange(n - 1))).sum(axis=1)
-    LBot = sol.LBot.reshape(m, n).sum(axis=1)
+    LBot = np.where(line.buoyant[None, :], 0.0, sol.LBot.reshape(m, n)).sum(axis=1)  # a buoyant one's is the surface's
     res = {"HF": HF, "VF": VF, "HA": HA, "VA": VA, "TF": np.hypot(HF, VF), "TA": np.hypot(HA, VA), "LBot": LBot,
            "dHF_dXF": dHX, "dHF_dZF": dHZ, "dVF_dXF": dVX, "dVF_dZF": dVZ}
     for k, v in res.items():
@@ -626,9 +742,14 @@ def points(XF, ZF, line: CompositeLine, *, h_A=0.0, rtol: float = 1e-10, max_ite
     XF, ZF, hA = (np.asarray(a, dtype=float) for a in (XF, ZF, h_A))
     shape = np.broadcast_shapes(XF.shape, ZF.shape, hA.shape)
     if line.n_sections == 1:  # no point (a homogeneous line of a tension-strain table)
+        _check_line(line, np.ravel(hA + ZF))
         return np.zeros(shape + (0,)), np.zeros(shape + (0,))
     XF, ZF, hA = (np.broadcast_to(a, shape).ravel().copy() for a in (XF, ZF, hA))
-    y, *_ = _newton(XF, hA + ZF, hA, line, rtol=rtol, max_iter=max_iter)
+    D = hA + ZF
+    _check_line(line, D)
+    y, *_ = _newton(XF, D, hA, line, rtol=rtol, max_iter=max_iter)
+    if np.any(line.buoyant):
+        _check_surface(y, XF, D, hA, line, _evaluate(y, XF, D, hA, line)[2])
     return y[:, 0::2].reshape(shape + (-1,)), y[:, 1::2].reshape(shape + (-1,))
 
 
@@ -638,6 +759,7 @@ def profile(XF: float, ZF: float, line: CompositeLine, *, h_A: float = 0.0, n: i
     of about ``n`` points (every section sampled in proportion to its length, both ends kept), and
     ``points`` (x, z) of the joints, as :func:`tapm_opt.models.catenary.line_profile`."""
     if line.n_sections == 1:
+        _check_line(line, np.ravel(h_A + ZF))
         return catenary.line_profile(XF, ZF, line.L[0], line.EA[0], line.w[0], CB=line.CB[0], h_A=h_A, n=n,
                                      table=line.table(0))
     px, pz = points(XF, ZF, line, h_A=h_A)
@@ -649,7 +771,7 @@ def profile(XF: float, ZF: float, line: CompositeLine, *, h_A: float = 0.0, n: i
         up = z[k + 1] >= z[k]
         a, b = (k, k + 1) if up else (k + 1, k)
         sgn = 1.0 if x[b] >= x[a] else -1.0
-        nk = max(int(round(n * line.L[k] / line.length)), 2)
+        nk = max(int(np.rint(n * line.L[k] / line.length)), 2)
         pr = catenary.line_profile(abs(x[b] - x[a]), z[b] - z[a], line.L[k], line.EA[k], line.w[k],
                                    CB=line.CB[k], h_A=max(z[a], 0.0), n=nk, table=line.table(k))
         xs, zs, Ts, ss = x[a] + sgn * pr["x"], z[a] + pr["z"], pr["T"], pr["s"]
