@@ -11,9 +11,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tapm_opt.errors import CatenaryError
+from tapm_opt.config import load_scenario, scenario_from_dict, scenario_to_dict
+from tapm_opt.config.loader import buoyant_line_problem
+from tapm_opt.errors import CatenaryError, ScenarioError
 from tapm_opt.models import catenary, composite
 from tapm_opt.models.composite import CompositeLine, points, profile, solve
+from tapm_opt.models.mooring import MooringModel
 
 
 def line(L, EA, w, W=None, surface=None):
@@ -243,3 +246,81 @@ def test_a_line_that_floats_is_refused():
         solve(300.0, 90.0, line((100.0, 300.0, 150.0), (1.6e9, 4e8, 1.1e9), (3185.6, -2575.0, 926.4)))
     with pytest.raises(CatenaryError, match="weighs"):
         solve(300.0, 90.0, line((400.0,), (4e8,), (-100.0,)))
+
+
+# ------------------------------------------------------------------------------------------
+# scenarios: the rule, and the models on a lazy-wave mooring
+# ------------------------------------------------------------------------------------------
+
+FLOAT = {"id": "float800", "diameter": 0.8, "mass_per_length": 250.0, "density": 650.0, "EA": 4.0e8,
+         "MBS": 1.0e7, "MBS_std": 5.0e5, "Cd_normal": 1.2, "Cd_tangential": 0.1, "Ca_normal": 1.0}
+"""Distributed buoyancy modules on a line: 250 kg/m in 0.385 m^3/m (density 650 kg/m^3), a net
+lift of 1415 N/m in 1025 kg/m^3."""
+
+
+def lazy_wave_fpso(sections=(("chain137", 500.0), ("float800", 400.0), ("wire165", 1500.0)), **extra):
+    """fpso_equivalent (1970 m anchor circle in 1000 m) with lazy-wave lines: chain, buoyant line,
+    wire from the anchor up."""
+    d = scenario_to_dict(load_scenario("fpso_equivalent"))
+    d["line_types"] += [
+        {"id": "chain137", "diameter": 0.2466, "mass_per_length": 373.5, "submerged_weight": 3185.6, "EA": 1.603e9,
+         "MBS": 16.99e6, "MBS_std": 0.1 * 16.99e6, "Cd_normal": 2.4, "Cd_tangential": 1.15, "Ca_normal": 1.0},
+        {"id": "wire165", "diameter": 0.165, "mass_per_length": 108.6, "submerged_weight": 926.4, "EA": 1.100e9,
+         "MBS": 17.24e6, "MBS_std": 0.1 * 17.24e6, "Cd_normal": 1.2, "Cd_tangential": 0.025, "Ca_normal": 1.0},
+        dict(FLOAT)]
+    d.update(extra)
+    for ln in d["lines"]:
+        del ln["type"], ln["length"]
+        for k in ("winch_max_rate", "min_length", "max_length"):
+            ln.pop(k, None)
+        if isinstance(sections, str):   # a homogeneous line of that type
+            ln.update(type=sections, length=2400.0)
+        else:
+            ln["sections"] = [{"type": t, "length": L} for t, L in sections]
+    return d
+
+
+def test_the_models_on_a_lazy_wave_mooring():
+    """A lazy-wave fpso loads; its mooring model's tensions are composite.solve's, its stiffness the
+    derivative of its load, its load tables and the symbolic spline follow the exact load."""
+    sc = scenario_from_dict(lazy_wave_fpso(), source="lazy wave")
+    sec = sc.line_sections[0]
+    assert sec["w"][1] == pytest.approx(250.0 * 9.81 * (650.0 - 1025.0) / 650.0, rel=1e-12)
+    m = MooringModel.from_scenario(sc)
+    eta = np.array([20.0, -10.0, 0.05])
+    _, _, XF = m.spans(eta)
+    ref = solve(XF[0], m.ZF[0], CompositeLine.from_arrays(sec), h_A=m.h_A[0])
+    assert float(m.solve_lines(eta).TF[0]) == float(ref.TF)
+    tau = m.force(eta)
+    K = m.stiffness(eta)
+    e = np.array([1e-3, 1e-3, 1e-6])
+    for j in range(3):
+        d = np.zeros(3)
+        d[j] = e[j]
+        col = -(m.force(eta + d) - m.force(eta - d)) / (2 * e[j])
+        np.testing.assert_allclose(K[:, j], col, rtol=1e-4, atol=1e-4 * np.max(np.abs(K)))
+    np.testing.assert_allclose(m.force_fast(eta), tau, rtol=1e-7, atol=1e-6 * np.max(np.abs(tau)))
+    t_sym, err = m.force_function("catenary", with_closure_error=True)(eta)
+    assert float(err) == 0.0
+    np.testing.assert_allclose(np.ravel(t_sym), tau, rtol=3e-5)
+
+
+@pytest.mark.parametrize("sections, path, words", [
+    ("float800", "lines[0].type", ("= 'float800' is not heavier than water (submerged weight -1414.9 N/m): "
+                                   "a line of it floats")),
+    ((("float800", 500.0), ("wire165", 1900.0)), "lines[0].sections[0].type", "is the line's anchor section"),
+    ((("chain137", 500.0), ("float800", 1900.0)), "lines[0].sections[1].type", "is the line's fairlead section"),
+    ((("chain137", 100.0), ("float800", 1900.0), ("wire165", 400.0)), "lines[0].sections",
+     "the line would float"),
+])
+def test_where_a_buoyant_section_may_be(sections, path, words):
+    """Between weighted sections of a line that weighs in water, and nowhere else: each refusal
+    names the line (or section) and the reason."""
+    with pytest.raises(ScenarioError) as ei:
+        scenario_from_dict(lazy_wave_fpso(sections), source="bad")
+    said = [i for i in ei.value.issues if i.path == path]
+    assert said and words in said[0].message, [str(i) for i in ei.value.issues]
+    # the rule itself
+    assert buoyant_line_problem([3185.6, -1415.0, 926.4], [500.0, 400.0, 1500.0]) is None
+    assert buoyant_line_problem([3185.6, 926.4], [500.0, 400.0]) is None
+    assert buoyant_line_problem([3185.6, -1415.0, 926.4], [500.0, 400.0, 1500.0], [-2.5e6])[0] is None

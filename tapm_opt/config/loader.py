@@ -16,6 +16,7 @@ import tomllib
 import types
 import typing
 from collections import Counter
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, Literal, get_args, get_origin, get_type_hints
 
@@ -773,6 +774,61 @@ def _wave_motion_issues(v: Any, issues: list[ScenarioIssue]) -> None:
             "water-plane is at least as full as its block")))
 
 
+def buoyant_line_problem(w: Sequence[float], L: Sequence[float], W: Sequence[float] = ()) -> tuple[int | None, str] | None:
+    """Where buoyant sections may be: the rule, on a line's sections from the anchor up (submerged
+    weights ``w`` [N/m], lengths ``L`` [m]) and its points' net weights ``W`` [N], positive down.
+
+    A section not heavier than water (``w <= 0``: a buoyant section, distributed buoyancy modules,
+    a lazy wave's arch) must lie between two weighted sections of a composite line: the section at
+    the anchor weighs (it holds the line down; a buoyant section cannot rest on the seabed) and so
+    does the fairlead's (the line hangs from its fairlead, pulling it down and out, the convention
+    of every fairlead tension in the models), and the whole line with its points weighs in water
+    (``sum w L + sum W > 0``), or it would float. Returns None when the line keeps the rule, else
+    (the offending section's index, or None for the line as a whole; the reason)."""
+    w, L = [float(x) for x in w], [float(x) for x in L]
+    light = [k for k, x in enumerate(w) if not x > 0]
+    if not light:
+        return None
+    if len(w) == 1:
+        return 0, (f"is not heavier than water (submerged weight {w[0]:g} N/m): a line of it floats and cannot hang "
+                   "from its fairlead; a buoyant type may be a middle section of a composite line, between weighted "
+                   "sections (a lazy wave)")
+    for k, end in ((0, "anchor"), (len(w) - 1, "fairlead")):
+        if k in light:
+            why = ("a buoyant section cannot rest on the seabed and would lift the anchor" if end == "anchor" else
+                   "the line must hang from its fairlead, pulling it down")
+            return k, (f"is not heavier than water (submerged weight {w[k]:g} N/m) and is the line's {end} section: "
+                       f"{why}; a buoyant section must lie between weighted sections")
+    total = sum(a * b for a, b in zip(w, L)) + sum(float(x) for x in W)
+    if not total > 0:
+        return None, (f"with their points weigh {total:g} N in water (the sum of w L and of the points' W): the line "
+                      "would float; its buoyant sections and buoys must lift less than the rest of it weighs")
+    return None
+
+
+def _buoyant_line_issues(sc: Scenario, i: int, ln: Any, issues: list[ScenarioIssue]) -> bool:
+    """:func:`buoyant_line_problem` of line ``i`` as an issue (True when one was added)."""
+    env = sc.environment
+    parts = ln.parts
+    try:
+        w = [sc.line_type_by_id(s.type).w(env) for s in parts]
+        W = [sc.point_type(s.top).net_weight(env) for s in parts[:-1] if s.top is not None]
+    except KeyError:  # an unknown type or point: said elsewhere
+        return False
+    got = buoyant_line_problem(w, [s.length for s in parts], W)
+    if got is None:
+        return False
+    k, why = got
+    p = f"lines[{i}]"
+    if not ln.sections:
+        issues.append(ScenarioIssue(f"{p}.type", f"= {ln.type!r} {why}"))
+    elif k is None:
+        issues.append(ScenarioIssue(f"{p}.sections", why))
+    else:
+        issues.append(ScenarioIssue(f"{p}.sections[{k}].type", f"= {parts[k].type!r} {why}"))
+    return True
+
+
 def validate(sc: Scenario) -> list[ScenarioIssue]:
     """Physical and cross-field checks of a parsed scenario.
 
@@ -822,11 +878,6 @@ def validate(sc: Scenario) -> list[ScenarioIssue]:
         p = f"line_types[{i}]"
         if (t.density is None) == (t.submerged_weight is None):
             issues.append(ScenarioIssue(p, "give exactly one of 'density' and 'submerged_weight'"))
-        elif t.density is not None and t.density <= env.water_density:
-            issues.append(ScenarioIssue(
-                f"{p}.density",
-                f"= {t.density:g} kg/m^3 is not heavier than water ({env.water_density:g} kg/m^3); "
-                "buoyant lines are not supported by the catenary model"))
         if t.max_strain is not None and t.max_strain <= 0:
             issues.append(ScenarioIssue(f"{p}.max_strain", f"= {t.max_strain:g} must be > 0"))
 
@@ -910,6 +961,8 @@ def validate(sc: Scenario) -> list[ScenarioIssue]:
         if (ln.min_length is not None or ln.max_length is not None) and ln.winch_max_rate == 0:
             issues.append(ScenarioIssue(
                 f"{p}.winch_max_rate", "= 0 m/s: length limits are given but the line has no winch (set a rate)"))
+        if _buoyant_line_issues(sc, i, ln, issues):
+            continue
         lt = sc.line_type(ln)
         dist = math.hypot(math.hypot(ln.anchor[0] - float(fl_x[i]), ln.anchor[1] - float(fl_y[i])),
                           min(z_anchor, env.water_depth) - sc.turret.fairlead_depth)
