@@ -285,6 +285,90 @@ def test_a_clump_on_the_seabed_and_a_buoy_keep_the_seabed_contact_sound():
 
 
 # --------------------------------------------------------------------------------------------
+# buoyant sections: a lazy wave
+# --------------------------------------------------------------------------------------------
+
+FLOAT = {"id": "float800", "diameter": 0.8, "mass_per_length": 250.0, "density": 650.0, "EA": 4.0e8,
+         "MBS": 1.0e7, "MBS_std": 5.0e5, "Cd_normal": 1.2, "Cd_tangential": 0.1, "Ca_normal": 1.0,
+         "axial_damping_ratio": 0.7071}
+"""Distributed buoyancy on a line: 250 kg/m in 0.385 m^3/m, a net lift of 1415 N/m (1.5 times the wire's weight)."""
+
+
+def lazy_wave_fpso(*, lines: tuple[int, ...] = (0, 4, 8), segments: tuple[int, int, int] | None = None):
+    """fpso_equivalent's anchors with lazy-wave lines: 500 m of chain from the anchor (on the
+    seabed), 400 m of buoyant line arching up, 1500 m of wire to the fairlead; each section's
+    ``segments`` when given."""
+    d = scenario_to_dict(load_scenario("fpso_equivalent"))
+    d["line_types"] += [dict(CHAIN), dict(WIRE), dict(FLOAT)]
+    d["lines"] = [d["lines"][i] for i in lines]
+    for ln in d["lines"]:
+        del ln["type"], ln["length"]
+        for k in ("winch_max_rate", "min_length", "max_length"):
+            ln.pop(k, None)
+        ln["sections"] = [{"type": t, "length": L} | ({"segments": segments[k]} if segments else {})
+                          for k, (t, L) in enumerate((("chain137", 500.0), ("float800", 400.0), ("wire165", 1500.0)))]
+    return scenario_from_dict(d, source="lazy wave fpso")
+
+
+def test_a_lazy_wave_settles_to_its_quasi_static_shape():
+    """The FEM with a buoyant section (nodes of negative weight) against models.composite, as the
+    chain-wire-chain line above: 20, 40 and 80 segments per line (4 / 4 / 12 each doubled, the
+    loader's share at 20), settled to 1e-9 per 5 s. The lazy wave bends more than the chain-wire-
+    chain line (the arch, the sag below it, the chain lifting off steeply under the arch's pull):
+    measured fairlead tension 5.2e-3, 1.1e-3, 1.0e-4 and joints 1.9, 0.47, 0.18 m; the tension
+    falls faster than second order, the joints about 4x then 2.6x per doubling (the chain's
+    lift-off is lumped at a node). The buoyant nodes weigh negative, float off the seabed and keep
+    a seabed spring of their weight's magnitude."""
+    errs = []
+    for n in (20, 40, 80):
+        k = n // 20
+        m = settled(lazy_wave_fpso(segments=(4 * k, 4 * k, 12 * k)), tol=1e-9, speed_tol=1e-4, max_time=3000.0)
+        eT, eP = 0.0, 0.0
+        for j in range(3):
+            sol, px, pz = quasi_static(m, j)
+            eT = max(eT, abs(m.fairlead_tension()[j] / float(sol.TF) - 1.0))
+            x, z = fem_points(m, j)
+            eP = max(eP, float(np.max(np.hypot(x - px, z - pz))))
+        errs.append((n, eT, eP))
+        fem = m.fem
+        lo, up = (int(i) for i in joints_of(m, 0))
+        arch = np.arange(lo + 1, up)   # the buoyant section's inner nodes
+        assert np.all(fem.node_weight[arch] < 0.0)
+        assert np.all(fem._kb[arch] == pytest.approx(np.abs(fem.node_weight[arch]) / 0.01, rel=1e-12))
+        assert np.all(np.isfinite(fem._cb)) and np.isfinite(fem.stable_dt())
+        assert np.all(fem.depth - fem.r[arch, 2] > 40.0)
+        print(f"{n} segments: fairlead tension {eT:.2e}, joints {eP:.3f} m")
+    (_, t20, p20), (_, t40, p40), (_, t80, p80) = errs
+    assert t20 < 6e-3 and p20 < 5.0, errs
+    assert t40 < t20 / 3 and p40 < p20 / 3, errs
+    assert t80 < t40 / 3 and p80 < p40 / 2, errs
+    assert t80 < 2e-4 and p80 < 0.2, errs
+
+
+def test_a_lazy_wave_starts_on_its_quasi_static_shape():
+    """initialise puts the joints where models.composite puts them and the buoyant section's nodes
+    on its inverted catenary (catenary.line_profile of a negative weight), so settling is short."""
+    m = MooringFEM(lazy_wave_fpso(), segments=40)
+    m.initialise(ZERO)
+    fem = m.fem
+    for j in range(3):
+        _, px, pz = quasi_static(m, j)
+        x, z = fem_points(m, j)
+        assert np.allclose(x, px, rtol=0, atol=1e-9) and np.allclose(z, pz, rtol=0, atol=1e-9)
+    lo, up = (int(i) for i in joints_of(m, 0))
+    sec = m.scenario.line_sections[0]
+    a = fem.anchors[0]
+    h = fem.depth - fem.r[lo:up + 1, 2]
+    d = np.hypot(fem.r[lo:up + 1, 0] - a[0], fem.r[lo:up + 1, 1] - a[1])
+    pr = composite.profile(float(np.hypot(*(fem.r[fem.fairlead_idx[0], :2] - a[:2]))), fem.depth - m.fairlead_z,
+                           composite.CompositeLine.from_arrays(sec), n=2401)
+    on = (pr["s"] >= 500.0) & (pr["s"] <= 900.0)
+    assert np.max(np.abs(h - np.interp(d, pr["x"][on], pr["z"][on]))) < 1e-6 * 400.0
+    info = m.settle(ZERO)
+    assert info.converged and info.time < 400.0
+
+
+# --------------------------------------------------------------------------------------------
 # (d) against MoorDyn-C under forced surge
 # --------------------------------------------------------------------------------------------
 
@@ -385,7 +469,7 @@ def test_forced_surge_tensions_match_moordyn_with_free_points(monkeypatch):
 
     sc = composite_fpso(lower="buoy", upper="clump", lines=(0, 4, 8), segments=(6, 38, 4))
     monkeypatch.setattr(md_config, "moordyn_text", composite_moordyn_text)
-    kw = dict(dof="surge", amplitude=10.0, period=100.0, duration=300.0, dt_out=1.0)
+    kw = {"dof": "surge", "amplitude": 10.0, "period": 100.0, "duration": 300.0, "dt_out": 1.0}
     m = moordyn_forced_motion(sc, **kw)
     f = forced_motion(sc, **kw)
     assert m.input_text.count("  Free  ") == 6 and "  buoy" not in m.input_text  # 2 free points per line
@@ -484,10 +568,10 @@ def test_the_compiled_plant_on_composite_lines_is_the_numpy_plant():
     """The plant's fused compiled outer step (fem_kernel.mooring_step with the joints) and its
     numpy path give the same logged channels (bit for bit where the machine allows) for fpso
     on composite lines in its current and waves."""
+    from _bitwise import assert_same
+
     from tapm_opt.interfaces import ThrusterCommand
     from tapm_opt.plant.simulator import Plant, run_open_loop
-
-    from _bitwise import assert_same
 
     sc = composite_fpso(lower="buoy", upper="clump", lines=(0, 4, 8))
     runs = []

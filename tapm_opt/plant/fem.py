@@ -344,7 +344,7 @@ class FEMLines:
                 for k in range(ns - 1):  # point k joins section k (below) and k + 1 (above)
                     i = b0 + int(cum[k + 1])
                     lo, hi = k, k + 1
-                    share = np.array([a["w"][lo] * a["L"][lo] / seg[lo], a["w"][hi] * a["L"][hi] / seg[hi]])
+                    share = np.abs([a["w"][lo] * a["L"][lo] / seg[lo], a["w"][hi] * a["L"][hi] / seg[hi]])
                     mus = np.array([a["mu"][lo], a["mu"][hi]])
                     self._mu[i] = float(share @ mus / share.sum()) if share.sum() > 0 else float(mus.mean())
                     self._d_node[i] = 0.5 * (a["d"][lo] + a["d"][hi])
@@ -448,14 +448,19 @@ class FEMLines:
         k_ax = self._EA / self.l0
         self._c_int = self._zeta_int * 2.0 * np.sqrt(k_ax * 0.5 * self._m * l0) * self.l0  # [N s] on strain rate
         self._has_int_damping = bool(np.any(self._c_int))
+        # node spring [N/m]: static penetration = seabed_penetration under the node's weight; a
+        # buoyant section's node (w < 0, it rises off the seabed) gets the spring its weight's
+        # magnitude would, so the seabed stays as stiff under it if it is pushed down
+        wl_abs = np.abs(wl)
+        kb_w = 0.5 * (np.append(wl_abs, 0.0) + np.insert(wl_abs, 0, 0.0))
         if self._has_points:
             # a clump's weight presses its node into the seabed (the spring keeps the penetration);
             # a buoy's lift does not soften the seabed under the line's own weight
-            self._kb = (self.node_weight + np.maximum(self._point_W, 0.0)) / self._kb_pen
+            self._kb = (kb_w + np.maximum(self._point_W, 0.0)) / self._kb_pen
             self.node_mass = self.node_mass + self._point_mass
             self.node_weight = self.node_weight + self._point_W
         else:
-            self._kb = self.node_weight / self._kb_pen  # node spring [N/m]: static penetration = seabed_penetration
+            self._kb = kb_w / self._kb_pen
         self._cb = self._zeta_b * 2.0 * np.sqrt(self._kb * self.node_mass)
 
     def stable_dt(self, safety: float = 0.8, extra_damping: float = 0.0) -> float:
