@@ -399,3 +399,181 @@ def test_cli_writes_and_reads_composite_lines(tmp_path, capsys):
     assert load_scenario(back) == dataclasses.replace(load_scenario(toml), meta=load_scenario(back).meta)
     # written without the equilibrium, the free points start on the straight line, and the export says so
     assert any("start on the straight line" in n for n in moordyn_text(load_scenario(toml))[1].notes)
+
+
+# --------------------------------------------------------------------------------------------
+# buoyant line types: sections of lazy waves
+# --------------------------------------------------------------------------------------------
+
+# Three lazy-wave legs at 0, 240 and 120 deg about fpso's centre of turret (fairlead radius 8 m,
+# 18 m deep) in 300 m, anchors 700 m from the fairleads: 250 m of chain from the anchor (on the
+# seabed), 150 m of buoyant line (Diam 0.6 m, 150 kg/m: 1371.6 N/m of lift) arching up, 450 m of
+# wire to the vessel, sagging below the arch. The free points start near their equilibrium.
+LAZY = """\
+--------------------- MoorDyn Input File ------------------------------------
+Three lazy-wave legs: chain on the seabed, buoyant line, wire to the vessel
+---------------------- LINE TYPES ----------------------------------------------
+TypeName   Diam    Mass/m     EA       BA/-zeta    EI     Cd     Ca     CdAx    CaAx
+(name)     (m)     (kg/m)     (N)      (N-s/-)   (N-m^2)  (-)    (-)    (-)     (-)
+chain      0.2     300.0      1.5e9     -1.0       0      2.4    1.0    0.4     0.5
+float      0.6     150.0      3.0e8     -1.0       0      1.2    1.0    0.01    0.0
+wire       0.09    40.0       6.0e8     -1.0       0      1.2    1.0    0.008   0.0
+---------------------- BODIES --------------------------------------------------
+ID   Attachment  X0     Y0    Z0     r0      p0     y0     Mass  CG*   I*      Volume   CdA*   Ca*
+(#)   (word)     (m)    (m)   (m)   (deg)   (deg)  (deg)   (kg)  (m)  (kg-m^2)  (m^3)   (m^2)  (-)
+1     Vessel     0      0     0      0       0      0       0     0     0        0       0      0
+---------------------- POINTS --------------------------------------------------
+ID   Attachment     X          Y         Z      Mass  Volume  CdA   Ca
+(#)   (word/ID)    (m)        (m)       (m)     (kg)  (m^3)  (m^2)  (-)
+1    Fixed      799.4400     0.0000   -300.0   0     0     0    0
+2    Free       571.7951     0.0000   -256.2   0     0     0    0
+3    Free       465.8945     0.0000   -179.4   0     0     0    0
+4    Body1       99.4400     0.0000    -18.0   0     0     0    0
+5    Fixed     -262.5600  -613.1460   -300.0   0     0     0    0
+6    Free      -148.7375  -415.9997   -256.2   0     0     0    0
+7    Free       -95.7872  -324.2871   -179.4   0     0     0    0
+8    Body1       87.4400    -6.9282    -18.0   0     0     0    0
+9    Fixed     -262.5600   613.1460   -300.0   0     0     0    0
+10   Free      -148.7375   415.9997   -256.2   0     0     0    0
+11   Free       -95.7872   324.2871   -179.4   0     0     0    0
+12   Body1       87.4400     6.9282    -18.0   0     0     0    0
+---------------------- LINES ---------------------------------------------------
+ID   LineType   AttachA  AttachB  UnstrLen  NumSegs  LineOutputs
+(#)   (name)     (ID)     (ID)      (m)       (-)      (-)
+1    chain    1   2   250    10   -
+2    float    2   3   150    10   -
+3    wire     3   4   450    15   -
+4    chain    5   6   250    10   -
+5    float    6   7   150    10   -
+6    wire     7   8   450    15   -
+7    chain    9   10  250    10   -
+8    float    10  11  150    10   -
+9    wire     11  12  450    15   -
+---------------------- OPTIONS -------------------------------------------------
+300           WtrDpth       water depth (m)
+1025          rho           water density (kg/m^3)
+9.81          g             gravity (m/s^2)
+---------------------- OUTPUTS -------------------------------------------------
+FairTen3
+END
+------------------------- need this line ---------------------------------------
+"""
+LAZY_MBS = {"chain": 1.2e7, "float": 5.0e6, "wire": 8.0e6}
+
+# MoorPy 1.3.0 on LAZY, measured once as MOORPY above (System(file, depth=300, rho=1025, g=9.81),
+# the body moved, solveEquilibrium(tol=1e-10, maxIter=5000); T = each leg's TB, F the body's
+# lines-only force north, east). Measured agreement: tensions 3e-12, force 1e-10 of its size off
+# rest (at rest it is 0.007 N, round-off of three 128 kN legs).
+MOORPY_LAZY = {
+    (0.0, 0.0): ([128435.73372228243, 128435.74020773849, 128435.74020773849], [-0.006954735872568563, 0.0]),
+    (6.0, 0.0): ([125993.18550778771, 129779.47170182175, 129779.47170182175], [-5769.5882424528245, 0.0]),
+    (0.0, 6.0): ([128446.83483180743, 126306.71205037473, 130804.52373909787], [-92.1840362578223, -5861.935025805571]),
+}
+
+
+def test_a_buoyant_line_type_imports_as_the_arch_of_a_lazy_wave(tmp_path):
+    """A buoyant MoorDyn line type becomes a line type given by its density (Mass/m over the
+    displaced area, the same submerged weight), a section of the composite line; the leg's
+    fairlead tension is composite.solve's on the file's numbers, the statics MoorPy's, and the
+    written TOML reads back as the same scenario."""
+    res = import_moordyn(_write(tmp_path, LAZY), "fpso", mbs=LAZY_MBS)
+    sc = res.scenario
+    assert validate(sc) == []
+    g, rho = 9.81, 1025.0
+    fl = sc.line_type_by_id("float")
+    assert fl.submerged_weight is None and fl.density == pytest.approx(150.0 / (math.pi * 0.09), rel=1e-15)
+    assert fl.w(sc.environment) == pytest.approx((150.0 - rho * math.pi * 0.09) * g, rel=1e-12)
+    assert any("line type 'float' is buoyant (Mass/m 150 kg/m, Diam 0.6 m: submerged weight -1371.55 N/m), given by "
+               "its density 530.516 kg/m^3" in n for n in res.notes), res.notes
+    assert [[s.type for s in ln.sections] for ln in sc.lines] == [["chain", "float", "wire"]] * 3
+    w = [(m - rho * math.pi * d * d / 4.0) * g for m, d in ((300.0, 0.2), (150.0, 0.6), (40.0, 0.09))]
+    leg = composite.CompositeLine(L=np.array([250.0, 150.0, 450.0]), EA=np.array([1.5e9, 3e8, 6e8]), w=np.array(w),
+                                  CB=np.zeros(3), W=np.zeros(2))
+    model = MooringModel.from_scenario(sc)
+    assert model.tensions(np.zeros(3))[0] == pytest.approx(float(composite.solve(700.0, 282.0, leg).TF), rel=1e-12)
+    for (x, y), (T_mp, F_mp) in MOORPY_LAZY.items():
+        eta = np.array([x, y, 0.0])
+        assert np.allclose(model.tensions(eta), T_mp, rtol=1e-9, atol=0.0), (x, y)
+        assert np.linalg.norm(model.force(eta)[:2] - F_mp) <= 1e-7 * sum(T_mp), (x, y)
+    toml = _write(tmp_path, res.toml, "lazy.toml")
+    assert load_scenario(toml) == dataclasses.replace(sc, meta=load_scenario(toml).meta)
+
+
+def test_a_lazy_wave_round_trips_through_moordyn(tmp_path):
+    """Written as MoorDyn (the buoyant type's row from its density) and read back: the same scenario."""
+    sc = import_moordyn(_write(tmp_path, LAZY), "fpso", mbs=LAZY_MBS).scenario
+    vessel = _write(tmp_path, scenario_toml(scenario_to_dict(sc)), "lazy.toml")
+    export_moordyn(sc, tmp_path / "again.dat")
+    again = import_moordyn(tmp_path / "again.dat", str(vessel)).scenario
+    assert _no_meta(again) == _no_meta(sc)
+
+
+@pytest.mark.parametrize("edit, said", [
+    ((lambda t: t.replace("12   Body1       87.4400     6.9282    -18.0   0     0     0    0\n",
+                          "12   Body1       87.4400     6.9282    -18.0   0     0     0    0\n"
+                          "13   Fixed      500.0      500.0    -300.0   0     0     0    0\n"
+                          "14   Body1       95.0       0.0      -18.0   0     0     0    0\n").replace(
+        "9    wire     11  12  450    15   -\n", "9    wire     11  12  450    15   -\n10   float    13  14  700    20   -\n")),
+     ("line 10 (file line 42): type = 'float' is not heavier than water (submerged weight -1371.55 N/m): a line of "
+      "it floats and cannot hang from its fairlead")),
+    ((lambda t: t.replace("1    chain    1   2   250    10   -", "1    float    1   2   250    10   -")),
+     ("line 1-2-3, section 0 (MoorDyn line 1, file line 31): type = 'float' is not heavier than water (submerged "
+      "weight -1371.55 N/m) and is the line's anchor section")),
+])
+def test_a_line_that_would_float_is_refused_with_the_reason(tmp_path, capsys, edit, said):
+    """A leg all of the buoyant type (a line that floats), or one whose anchor section is buoyant:
+    refused, in the file's terms, with the reason."""
+    path = _write(tmp_path, edit(LAZY))
+    with pytest.raises(MoorDynError, match="the imported scenario is invalid") as exc:
+        import_moordyn(path, "fpso", mbs=LAZY_MBS)
+    assert said in str(exc.value), str(exc.value)
+    code, _, err = run(capsys, "scenario", "import-moordyn", str(path), "--vessel", "fpso", "--out",
+                       str(tmp_path / "x.toml"), *[f"--mbs={k}={v}" for k, v in LAZY_MBS.items()])
+    assert code == 2 and said in err and not (tmp_path / "x.toml").exists(), err
+
+
+def test_an_exported_lazy_wave_runs_in_moordyn_c_as_in_the_fem(tmp_path):
+    """MoorDyn-C (its own lumped-mass lines, buoyant ones included) holds the exported lazy waves
+    for 300 s at the field zero point: its joints and fairlead tensions are the settled FEM's at
+    the same segments (10 / 10 / 15) to 0.2 m and 5e-4 (measured 9 cm, 1.6e-4), both 1.4 m and
+    1.1e-3 from the quasi-static shape (the arch's 15 m segments)."""
+    from tapm_opt.plant.mooring_fem import MooringFEM
+
+    sc = import_moordyn(_write(tmp_path, LAZY), "fpso", mbs=LAZY_MBS).scenario
+    path = tmp_path / "out.dat"
+    export_moordyn(sc, path, extra_options={"writeLog": 0})
+    cot = np.array([sc.turret.position[0], -sc.turret.position[1], 0.0, 0.0, 0.0, 0.0])
+    old = os.getcwd()
+    os.chdir(tmp_path)   # MoorDyn writes its output files next to the input
+    try:
+        s = moordyn.Create(str(path))
+        try:
+            moordyn.Init(s, cot, np.zeros(6))
+            t = 0.0
+            for _ in range(30):
+                moordyn.Step(s, cot, np.zeros(6), t, 10.0)
+                t += 10.0
+            pos = np.array([moordyn.GetPointPos(moordyn.GetPoint(s, 7 + j)) for j in range(6)]) * [1.0, -1.0, -1.0]
+            T = []
+            for k in range(3):
+                ln = moordyn.GetLine(s, k + 1)
+                n = moordyn.GetLineN(ln)
+                T.append(np.linalg.norm(np.subtract(moordyn.GetLineNodeWeight(ln, n), moordyn.GetLineNodeTen(ln, n))))
+        finally:
+            moordyn.Close(s)
+    finally:
+        os.chdir(old)
+    m = MooringFEM(sc)
+    m.initialise(np.zeros(3))
+    m.settle(np.zeros(3), tol=1e-9, speed_tol=1e-5, max_time=3000.0)
+    fem = m.fem
+    assert fem.lines.sections[0]["segments"].tolist() == [10, 10, 15]
+    r = np.concatenate([fem.r[fem.node_start[j] + np.cumsum(fem.lines.sections[j]["segments"])[:-1]] for j in range(3)])
+    T_fem = fem.fairlead_tension()
+    T0 = MooringModel.from_scenario(sc).tensions(np.zeros(3))
+    qs = np.concatenate([composite_joints(sc)[k] for k in range(3)])
+    print(f"MoorDyn-C against the FEM: joints {np.max(np.abs(pos - r)):.3g} m, tensions {np.array(T) / T_fem - 1}; "
+          f"the FEM against the statics: joints {np.max(np.abs(r - qs)):.3g} m, tensions {T_fem / T0 - 1}")
+    assert np.max(np.abs(pos - r)) < 0.2
+    assert np.allclose(T, T_fem, rtol=5e-4)
+    assert np.allclose(T_fem, T0, rtol=2e-3) and np.max(np.abs(r - qs)) < 2.0

@@ -1208,8 +1208,10 @@ def seabed_constants(w: float, m: float, d_md: float) -> tuple[float, float]:
     """MoorDyn (kBot [Pa/m], cBot [Pa s/m]) equal to the FEM seabed of a line type.
 
     MoorDyn's contact force per node is ``(kBot pen - cBot v_z) d_md l_node``; the FEM's node
-    spring is ``w l_node / 0.01 m`` with ``0.5 * 2 sqrt(k m_node)`` damping.
+    spring is ``w l_node / 0.01 m`` with ``0.5 * 2 sqrt(k m_node)`` damping; a buoyant type's
+    (``w < 0``) is its weight's magnitude's, as the FEM's.
     """
+    w = abs(w)
     k = w / (SEABED_PENETRATION * d_md)
     c = SEABED_DAMPING_RATIO * 2.0 * math.sqrt(w * m / SEABED_PENETRATION) / d_md
     return k, c
@@ -1675,11 +1677,10 @@ def scenario_data_from_moordyn(model: MoorDynModel, vessel_data: dict, *, mbs: M
     line_types, comments = [], {}
     for lt in used:
         w = (lt.mass - rho * math.pi * lt.d**2 / 4.0) * g
-        if not w > 0:
-            problems.append(MoorDynError(f"line type {lt.name!r} is buoyant (Mass/m {lt.mass:g} kg/m, Diam {lt.d:g} m: "
-                                         f"submerged weight {w:g} N/m); buoyant lines are not supported (a buoy is a "
-                                         "free point with a volume)", source=src, lineno=lt.lineno))
-            continue
+        # a buoyant type (w <= 0) is given by its density, the mass over the displaced volume (the
+        # scenario's submerged_weight is positive); where it may be in a line, the loader says
+        # (config.loader.buoyant_line_problem: between weighted sections of a composite line)
+        density = lt.mass / (math.pi * lt.d**2 / 4.0) if not w > 0 else None
         BA = lt.BA if not lt.viscoelastic else (lt.BA_dynamic or 0.0)   # the damper across the whole segment
         if BA < 0:
             zeta = -BA / _SQRT2
@@ -1727,11 +1728,18 @@ def scenario_data_from_moordyn(model: MoorDynModel, vessel_data: dict, *, mbs: M
             item = {k: item[k] for k in ("id", "diameter", "mass_per_length", "submerged_weight", "EA_table", "MBS",
                                          "MBS_std", "Cd_normal", "Cd_tangential", "Ca_normal", "Ca_tangential",
                                          "seabed_friction", "axial_damping_ratio")}
+        if density is not None:  # in the place of the submerged weight
+            item = {("density" if k == "submerged_weight" else k): (density if k == "submerged_weight" else v)
+                    for k, v in item.items()}
+            notes.append(f"line type {lt.name!r} is buoyant (Mass/m {lt.mass:g} kg/m, Diam {lt.d:g} m: submerged weight "
+                         f"{w:.6g} N/m), given by its density {density:.6g} kg/m^3 (Mass/m over pi Diam^2/4)")
         own = _front_type_values(lt, fm, g, rho)
         if own is not None:
             item.update(own)
             if item["submerged_weight"] is None:
                 del item["submerged_weight"]   # the density gives it
+            else:
+                item.pop("density", None)      # the front matter's submerged weight gives it
             notes.append(f"line type {lt.name!r}: tapm_opt's own {', '.join(k for k in own if own[k] is not None)} "
                          f"from the file's front matter (line {at}), which give its MoorDyn row")
         elif any(k in fm for k in ("d", "Cd_normal")):
