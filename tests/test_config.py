@@ -772,7 +772,10 @@ def test_doc_field_reference_matches_the_schema():
 
 def test_field_reference_covers_every_field_with_unit_default_and_range():
     md = field_reference_markdown()
-    assert {key for key, _, _ in SECTIONS} == {file_key(f) for f in dataclasses.fields(schema.Scenario)}
+    top = {key for key, _, _ in SECTIONS if "." not in key}
+    assert top == {file_key(f) for f in dataclasses.fields(schema.Scenario)}
+    # and the tables within them
+    assert {key for key, _, _ in SECTIONS if "." in key} == {"vessel.wave_motion", "lines.sections"}
     tables = md.split("\n### ")
     for key, toml_name, cls in SECTIONS:
         table = next(t for t in tables if t.startswith(f"`{toml_name}`"))

@@ -23,7 +23,7 @@ import tapm_opt
 from tapm_opt.config import WaveMotion, validate
 from tapm_opt.models import rao as rao_mod
 from tapm_opt.plant import fem_kernel
-from tapm_opt.plant.environment import N_HEADINGS, Environment, heading_interp
+from tapm_opt.plant.environment import N_HEADINGS, Environment, PlantError, heading_interp
 from tapm_opt.plant.forced_motion import forced_motion
 from tapm_opt.plant.mooring_fem import MooringFEM
 from tapm_opt.plant.simulator import Plant, run_open_loop
@@ -35,8 +35,12 @@ HULL = dict(block_coefficient=0.83, GM_T=6.0, roll_period=15.5, roll_damping=0.0
 
 
 def six_dof(sc, **kw):
-    wm = WaveMotion(model="six_dof", **{**HULL, **kw})
+    wm = dataclasses.replace(sc.vessel.wave_motion, model="six_dof", **kw)
     return dataclasses.replace(sc, vessel=dataclasses.replace(sc.vessel, wave_motion=wm))
+
+
+def test_the_built_in_hull_is_the_tests(fpso):
+    assert {k: getattr(fpso.vessel.wave_motion, k) for k in HULL} == HULL
 
 
 @pytest.fixture(scope="module")
@@ -126,6 +130,10 @@ def test_heave_roll_pitch_sums_on_the_heading_grid_are_the_rao_summed(fpso6):
     assert np.allclose(w.vertical_dot(t, 0.3), num, rtol=1e-6, atol=1e-9)
 
 
+def test_the_heading_grid_is_the_compiled_plants():
+    assert fem_kernel.N_HEADINGS == N_HEADINGS
+
+
 def test_heading_interp_wraps_the_relative_heading():
     G = N_HEADINGS
     grid = np.repeat(np.arange(G, dtype=float), 3)
@@ -210,3 +218,69 @@ def test_wave_frequency_motion_raises_the_mooring_damping(fpso, fpso6):
     assert 2.0 <= six / still <= 4.0   # the survey's range
     with pytest.raises(tapm_opt.errors.ModelError, match="needs a sea_state"):
         forced_motion(fpso6, waves=True, **kw)
+
+
+def _table_like_the_closed_form(sc, w):
+    """An RAO table with the closed form's heave, roll and pitch and the plant's own parametric
+    surge, sway and yaw (docs/plant_environment.md), on the plant's heading grid and a fine
+    frequency grid."""
+    v, env = sc.vessel, sc.environment
+    g = env.gravity
+    hull = rao_mod.HullMotionParams(length_pp=v.length_pp, breadth=v.breadth, draught=v.draught,
+                                    waterplane_coefficient=(1 + 2 * 0.83) / 3, **HULL)
+    omega = np.linspace(0.9 * w.omega.min(), 1.1 * w.omega.max(), 3001)
+    beta = 2 * math.pi / N_HEADINGS * np.arange(N_HEADINGS)
+    H = np.zeros((omega.size, beta.size, 6), complex)
+    H[:, :, 2:5] = rao_mod.closed_form_rao(omega[:, None], beta[None, :], hull, g=g)
+    k = omega**2 / g
+    h_L = 1.0 / (1.0 + (omega / math.sqrt(math.pi * g / v.length_pp)) ** 4)
+    h_B = 1.0 / (1.0 + (omega / math.sqrt(math.pi * g / v.breadth)) ** 4)
+    H[:, :, 0] = -1j * h_L[:, None] * np.cos(beta)           # surge_B = cos beta sum a h_L sin theta
+    H[:, :, 1] = -1j * h_B[:, None] * np.sin(beta)           # sway_B = sin beta sum a h_B sin theta
+    H[:, :, 5] = (w.params.yaw_rao * k * h_L)[:, None] * np.sin(2 * beta)   # yaw = sin 2beta sum c k h_L a cos theta
+    return rao_mod.RAOTable(omega=omega, beta=beta, H=H)
+
+
+def test_a_users_rao_table_moves_the_hull_as_its_numbers_say(tmp_path, fpso, fpso6):
+    """A table holding the closed form's heave, roll and pitch and the parametric surge, sway and
+    yaw, written as CSV next to a scenario file that names it by a relative path: the plant on it
+    moves as the six-degree-of-freedom plant does (up to the table's frequency interpolation)."""
+    from tapm_opt.config import scenario_to_dict
+    from tapm_opt.config.moordyn import scenario_toml
+
+    w6 = Environment(fpso6, "storm", seed=4).waves
+    rao_mod.write_rao_csv(_table_like_the_closed_form(fpso6, w6), tmp_path / "hull_rao.csv")
+    d = scenario_to_dict(fpso)
+    d["vessel"]["wave_motion"] = {"model": "table", "rao_file": "hull_rao.csv"}
+    (tmp_path / "sc.toml").write_text(scenario_toml(d), encoding="utf-8")
+    sc_t = tapm_opt.load_scenario(tmp_path / "sc.toml")
+    assert sc_t.vessel.wave_motion.rao_file == str(tmp_path / "hull_rao.csv")
+    wt = Environment(sc_t, "storm", seed=4).waves
+    assert wt.six_dof and wt.table_horizontal
+    t = np.arange(0.0, 600.0, 0.5)
+    # off the grid's headings the table is interpolated linearly in beta (5 degrees: cos beta within
+    # 0.1 %), the closed form and the parametric motion are exact: a few 1e-3 apart
+    for psi in (0.0, 0.4):
+        for a, b in ((wt.vertical(t, psi), w6.vertical(t, psi)), (wt.eta_wf(t, psi), w6.eta_wf(t, psi))):
+            assert np.all(np.abs(a - b).max(axis=0) <= 4e-3 * np.abs(b).max(axis=0) + 1e-12)
+    runs = [run_open_loop(Plant(s, sea_state="storm", seed=4), 30.0) for s in (sc_t, fpso6)]
+    assert runs[0].channels == runs[1].channels
+    scale = np.abs(runs[1].data).max(axis=0)
+    assert np.all(np.abs(runs[0].data - runs[1].data).max(axis=0) <= 5e-3 * scale + 1e-6)
+    # a missing or misnamed file is named in the scenario's own terms
+    d["vessel"]["wave_motion"]["rao_file"] = "nowhere.csv"
+    (tmp_path / "bad.toml").write_text(scenario_toml(d), encoding="utf-8")
+    with pytest.raises(tapm_opt.errors.ScenarioError, match="rao_file.*no such file"):
+        tapm_opt.load_scenario(tmp_path / "bad.toml")
+    (tmp_path / "hull_rao.txt").write_text("x", encoding="utf-8")
+    d["vessel"]["wave_motion"]["rao_file"] = "hull_rao.txt"
+    (tmp_path / "bad.toml").write_text(scenario_toml(d), encoding="utf-8")
+    with pytest.raises(tapm_opt.errors.ScenarioError, match=r"rao_file.*\.csv table or a WAMIT \.4"):
+        tapm_opt.load_scenario(tmp_path / "bad.toml")
+    # a table the reader refuses: the plant says which file
+    (tmp_path / "broken.csv").write_text("omega_rad_s,beta_deg,dof,amplitude,phase_deg\n0.5,0,heave,x,0\n",
+                                         encoding="utf-8")
+    d["vessel"]["wave_motion"]["rao_file"] = "broken.csv"
+    (tmp_path / "bad.toml").write_text(scenario_toml(d), encoding="utf-8")
+    with pytest.raises(PlantError, match="rao_file.*broken.csv"):
+        Environment(tapm_opt.load_scenario(tmp_path / "bad.toml"), "storm")

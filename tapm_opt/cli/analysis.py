@@ -108,10 +108,15 @@ def plant() -> None:
 @click.option("--dt-out", type=float, default=1.0, show_default=True, help="Output interval [s].")
 @click.option("--sea-state", "sea_state", default=None,
               help="Sea state whose current profile acts on the lines (default: still water).")
+@click.option("--waves", is_flag=True,
+              help="Add the sea state's wave-frequency motion of the hull (the scenario's vessel.wave_motion: "
+                   "surge, sway and yaw, or all six degrees of freedom) to the forced motion.")
+@click.option("--seed", type=int, default=0, show_default=True, help="Seed of the waves (--waves), as the plant's.")
 @click.option("--out", type=click.Path(dir_okay=False), default=None, callback=out_path("file"),
               help="CSV file with columns t, x, y, psi, T1..Tn (s, m, m, rad, N).")
 def plant_forced_motion(scenario_name: str, dof: str, amplitude: float, period: float, duration: float,
-                        segments: int | None, dt_out: float, sea_state: str | None, out: str | None) -> None:
+                        segments: int | None, dt_out: float, sea_state: str | None, waves: bool, seed: int,
+                        out: str | None) -> None:
     """Settle the lines of SCENARIO at rest, then move the vessel as amplitude*sin(2 pi t/period).
 
     Prints the FEM step used, how settling converged, the equivalent linear mooring damping of
@@ -132,6 +137,8 @@ def plant_forced_motion(scenario_name: str, dof: str, amplitude: float, period: 
     if dt_out > period / 10.0:
         raise click.BadParameter(f"--dt-out = {dt_out:g} s must be at most --period / 10 = {period / 10.0:g} s (the "
                                  "tension range is read from the output samples, ten or more per cycle)")
+    if waves and (sea_state is None or sea_state == "none"):
+        raise click.BadParameter("--waves needs --sea-state (the sea state whose waves move the hull)")
     sc = load(scenario_name)
     if dof == "yaw" and amplitude > 180.0:
         raise click.BadParameter(f"--amplitude = {amplitude:g} deg must be at most 180 deg for yaw")
@@ -148,12 +155,15 @@ def plant_forced_motion(scenario_name: str, dof: str, amplitude: float, period: 
                                   channels=4 + len(sc.lines)))
     amp = math.radians(amplitude) if dof == "yaw" else amplitude
     res = forced_motion(sc, dof=dof, amplitude=amp, period=period, duration=duration, segments=segments,
-                        dt_out=dt_out, sea_state=sea_state)
+                        dt_out=dt_out, sea_state=sea_state, waves=waves, seed=seed)
     unit = "N m s/rad" if dof == "yaw" else "N s/m"
     st = res.settle
+    where = "still water"
+    if res.sea_state:
+        where = f"{res.sea_state} current" + (f" and waves ({sc.vessel.wave_motion.model} hull motion, seed {seed})"
+                                              if waves else "")
     click.echo(f"{sc.name}: forced {dof}, amplitude {amplitude:g} {'deg' if dof == 'yaw' else 'm'}, period {period:g} s, "
-               f"duration {duration:g} s, {res.sea_state + ' current' if res.sea_state else 'still water'}; "
-               f"FEM step {res.dt:.4g} s")
+               f"duration {duration:g} s, {where}; FEM step {res.dt:.4g} s")
     click.echo(f"  settled in {st.time:.0f} s simulated (fastest node {1e3 * st.max_speed:.2g} mm/s, tension change "
                f"{st.tension_change:.1g} per check); wall time {res.wall_time:.1f} s including "
                f"{st.wall_time:.1f} s of settling")

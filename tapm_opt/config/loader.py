@@ -767,6 +767,16 @@ def _wave_motion_issues(v: Any, issues: list[ScenarioIssue]) -> None:
                 issues.append(ScenarioIssue(f"{p}.{name}", (
                     f"is missing: model = 'six_dof' needs {what} for the closed-form heave, roll and pitch "
                     "transfer functions (or model = 'horizontal')")))
+    if wm.model == "table":
+        f = wm.rao_file
+        if f is None:
+            issues.append(ScenarioIssue(f"{p}.rao_file", (
+                "is missing: model = 'table' reads the hull's RAOs from a CSV table or a WAMIT .4 file")))
+        elif not (f.lower().endswith(".csv") or f.lower().endswith(".4")):
+            issues.append(ScenarioIssue(f"{p}.rao_file", f"= {f!r} must name a .csv table or a WAMIT .4 file"))
+        elif not Path(f).is_file():
+            issues.append(ScenarioIssue(f"{p}.rao_file", (
+                f"= {f!r}: no such file (a relative path is read from the scenario file's folder)")))
     if wm.block_coefficient is not None and wm.waterplane_coefficient is not None \
             and wm.waterplane_coefficient < wm.block_coefficient:
         issues.append(ScenarioIssue(f"{p}.waterplane_coefficient", (
@@ -1121,6 +1131,9 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     if not data:
         raise ScenarioError(f"{path.name} is empty: a scenario needs [meta], [environment], [vessel], [turret], "
                             "[[line_types]] and [[lines]]", source=str(path))
+    wm = data.get("vessel", {}).get("wave_motion") if isinstance(data.get("vessel"), dict) else None
+    if isinstance(wm, dict) and isinstance(wm.get("rao_file"), str) and not Path(wm["rao_file"]).is_absolute():
+        wm["rao_file"] = str(path.parent / wm["rao_file"])   # read from the scenario file's folder
     return scenario_from_dict(data, source=str(path) if path.parent != BUILTIN_DIR else path.stem)
 
 

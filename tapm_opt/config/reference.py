@@ -26,16 +26,25 @@ BEGIN_MARKER = "<!-- BEGIN FIELD REFERENCE -->"
 END_MARKER = "<!-- END FIELD REFERENCE -->"
 
 def _sections() -> tuple[tuple[str, str, type], ...]:
-    """(file key, how it appears in TOML, dataclass) of every section of :class:`schema.Scenario`."""
+    """(file key, how it appears in TOML, dataclass) of every section of :class:`schema.Scenario`,
+    and of the tables within them (``[vessel.wave_motion]``, ``[[lines.sections]]``)."""
     out = []
-    hints = typing.get_type_hints(schema.Scenario)
-    for f in dataclasses.fields(schema.Scenario):
-        tp = hints[f.name]
-        args = [a for a in typing.get_args(tp) if a is not type(None)]
-        if typing.get_origin(tp) is tuple:
-            out.append((f.name, f"[[{f.name}]]", args[0]))
-        else:
-            out.append((f.name, f"[{f.name}]", args[0] if args else tp))
+
+    def walk(cls: type, prefix: str) -> None:
+        hints = typing.get_type_hints(cls)
+        for f in dataclasses.fields(cls):
+            tp = hints[f.name]
+            args = [a for a in typing.get_args(tp) if a is not type(None)]
+            key = f"{prefix}{f.name}"
+            if typing.get_origin(tp) is tuple and args and dataclasses.is_dataclass(args[0]):
+                out.append((key, f"[[{key}]]", args[0]))
+                walk(args[0], f"{key}.")
+            elif dataclasses.is_dataclass(args[0] if args else tp):
+                sub = args[0] if args else tp
+                out.append((key, f"[{key}]", sub))
+                walk(sub, f"{key}.")
+
+    walk(schema.Scenario, "")
     return tuple(out)
 
 

@@ -191,12 +191,20 @@ class Environment:
 class WaveMotion:
     """First-order (wave-frequency) motion of the hull that the plant puts on the fairleads: surge,
     sway and yaw always (``docs/plant_environment.md``); heave, roll and pitch from the closed-form
-    transfer functions of Jensen, Mansour and Olsen (2004) when ``model = "six_dof"``."""
+    transfer functions of Jensen, Mansour and Olsen (2004) when ``model = "six_dof"``; all six from
+    the user's RAO table when ``model = "table"``."""
 
-    model: Literal["horizontal", "six_dof"] = spec(
+    model: Literal["horizontal", "six_dof", "table"] = spec(
         "'horizontal': surge, sway and yaw only; 'six_dof': heave, roll and pitch too, from the closed-form "
-        "RAOs (Jensen et al. 2004) of the hull's main dimensions and the fields below.",
+        "RAOs (Jensen et al. 2004) of the hull's main dimensions and the fields below; 'table': all six from "
+        "the RAO table in rao_file.",
         default="horizontal")
+    rao_file: str | None = spec(
+        "The hull's RAO table (model 'table'): a CSV (omega_rad_s, beta_deg, dof, amplitude, phase_deg; "
+        "docs/plant_environment.md) or a WAMIT .4 file; a relative path is read from the scenario file's folder.",
+        default=None, check=text_limit(4096, what="a path"))
+    rao_ulen: float = spec("WAMIT's length scale ULEN of a .4 rao_file (its rotations are per A/ULEN).", "m",
+                           default=1.0, check=positive)
     block_coefficient: float | None = spec("Block coefficient C_B of the hull (six_dof).",
                                            default=None, check=in_range(0.3, 1.0))
     waterplane_coefficient: float | None = spec(

@@ -53,13 +53,18 @@ BLOCK_MAX = 512
 #: every 5 degrees, interpolated linearly between them (:func:`heading_interp`).
 N_HEADINGS = 72
 
+#: Singular values of the heading grid's weights kept in :meth:`WaveField.vertical_block`, relative
+#: to the largest.
+SVD_RTOL = 1e-12
+
 
 def heading_interp(grid: Any, direction: float, psi: float) -> np.ndarray:
-    """Linear interpolation (3,) of sums on the heading grid ``grid`` (3 G,) (column ``3 g + d`` at
-    the relative heading ``beta_g = 2 pi g / G``) at ``beta = direction - psi`` [rad] taken into
-    [0, 2 pi). Plain float arithmetic, the same operations as the compiled plant's
+    """Linear interpolation (K,) of sums on the heading grid ``grid`` (K G,) (column ``K g + d`` at
+    the relative heading ``beta_g = 2 pi g / G``, G = :data:`N_HEADINGS`) at ``beta = direction -
+    psi`` [rad] taken into [0, 2 pi); rows of sums (n, K G) give (n, K). Plain float arithmetic, the same operations as the compiled plant's
     (:func:`tapm_opt.plant.fem_kernel.plant_pre_step`)."""
-    G = np.shape(grid)[-1] // 3
+    G = N_HEADINGS
+    K = np.shape(grid)[-1] // G
     b = direction - psi
     b = b - 2.0 * math.pi * math.floor(b / (2.0 * math.pi))
     x = b * (G / (2.0 * math.pi))
@@ -67,12 +72,12 @@ def heading_interp(grid: Any, direction: float, psi: float) -> np.ndarray:
     f = x - g0
     g1 = 0 if g0 == G - 1 else g0 + 1
     if np.ndim(grid) > 1:   # rows of sums (a time series): the same operations, elementwise
-        v0 = grid[..., 3 * g0:3 * g0 + 3]
-        return v0 + f * (grid[..., 3 * g1:3 * g1 + 3] - v0)
-    out = np.empty(3)
-    for d in range(3):
-        v0 = float(grid[3 * g0 + d])
-        out[d] = v0 + f * (float(grid[3 * g1 + d]) - v0)
+        v0 = grid[..., K * g0:K * g0 + K]
+        return v0 + f * (grid[..., K * g1:K * g1 + K] - v0)
+    out = np.empty(K)
+    for d in range(K):
+        v0 = float(grid[K * g0 + d])
+        out[d] = v0 + f * (float(grid[K * g1 + d]) - v0)
     return out
 
 
@@ -240,24 +245,39 @@ class WaveField:
         self._vertical_weights(rao)
 
     def _vertical_weights(self, rao: Any) -> None:
-        """The weights of the heave, roll and pitch sums on the relative-heading grid
-        (:data:`N_HEADINGS` headings ``beta_g = 2 pi g / G``), rows ``[cos theta; sin theta]``,
-        column ``3 g + d``: ``x_d(t, beta_g) = sum_k a_k (Re H_kgd cos theta_k - Im H_kgd sin theta_k)``
-        with ``H = rao(omega (N,), beta (G,))`` complex (N, G, 3) per metre of wave amplitude
-        (:func:`tapm_opt.models.rao.closed_form_rao`); none (``six_dof`` False) without ``rao``."""
+        """The weights of the motion sums on the relative-heading grid (:data:`N_HEADINGS` headings
+        ``beta_g = 2 pi g / G``), rows ``[cos theta; sin theta]``, column ``K g + d``:
+        ``x_d(t, beta_g) = sum_k a_k (Re H_kgd cos theta_k - Im H_kgd sin theta_k)`` with ``H =
+        rao(omega (N,), beta (G,))`` complex per metre of wave amplitude: (N, G, 3) heave, roll and
+        pitch (:func:`tapm_opt.models.rao.closed_form_rao`; K = 3), or (N, G, 6) all six degrees
+        of freedom in the order surge, sway, heave, roll, pitch, yaw (a user's table,
+        :class:`tapm_opt.models.rao.RAOTable`; K = 6, stored heave, roll, pitch, surge, sway, yaw:
+        the hull's surge, sway and yaw then come from the table, :attr:`table_horizontal`).
+        None (``six_dof`` False) without ``rao``."""
         self.six_dof = rao is not None
         N, G = self.omega.size, N_HEADINGS
+        self.table_horizontal = False
         if rao is None:
             self._Wv = self._Wv_dot = np.zeros((2 * N, 0))
             return
         H = np.asarray(rao(self.omega, 2.0 * math.pi / G * np.arange(G)))
-        if H.shape != (N, G, 3) or not np.isfinite(H).all():
-            raise PlantError(f"the heave, roll and pitch transfer functions have shape {H.shape} (expected "
-                             f"{(N, G, 3)}) or are not finite")
+        if H.ndim != 3 or H.shape[:2] != (N, G) or H.shape[2] not in (3, 6) or not np.isfinite(H).all():
+            raise PlantError(f"the hull's transfer functions have shape {H.shape} (expected {(N, G, 3)} or "
+                             f"{(N, G, 6)}) or are not finite")
+        if H.shape[2] == 6:
+            H = H[:, :, [2, 3, 4, 0, 1, 5]]
+            self.table_horizontal = True
+        K = H.shape[2]
         a = self.amplitude[:, None, None]
         aw = (self.amplitude * self.omega)[:, None, None]
-        self._Wv = np.concatenate([(a * H.real).reshape(N, 3 * G), (-a * H.imag).reshape(N, 3 * G)])
-        self._Wv_dot = np.concatenate([(-aw * H.imag).reshape(N, 3 * G), (-aw * H.real).reshape(N, 3 * G)])
+        self._Wv = np.concatenate([(a * H.real).reshape(N, K * G), (-a * H.imag).reshape(N, K * G)])
+        self._Wv_dot = np.concatenate([(-aw * H.imag).reshape(N, K * G), (-aw * H.real).reshape(N, K * G)])
+        # the block's product through the weights' leading singular vectors: the heading grid's
+        # columns are smooth in the heading, so few carry them (49 of 216 for fpso's closed form
+        # at 1e-12 of the largest): (n, 2N) @ (2N, r) @ (r, K G), several times cheaper
+        U, sv, Vt = np.linalg.svd(self._Wv, full_matrices=False)
+        r = int(np.count_nonzero(sv > SVD_RTOL * sv[0])) if sv.size and sv[0] > 0 else 0
+        self._Wv_lr = (U[:, :r] * sv[:r], Vt[:r]) if 0 < r < K * G // 2 else None
 
     def _sums(self, t: Any) -> tuple[np.ndarray, np.ndarray]:
         """(W_sin @ sin theta, W_cos @ cos theta), shapes (3, ...) and (4, ...); last t cached."""
@@ -284,20 +304,34 @@ class WaveField:
 
     def vertical_block(self, t0: float, h: float, n: int) -> np.ndarray:
         """The heave, roll and pitch sums on the heading grid at the n times ``t0 + j h`` [s],
-        shape (n, 3 G) (column ``3 g + d``, :meth:`_vertical_weights`); (n, 0) without the
-        six-degree-of-freedom motion. The same angle sums as :meth:`block`."""
+        shape (n, K G) (column ``K g + d``, :meth:`_vertical_weights`); (n, 0) without the
+        six-degree-of-freedom motion. The same angle sums as :meth:`block`, through the weights'
+        leading singular vectors (those above :data:`SVD_RTOL` of the largest; the sums agree with
+        the full product to about that fraction of the largest weight's sum)."""
         if not self.six_dof:
             return np.zeros((int(n), 0))
         sin_th, cos_th = _block_trig(float(t0), float(h), int(n), self.omega, self.phase, self._rot_cache)
-        return np.concatenate([cos_th, sin_th], axis=1) @ self._Wv
+        cs = np.concatenate([cos_th, sin_th], axis=1)
+        if self._Wv_lr is not None:
+            return (cs @ self._Wv_lr[0]) @ self._Wv_lr[1]
+        return cs @ self._Wv
 
     def vertical_of(self, grid: Any, psi: float) -> np.ndarray:
         """Heave [m, down], roll [rad, starboard down] and pitch [rad, bow up] (3,) at the LF heading
-        psi [rad] from the sums on the heading grid (3 G,) (:meth:`vertical_block`): linear
+        psi [rad] from the sums on the heading grid (K G,) (:meth:`vertical_block`): linear
         interpolation in the relative heading ``beta = beta_wave - psi`` (:func:`heading_interp`)."""
-        return heading_interp(grid, self.direction, float(psi))
+        return heading_interp(grid, self.direction, float(psi))[:3]
+
+    def horizontal_of(self, grid: Any, psi: float) -> np.ndarray:
+        """With a user's table (:attr:`table_horizontal`): the WF motion (x [m], y [m], psi [rad])
+        in {E} at the LF heading psi [rad] from the sums on the heading grid (6 G,): the table's
+        surge and sway turned by the heading, its yaw — the plant's compiled step does the same."""
+        v = heading_interp(grid, self.direction, float(psi))
+        c, s = math.cos(psi), math.sin(psi)
+        return np.array([c * v[3] - s * v[4], s * v[3] + c * v[4], v[5]])
 
     def _vertical(self, t: Any, psi: float, W: np.ndarray) -> np.ndarray:
+        """The sums of ``W`` at time(s) t interpolated at the heading psi: (..., K)."""
         t = _time(t)
         if not self.six_dof:
             return np.zeros(np.shape(t) + (3,))
@@ -309,11 +343,11 @@ class WaveField:
         """Heave [m, down], roll [rad, starboard down] and pitch [rad, bow up] of the hull at time(s)
         t [s] and LF heading psi [rad], shape t.shape + (3,) (zeros without the six-degree-of-freedom
         motion)."""
-        return self._vertical(t, psi, self._Wv)
+        return self._vertical(t, psi, self._Wv)[..., :3]
 
     def vertical_dot(self, t: Any, psi: float) -> np.ndarray:
         """Time derivative of :meth:`vertical` at fixed LF heading [m/s, rad/s, rad/s]."""
-        return self._vertical(t, psi, self._Wv_dot)
+        return self._vertical(t, psi, self._Wv_dot)[..., :3]
 
     def _dirs(self, psi: float) -> tuple[float, float, float, np.ndarray]:
         """cos beta, sin beta, sin 2beta and the drift factor c(beta) (3,) at heading psi; cached."""
@@ -330,6 +364,10 @@ class WaveField:
         return np.cos(np.multiply.outer(_time(t), self.omega) + self.phase) @ self.amplitude
 
     def _motion(self, t: Any, psi: float, rate: bool) -> np.ndarray:
+        if self.table_horizontal:   # the user's table: surge, sway and yaw on the heading grid
+            v = self._vertical(t, psi, self._Wv_dot if rate else self._Wv)
+            c, s = math.cos(psi), math.sin(psi)
+            return np.stack([c * v[..., 3] - s * v[..., 4], s * v[..., 3] + c * v[..., 4], v[..., 5]], axis=-1)
         cb, sb, s2b, _ = self._dirs(psi)
         S, C = self._sums(t)
         xb, yb, z = (cb * C[2], sb * C[3], -s2b * S[2]) if rate else (cb * S[0], sb * S[1], s2b * C[0])
@@ -461,13 +499,24 @@ class Wind:
 
 
 def hull_rao(vessel: schema.Vessel, env: schema.Environment) -> Any:
-    """The heave, roll and pitch transfer functions ``rao(omega, beta) -> complex (N, G, 3)`` of
-    the hull (``vessel.wave_motion``; :func:`tapm_opt.models.rao.closed_form_rao`), or None for
-    the horizontal model."""
+    """The transfer functions ``rao(omega, beta)`` of the hull (``vessel.wave_motion``): heave,
+    roll and pitch, complex (N, G, 3), of the closed form (:func:`tapm_opt.models.rao.closed_form_rao`,
+    model "six_dof"), all six, complex (N, G, 6), of the user's table (model "table": a CSV of
+    :func:`~tapm_opt.models.rao.read_rao_csv` or a WAMIT ``.4`` file, :func:`~tapm_opt.models.rao.read_wamit4`),
+    or None for the horizontal model."""
     wm = vessel.wave_motion
-    if wm.model != "six_dof":
+    if wm.model == "horizontal":
         return None
     from ..models import rao as rao_mod
+
+    if wm.model == "table":
+        path = str(wm.rao_file)
+        try:
+            table = (rao_mod.read_wamit4(path, ulen=float(wm.rao_ulen)) if path.lower().endswith(".4")
+                     else rao_mod.read_rao_csv(path))
+        except (ModelError, OSError) as exc:
+            raise PlantError(f"vessel.wave_motion.rao_file = {path!r}: {exc}") from None
+        return lambda omega, beta: table.evaluate(np.asarray(omega)[:, None], np.asarray(beta)[None, :])
 
     cb = float(wm.block_coefficient)
     cwp = float(wm.waterplane_coefficient) if wm.waterplane_coefficient is not None else (1.0 + 2.0 * cb) / 3.0

@@ -815,6 +815,10 @@ OUT_ETA, OUT_NU, OUT_WF, OUT_THR, OUT_WIND, OUT_DRIFT, OUT_POSE0, OUT_POSE1, OUT
     slice(21, 24), slice(24, 28), slice(28, 31))
 OUT_SIZE = 31
 
+#: Relative wave headings of the hull's motion sums on the heading grid (``vgrid`` of
+#: :func:`plant_pre_step`): :data:`tapm_opt.plant.environment.N_HEADINGS` (a test checks they agree).
+N_HEADINGS = 72
+
 #: Kinds of the current at the nodes of :func:`plant_pre_step`: held (none: ``vc`` untouched),
 #: uniform, linear, piecewise (``CurrentProfile.kind``).
 CURRENT_HELD, CURRENT_UNIFORM, CURRENT_LINEAR, CURRENT_PIECEWISE = 0, 1, 2, 3
@@ -878,17 +882,18 @@ def _current_at_nodes(r, vc, kind, clamps, depths, factors, water_depth, surface
 
 @_jit
 def _heading_interp(grid, direction, psi, out, o):  # pragma: no cover - compiled
-    """:func:`tapm_opt.plant.environment.heading_interp` into ``out[o:o + 3]``: the same operations."""
-    G = grid.shape[0] // 3
+    """:func:`tapm_opt.plant.environment.heading_interp` into ``out[o:o + K]``: the same operations."""
+    G = N_HEADINGS
+    K = grid.shape[0] // G
     b = direction - psi
     b = b - 2.0 * math.pi * math.floor(b / (2.0 * math.pi))
     x = b * (G / (2.0 * math.pi))
     g0 = min(int(x), G - 1)
     f = x - g0
     g1 = 0 if g0 == G - 1 else g0 + 1
-    for d in range(3):
-        v0 = grid[3 * g0 + d]
-        out[o + d] = v0 + f * (grid[3 * g1 + d] - v0)
+    for d in range(K):
+        v0 = grid[K * g0 + d]
+        out[o + d] = v0 + f * (grid[K * g1 + d] - v0)
 
 
 @_jit
@@ -961,8 +966,16 @@ def plant_pre_step(h, f, alpha, f_cmd, alpha_cmd, decay, rate_dt, alpha_rate_dt,
         out[6] = c * xb - s * yb
         out[7] = s * xb + c * yb
         out[8] = s2b * C0
-        if vgrid.shape[0] > 0:  # heave, roll and pitch at the new heading (WaveField.vertical_of)
+        if vgrid.shape[0] == 3 * N_HEADINGS:  # heave, roll and pitch at the new heading (WaveField.vertical_of)
             _heading_interp(vgrid, wave_dir, psi1, out, 28)
+        elif vgrid.shape[0] > 0:   # and surge, sway and yaw of a user's table (WaveField.horizontal_of)
+            v = np.empty(6)
+            _heading_interp(vgrid, wave_dir, psi1, v, 0)
+            for d in range(3):
+                out[28 + d] = v[d]
+            out[6] = c * v[3] - s * v[4]
+            out[7] = s * v[3] + c * v[4]
+            out[8] = v[5]
     for i in range(3):
         out[18 + i] = eta[i] + eta_wf_prev[i]
         out[21 + i] = eta1[i] + out[6 + i]

@@ -493,7 +493,9 @@ class Plant:
         pose0 = np.concatenate([self.eta + self._eta_wf, self._vert])
         self.t = t1
         self.eta, self.nu = eta, nu
-        if self.wave_frequency:
+        if self.wave_frequency and env.waves.table_horizontal:
+            self._eta_wf = env.waves.horizontal_of(sums[5], float(eta[2]))
+        elif self.wave_frequency:
             self._eta_wf = env.waves._motion_of(sums[2], sums[3], sums[4], float(eta[2]))
         else:
             self._eta_wf = np.zeros(3)
