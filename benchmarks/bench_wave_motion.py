@@ -30,12 +30,12 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_catenary import machine_info  # noqa: E402
+from bench_catenary import machine_info
 
-import tapm_opt  # noqa: E402
-from tapm_opt.models import rao as rao_mod  # noqa: E402
-from tapm_opt.plant.environment import N_HEADINGS, Environment  # noqa: E402
-from tapm_opt.plant.simulator import Plant, run_open_loop  # noqa: E402
+import tapm_opt
+from tapm_opt.models import rao as rao_mod
+from tapm_opt.plant.environment import N_HEADINGS, Environment
+from tapm_opt.plant.simulator import Plant, run_open_loop
 
 MODELS = ("horizontal", "six_dof", "table")
 
@@ -72,7 +72,11 @@ def scenarios(tmp: Path, sea_state: str) -> dict[str, object]:
 def closed_loop_time(sc, sea_state: str, duration: float) -> float:
     """Wall time [s] of the PID closed loop's run (the plant built and settled before the clock)."""
     from tapm_opt.models.system import System
-    from tapm_opt.studies.closed_loop import DEFAULT_ESTIMATOR, ClosedLoopSettings, run_closed_loop
+    from tapm_opt.studies.closed_loop import (
+        DEFAULT_ESTIMATOR,
+        ClosedLoopSettings,
+        run_closed_loop,
+    )
     from tapm_opt.studies.controllers import build_controller
 
     system = System.from_scenario(sc)

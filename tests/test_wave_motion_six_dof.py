@@ -18,20 +18,24 @@ import math
 
 import numpy as np
 import pytest
+from _bitwise import assert_same
 
 import tapm_opt
 from tapm_opt.config import WaveMotion, validate
 from tapm_opt.models import rao as rao_mod
 from tapm_opt.plant import fem_kernel
-from tapm_opt.plant.environment import N_HEADINGS, Environment, PlantError, heading_interp
+from tapm_opt.plant.environment import (
+    N_HEADINGS,
+    Environment,
+    PlantError,
+    heading_interp,
+)
 from tapm_opt.plant.forced_motion import forced_motion
 from tapm_opt.plant.mooring_fem import MooringFEM
 from tapm_opt.plant.simulator import Plant, run_open_loop
 
-from _bitwise import assert_same
-
 #: fpso's hull for the closed form (the values of the built-in scenario file)
-HULL = dict(block_coefficient=0.83, GM_T=6.0, roll_period=15.5, roll_damping=0.05)
+HULL = {"block_coefficient": 0.83, "GM_T": 6.0, "roll_period": 15.5, "roll_damping": 0.05}
 
 
 def six_dof(sc, **kw):
@@ -153,7 +157,7 @@ def test_compiled_and_numpy_plants_agree_with_heave_roll_and_pitch(fpso6):
         p = Plant(fpso6, sea_state="storm", seed=3)
         p.compiled = compiled
         runs.append((p, run_open_loop(p, 20.0)))
-    (pa, ra), (pb, rb) = runs
+    (pa, ra), (_pb, rb) = runs
     assert pa.six_dof and [c for c, _ in pa.channels()][-3:] == ["heave_wf", "roll_wf", "pitch_wf"]
     assert_same(ra.data, rb.data)
     assert np.abs(ra.data[:, -3]).max() > 0.1   # the hull heaves in the storm
@@ -193,8 +197,9 @@ def test_six_dof_needs_the_hull_fields(fpso):
 
 
 def test_the_hull_fields_are_read_from_a_file(tmp_path, fpso):
-    from tapm_opt.config import scenario_to_dict
     import tomllib  # noqa: F401  (the loader reads TOML)
+
+    from tapm_opt.config import scenario_to_dict
 
     d = scenario_to_dict(six_dof(fpso))
     assert d["vessel"]["wave_motion"]["model"] == "six_dof"
@@ -209,7 +214,7 @@ def test_the_hull_fields_are_read_from_a_file(tmp_path, fpso):
 def test_wave_frequency_motion_raises_the_mooring_damping(fpso, fpso6):
     """Forced surge (5 m, 100 s) in the storm: the current alone, then with the hull's horizontal
     wave-frequency motion, then with heave, roll and pitch too; each damps more (survey §2.4)."""
-    kw = dict(dof="surge", amplitude=5.0, period=100.0, duration=300.0, dt_out=1.0)
+    kw = {"dof": "surge", "amplitude": 5.0, "period": 100.0, "duration": 300.0, "dt_out": 1.0}
     still = forced_motion(fpso, **kw).damping
     current = forced_motion(fpso, sea_state="storm", **kw).damping
     three = forced_motion(fpso, sea_state="storm", waves=True, **kw).damping
