@@ -289,3 +289,34 @@ def test_a_users_rao_table_moves_the_hull_as_its_numbers_say(tmp_path, fpso, fps
     (tmp_path / "bad.toml").write_text(scenario_toml(d), encoding="utf-8")
     with pytest.raises(PlantError, match="rao_file.*broken.csv"):
         Environment(tapm_opt.load_scenario(tmp_path / "bad.toml"), "storm")
+
+
+def test_six_dof_needs_the_body_origin_where_the_closed_form_is(fpso):
+    sc = six_dof(fpso)
+    aft = dataclasses.replace(sc, vessel=dataclasses.replace(sc.vessel, reference_point=(0.0, 0.0, 18.46)))
+    msgs = {i.path: i.message for i in validate(aft)}
+    assert "off midships" in msgs["vessel.reference_point"] and "-152 m" in msgs["vessel.reference_point"]
+    keel = dataclasses.replace(sc, vessel=dataclasses.replace(sc.vessel, reference_point=(152.4, 0.0, 0.0)))
+    assert "off the water line" in {i.path: i.message for i in validate(keel)}["vessel.reference_point"]
+    unknown = dataclasses.replace(sc, vessel=dataclasses.replace(sc.vessel, reference_point=(math.nan, 0.0, math.nan)))
+    assert not validate(unknown)
+    table = dataclasses.replace(aft, vessel=dataclasses.replace(aft.vessel, wave_motion=dataclasses.replace(
+        aft.vessel.wave_motion, model="horizontal")))
+    assert not validate(table)
+
+
+def test_the_hull_motion_starts_from_rest_and_ramps_in_over_a_peak_period(fpso6):
+    w = Environment(fpso6, "storm", seed=1).waves
+    assert np.all(w.vertical(0.0, 0.0) == 0) and np.all(w.vertical_dot(0.0, 0.0) == 0)
+    t = np.arange(0.0, 3 * w.Tp, 0.05)
+    v = w.vertical(t, 0.0)
+    s, _ = w.ramp(t)
+    assert np.all((s >= 0) & (s <= 1)) and np.all(s[t >= w.Tp] == 1.0) and np.all(np.diff(s) >= 0)
+    # past the ramp: the full motion; the block sums carry the same ramp as the scalar path
+    grid = w.vertical_block(0.0, 0.05, t.size)
+    rows = np.array([w.vertical_of(g, 0.0) for g in grid])
+    assert np.allclose(rows, v, rtol=0, atol=1e-9 * np.abs(v).max())
+    dt = 1e-5
+    tm = 0.3 * w.Tp
+    assert np.allclose(w.vertical_dot(tm, 0.1), (w.vertical(tm + dt, 0.1) - w.vertical(tm - dt, 0.1)) / (2 * dt),
+                       rtol=1e-5, atol=1e-9)

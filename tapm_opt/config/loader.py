@@ -767,6 +767,17 @@ def _wave_motion_issues(v: Any, issues: list[ScenarioIssue]) -> None:
                 issues.append(ScenarioIssue(f"{p}.{name}", (
                     f"is missing: model = 'six_dof' needs {what} for the closed-form heave, roll and pitch "
                     "transfer functions (or model = 'horizontal')")))
+    if wm.model == "six_dof":   # the closed form's motion is at midships on the water line, the plant's about CO
+        rp, L, T = v.reference_point, v.length_pp, v.draught
+        for i, (where, at, tol) in enumerate((("midships", L / 2.0, 0.01 * L), ("the centre line", 0.0, 0.01 * L),
+                                              ("the water line", T, 0.05 * T))):
+            if math.isfinite(rp[i]) and abs(rp[i] - at) > tol:
+                issues.append(ScenarioIssue("vessel.reference_point", (
+                    f"= {list(rp)} puts the body origin CO {rp[i] - at:+.3g} m off {where} (from AP, CL, keel: "
+                    f"{at:g} m): model = 'six_dof' turns the hull about CO with the closed form's heave, roll and "
+                    f"pitch of midships on the water line; put CO there (within {tol:.3g} m) or give the RAOs at "
+                    "CO as a table (model = 'table')")))
+                break
     if wm.model == "table":
         f = wm.rao_file
         if f is None:

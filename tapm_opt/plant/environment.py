@@ -302,6 +302,17 @@ class WaveField:
         sin_th, cos_th = _block_trig(float(t0), float(h), int(n), self.omega, self.phase, self._rot_cache)
         return sin_th @ self._Ws.T, cos_th @ self._Wc.T
 
+    def ramp(self, t: Any) -> tuple[Any, Any]:
+        """The factor ``s(t)`` [-] that brings the heave, roll and pitch in over the first
+        peak period (raised cosine ``(1 - cos(pi t / T_p)) / 2``, 1 after T_p, 0 before t = 0) and
+        its rate ``s'(t)`` [1/s]. The lines settle with the hull at rest; a fairlead that starts
+        at its full wave-frequency velocity sends a stress wave down its line (2.7 % of fpso's
+        fairlead tension in the storm in the first 0.1 s with heave, roll and pitch)."""
+        T = self.Tp
+        x = np.clip(np.asarray(t, dtype=float) / T, 0.0, 1.0)
+        return 0.5 * (1.0 - np.cos(math.pi * x)), np.where((x > 0) & (x < 1), 0.5 * math.pi / T * np.sin(math.pi * x),
+                                                             0.0)
+
     def vertical_block(self, t0: float, h: float, n: int) -> np.ndarray:
         """The heave, roll and pitch sums on the heading grid at the n times ``t0 + j h`` [s],
         shape (n, K G) (column ``K g + d``, :meth:`_vertical_weights`); (n, 0) without the
@@ -312,9 +323,12 @@ class WaveField:
             return np.zeros((int(n), 0))
         sin_th, cos_th = _block_trig(float(t0), float(h), int(n), self.omega, self.phase, self._rot_cache)
         cs = np.concatenate([cos_th, sin_th], axis=1)
-        if self._Wv_lr is not None:
-            return (cs @ self._Wv_lr[0]) @ self._Wv_lr[1]
-        return cs @ self._Wv
+        out = (cs @ self._Wv_lr[0]) @ self._Wv_lr[1] if self._Wv_lr is not None else cs @ self._Wv
+        if t0 < self.Tp:   # the first peak period: heave, roll and pitch brought in by the ramp
+            m = min(int(n), int(math.ceil((self.Tp - t0) / h)) + 1)
+            K = out.shape[1] // N_HEADINGS
+            out[:m].reshape(m, N_HEADINGS, K)[:, :, :3] *= self.ramp(t0 + h * np.arange(m))[0][:, None, None]
+        return out
 
     def vertical_of(self, grid: Any, psi: float) -> np.ndarray:
         """Heave [m, down], roll [rad, starboard down] and pitch [rad, bow up] (3,) at the LF heading
@@ -330,24 +344,34 @@ class WaveField:
         c, s = math.cos(psi), math.sin(psi)
         return np.array([c * v[3] - s * v[4], s * v[3] + c * v[4], v[5]])
 
-    def _vertical(self, t: Any, psi: float, W: np.ndarray) -> np.ndarray:
-        """The sums of ``W`` at time(s) t interpolated at the heading psi: (..., K)."""
+    def _vertical(self, t: Any, psi: float, rate: bool) -> np.ndarray:
+        """The motion on the heading grid (``rate``: its time derivative) at time(s) t interpolated
+        at the heading psi, heave, roll and pitch with the start-up :meth:`ramp`: (..., K) (a
+        table's surge, sway and yaw start at once, as the horizontal model's do)."""
         t = _time(t)
         if not self.six_dof:
             return np.zeros(np.shape(t) + (3,))
         th = np.multiply.outer(t, self.omega) + self.phase
-        return heading_interp(np.concatenate([np.cos(th), np.sin(th)], axis=-1) @ W, self.direction,
-                              _num("psi", psi, unit="rad"))
+        cs = np.concatenate([np.cos(th), np.sin(th)], axis=-1)
+        psi = _num("psi", psi, unit="rad")
+        s, ds = (np.asarray(x)[..., None] for x in self.ramp(t))
+        v = heading_interp(cs @ self._Wv, self.direction, psi)
+        if rate:
+            v_dot = heading_interp(cs @ self._Wv_dot, self.direction, psi)
+            v_dot[..., :3] = s * v_dot[..., :3] + ds * v[..., :3]
+            return v_dot
+        v[..., :3] *= s
+        return v
 
     def vertical(self, t: Any, psi: float) -> np.ndarray:
         """Heave [m, down], roll [rad, starboard down] and pitch [rad, bow up] of the hull at time(s)
         t [s] and LF heading psi [rad], shape t.shape + (3,) (zeros without the six-degree-of-freedom
         motion)."""
-        return self._vertical(t, psi, self._Wv)[..., :3]
+        return self._vertical(t, psi, False)[..., :3]
 
     def vertical_dot(self, t: Any, psi: float) -> np.ndarray:
         """Time derivative of :meth:`vertical` at fixed LF heading [m/s, rad/s, rad/s]."""
-        return self._vertical(t, psi, self._Wv_dot)[..., :3]
+        return self._vertical(t, psi, True)[..., :3]
 
     def _dirs(self, psi: float) -> tuple[float, float, float, np.ndarray]:
         """cos beta, sin beta, sin 2beta and the drift factor c(beta) (3,) at heading psi; cached."""
@@ -365,7 +389,7 @@ class WaveField:
 
     def _motion(self, t: Any, psi: float, rate: bool) -> np.ndarray:
         if self.table_horizontal:   # the user's table: surge, sway and yaw on the heading grid
-            v = self._vertical(t, psi, self._Wv_dot if rate else self._Wv)
+            v = self._vertical(t, psi, rate)
             c, s = math.cos(psi), math.sin(psi)
             return np.stack([c * v[..., 3] - s * v[..., 4], s * v[..., 3] + c * v[..., 4], v[..., 5]], axis=-1)
         cb, sb, s2b, _ = self._dirs(psi)

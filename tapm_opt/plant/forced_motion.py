@@ -104,7 +104,7 @@ class ForcedMotionResult:
 def forced_motion(scenario: Any, *, dof: Literal["surge", "sway", "yaw"] = "surge", amplitude: float,
                   period: float, duration: float, segments: int | None = None, dt_out: float = 1.0,
                   current: Any = None, sea_state: Any = None, safety: float = 0.9, waves: bool = False,
-                  seed: int = 0) -> ForcedMotionResult:
+                  seed: int = 0, _sign: float = 1.0) -> ForcedMotionResult:
     """Drive the fairleads with a sinusoidal vessel motion and record the line response.
 
     Parameters
@@ -133,9 +133,14 @@ def forced_motion(scenario: Any, *, dof: Literal["surge", "sway", "yaw"] = "surg
         Add the sea state's wave-frequency motion of the hull to the forced one (needs
         ``sea_state``): surge, sway and yaw, and with the scenario's ``vessel.wave_motion.model =
         "six_dof"`` heave, roll and pitch (:class:`tapm_opt.plant.environment.WaveField`, the
-        plant's, at heading 0 and the realisation of ``seed``). The damping is still the energy
-        the lines dissipate against the forced motion's velocity, so it is the low-frequency
-        damping with the wave-frequency motion acting on the lines (survey §2.4).
+        plant's, at heading 0 and the realisation of ``seed``, brought in over the first peak
+        period, :meth:`~tapm_opt.plant.environment.WaveField.ramp`). The damping is still the
+        energy the lines dissipate against the forced motion's velocity, so it is the
+        low-frequency damping with the wave-frequency motion acting on the lines (survey §2.4).
+        The waves alone make a slowly varying line force too, which projects onto that velocity
+        over a few cycles (up to 7 % of fpso's damping in the storm): the damping and energy are
+        the mean of the run with the motion ``+A sin`` and one with ``-A sin`` in the same waves,
+        in which that part cancels (the time series are the first run's; twice the cost).
     seed : int
         Seed of the wave realisation (``waves``), as the plant's: the same waves as a
         :class:`~tapm_opt.plant.simulator.Plant` of that seed.
@@ -154,6 +159,7 @@ def forced_motion(scenario: Any, *, dof: Literal["surge", "sway", "yaw"] = "surg
         raise ModelError(f"dt_out = {dt_out:g} s must be at most period / 10 = {period / 10.0:g} s: the tension "
                          "range and amplification are read from the output samples, ten or more per cycle")
     k = DOFS.index(dof)
+    A = float(amplitude) * _sign   # the motion A sin(omega t); _sign = -1 the mirrored run of waves=True
     w0 = time.perf_counter()
     ss_id = None
     if isinstance(sea_state, str) and sea_state == "none":
@@ -210,13 +216,13 @@ def forced_motion(scenario: Any, *, dof: Literal["surge", "sway", "yaw"] = "surg
 
     def pose(t: float):
         e, ed = (q[0] for q in wave_pose(np.array([t])))
-        e[k] += amplitude * math.sin(omega * t)
-        ed[k] += amplitude * omega * math.cos(omega * t)
+        e[k] += A * math.sin(omega * t)
+        ed[k] += A * omega * math.cos(omega * t)
         return e, ed
 
     def load_E(eta, eta_dot, t):
         edd = np.zeros(6)   # the forced motion's acceleration (the waves' is left out of the inertia)
-        edd[k] = -amplitude * omega * omega * math.sin(omega * t)
+        edd[k] = -A * omega * omega * math.sin(omega * t)
         tau_b = plant.tau(eta, plant.fairlead_acceleration(eta, eta_dot, edd))
         return rot_z(eta[2]) @ tau_b
 
@@ -248,8 +254,8 @@ def forced_motion(scenario: Any, *, dof: Literal["surge", "sway", "yaw"] = "surg
         nb = i - i0
         ts = np.arange(i0, i + 1) * dt           # start of each step, then the end of the block
         e_seq, ed_seq = wave_pose(ts)
-        v_forced = amplitude * omega * np.cos(omega * ts)
-        e_seq[:, k] += amplitude * np.sin(omega * ts)
+        v_forced = A * omega * np.cos(omega * ts)
+        e_seq[:, k] += A * np.sin(omega * ts)
         ed_seq[:, k] += v_forced
         f_seq = f_buf[:nb]
         plant.advance(e_seq[1:], ed_seq[1:], fairlead_force_out=f_seq)
@@ -266,7 +272,7 @@ def forced_motion(scenario: Any, *, dof: Literal["surge", "sway", "yaw"] = "surg
     if n_steps:  # the last instant, from the same forces as the others (no inertia)
         vc = plant._vc[plant.fem.fairlead_idx] if plant.current is not None else None
         power[n_steps] = -load_dof(plant.fem.fairlead_forces(vc)[None], e[None, :3])[0] * (
-            amplitude * omega * math.cos(omega * n_steps * dt))
+            A * omega * math.cos(omega * n_steps * dt))
     power_t = np.arange(n_steps + 1) * dt
     t_out, eta_out, T_out, F_out = t_out[: j + 1], eta_out[: j + 1], T_out[: j + 1], F_out[: j + 1]
 
@@ -291,6 +297,12 @@ def forced_motion(scenario: Any, *, dof: Literal["surge", "sway", "yaw"] = "surg
         W, b_eq = math.nan, math.nan
         amp = np.full(plant.fem.n_lines, np.nan)
         T_range = np.column_stack([T_out.min(axis=0), T_out.max(axis=0)])
+    if wf is not None and _sign > 0 and n_cyc >= 1:   # the waves-only part cancels in the mean of +A and -A
+        mirrored = forced_motion(scenario, dof=dof, amplitude=amplitude, period=period, duration=duration,
+                                 segments=segments, dt_out=dt_out, current=None if sea_state is not None else current,
+                                 sea_state=sea_state, safety=safety, waves=True, seed=seed, _sign=-1.0)
+        W = 0.5 * (W + mirrored.energy_per_cycle)
+        b_eq = W / (math.pi * omega * amplitude**2)
     first = t_out <= min(period, duration) + 1e-9
     T_startup = np.column_stack([T_out[first].min(axis=0), T_out[first].max(axis=0)])
     return ForcedMotionResult(

@@ -632,17 +632,16 @@ class Plant:
             self._diverged(t0, out[0:3], out[3:6])
         self.t = t1
         self.eta, self.nu, self._eta_wf = out[0:3], out[3:6], out[6:9]
+        vert0, self._vert = self._vert, out[28:31]
         if status == 2:   # a node is no longer finite: reported as diverged
             fem.check_health()
             raise SimulationDiverged(f"FEM mooring state non-finite at t = {fem.t:.3f} s", time=fem.t)
         self._steps += 1
         m.dt = dt = h / n_sub
         pose1 = out[21:24]
-        vert1 = out[28:31]
         r, v, T_bonds, m._r_fl, self._rate, a_fl, tau_moor, near, suspect = kern.mooring_step(
-            out[18:21], pose1, self._vert, vert1, self._rate, h, n_sub, *geo, r, v, vc, *lines, OVERLOAD_NEAR * self.strength,
-            MAX_NODE_SPEED)
-        self._vert = vert1
+            out[18:21], pose1, vert0, self._vert, self._rate, h, n_sub, *geo, r, v, vc, *lines,
+            OVERLOAD_NEAR * self.strength, MAX_NODE_SPEED)
         fem.r, fem.v = self._r_last, self._v_last = r, v
         t = fem.t
         for _ in range(n_sub):  # the same sum as n single steps (FEMLines._advance_compiled)
