@@ -324,3 +324,13 @@ def test_where_a_buoyant_section_may_be(sections, path, words):
     assert buoyant_line_problem([3185.6, -1415.0, 926.4], [500.0, 400.0, 1500.0]) is None
     assert buoyant_line_problem([3185.6, 926.4], [500.0, 400.0]) is None
     assert buoyant_line_problem([3185.6, -1415.0, 926.4], [500.0, 400.0, 1500.0], [-2.5e6])[0] is None
+
+
+def test_a_scenario_gives_its_buoyant_lines_the_water_depth_as_their_surface():
+    """The sea surface that bounds a buoyant section is the water depth above the seabed (not the
+    fairlead's height); lines without a buoyant section carry none."""
+    sc = scenario_from_dict(lazy_wave_fpso(), source="lazy wave")
+    sec = sc.line_sections[0]
+    assert sec["surface"] == sc.environment.water_depth
+    assert CompositeLine.from_arrays(sec).surface == sc.environment.water_depth
+    assert "surface" not in load_scenario("fpso").line_sections[0]

@@ -849,8 +849,9 @@ class Scenario:
         to section j + 1: ``W`` net submerged weight [N] (positive down), ``point_mass`` [kg],
         ``point_volume`` [m^3], ``point_CdA`` [m^2], ``point_Ca`` [-] (zeros for a plain joint).
         ``EA_table``: per section its :class:`~tapm_opt.strain_table.StrainTable` (nonlinear axial
-        stiffness; its ``EA`` the table's secant) or None, a tuple. A homogeneous line is the
-        one-section case."""
+        stiffness; its ``EA`` the table's secant) or None, a tuple. ``surface`` (a line with a
+        buoyant section only): the sea surface's height above the seabed [m], the water depth,
+        which the section may not reach. A homogeneous line is the one-section case."""
         env = self.environment
         types = {t.id: t for t in self.line_types}
         points = {p.id: p for p in self.point_types}
@@ -881,5 +882,7 @@ class Scenario:
             }
             arrays = {k: readonly(np.asarray(v, dtype=int if k == "segments" else float)) for k, v in d.items()}
             arrays["EA_table"] = tuple(t.strain_table for t in ts)
+            if np.any(arrays["w"] <= 0):   # a buoyant section: the sea surface bounds it (the water depth)
+                arrays["surface"] = float(env.water_depth)
             out.append(arrays)
         return tuple(out)
