@@ -10,7 +10,9 @@ MoorDyn's terms.
 * a viscoelastic EA (``EA_s|EA_d``, ``EA_s|EA_Dc|EA_D_Lm``) is read as its static stiffness, which
   is MoorDyn-C's own tension at rest (measured on the file), with the damping of its dynamic damper;
   the dynamic stiffness it neglects is said; what MoorDyn has no rest state for is refused;
-* a VIV lift coefficient is neglected with a note: the statics are the same as without it.
+* a VIV lift coefficient is neglected with a note: the statics are the same as without it;
+* options are read as MoorDyn-C reads them: its older names are options, and an option set twice
+  (under any of its names) counts as set last.
 
 ``moordyn`` (MoorDyn-C, in the test extra) is imported directly: a missing wheel fails these
 tests instead of skipping them. MoorPy is not used.
@@ -358,3 +360,55 @@ def test_no_gravity_is_refused_naming_the_option(tmp_path):
     with pytest.raises(MoorDynError, match=r"moor.dat:32: option g = 0 m/s\^2: tapm_opt's lines hang under gravity"):
         import_moordyn(_write(tmp_path, text), "fpso", mbs=MBS)
     assert read_moordyn(_write(tmp_path, text)).gravity == 0.0
+
+
+# --------------------------------------------------------------------------------------------
+# options as MoorDyn-C reads them
+# --------------------------------------------------------------------------------------------
+
+
+def test_moordyn_c_s_older_option_names_are_options(tmp_path):
+    """MoorDyn-C 2.7 still reads the older names (``MoorDyn::readOptionsLine``): MoorDyn's chain
+    tests set ``fileIC``, MoorPy's ``case4.dat`` ``ICDfac`` and ``ICthresh``. They are options,
+    not unknown names, and a number is checked as for the newer names."""
+    old = ("5.0           ICDfac       drag factor of the IC\n1e-4          ICthresh     IC threshold\n"
+           "1.0           ICdt         IC interval\n30            ICTmax       IC time\n0.001         dt   step\n"
+           "0             genDynamicIC IC solver\nrig.txt.ic    fileIC       IC file\n")
+    text = _edit(RIG, "9.81          g ", old + "9.81          g ")
+    notes = read_moordyn(_write(tmp_path, text, "rig.txt"), fixed_as_fairleads=True).notes
+    assert not [n for n in notes if "option" in n], notes
+    with pytest.raises(MoorDynError, match=r"option ICDfac = 'abc' must be a finite number"):
+        parse_moordyn(_edit(text, "5.0           ICDfac", "abc           ICDfac"), fixed_as_fairleads=True)
+    unknown = read_moordyn(_write(tmp_path, _edit(text, "ICTmax ", "ICTmaxx"), "rig.txt"), fixed_as_fairleads=True)
+    assert any("option ICTmaxx = 30 (line 22) is not a MoorDyn option (did you mean ICTmax?)" in n
+               for n in unknown.notes), unknown.notes
+
+
+def test_an_option_set_twice_counts_as_set_last(tmp_path):
+    """MoorDyn-C and MoorPy read the options in order, a later row overwriting an earlier one of the
+    same option under any of its names (MoorDyn's ``polyester/visco.txt`` sets ``1025 rho`` and
+    then ``0.0 WtrDnsty``, and runs with 0): the import takes the last, and says so."""
+    text = _edit(_edit(RIG, "9.81          g ", "1000          WtrDnsty  water density\n9.81          g "),
+                 "------------------------- need", "9.80665       gravity\n150  WtrDpth\n------------------------- need")
+    res = import_moordyn(_write(tmp_path, text, "rig.txt"), "fpso", mbs={"chain": 1.2e7}, fixed_as_fairleads=True)
+    env = res.scenario.environment
+    assert (env.water_density, env.gravity, env.water_depth) == (1000.0, 9.80665, 150.0)
+    assert any(n.startswith("option WtrDnsty = 1000 (line 19) is used: the file sets the same option before (rho = "
+                            "1025, line 18), and MoorDyn-C and MoorPy read the options in order") for n in res.notes)
+    assert any(n.startswith("option gravity = 9.80665 (line 21) is used: the file sets the same option before (g = "
+                            "9.81, line 20)") for n in res.notes), res.notes
+    assert not any("WtrDpth = 150" in n for n in res.notes)   # set twice to the same value: nothing to say
+    # the same name twice: the last
+    twice = _edit(RIG, "9.81          g ", "1030          rho\n9.81          g ")
+    assert read_moordyn(_write(tmp_path, twice, "rig.txt"), fixed_as_fairleads=True).water_density == 1030.0
+    # rhoW (MoorDyn-F) is read only where neither rho nor WtrDnsty is set, wherever it is in the file
+    rhow = _edit(_edit(RIG, "1025          rho ", "1000          rho "), "9.81          g ", "1030  rhoW\n9.81          g ")
+    assert read_moordyn(_write(tmp_path, rhow, "rig.txt"), fixed_as_fairleads=True).water_density == 1000.0
+
+
+def test_wave_kinematics_are_said_to_be_ignored_as_waves(tmp_path):
+    """``WaveKin`` switches MoorDyn's waves, ``Currents`` its currents: the notes say which."""
+    text = _edit(RIG, "9.81          g ", "3             WaveKin\n1             Currents\n9.81          g ")
+    notes = read_moordyn(_write(tmp_path, text, "rig.txt"), fixed_as_fairleads=True).notes
+    assert "option WaveKin = 3 (line 19) is ignored: waves come from the vessel scenario's sea states" in notes
+    assert "option Currents = 1 (line 20) is ignored: currents come from the vessel scenario's sea states" in notes

@@ -303,11 +303,11 @@ class MoorDynModel:
 
     # -- derived -------------------------------------------------------------------------
     def option(self, *names: str) -> tuple[str, int] | None:
-        """The value text and line of the first of ``names`` (lower case) the file sets."""
-        for n in names:
-            if n in self.options:
-                return self.options[n]
-        return None
+        """The value text and line of the last of ``names`` (lower case, one option's spellings)
+        the file sets: MoorDyn-C (``MoorDyn::readOptionsLine``) and MoorPy read the options in
+        order, a later row overwriting an earlier one of the same option."""
+        got = [self.options[n] for n in names if n in self.options]
+        return max(got, key=lambda v: v[1]) if got else None
 
     def number_option(self, *names: str, default: float | None = None) -> float | None:
         got = self.option(*names)
@@ -329,7 +329,9 @@ class MoorDynModel:
 
     @property
     def water_density(self) -> float:
-        return float(self.number_option("rho", "wtrdnsty", "rhow", default=MOORDYN_DEFAULT_RHO))
+        """``rho`` or ``WtrDnsty`` (MoorDyn-C), else MoorDyn-F's ``rhoW``, else 1025 kg/m^3."""
+        rho = self.number_option("rho", "wtrdnsty")
+        return float(rho if rho is not None else self.number_option("rhow", default=MOORDYN_DEFAULT_RHO))
 
     @property
     def water_depth(self) -> float:
@@ -1018,10 +1020,18 @@ _OPTION_CASE = {n.lower(): n for n in (
     "kBot", "kb", "cBot", "cb", "dtIC", "TmaxIC", "CdScaleIC", "threshIC", "WaveKin", "dtWave", "waveKin_rampT",
     "Currents", "UnifyCurrentGrid", "WriteUnits", "FrictionCoefficient", "FricDamp", "StatDynFricScale", "dtOut",
     "SeafloorFile", "ICgenDynamic", "disableOutput", "disableOutTime", "WaterKin", "MU_KT", "MU_KA", "MC", "CV",
-    "inertialF", "inertialF_rampT", "OutSwitch", "Echo")}
+    "inertialF", "inertialF_rampT", "OutSwitch", "Echo",
+    # the older names MoorDyn-C 2.7 still reads (MoorDyn::readOptionsLine; MoorDyn's v1 docs use them)
+    "dt", "ICdt", "ICTmax", "ICDfac", "ICthresh", "genDynamicIC", "fileIC", "ICfile")}
 _KNOWN_OPTIONS = frozenset(_OPTION_CASE)
 _NUMERIC_OPTIONS = _KNOWN_OPTIONS - {"tscheme", "seafloorfile", "waterkin", "wtrdpth", "depth", "waterdepth",
-                                     "echo"}
+                                     "echo", "fileic", "icfile"}
+#: Spellings of one option (MoorDyn-C's, MoorPy's depth), each to its first: a later row of any of
+#: them overwrites an earlier one.
+_OPTION_SAME = {n: group[0] for group in (
+    ("g", "gravity"), ("rho", "wtrdnsty"), ("wtrdpth", "depth", "waterdepth"), ("kbot", "kb"), ("cbot", "cb"),
+    ("dtm", "dt"), ("dtic", "icdt"), ("tmaxic", "ictmax"), ("cdscaleic", "icdfac"), ("threshic", "icthresh"),
+    ("icgendynamic", "gendynamicic"), ("fileic", "icfile")) for n in group}
 _NUM = r"([-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][-+]?[0-9]+)?)"
 #: A line type's tapm_opt values in the front matter written by :func:`moordyn_text`:
 #: ``Line type NAME: tapm_opt d = .. m, w = .. N/m, C_DN .., C_DT .. (on d), C_MN .., C_MT ..,
@@ -1111,12 +1121,21 @@ def parse_moordyn(text: str, *, source: str = "", base_dir: str | Path | None = 
     rd.raise_problems()
     options: dict[str, tuple[str, int]] = {}
     spelled: dict[str, str] = {}
+    rows_of: dict[str, list[tuple[str, str, int]]] = {}   # an option's rows (spelling, value, line), any spelling
     for i, t in sec.get("options", []):
         if len(t) >= 2:
-            options.setdefault(t[1].lower(), (t[0], i))
-            spelled.setdefault(t[1].lower(), t[1])
+            name = t[1].lower()
+            options[name] = (t[0], i)   # a later row overwrites an earlier one, as in MoorDyn-C and MoorPy
+            spelled[name] = t[1]
+            rows_of.setdefault(_OPTION_SAME.get(name, name), []).append((t[1], t[0], i))
         else:
             rd.notes.append(f"OPTIONS row {t[0]!r} (line {i}) has a value but no option name: ignored")
+    for rows in rows_of.values():
+        if len({v for _, v, _ in rows}) > 1:
+            last = rows[-1]
+            rd.notes.append(f"option {last[0]} = {last[1]} (line {last[2]}) is used: the file sets the same option "
+                            "before (" + ", ".join(f"{n} = {v}, line {i}" for n, v, i in rows[:-1]) + "), and MoorDyn-C "
+                            "and MoorPy read the options in order, the last row counting")
     for name, (val, i) in options.items():
         if name not in _KNOWN_OPTIONS:
             hint = difflib.get_close_matches(name, sorted(_KNOWN_OPTIONS), n=1)
@@ -1132,10 +1151,10 @@ def parse_moordyn(text: str, *, source: str = "", base_dir: str | Path | None = 
     if "seafloorfile" in options:
         raise rd.err("option SeafloorFile: a 3D seafloor is not supported (tapm_opt has a flat seabed)",
                      options["seafloorfile"][1])
-    for name in ("wavekin", "currents"):
+    for name, what in (("wavekin", "waves"), ("currents", "currents")):
         if name in options and _nonzero(options[name][0]):
-            rd.notes.append(f"option {name} = {options[name][0]} (line {options[name][1]}) is ignored: currents come from "
-                            "the vessel scenario's sea states")
+            rd.notes.append(f"option {spelled[name]} = {options[name][0]} (line {options[name][1]}) is ignored: {what} "
+                            "come from the vessel scenario's sea states")
     if "rhow" in options and not any(k in options for k in ("rho", "wtrdnsty")):
         rd.notes.append(f"option rhoW (line {options['rhow'][1]}) is read as the water density, as MoorDyn-F does; "
                         "MoorDyn-C 2.7 reads only 'rho' or 'WtrDnsty' and would run with 1025 kg/m^3")
@@ -1660,14 +1679,16 @@ def scenario_data_from_moordyn(model: MoorDynModel, vessel_data: dict, *, mbs: M
     if unknown:
         raise MoorDynError(f"--mbs names line type {unknown[0]!r}, which the file does not define (it has "
                            f"{', '.join(lt.name for lt in model.line_types)})", source=src)
-    seabed = [(n, model.number_option(n)) for n in ("kbot", "kb", "cbot", "cb") if n in model.options]
+    seabed = [(k, model.number_option(*names), model.option(*names)) for k, names in enumerate((("kbot", "kb"),
+                                                                                                 ("cbot", "cb")))]
+    seabed = [(k, v, got) for k, v, got in seabed if got is not None]
     if seabed:
         ref = [seabed_constants(w, lt.mass, lt.d) for lt in used
                if (w := (lt.mass - rho * math.pi * lt.d**2 / 4.0) * g) > 0]
-        for n, v in seabed:
-            k = 0 if n.startswith("k") else 1
+        for k, v, (_, at) in seabed:
+            n = next(name for name, (_, i) in model.options.items() if i == at)
             if not any(r[k] > 0 and abs(float(v) / r[k] - 1.0) < 1e-6 for r in ref):
-                notes.append(f"option {n} = {v:g} (line {model.options[n][1]}) is not used: the FEM seabed sinks "
+                notes.append(f"option {n} = {v:g} (line {at}) is not used: the FEM seabed sinks "
                              f"{SEABED_PENETRATION * 100:g} cm under a line's weight with {SEABED_DAMPING_RATIO * 100:g} % "
                              "of critical damping (docs/moordyn.md)")
     mu = float(model.number_option("frictioncoefficient", default=0.0) or 0.0)
