@@ -261,7 +261,7 @@ def test_a_users_rao_table_moves_the_hull_as_its_numbers_say(tmp_path, fpso, fps
     sc_t = tapm_opt.load_scenario(tmp_path / "sc.toml")
     assert sc_t.vessel.wave_motion.rao_file == str(tmp_path / "hull_rao.csv")
     wt = Environment(sc_t, "storm", seed=4).waves
-    assert wt.six_dof and wt.table_horizontal
+    assert wt.six_dof and wt.grid_horizontal
     t = np.arange(0.0, 600.0, 0.5)
     # off the grid's headings the table is interpolated linearly in beta (5 degrees: cos beta within
     # 0.1 %), the closed form and the parametric motion are exact: a few 1e-3 apart

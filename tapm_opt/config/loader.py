@@ -26,7 +26,7 @@ from .._checks import fmt as _fmt, is_number as _is_number  # one definition for
 from ..errors import ScenarioError, ScenarioIssue
 from ..geometry import fairleads_B, merge_sectors
 from ..strain_table import secant_of_rows, table_problem
-from .schema import FaultTargetError, Scenario, buoy_of_fault
+from .schema import DEVELOPING_FIELDS, FaultTargetError, Scenario, buoy_of_fault
 
 BUILTIN_DIR = Path(__file__).parent / "scenarios"
 
@@ -850,6 +850,28 @@ def _buoyant_line_issues(sc: Scenario, i: int, ln: Any, issues: list[ScenarioIss
     return True
 
 
+def _development_issues(ss: Any, p: str, issues: list[ScenarioIssue]) -> None:
+    """A developing sea state's rows: times increasing; a row at t = 0 gives the sea state's own
+    values (they are its values at t = 0)."""
+    rows = ss.development
+    for j, (a, b) in enumerate(zip(rows, rows[1:])):
+        if not b.t > a.t:
+            issues.append(ScenarioIssue(f"{p}.development[{j + 1}].t", (
+                f"= {b.t:g} s must be later than the row before ({a.t:g} s): the rows are a time table")))
+            return
+    for j, r in enumerate(rows):
+        if r.t != 0.0:
+            continue
+        for f in DEVELOPING_FIELDS:
+            v = getattr(r, f)
+            if v is not None and not math.isclose(v, getattr(ss, f), rel_tol=1e-12, abs_tol=1e-12):
+                deg = f.endswith("direction")
+                show = (lambda x: f"{math.degrees(x):g} deg") if deg else (lambda x: f"{x:g}")
+                issues.append(ScenarioIssue(f"{p}.development[{j}].{f}{'_deg' if deg else ''}", (
+                    f"= {show(v)} at t = 0 differs from the sea state's {f}{'_deg' if deg else ''} = "
+                    f"{show(getattr(ss, f))}, its value at t = 0: leave it out of the row or give it there")))
+
+
 def validate(sc: Scenario) -> list[ScenarioIssue]:
     """Physical and cross-field checks of a parsed scenario.
 
@@ -1037,6 +1059,7 @@ def validate(sc: Scenario) -> list[ScenarioIssue]:
             elif d[-1] > env.water_depth:
                 issues.append(ScenarioIssue(f"{p}.current_profile_depths",
                                             f"last depth {d[-1]:g} m is below the seabed ({env.water_depth:g} m)"))
+        _development_issues(ss, p, issues)
 
     line_ids = [ln.id for ln in sc.lines]
     thr_ids = [t.id for t in sc.thrusters]

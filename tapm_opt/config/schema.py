@@ -535,6 +535,28 @@ class Thruster:
 
 
 @dataclass(frozen=True, kw_only=True)
+class SeaStateRow:
+    """A row of a developing sea state's time table: the values at time ``t``; a value a row leaves
+    out is interpolated between the rows that give it (the sea state's own value at t = 0)."""
+
+    t: float = spec("Time from the start of the run.", "s", check=bounded(0.0, 1.0e6, "about 11 days"))
+    Hs: float | None = spec("Significant wave height.", "m", default=None,
+                            check=bounded(0.0, 30.0, "the largest measured Hs is about 19 m"))
+    Tp: float | None = spec("Spectral peak period.", "s", default=None,
+                            check=bounded(1.0, 40.0, "ocean wind sea and swell peak at 2-25 s"))
+    wind_speed: float | None = spec("1-hour mean wind speed at 10 m (a squall: its time series).", "m/s",
+                                    default=None, check=bounded(0.0, 100.0, "beyond any recorded mean wind"))
+    wind_direction: float | None = spec("Wind direction (going to).", "deg", default=None, check=_ANGLE)
+    current_speed: float | None = spec("Surface current speed.", "m/s", default=None,
+                                       check=bounded(0.0, 10.0, "the strongest tidal races run at about 5 m/s"))
+    current_direction: float | None = spec("Current direction (going to).", "deg", default=None, check=_ANGLE)
+
+
+#: The sea-state fields a development table may change in time (:class:`SeaStateRow`).
+DEVELOPING_FIELDS = ("Hs", "Tp", "wind_speed", "wind_direction", "current_speed", "current_direction")
+
+
+@dataclass(frozen=True, kw_only=True)
 class SeaState:
     """Environmental condition. Directions are where the wave/wind/current is going to, from north."""
 
@@ -568,6 +590,13 @@ class SeaState:
         shape=(-1,),
         check=bounded(0.0, 3.0, "currents below the surface are rarely faster than at it"),
     )
+    wave_spreading: float | None = spec(
+        "Directional spreading exponent s of the short-crested sea, D = cos^(2s)((theta - wave_direction)/2) "
+        "normalised (DNV-RP-C205 §3.5.8.4; s = 6-15 wind sea, 15-75 swell); absent: long-crested.",
+        default=None, check=bounded(1.0, 200.0, "s = 200 is all but long-crested"))
+    development: tuple[SeaStateRow, ...] = spec(
+        "A sea state that develops within a run: rows of (t and) the values at t, linear between rows, "
+        "held after the last; the fields above are the values at t = 0 (absent: steady).", default=())
 
 
 @dataclass(frozen=True, kw_only=True)

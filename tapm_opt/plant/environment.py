@@ -23,7 +23,8 @@ from ..errors import ModelError, TapmError
 from ..models.environment import CurrentProfile, HullWindLoad, finite_array, finite_number
 
 __all__ = ["PlantError", "jonswap", "npd_spectrum", "CurrentProfile", "WaveParams", "WaveField",
-           "WindParams", "Wind", "Environment", "hull_rao", "heading_interp", "N_HEADINGS"]
+           "WindParams", "Wind", "Environment", "hull_rao", "heading_interp", "N_HEADINGS", "Development",
+           "DevelopingWaveField", "DevelopingWind", "spreading_directions"]
 
 
 class PlantError(TapmError, ValueError):
@@ -56,6 +57,22 @@ N_HEADINGS = 72
 #: Singular values of the heading grid's weights kept in :meth:`WaveField.vertical_block`, relative
 #: to the largest.
 SVD_RTOL = 1e-12
+
+
+def spreading_directions(s: float, rng: np.random.Generator, n: int) -> np.ndarray:
+    """n directions off the mean [rad] drawn from the cos-2s spreading function ``D(theta) =
+    Gamma(s + 1) / (2 sqrt(pi) Gamma(s + 1/2)) cos^(2s)(theta / 2)`` on (-pi, pi] (DNV-RP-C205
+    §3.5.8.4), one per wave component (the single-direction-per-frequency method: each component
+    keeps its amplitude, so the spectrum's energy is the long-crested one's), stratified: the
+    i-th of n equal-probability slices of D, a uniform draw inside it, by inverting D's
+    cumulative distribution (tabulated on 4001 points), then shuffled over the frequencies."""
+    theta = np.linspace(-math.pi, math.pi, 4001)
+    log_c = math.lgamma(s + 1.0) - math.lgamma(s + 0.5) - math.log(2.0 * math.sqrt(math.pi))
+    dens = np.exp(log_c + 2.0 * s * np.log(np.maximum(np.cos(theta / 2.0), 1e-300)))
+    cdf = np.concatenate([[0.0], np.cumsum(0.5 * (dens[1:] + dens[:-1]) * np.diff(theta))])
+    cdf /= cdf[-1]
+    u = (np.arange(n) + rng.random(n)) / n
+    return rng.permutation(np.interp(u, cdf, theta))
 
 
 def heading_interp(grid: Any, direction: float, psi: float) -> np.ndarray:
@@ -130,7 +147,12 @@ def jonswap(omega: Any, Hs: float, Tp: float, gamma: float = 3.3) -> np.ndarray:
     Tp = _num("Tp", Tp, lo=0.0, strict=True, unit="s")
     if not 1.0 <= _num("gamma", gamma) <= 10.0:
         raise PlantError(f"gamma={gamma!r} must be in [1, 10]")
-    w = _array("omega", omega, "rad/s")
+    return _jonswap(_array("omega", omega, "rad/s"), Hs, Tp, gamma)
+
+
+def _jonswap(w: np.ndarray, Hs: Any, Tp: Any, gamma: float) -> np.ndarray:
+    """:func:`jonswap` on checked input; ``Hs`` and ``Tp`` may be arrays that broadcast with ``w``
+    (a developing sea's spectrum at many times)."""
     wp = 2.0 * math.pi / Tp
     x = np.where(w > 0, w, wp) / wp
     with np.errstate(over="ignore"):
@@ -158,6 +180,20 @@ def npd_spectrum(f: Any, U10: float, z: float = 10.0) -> np.ndarray:
     f = _array("f", f, "Hz")
     if U10 == 0.0:
         return np.zeros_like(f)
+    return _npd(f, U10, z)
+
+
+def _npd(f: np.ndarray, U10: Any, z: float) -> np.ndarray:
+    """:func:`npd_spectrum` on checked input, ``U10`` > 0 possibly an array broadcasting with ``f``
+    (zero where ``U10`` is 0)."""
+    if np.ndim(U10):
+        U10 = np.asarray(U10, dtype=float)
+        Ub = np.where(U10 > 0, U10, 1.0)
+        return np.where(U10 > 0, _npd_formula(f, Ub, z), 0.0)
+    return _npd_formula(f, U10, z)
+
+
+def _npd_formula(f: np.ndarray, U10: Any, z: float) -> np.ndarray:
     n = 0.468
     x = 172.0 * f * (z / 10.0) ** (2.0 / 3.0) * (U10 / 10.0) ** -0.75
     return 320.0 * (U10 / 10.0) ** 2 * (z / 10.0) ** 0.45 / (1.0 + x**n) ** (5.0 / (3.0 * n))
@@ -224,27 +260,72 @@ class WaveField:
         rho, g = (_num(f"environment.{n}", getattr(env, n), lo=0.0, strict=True)
                   for n in ("water_density", "gravity"))
         self.params = p = params
-        rng, N, wp = np.random.default_rng(seed), int(p.n_components), 2.0 * math.pi / self.Tp
-        dw = (p.omega_max - p.omega_min) * wp / N
-        self.omega = w = p.omega_min * wp + dw * (np.arange(N) + rng.random(N))
+        self.gamma = float(sea_state.gamma)
+        rng, N = np.random.default_rng(seed), int(p.n_components)
+        wp_lo, wp_hi = self._peak_band(sea_state)
+        # N equal bins over [omega_min, omega_max] times the peak frequency (a developing sea: from
+        # its lowest to its highest peak frequency)
+        dw = ((p.omega_max - p.omega_min) * wp_lo / N if wp_lo == wp_hi
+              else (p.omega_max * wp_hi - p.omega_min * wp_lo) / N)
+        self.omega = w = p.omega_min * wp_lo + dw * (np.arange(N) + rng.random(N))
         self.phase = 2.0 * math.pi * rng.random(N)
+        self._dw = dw
         self.amplitude = a = np.sqrt(2.0 * jonswap(w, self.Hs, self.Tp, sea_state.gamma) * dw)
+        self._g, self._L, self._B = g, L, B
         k = w**2 / g
-        h_L = 1.0 / (1.0 + (w / math.sqrt(math.pi * g / L)) ** 4)
-        h_B = 1.0 / (1.0 + (w / math.sqrt(math.pi * g / B)) ** 4)
         self.reflection = 1.0 - np.exp(-2.0 * k * T)
-        # weights of sin(theta): surge, sway, -yaw rate; of cos(theta): yaw, drift, surge/sway rate
-        self._Ws = np.stack([a * h_L, a * h_B, p.yaw_rao * k * h_L * a * w])
-        self._Wc = np.stack([p.yaw_rao * k * h_L * a, a * np.sqrt(self.reflection), a * h_L * w, a * h_B * w])
+        # short-crested: each component's direction off the mean (one direction per frequency)
+        s_spread = getattr(sea_state, "wave_spreading", None)
+        self.spreading = None if s_spread is None else _num("sea_state.wave_spreading", s_spread, lo=0.0, strict=True)
+        self.delta = np.zeros(N) if self.spreading is None else spreading_directions(self.spreading, rng, N)
+        self._Ws, self._Wc = self._horizontal_weights(a)
         self._drift_c = 0.5 * rho * g * np.array([B, L, p.drift_yaw * L**2])
+        # the drift factor of a short-crested sea on the heading grid: c(beta + delta_k) weighted by
+        # each component's share a_k^2 R_k of the drift (none when long-crested)
+        self._drift_grid = np.zeros(0)
+        if self.spreading is not None:
+            share = a**2 * self.reflection
+            share = share / share.sum() if share.sum() > 0 else np.full(N, 1.0 / N)
+            beta = 2.0 * math.pi / N_HEADINGS * np.arange(N_HEADINGS)[None, :] + self.delta[:, None]
+            cb, sb = np.cos(beta), np.sin(beta)
+            c = np.stack([cb * np.abs(cb), sb * np.abs(sb), -np.sin(2.0 * beta)], axis=-1) * self._drift_c
+            self._drift_grid = np.ascontiguousarray(np.einsum("k,kgd->gd", share, c).reshape(-1))
         self._cache: tuple[float, np.ndarray, np.ndarray] | None = None
         self._dir_cache: tuple[float, Any] | None = None
         # work arrays of the scalar-time sums (theta, sin theta, cos theta), shape (N,)
         self._th, self._sin, self._cos = np.empty(N), np.empty(N), np.empty(N)
         self._rot_cache: dict = {}  # rotation tables of the block sums, per step length
-        self._vertical_weights(rao)
+        self._vertical_weights(rao, a)
 
-    def _vertical_weights(self, rao: Any) -> None:
+    def _peak_band(self, sea_state: Any) -> tuple[float, float]:
+        """The lowest and highest peak frequency [rad/s] the components must cover (the sea
+        state's own; a developing sea's over its time table)."""
+        wp = 2.0 * math.pi / self.Tp
+        return wp, wp
+
+    def _horizontal_weights(self, a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Weights of sin(theta) (surge, sway, -yaw rate) and of cos(theta) (yaw, drift, surge and
+        sway rates), (3, N) and (4, N), for component amplitudes ``a`` [m] (ones: per metre)."""
+        p, w, g = self.params, self.omega, self._g
+        k = w**2 / g
+        h_L = 1.0 / (1.0 + (w / math.sqrt(math.pi * g / self._L)) ** 4)
+        h_B = 1.0 / (1.0 + (w / math.sqrt(math.pi * g / self._B)) ** 4)
+        return (np.stack([a * h_L, a * h_B, p.yaw_rao * k * h_L * a * w]),
+                np.stack([p.yaw_rao * k * h_L * a, a * np.sqrt(self.reflection), a * h_L * w, a * h_B * w]))
+
+    def horizontal_rao(self, omega: Any, beta: Any) -> np.ndarray:
+        """The parametric surge, sway and yaw transfer functions (..., 3) in {B} of the model above
+        (complex per metre of wave amplitude; ``surge = cos beta a h_L sin theta`` is ``-i h_L cos
+        beta``), for the heading grid of a short-crested sea."""
+        p, g = self.params, self._g
+        w = np.asarray(omega, dtype=float)
+        k = w**2 / g
+        h_L = 1.0 / (1.0 + (w / math.sqrt(math.pi * g / self._L)) ** 4)
+        h_B = 1.0 / (1.0 + (w / math.sqrt(math.pi * g / self._B)) ** 4)
+        return np.stack(np.broadcast_arrays(-1j * h_L * np.cos(beta), -1j * h_B * np.sin(beta),
+                                            (p.yaw_rao * k * h_L) * np.sin(2.0 * beta) + 0j), axis=-1)
+
+    def _vertical_weights(self, rao: Any, a: np.ndarray) -> None:
         """The weights of the motion sums on the relative-heading grid (:data:`N_HEADINGS` headings
         ``beta_g = 2 pi g / G``), rows ``[cos theta; sin theta]``, column ``K g + d``:
         ``x_d(t, beta_g) = sum_k a_k (Re H_kgd cos theta_k - Im H_kgd sin theta_k)`` with ``H =
@@ -252,24 +333,30 @@ class WaveField:
         pitch (:func:`tapm_opt.models.rao.closed_form_rao`; K = 3), or (N, G, 6) all six degrees
         of freedom in the order surge, sway, heave, roll, pitch, yaw (a user's table,
         :class:`tapm_opt.models.rao.RAOTable`; K = 6, stored heave, roll, pitch, surge, sway, yaw:
-        the hull's surge, sway and yaw then come from the table, :attr:`table_horizontal`).
+        the hull's surge, sway and yaw then come from the table, :attr:`grid_horizontal`).
         None (``six_dof`` False) without ``rao``."""
         self.six_dof = rao is not None
         N, G = self.omega.size, N_HEADINGS
-        self.table_horizontal = False
-        if rao is None:
+        self.grid_horizontal = False
+        self._Wv_lr = None
+        if rao is None and self.spreading is None:
             self._Wv = self._Wv_dot = np.zeros((2 * N, 0))
             return
-        H = np.asarray(rao(self.omega, 2.0 * math.pi / G * np.arange(G)))
+        # each component at its own direction: beta_g + delta_k (delta 0 when long-crested)
+        omega, beta = self.omega[:, None], 2.0 * math.pi / G * np.arange(G)[None, :] + self.delta[:, None]
+        H = np.zeros((N, G, 3), complex) if rao is None else np.asarray(rao(omega, beta))
         if H.ndim != 3 or H.shape[:2] != (N, G) or H.shape[2] not in (3, 6) or not np.isfinite(H).all():
             raise PlantError(f"the hull's transfer functions have shape {H.shape} (expected {(N, G, 3)} or "
                              f"{(N, G, 6)}) or are not finite")
+        if H.shape[2] == 3 and self.spreading is not None:   # short-crested: surge, sway, yaw on the grid too
+            hr = self.horizontal_rao(omega, beta)
+            H = np.concatenate([hr[:, :, :2], H, hr[:, :, 2:]], axis=2)   # surge, sway, heave, roll, pitch, yaw
         if H.shape[2] == 6:
             H = H[:, :, [2, 3, 4, 0, 1, 5]]
-            self.table_horizontal = True
+            self.grid_horizontal = True
         K = H.shape[2]
-        a = self.amplitude[:, None, None]
-        aw = (self.amplitude * self.omega)[:, None, None]
+        aw = (a * self.omega)[:, None, None]
+        a = a[:, None, None]
         self._Wv = np.concatenate([(a * H.real).reshape(N, K * G), (-a * H.imag).reshape(N, K * G)])
         self._Wv_dot = np.concatenate([(-aw * H.imag).reshape(N, K * G), (-aw * H.real).reshape(N, K * G)])
         # the block's product through the weights' leading singular vectors: the heading grid's
@@ -302,6 +389,11 @@ class WaveField:
         sin_th, cos_th = _block_trig(float(t0), float(h), int(n), self.omega, self.phase, self._rot_cache)
         return sin_th @ self._Ws.T, cos_th @ self._Wc.T
 
+    def _scale_trig(self, cs: np.ndarray, t: Any) -> np.ndarray:
+        """The rows ``[cos theta, sin theta]`` (..., 2N) at the times t, as the weights take them
+        (the stationary field's weights carry the amplitudes: unchanged)."""
+        return cs
+
     def ramp(self, t: Any) -> tuple[Any, Any]:
         """The factor ``s(t)`` [-] that brings the heave, roll and pitch in over the first
         peak period (raised cosine ``(1 - cos(pi t / T_p)) / 2``, 1 after T_p, 0 before t = 0) and
@@ -319,7 +411,7 @@ class WaveField:
         six-degree-of-freedom motion. The same angle sums as :meth:`block`, through the weights'
         leading singular vectors (those above :data:`SVD_RTOL` of the largest; the sums agree with
         the full product to about that fraction of the largest weight's sum)."""
-        if not self.six_dof:
+        if not self._Wv.shape[1]:
             return np.zeros((int(n), 0))
         sin_th, cos_th = _block_trig(float(t0), float(h), int(n), self.omega, self.phase, self._rot_cache)
         cs = np.concatenate([cos_th, sin_th], axis=1)
@@ -337,7 +429,7 @@ class WaveField:
         return heading_interp(grid, self.direction, float(psi))[:3]
 
     def horizontal_of(self, grid: Any, psi: float) -> np.ndarray:
-        """With a user's table (:attr:`table_horizontal`): the WF motion (x [m], y [m], psi [rad])
+        """With a user's table (:attr:`grid_horizontal`): the WF motion (x [m], y [m], psi [rad])
         in {E} at the LF heading psi [rad] from the sums on the heading grid (6 G,): the table's
         surge and sway turned by the heading, its yaw — the plant's compiled step does the same."""
         v = heading_interp(grid, self.direction, float(psi))
@@ -349,10 +441,10 @@ class WaveField:
         at the heading psi, heave, roll and pitch with the start-up :meth:`ramp`: (..., K) (a
         table's surge, sway and yaw start at once, as the horizontal model's do)."""
         t = _time(t)
-        if not self.six_dof:
+        if not self._Wv.shape[1]:
             return np.zeros(np.shape(t) + (3,))
         th = np.multiply.outer(t, self.omega) + self.phase
-        cs = np.concatenate([np.cos(th), np.sin(th)], axis=-1)
+        cs = self._scale_trig(np.concatenate([np.cos(th), np.sin(th)], axis=-1), t)
         psi = _num("psi", psi, unit="rad")
         s, ds = (np.asarray(x)[..., None] for x in self.ramp(t))
         v = heading_interp(cs @ self._Wv, self.direction, psi)
@@ -388,7 +480,7 @@ class WaveField:
         return np.cos(np.multiply.outer(_time(t), self.omega) + self.phase) @ self.amplitude
 
     def _motion(self, t: Any, psi: float, rate: bool) -> np.ndarray:
-        if self.table_horizontal:   # the user's table: surge, sway and yaw on the heading grid
+        if self.grid_horizontal:   # the user's table: surge, sway and yaw on the heading grid
             v = self._vertical(t, psi, rate)
             c, s = math.cos(psi), math.sin(psi)
             return np.stack([c * v[..., 3] - s * v[..., 4], s * v[..., 3] + c * v[..., 4], v[..., 5]], axis=-1)
@@ -416,16 +508,25 @@ class WaveField:
         """Time derivative of :meth:`eta_wf` at fixed LF heading [m/s, m/s, rad/s] in {E}."""
         return self._motion(t, psi, rate=True)
 
+    def drift_factor(self, psi: float) -> np.ndarray:
+        """The drift factor c(beta) (3,) [N/m^2, N/m^2, N/m] at the LF heading psi [rad]: the
+        wall-sided body's of the mean direction (long-crested), or, short-crested, the mean of
+        c(beta + delta_k) weighted by each component's share of the drift (``a_k^2 R_k``), on the
+        heading grid (:func:`heading_interp`)."""
+        if self._drift_grid.size:
+            return heading_interp(self._drift_grid, self.direction, _num("psi", psi, unit="rad"))
+        return self._dirs(psi)[3]
+
     def mean_drift(self, psi: float) -> np.ndarray:
         """Newman mean drift ``sum_k D(w_k, beta) a_k^2`` in {B}, shape (3,) [N, N, N m]."""
-        return (self.amplitude**2 @ self.reflection) * self._dirs(psi)[3]
+        return (self.amplitude**2 @ self.reflection) * self.drift_factor(psi)
 
     def tau_drift(self, t: Any, psi: float) -> np.ndarray:
         """Mean + slowly varying drift load in {B} [N, N, N m] (Newman), shape t.shape + (3,)."""
         q = self._sums(t)[1][1]
         if np.ndim(q) == 0:
-            return 2.0 * q * q * self._dirs(psi)[3]
-        return np.multiply.outer(2.0 * q * q, self._dirs(psi)[3])
+            return 2.0 * q * q * self.drift_factor(psi)
+        return np.multiply.outer(2.0 * q * q, self.drift_factor(psi))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -502,6 +603,10 @@ class Wind:
         _, cos_th = _block_trig(float(t0), float(h), int(n), self._w, self.phase, self._rot_cache)
         return np.maximum(self.mean_speed + cos_th @ self.amplitude, 0.0).tolist()
 
+    def direction_at(self, t: float) -> float:
+        """Direction the wind goes to at time t [s] [rad] (steady: ``wind_direction``)."""
+        return self.direction
+
     def tau_wind(self, t: float, psi: float, nu: Any = None) -> np.ndarray:
         """Wind load (X [N], Y [N], N [N m]) in {B}, shape (3,), at time t [s], LF heading psi
         [rad] and vessel velocity nu = (u, v, r) in {B} [m/s, m/s, rad/s] (None: at rest)."""
@@ -522,8 +627,163 @@ class Wind:
         return self.hull.tau(self.speed(t), self.direction, psi, u, v)
 
 
+class Development:
+    """The time table of a developing sea state (``sea_state.development``): each field a row
+    gives (:data:`tapm_opt.config.schema.DEVELOPING_FIELDS`) linear in time between the rows that
+    give it, the sea state's own value at t = 0 when its first row comes later, held after its last.
+
+    ``value(name, t)`` [SI; angles rad] at time(s) t [s]; ``varies(name)``: the field changes."""
+
+    def __init__(self, sea_state: schema.SeaState):
+        self.tables: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        self._base = {f: float(getattr(sea_state, f)) for f in schema.DEVELOPING_FIELDS}
+        for f in schema.DEVELOPING_FIELDS:
+            rows = [(float(r.t), float(getattr(r, f))) for r in sea_state.development if getattr(r, f) is not None]
+            if not rows:
+                continue
+            if rows[0][0] > 0.0:
+                rows.insert(0, (0.0, self._base[f]))
+            t, v = np.array([r[0] for r in rows]), np.array([r[1] for r in rows])
+            if np.any(v != self._base[f]):
+                self.tables[f] = (t, v)
+
+    def varies(self, name: str) -> bool:
+        return name in self.tables
+
+    def value(self, name: str, t: Any) -> Any:
+        if name not in self.tables:
+            return self._base[name] if np.ndim(t) == 0 else np.full(np.shape(t), self._base[name])
+        out = np.interp(t, *self.tables[name])
+        return float(out) if np.ndim(out) == 0 else out
+
+    def extremes(self, name: str) -> tuple[float, float]:
+        """The smallest and largest value the field takes [SI]."""
+        v = self.tables[name][1] if name in self.tables else np.array([self._base[name]])
+        return float(v.min()), float(v.max())
+
+
+class DevelopingWaveField(WaveField):
+    """:class:`WaveField` of a sea state whose Hs and Tp follow a time table (:class:`Development`).
+
+    The components' frequencies and phases are drawn once, over the band of the table's lowest to
+    highest peak frequency ([omega_min, omega_max] times them, N equal bins); their amplitudes
+    follow the spectrum of the moment, ``a_k(t) = sqrt(2 S(omega_k; Hs(t), Tp(t)) d omega)``, so
+    the elevation ``sum a_k(t) cos theta_k`` is continuous (no jumps where the table turns) and
+    its spectrum is the table's at every time. The weights of the sums are per metre of
+    amplitude and the sums take ``a_k(t)`` at each time. Rates (``eta_wf_dot``,
+    ``vertical_dot``) leave out ``da/dt``, of the order of a/(the table's time scale) against a
+    omega. :attr:`amplitude` is a(0); ``mean_drift`` is the drift at t = 0; a short-crested sea's
+    drift factor weights the components by their shares at t = 0."""
+
+    def __init__(self, sea_state: schema.SeaState, vessel: schema.Vessel, env: schema.Environment,
+                 seed: Any = None, *, params: WaveParams = WaveParams(), rao: Any = None,
+                 development: Development):
+        self.development = development
+        super().__init__(sea_state, vessel, env, seed, params=params, rao=rao)
+        ones = np.ones_like(self.omega)
+        self._Ws, self._Wc = self._horizontal_weights(ones)
+        self._vertical_weights(rao, ones)
+        self._cache = None
+
+    def _peak_band(self, sea_state: Any) -> tuple[float, float]:
+        lo, hi = self.development.extremes("Tp")
+        return 2.0 * math.pi / hi, 2.0 * math.pi / lo
+
+    def amplitudes(self, t: Any) -> np.ndarray:
+        """Component amplitudes a_k(t) [m], shape t.shape + (N,)."""
+        t = np.asarray(t, dtype=float)
+        dev = self.development
+        Hs, Tp = dev.value("Hs", t), dev.value("Tp", t)
+        S = _jonswap(self.omega, np.asarray(Hs)[..., None], np.asarray(Tp)[..., None], self.gamma)
+        return np.sqrt(2.0 * S * self._dw)
+
+    def _scale_trig(self, cs: np.ndarray, t: Any) -> np.ndarray:
+        A = self.amplitudes(t)
+        return cs * np.concatenate([A, A], axis=-1)
+
+    def _sums(self, t: Any) -> tuple[np.ndarray, np.ndarray]:
+        t = _time(t)
+        th = np.multiply.outer(t, self.omega) + self.phase
+        A = self.amplitudes(t)
+        S, C = (A * np.sin(th)) @ self._Ws.T, (A * np.cos(th)) @ self._Wc.T
+        return np.moveaxis(S, -1, 0), np.moveaxis(C, -1, 0)
+
+    def block(self, t0: float, h: float, n: int) -> tuple[np.ndarray, np.ndarray]:
+        sin_th, cos_th = _block_trig(float(t0), float(h), int(n), self.omega, self.phase, self._rot_cache)
+        A = self.amplitudes(float(t0) + float(h) * np.arange(int(n)))
+        return (A * sin_th) @ self._Ws.T, (A * cos_th) @ self._Wc.T
+
+    def vertical_block(self, t0: float, h: float, n: int) -> np.ndarray:
+        if not self._Wv.shape[1]:
+            return np.zeros((int(n), 0))
+        sin_th, cos_th = _block_trig(float(t0), float(h), int(n), self.omega, self.phase, self._rot_cache)
+        A = self.amplitudes(float(t0) + float(h) * np.arange(int(n)))
+        cs = np.concatenate([A * cos_th, A * sin_th], axis=1)
+        out = (cs @ self._Wv_lr[0]) @ self._Wv_lr[1] if self._Wv_lr is not None else cs @ self._Wv
+        if t0 < self.Tp:
+            m = min(int(n), int(math.ceil((self.Tp - t0) / h)) + 1)
+            K = out.shape[1] // N_HEADINGS
+            out[:m].reshape(m, N_HEADINGS, K)[:, :, :3] *= self.ramp(t0 + h * np.arange(m))[0][:, None, None]
+        return out
+
+    def elevation(self, t: Any) -> np.ndarray:
+        t = _time(t)
+        return np.sum(self.amplitudes(t) * np.cos(np.multiply.outer(t, self.omega) + self.phase), axis=-1)
+
+
+class DevelopingWind(Wind):
+    """:class:`Wind` whose 1-hour mean speed and direction follow a time table
+    (:class:`Development`; a squall is its speed's time series): the mean ``U(z)`` of the speed
+    of the moment and the NPD gusts of that speed (the components' frequencies and phases drawn
+    once, their amplitudes ``sqrt(2 S_NPD(f_k; U10(t)) df_k)``); the load takes the direction of
+    the moment (:meth:`direction_at`)."""
+
+    def __init__(self, sea_state: schema.SeaState, vessel: schema.Vessel, env: schema.Environment,
+                 seed: Any = None, *, params: WindParams = WindParams(), development: Development):
+        self.development = development
+        super().__init__(sea_state, vessel, env, seed, params=params)
+        edges = np.geomspace(self.params.f_min, self.params.f_max, int(self.params.n_components) + 1)
+        self._df = np.diff(edges)
+
+    def direction_at(self, t: float) -> float:
+        return float(self.development.value("wind_direction", float(t)))
+
+    def _at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Mean speed at the reference height (...) and gust amplitudes (..., M) at the times t."""
+        p = self.params
+        U10 = np.asarray(self.development.value("wind_speed", t), dtype=float)
+        mean = U10 * (1.0 + 0.0573 * np.sqrt(1.0 + 0.148 * U10) * math.log(p.height / 10))
+        amp = np.sqrt(2.0 * _npd(self.freq, U10[..., None], p.height) * self._df)
+        return mean, amp
+
+    def speed(self, t: Any) -> Any:
+        t = _time(t)
+        mean, amp = self._at(np.asarray(t, dtype=float))
+        v = np.maximum(mean + np.sum(amp * np.cos(np.multiply.outer(t, self._w) + self.phase), axis=-1), 0.0)
+        return float(v) if np.ndim(v) == 0 else v
+
+    def block(self, t0: float, h: float, n: int) -> list[float]:
+        _, cos_th = _block_trig(float(t0), float(h), int(n), self._w, self.phase, self._rot_cache)
+        mean, amp = self._at(float(t0) + float(h) * np.arange(int(n)))
+        return np.maximum(mean + np.sum(amp * cos_th, axis=1), 0.0).tolist()
+
+    def tau_wind_unchecked(self, t: float, psi: float, u: float, v: float) -> np.ndarray:
+        return self.hull.tau(self.speed(t), self.direction_at(t), psi, u, v)
+
+    def tau_wind(self, t: float, psi: float, nu: Any = None) -> np.ndarray:
+        t = float(t)
+        psi = _num("psi", psi, unit="rad")
+        if nu is None:
+            return self.hull.tau(self.speed(t), self.direction_at(t), psi)
+        nu = np.asarray(nu, dtype=float)
+        if nu.shape != (3,) or not np.isfinite(nu).all():
+            raise PlantError(f"nu={nu.tolist()} must be 3 finite numbers (u, v, r) in {{B}}")
+        return self.tau_wind_unchecked(t, psi, float(nu[0]), float(nu[1]))
+
+
 def hull_rao(vessel: schema.Vessel, env: schema.Environment) -> Any:
-    """The transfer functions ``rao(omega, beta)`` of the hull (``vessel.wave_motion``): heave,
+    """The transfer functions ``rao(omega, beta)`` of the hull (``vessel.wave_motion``; the
+    arguments broadcast, e.g. frequencies (N, 1) and each component's headings (N, G)): heave,
     roll and pitch, complex (N, G, 3), of the closed form (:func:`tapm_opt.models.rao.closed_form_rao`,
     model "six_dof"), all six, complex (N, G, 6), of the user's table (model "table": a CSV of
     :func:`~tapm_opt.models.rao.read_rao_csv` or a WAMIT ``.4`` file, :func:`~tapm_opt.models.rao.read_wamit4`),
@@ -540,7 +800,7 @@ def hull_rao(vessel: schema.Vessel, env: schema.Environment) -> Any:
                      else rao_mod.read_rao_csv(path))
         except (ModelError, OSError) as exc:
             raise PlantError(f"vessel.wave_motion.rao_file = {path!r}: {exc}") from None
-        return lambda omega, beta: table.evaluate(np.asarray(omega)[:, None], np.asarray(beta)[None, :])
+        return table.evaluate
 
     cb = float(wm.block_coefficient)
     cwp = float(wm.waterplane_coefficient) if wm.waterplane_coefficient is not None else (1.0 + 2.0 * cb) / 3.0
@@ -552,8 +812,7 @@ def hull_rao(vessel: schema.Vessel, env: schema.Environment) -> Any:
     except ModelError as exc:
         raise PlantError(f"vessel.wave_motion: {exc}") from None
     g = float(env.gravity)
-    return lambda omega, beta: rao_mod.closed_form_rao(np.asarray(omega)[:, None], np.asarray(beta)[None, :],
-                                                       hull, g=g)
+    return lambda omega, beta: rao_mod.closed_form_rao(omega, beta, hull, g=g)
 
 
 class Environment:
@@ -589,8 +848,17 @@ class Environment:
             self.current = CurrentProfile(sea_state, env.water_depth)
         except ModelError as exc:
             raise PlantError(str(exc)) from None
-        self.waves = WaveField(sea_state, ves, env, s_wave, params=wave_params, rao=hull_rao(ves, env))
-        self.wind = Wind(sea_state, ves, env, s_wind, params=wind_params)
+        #: The time table of a developing sea state (None: steady).
+        self.development = dev = Development(sea_state) if sea_state.development else None
+        if dev is not None and (dev.varies("Hs") or dev.varies("Tp")):
+            self.waves: WaveField = DevelopingWaveField(sea_state, ves, env, s_wave, params=wave_params,
+                                                        rao=hull_rao(ves, env), development=dev)
+        else:
+            self.waves = WaveField(sea_state, ves, env, s_wave, params=wave_params, rao=hull_rao(ves, env))
+        if dev is not None and (dev.varies("wind_speed") or dev.varies("wind_direction")):
+            self.wind: Wind = DevelopingWind(sea_state, ves, env, s_wind, params=wind_params, development=dev)
+        else:
+            self.wind = Wind(sea_state, ves, env, s_wind, params=wind_params)
         self.eta_wf, self.eta_wf_dot = self.waves.eta_wf, self.waves.eta_wf_dot
         self.current_at = self.current.velocity
         #: Rate of turn of the current direction [rad/s] (``sea_state.current_turn_rate``; 0: steady).
@@ -603,19 +871,37 @@ class Environment:
         beta_c(t) = beta_c + current_turn_rate t (the rotating tidal current of the line-tension
         seed's Table I, v_c(t) = (-cos(t/6875), sin(t/6875), 0) m/s, is beta_c = 180 deg and a
         rate of -1/6875 rad/s)."""
-        if self.current_turn_rate == 0.0:
+        dev = self.development
+        developing = dev is not None and (dev.varies("current_speed") or dev.varies("current_direction"))
+        if self.current_turn_rate == 0.0 and not developing:
             return np.asarray(self.current.surface, dtype=float).copy()
-        V = float(np.hypot(self.current.surface[0], self.current.surface[1]))
-        beta = self.sea_state.current_direction + self.current_turn_rate * float(t)
+        if developing:
+            V = float(dev.value("current_speed", float(t)))
+            beta = float(dev.value("current_direction", float(t))) + self.current_turn_rate * float(t)
+        else:
+            V = float(np.hypot(self.current.surface[0], self.current.surface[1]))
+            beta = self.sea_state.current_direction + self.current_turn_rate * float(t)
         return np.array([V * math.cos(beta), V * math.sin(beta), 0.0])
 
     def current_velocity(self, z: Any, t: float = 0.0) -> np.ndarray:
         """Current velocity in {E} at depths ``z`` [m] and time t [s], shape ``z.shape + (3,)``
         [m/s]: the profile factor phi(z) times :meth:`current_surface` (the direction turns with
         depth-independent rate, as the profile's does not change with depth)."""
-        if self.current_turn_rate == 0.0:
+        if not self.current_varies:
             return self.current.velocity(z)
         return np.multiply.outer(self.current.factor(np.asarray(z, dtype=float)), self.current_surface(t))
+
+    @property
+    def current_varies(self) -> bool:
+        """The surface current changes in time (a turn rate, or a developing current)."""
+        dev = self.development
+        return self.current_turn_rate != 0.0 or (dev is not None and (dev.varies("current_speed")
+                                                                       or dev.varies("current_direction")))
+
+    @property
+    def develops(self) -> bool:
+        """Some field of the sea state follows a time table (:class:`Development`)."""
+        return self.development is not None and bool(self.development.tables)
 
     def _loads_unchecked(self, t: float, psi: float, u: float, v: float) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`loads` (wind, drift) for a finite float time t [s], heading psi [rad] and surge and

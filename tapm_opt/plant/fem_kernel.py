@@ -899,7 +899,7 @@ def _heading_interp(grid, direction, psi, out, o):  # pragma: no cover - compile
 @_jit
 def plant_pre_step(h, f, alpha, f_cmd, alpha_cmd, decay, rate_dt, alpha_rate_dt, V0, q0, S0, S1, C0, vgrid,
                    eta, nu, eta_wf_prev, tau_moor_prev, r, vc,
-                   failed, f_min, f_max, azimuth, x_thr, y_thr, has_env, wind_dir, hull_k, wave_dir, drift_c, wf,
+                   failed, f_min, f_max, azimuth, x_thr, y_thr, has_env, wind_dir, hull_k, wave_dir, drift_c, drift_grid, wf,
                    v_c, M, M_A, M_inv, D_lin, d_quad, has_riser, riser_c,
                    cur_kind, cur_clamps, cur_depths, cur_factors, cur_depth, cur_surface):  # pragma: no cover - compiled
     """The plant's outer step of ``h`` [s] up to its lines (``Plant._outer_step``, no winch, a
@@ -941,9 +941,14 @@ def plant_pre_step(h, f, alpha, f_cmd, alpha_cmd, decay, rate_dt, alpha_rate_dt,
         cbt = math.cos(beta)
         sbt = math.sin(beta)
         q2 = 2.0 * q0 * q0
-        out[15] = q2 * (drift_c[0] * (cbt * abs(cbt)))
-        out[16] = q2 * (drift_c[1] * (sbt * abs(sbt)))
-        out[17] = q2 * (drift_c[2] * -math.sin(2.0 * beta))
+        if drift_grid.shape[0] > 0:   # short-crested: the drift factor on the heading grid (WaveField.drift_factor)
+            _heading_interp(drift_grid, wave_dir, psi, out, 15)
+            for i in range(3):
+                out[15 + i] = q2 * out[15 + i]
+        else:
+            out[15] = q2 * (drift_c[0] * (cbt * abs(cbt)))
+            out[16] = q2 * (drift_c[1] * (sbt * abs(sbt)))
+            out[17] = q2 * (drift_c[2] * -math.sin(2.0 * beta))
     for i in range(3):
         out[9 + i] = tau_thr[i]
         tau[i] = tau_thr[i] + out[12 + i] + out[15 + i] + tau_moor_prev[i]
@@ -1023,7 +1028,7 @@ _plant_pre_step, _mooring_step = plant_pre_step, mooring_step
 @_jit
 def plant_steps(h, n_sub, steps0, t_fem, sums, f, alpha, f_cmd, alpha_cmd, decay, rate_dt, alpha_rate_dt,
                 eta, nu, eta_wf, vert, tau_moor, rate, r, v, vc,
-                failed, f_min, f_max, azimuth, x_thr, y_thr, has_env, wind_dir, hull_k, wave_dir, drift_c, wf,
+                failed, f_min, f_max, azimuth, x_thr, y_thr, has_env, wind_dir, hull_k, wave_dir, drift_c, drift_grid, wf,
                 v_c, M, M_A, M_inv, D_lin, d_quad, has_riser, riser_c,
                 cur_kind, cur_clamps, cur_depths, cur_factors, cur_depth, cur_surface,
                 p_cot, p_T, turret_angle, locked, z_fl,
@@ -1084,7 +1089,7 @@ def plant_steps(h, n_sub, steps0, t_fem, sums, f, alpha, f_cmd, alpha_cmd, decay
                                      sums[i, 0], sums[i, 1], sums[i, 2], sums[i, 3], sums[i, 4], sums[i, 5:],
                                      eta_c, nu_c, wf_c, tau_c, r, vc,
                                      failed, f_min, f_max, azimuth, x_thr, y_thr, has_env, wind_dir, hull_k, wave_dir,
-                                     drift_c, wf, v_c, M, M_A, M_inv, D_lin, d_quad, has_riser, riser_c,
+                                     drift_c, drift_grid, wf, v_c, M, M_A, M_inv, D_lin, d_quad, has_riser, riser_c,
                                      cur_kind, cur_clamps, cur_depths, cur_factors, cur_depth, cur_surface)
         outs[i, :] = out
         if status != 0:

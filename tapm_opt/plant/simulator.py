@@ -137,8 +137,13 @@ class Plant:
         self.env = Environment(scenario, ss, seed=ss_seed) if ss is not None else None
         self.wave_frequency = bool(wave_frequency) and self.env is not None and ss.Hs > 0
         # the FEM checks its nodes' depths itself each step: the profile's unchecked velocity
-        current = (self.env.current.velocity_unchecked if (self.env is not None and ss.current_speed > 0)
-                   else None)
+        dev = self.env.development if self.env is not None else None
+        has_current = self.env is not None and (ss.current_speed > 0 or (
+            dev is not None and dev.extremes("current_speed")[1] > 0))
+        current = self.env.current.velocity_unchecked if has_current else None
+        #: The sea state develops within the run (``sea_state.development``): the outer steps take
+        #: the environment of their start from Python (not the fused compiled steps).
+        self._developing = self.env is not None and self.env.develops
         self.mooring = MooringFEM(scenario, segments=segments, current=current, safety=safety,
                                   geometry=self.system.lines)
         self.thrusters = ThrusterBank.from_scenario(scenario)
@@ -146,10 +151,10 @@ class Plant:
         #: Quasi-static riser model (None without a riser), in the sea state's current.
         self.riser = self.system.riser(ss)
         self.vessel = self.system.vessel
-        self._v_c = np.zeros(2) if current is None else np.asarray(self.env.current.surface[:2], dtype=float)
-        #: True when the current direction turns in time (``sea_state.current_turn_rate``): vessel and
-        #: lines then see the current of the start of each outer step.
-        self._current_turns = current is not None and self.env.current_turn_rate != 0.0
+        self._v_c = np.zeros(2) if current is None else np.asarray(self.env.current_surface(0.0)[:2], dtype=float)
+        #: True when the current changes in time (``sea_state.current_turn_rate``, a developing
+        #: current): vessel and lines then see the current of the start of each outer step.
+        self._current_turns = current is not None and self.env.current_varies
         self.line_ids = tuple(ln.id for ln in scenario.lines)
         self._winch_rate_max = np.array([ln.winch_max_rate for ln in scenario.lines])
         self._L_limits = np.array([ln.length_limits for ln in scenario.lines])
@@ -279,7 +284,7 @@ class Plant:
         n = max(1, int(math.ceil(dt / self.outer_dt - 1e-9)))
         h = dt / n
         if (self._multi_step and self.compiled and not self._winching and not self._current_turns
-                and self.mooring.fem._kernel_fn is not None):
+                and not self._developing and self.mooring.fem._kernel_fn is not None):
             k = 0
             while k < n:   # runs of fused steps in one call; a step it cannot take, on its own
                 done = self._fused_steps(h, n - k)
@@ -454,7 +459,7 @@ class Plant:
         sums = self._env_sums(t0, t1, h) if env is not None else None
         m = self.mooring
         compiled = self.compiled and m.fem._kernel_fn is not None  # numba is there and the FEM uses it
-        if compiled and not self._winching and not self._current_turns:
+        if compiled and not self._winching and not self._current_turns and not self._developing:
             f = self._fused   # the constants of the fused step, while the lines' constants and current stay
             if (f[2] is not None if f is not None and f[0] is m.fem._kernel_constants() and f[1] is m.current
                     else self._fused_ok()):
@@ -467,8 +472,9 @@ class Plant:
         if env is not None:
             # the wind and drift loads at t0 on the plant's own state (a finite float heading and
             # velocity: the vessel step below checks them) from the block's sums
-            tau_wind = env.wind.hull.tau(sums[0], env.wind.direction, psi0, float(self.nu[0]), float(self.nu[1]))
-            tau_drift = 2.0 * sums[1] * sums[1] * env.waves._dirs(psi0)[3]
+            tau_wind = env.wind.hull.tau(sums[0], env.wind.direction_at(t0), psi0, float(self.nu[0]),
+                                         float(self.nu[1]))
+            tau_drift = 2.0 * sums[1] * sums[1] * env.waves.drift_factor(psi0)
         else:
             tau_wind = tau_drift = np.zeros(3)
         tau = tau_thr + tau_wind + tau_drift + self._tau_moor
@@ -493,7 +499,7 @@ class Plant:
         pose0 = np.concatenate([self.eta + self._eta_wf, self._vert])
         self.t = t1
         self.eta, self.nu = eta, nu
-        if self.wave_frequency and env.waves.table_horizontal:
+        if self.wave_frequency and env.waves.grid_horizontal:
             self._eta_wf = env.waves.horizontal_of(sums[5], float(eta[2]))
         elif self.wave_frequency:
             self._eta_wf = env.waves._motion_of(sums[2], sums[3], sums[4], float(eta[2]))
@@ -576,9 +582,9 @@ class Plant:
         if env is not None:
             w, wv = env.wind, env.waves
             env_c = (True, float(w.direction), np.ascontiguousarray(w.hull.k, dtype=float), float(wv.direction),
-                     np.ascontiguousarray(wv._drift_c, dtype=float))
+                     np.ascontiguousarray(wv._drift_c, dtype=float), np.ascontiguousarray(wv._drift_grid, dtype=float))
         else:
-            env_c = (False, 0.0, np.zeros(3), 0.0, np.zeros(3))
+            env_c = (False, 0.0, np.zeros(3), 0.0, np.zeros(3), np.zeros(0))
         if self.riser is not None:
             rz = self.riser
             riser = (True, np.array(rz._hangoff_xy + rz._wellhead_xy + rz._cc + rz._hh + rz._g_default_xy, dtype=float))
