@@ -87,7 +87,7 @@ CLASSES = (
     ("bending", "a bending stiffness EI that matters", r"EI = \S+ N m\^2 matters"),
     ("one segment", "a line of one segment", r"NumSegs = 1: "),
     ("weightless", "g = 0", r"option g = 0 "),
-    ("vessel", "no built-in vessel fits (hull, riser or limits against the water depth or lines)",
+    ("vessel fit", "no built-in vessel fits (hull, riser or limits against the water depth or lines)",
      r"vessel\.draught|limits\.\w+_radius|riser\.\w+"),
 )
 _OTHER = "other"
@@ -116,6 +116,25 @@ def line_type_names(text: str) -> list[str] | None:
     return names if seen else None
 
 
+def vessel_in_file(text: str) -> bool:
+    """Whether a MoorDyn file has a vessel: a coupled body (``Coupled``, ``CoupledPinned``,
+    ``Vessel``) or a coupled point (``Coupled``, ``Vessel``, ``Fairlead``, ``CPLD``, ``Ves``), as
+    opposed to a test rig of fixed and free points and free bodies."""
+    section, n, found = "", 0, False
+    for raw in text.splitlines():
+        if "---" in raw:
+            up = raw.upper()
+            section = "bodies" if "BOD" in up else "points" if re.search(r"POINT|CONNECTION|NODE PROP", up) else ""
+            n = 0
+            continue
+        tok = raw.split("#", 1)[0].split()
+        n += 1
+        if section and n > 2 and len(tok) > 2:
+            word = re.sub(r"\d+$", "", tok[1].upper())
+            found = found or word.startswith(("COUPLED", "VESSEL", "FAIRLEAD", "CPLD")) or word == "VES"
+    return found
+
+
 def classes_of(reason: str) -> list[str]:
     """The refusal classes a reason names (:data:`CLASSES`), or ``["other"]``."""
     got = [name for name, _, pat in CLASSES if re.search(pat, reason)]
@@ -130,6 +149,7 @@ class Row:
     options: list[str] = field(default_factory=list)
     reason: str = ""
     classes: list[str] = field(default_factory=list)
+    vessel_in_file: bool = True
     tried: list[str] = field(default_factory=list)
     dT: float = math.nan
     dF: float = math.nan
@@ -307,6 +327,7 @@ def main(argv: list[str] | None = None) -> int:
     for p, names in files:
         row, res = import_file(p, names, vessels)
         row.file = str(p.relative_to(root))
+        row.vessel_in_file = vessel_in_file(p.read_text(encoding="utf-8", errors="replace"))
         if res is not None and compare:
             try:
                 row.dT, row.dF, row.dT0, row.dF0, row.compared = compare_moorpy(p, res, "--fixed-as-fairleads" in
@@ -322,7 +343,8 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{row.file:54s} {row.vessel:6s} {'OK':8s} {_pct(row.dT):>9s} {_pct(row.dF):>9s}  {what}")
         else:
             reason = row.reason.split(": ", 1)[-1] if row.reason.startswith(p.name) else row.reason
-            print(f"{row.file:54s} {'-':6s} {'refused':8s} {'':>9s} {'':>9s}  [{', '.join(row.classes)}] "
+            print(f"{row.file:54s} {'-':6s} {'refused':8s} {'':>9s} {'':>9s}  "
+                  f"[{', '.join(row.classes)}{'' if row.vessel_in_file else '; no vessel'}] "
                   f"{reason[:150]}{'...' if len(reason) > 150 else ''}")
     ok = [r for r in rows if r.ok]
     print()
@@ -346,8 +368,10 @@ def main(argv: list[str] | None = None) -> int:
         if fric:
             print(f"  {len(fric)} with seabed friction (MoorPy has none): worst {_pct(max(max(r.dT, r.dF) for r in fric))}"
                   f", without tapm_opt's friction {_pct(max(max(r.dT0, r.dF0) for r in fric))}")
-    print("refusal classes (files with it / with it alone):")
     refused = [r for r in rows if not r.ok]
+    print(f"refused: {sum(not r.vessel_in_file for r in refused)} of the {len(refused)} have no vessel (no coupled "
+          f"body or point; {sum(not r.vessel_in_file for r in ok)} such files import with --fixed-as-fairleads)")
+    print("refusal classes (files with it / with it alone):")
     for name, what, _ in (*CLASSES, (_OTHER, "none of the above", "")):
         n = sum(name in r.classes for r in refused)
         if n:
@@ -355,9 +379,11 @@ def main(argv: list[str] | None = None) -> int:
             print(f"  {name:17s} {n:3d} {alone:3d}  {what}")
     if args.csv:
         header = ["file", "result", "vessel", "options", "tension_diff", "force_diff", "seabed_friction",
-                  "tension_diff_no_friction", "force_diff_no_friction", "classes", "reason", "tried"]
+                  "tension_diff_no_friction", "force_diff_no_friction", "vessel_in_file", "classes", "reason",
+                  "tried"]
         body = [[r.file, "OK" if r.ok else "refused", r.vessel, " ".join(r.options), r.dT, r.dF, r.friction, r.dT0, r.dF0,
-                 " ".join(r.classes), r.reason or r.compared, "; ".join(r.tried)] for r in rows]
+                 int(r.vessel_in_file),
+                 ", ".join(r.classes), r.reason or r.compared, "; ".join(r.tried)] for r in rows]
         atomic_write_text(args.csv, csv_text(header, body))
     return 0
 
