@@ -56,12 +56,7 @@ def scenarios(tmp: Path, sea_state: str) -> dict[str, object]:
     beta = 2 * math.pi / N_HEADINGS * np.arange(N_HEADINGS)
     H = np.zeros((omega.size, beta.size, 6), complex)
     H[:, :, 2:5] = rao_mod.closed_form_rao(omega[:, None], beta[None, :], hull, g=g)
-    k = omega**2 / g
-    h_L = 1.0 / (1.0 + (omega / math.sqrt(math.pi * g / v.length_pp)) ** 4)
-    h_B = 1.0 / (1.0 + (omega / math.sqrt(math.pi * g / v.breadth)) ** 4)
-    H[:, :, 0] = -1j * h_L[:, None] * np.cos(beta)
-    H[:, :, 1] = -1j * h_B[:, None] * np.sin(beta)
-    H[:, :, 5] = (w.params.yaw_rao * k * h_L)[:, None] * np.sin(2 * beta)
+    H[:, :, [0, 1, 5]] = w.horizontal_rao(omega[:, None], beta[None, :])   # the parametric surge, sway, yaw
     path = tmp / "fpso_rao.csv"
     rao_mod.write_rao_csv(rao_mod.RAOTable(omega=omega, beta=beta, H=H), path)
     table = dataclasses.replace(sc, vessel=dataclasses.replace(sc.vessel, wave_motion=dataclasses.replace(

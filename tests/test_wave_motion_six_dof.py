@@ -243,6 +243,8 @@ def _table_like_the_closed_form(sc, w):
     H[:, :, 0] = -1j * h_L[:, None] * np.cos(beta)           # surge_B = cos beta sum a h_L sin theta
     H[:, :, 1] = -1j * h_B[:, None] * np.sin(beta)           # sway_B = sin beta sum a h_B sin theta
     H[:, :, 5] = (w.params.yaw_rao * k * h_L)[:, None] * np.sin(2 * beta)   # yaw = sin 2beta sum c k h_L a cos theta
+    # the field's own parametric surge, sway and yaw (short-crested seas take them) are the same
+    assert np.allclose(w.horizontal_rao(omega[:, None], beta[None, :]), H[:, :, [0, 1, 5]], rtol=1e-13, atol=0)
     return rao_mod.RAOTable(omega=omega, beta=beta, H=H)
 
 
