@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import itertools
 import json
 import math
 
@@ -15,8 +16,16 @@ import tapm_opt
 from tapm_opt.cli import cli, main
 from tapm_opt.config import scenario_from_dict, scenario_to_dict
 from tapm_opt.control.allocation import ThrustAllocator
-from tapm_opt.design.capability import (BEAUFORT_TABLE, DYNAMIC_ALLOWANCE, QUASI_STATIC_FACTORS, SLACK_TOL,
-                                        CapabilityError, CapabilityOptions, _Engine, capability)
+from tapm_opt.design.capability import (
+    BEAUFORT_TABLE,
+    DYNAMIC_ALLOWANCE,
+    QUASI_STATIC_FACTORS,
+    SLACK_TOL,
+    CapabilityError,
+    CapabilityOptions,
+    _Engine,
+    capability,
+)
 from tapm_opt.design.loads import mean_environmental_load
 from tapm_opt.errors import TapmError
 from tapm_opt.geometry import body_from_turret, turret_offset
@@ -50,7 +59,7 @@ def fixed_all(weak):
 def _env(V: float):
     """Hs, Tp and current of the Beaufort table at wind speed V, interpolated by hand."""
     rows = BEAUFORT_TABLE
-    for r0, r1 in zip(rows[:-1], rows[1:]):
+    for r0, r1 in itertools.pairwise(rows):
         if r0.wind_speed <= V <= r1.wind_speed:
             t = (V - r0.wind_speed) / (r1.wind_speed - r0.wind_speed)
             return V, r0.Hs + t * (r1.Hs - r0.Hs), r0.Tp + t * (r1.Tp - r0.Tp), \
@@ -96,7 +105,7 @@ def test_post_failure_alone_can_exceed_intact_when_a_leeward_line_breaks(weak):
     broken leeward line (line 4, anchor to the west, weather from 60 deg) no longer pulls the
     vessel downwind and the ALS factor is lower than the ULS one."""
     dirs = (60.0,)
-    kw = dict(heading="fixed", condition="all-single-line", directions_deg=dirs)
+    kw = {"heading": "fixed", "condition": "all-single-line", "directions_deg": dirs}
     post = capability(weak, post_failure_only=True, **kw)
     held = capability(weak, **kw)
     assert post.case("line 4").wind_speed[0] > post.case("intact").wind_speed[0] + 1.0
@@ -287,7 +296,7 @@ def test_cli_writes_the_envelopes_and_plots(tapm, capsys, tmp_path):
 
 
 @pytest.mark.parametrize("args, text", [
-    (("--level", "3"), "--level"), (("--sea-state", "nope"), "'nope' is not a sea state"),
+    (("--level", "4"), "--level"), (("--sea-state", "nope"), "'nope' is not a sea state"),
     (("--directions", "0,0"), "repeats a direction"), (("--directions", "north"), "--directions"),
     (("--condition", "some"), "--condition"), (("--heading", "north"), "--heading"),
 ])

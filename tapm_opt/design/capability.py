@@ -1,10 +1,15 @@
 """Thruster-assisted mooring capability envelopes in the style of DNV-ST-0111 (``tapm capability``).
 
 For each environment direction and each case (mooring alone; thrusters + intact mooring; each
-single line broken; each single thruster failed) the largest environment of the standard's
-Beaufort table (:data:`BEAUFORT_TABLE`) for which a quasi-static equilibrium exists, and the
-limiting wind speed found by bisection between the table's rows. Method, conventions, sources and
-the fpso result: ``docs/capability.md``.
+single line broken; each single thruster failed) the largest environment of the table for which a
+quasi-static equilibrium exists, and the limiting wind speed found by bisection between the
+table's rows. The table is the standard's Beaufort table (:data:`BEAUFORT_TABLE`, 0-11) continued
+by rows 12-15 of the same progression (:data:`EXTENSION_ROWS`, not the standard's), so that an
+envelope beyond Beaufort 11 (fpso weathervaning) reports where it ends. ``losses=True`` applies
+DNV-ST-0111's Level 1 thrust losses to the thrusters (:mod:`tapm_opt.design.thrust_losses`).
+Method, conventions, sources and the fpso result: ``docs/capability.md``; the time-domain Level 3
+is :mod:`tapm_opt.studies.capability_level3` (it uses :class:`CapabilityEnvironment` for its
+environments and headings).
 
 Equilibrium of one environment (a row, or a point between two rows)
 --------------------------------------------------------------------
@@ -69,17 +74,19 @@ too (the failure happens in that environment), so intact is never below them;
 :data:`DESIGN_SECTOR_DEG` of the design direction and over every direction; C, D the same over
 the single-failure cases computed.
 
-Size: one module on purpose — the envelope search, its Beaufort table and the thrust and mooring
-loads it balances are one method (``docs/capability.md``); its figures are in ``report.capability``.
+Size: one module on purpose — the envelope search, its Beaufort table, environments and the thrust
+and mooring loads it balances are one method (``docs/capability.md``); its figures are in ``report.capability``.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 import time
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -90,15 +97,38 @@ from ..geometry import body_from_turret, ssa, turret_offset
 from ..standards import DNV_CAPACITY_FACTOR, DNV_E301_QUASI_STATIC_FACTORS
 
 __all__ = [
-    "BEAUFORT_TABLE", "BeaufortRow", "CapabilityError", "CapabilityOptions", "CapabilityResult", "CaseEnvelope",
-    "CONDITIONS", "DESIGN_SECTOR_DEG", "DIRECTIONS_DEG", "DYNAMIC_ALLOWANCE", "HEADINGS", "LEVELS",
-    "QUASI_STATIC_FACTORS", "SLACK_TOL", "CSV_COLUMNS", "capability", "case_names", "STUDY_OPTIONS",
+    "BEAUFORT_TABLE",
+    "CONDITIONS",
+    "CSV_COLUMNS",
+    "DESIGN_SECTOR_DEG",
+    "DIRECTIONS_DEG",
+    "DYNAMIC_ALLOWANCE",
+    "EXTENDED_TABLE",
+    "EXTENSION_ROWS",
+    "HEADINGS",
+    "LEVELS",
+    "QUASI_STATIC_FACTORS",
+    "SLACK_TOL",
+    "STANDARD_TOP",
+    "STUDY_OPTIONS",
+    "TABLES",
+    "BeaufortRow",
+    "CapabilityEnvironment",
+    "CapabilityError",
+    "CapabilityOptions",
+    "CapabilityResult",
+    "CaseEnvelope",
+    "TableEnvironment",
+    "capability",
+    "case_names",
+    "table_name",
 ]
 
 #: The :class:`CapabilityOptions` a study's ``[capability]`` table may set (the rest are numerical
 #: settings with their defaults, or of the command line: workers, progress).
 STUDY_OPTIONS = ("level", "heading", "condition", "directions_deg", "design_direction_deg", "fixed_heading_deg",
-                 "sea_state", "dynamic_allowance", "consequence_class", "capacity_factor", "grid_spacing")
+                 "sea_state", "dynamic_allowance", "consequence_class", "capacity_factor", "grid_spacing", "losses",
+                 "thruster_diameter", "table")
 
 
 class CapabilityError(TapmError, ValueError):
@@ -153,6 +183,35 @@ BEAUFORT_TABLE: tuple[BeaufortRow, ...] = (
     BeaufortRow(10, 28.4, 9.5, 11.5, 0.75),
     BeaufortRow(11, 32.6, 12.1, 12.0, 0.75),
 )
+
+
+def _extension(numbers: Sequence[int]) -> tuple[BeaufortRow, ...]:
+    """Rows beyond Beaufort 11 with the table's own progression (``docs/capability.md``): the wind
+    speed of the WMO relation ``V = 0.836 B^(3/2)`` at the upper limit of class B, ``B + 1/2``,
+    rounded down to 0.1 m/s (which gives every wind speed of the standard's rows 1-11 exactly), Hs growing as the square
+    of the wind speed from the top row (``Hs_11 (V / V_11)^2``, the wind-sea growth of a fully
+    developed sea), Tp at the top row's wave steepness (``Tp_11 sqrt(Hs / Hs_11)``), the current the
+    table keeps from Beaufort 3 on (0.75 m/s)."""
+    top = BEAUFORT_TABLE[-1]
+    out = []
+    for b in numbers:
+        V = math.floor(10.0 * 0.836 * (b + 0.5) ** 1.5) / 10.0
+        Hs = round(top.Hs * (V / top.wind_speed) ** 2, 1)
+        out.append(BeaufortRow(int(b), V, Hs, round(top.Tp * math.sqrt(Hs / top.Hs), 1), top.current_speed))
+    return tuple(out)
+
+
+#: Rows 12-15 beyond the standard's table (not the standard's; :func:`_extension`): 36.9, 41.4,
+#: 46.1 and 51.0 m/s with Hs 15.5, 19.5, 24.2 and 29.6 m. It stops at Beaufort 15, the last row
+#: whose Hs stays within the scenario schema's bound on a sea state (30 m).
+EXTENSION_ROWS: tuple[BeaufortRow, ...] = _extension(range(12, 16))
+#: The standard's table with the extension: the default table of :class:`CapabilityOptions`, so that
+#: an envelope beyond Beaufort 11 reports where it ends instead of the table's top.
+EXTENDED_TABLE: tuple[BeaufortRow, ...] = BEAUFORT_TABLE + EXTENSION_ROWS
+#: The tables by name (``CapabilityOptions(table=name)``, ``tapm capability --table``).
+TABLES: dict[str, tuple[BeaufortRow, ...]] = {"standard": BEAUFORT_TABLE, "extended": EXTENDED_TABLE}
+#: Largest Beaufort number of the standard's table: a number above it is the extension's.
+STANDARD_TOP = BEAUFORT_TABLE[-1].number
 
 #: Dynamic allowance on the environmental load, DNV-ST-0111 Level 1.
 DYNAMIC_ALLOWANCE = 1.25
@@ -233,8 +292,25 @@ class CapabilityOptions:
         Processes over the cases (1: in this process).
     seed : int
         Seed of the wave field (the drift's random frequencies).
-    table : sequence of BeaufortRow
-        The environment table, increasing wind speed (default :data:`BEAUFORT_TABLE`).
+    table : sequence of BeaufortRow, or {"extended", "standard"}
+        The environment table, increasing wind speed, or its name in :data:`TABLES` (default
+        :data:`EXTENDED_TABLE`: the standard's Beaufort 0-11 and the extension 12-15).
+    losses : bool
+        Apply DNV-ST-0111's Level 1 thrust losses to the thrusters
+        (:func:`~tapm_opt.design.thrust_losses.apply_level1_losses`: the factor 0.9 on every
+        thruster's thrust and the thruster-thruster interaction sectors). Default False: the
+        thrusters as the scenario gives them, as the plant simulates them.
+    thruster_diameter : float, optional
+        One propeller diameter [m] for the interaction sectors of ``losses`` (default: each
+        thruster's from its thrust, :func:`~tapm_opt.design.thrust_losses.default_diameter`).
+    riser : bool
+        Check the riser's angles (default True, when the scenario has a riser); False leaves them
+        out (e.g. to compare with a time-domain check of the offset and tensions alone).
+    tension_utilisation : float, optional
+        A fraction of MBS in (0, 1] that replaces ``capacity_factor / gamma`` as every line's
+        tension limit, intact and with a line broken (e.g. the scenario's
+        ``limits.tension_utilisation``, the limit of the time-domain checks); default None: the
+        DNV-OS-E301 quasi-static limits.
     """
 
     level: int = 1
@@ -255,7 +331,11 @@ class CapabilityOptions:
     post_failure_only: bool = False
     workers: int = 1
     seed: int = 0
-    table: tuple[BeaufortRow, ...] = BEAUFORT_TABLE
+    table: tuple[BeaufortRow, ...] = EXTENDED_TABLE
+    losses: bool = False
+    thruster_diameter: float | None = None
+    riser: bool = True
+    tension_utilisation: float | None = None
 
     def __post_init__(self) -> None:
         def bad(name: str, why: str) -> CapabilityError:
@@ -308,6 +388,17 @@ class CapabilityOptions:
             raise bad("post_failure_only", "must be true or false")
         whole("workers", 1)
         whole("seed", 0)
+        for name in ("losses", "riser"):
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                raise bad(name, "must be true or false")
+        if self.thruster_diameter is not None:
+            number("thruster_diameter", 0.0, strict=True)
+        if self.tension_utilisation is not None:
+            number("tension_utilisation", 0.0, 1.0, strict=True)
+        if isinstance(self.table, str):
+            if self.table not in TABLES:
+                raise bad("table", f"must be one of {', '.join(TABLES)} or a sequence of BeaufortRow")
+            object.__setattr__(self, "table", TABLES[self.table])
         rows = tuple(self.table)
         if len(rows) < 2 or not all(isinstance(r, BeaufortRow) for r in rows):
             raise bad("table", "must be two or more BeaufortRow")
@@ -316,7 +407,7 @@ class CapabilityOptions:
             if not all(math.isfinite(v) and v >= 0 for v in vals) or r.Tp < 1.0:
                 raise CapabilityError(f"table[{i}] (Beaufort {r.number}) = {r!r}: wind_speed, Hs, current_speed "
                                       "must be finite and >= 0, Tp >= 1 s")
-        if any(b.wind_speed <= a.wind_speed for a, b in zip(rows[:-1], rows[1:])):
+        if any(b.wind_speed <= a.wind_speed for a, b in itertools.pairwise(rows)):
             raise bad("table", "must have strictly increasing wind speeds")
         object.__setattr__(self, "table", rows)
 
@@ -329,7 +420,15 @@ class CapabilityOptions:
                 "capacity_factor": self.capacity_factor, "grid_spacing": self.grid_spacing,
                 "wind_tol": self.wind_tol, "polytope_directions": self.polytope_directions,
                 "candidates": self.candidates, "relax": self.relax, "post_failure_only": bool(self.post_failure_only),
-                "seed": self.seed}
+                "seed": self.seed, "table_name": table_name(self.table), "losses": bool(self.losses),
+                "thruster_diameter": self.thruster_diameter, "riser": bool(self.riser),
+                "tension_utilisation": self.tension_utilisation}
+
+
+def table_name(table: Sequence[BeaufortRow]) -> str:
+    """``"standard"`` or ``"extended"`` for those tables (:data:`TABLES`), else ``"custom"``."""
+    rows = tuple(table)
+    return next((name for name, t in TABLES.items() if t == rows), "custom")
 
 
 # -- results ----------------------------------------------------------------------------------------
@@ -456,8 +555,9 @@ class CapabilityResult:
 # -- the engine -------------------------------------------------------------------------------------
 
 @dataclass
-class _Env:
-    """One environment's values: wind speed [m/s], Hs [m], Tp [s], surface current [m/s]."""
+class TableEnvironment:
+    """One environment of the table (a row, or a point between two rows): wind speed [m/s], Hs [m],
+    Tp [s], surface current [m/s]."""
 
     wind_speed: float
     Hs: float
@@ -491,7 +591,7 @@ def _grid(radius: float, spacing: float, reach: float) -> np.ndarray:
     """Turret offsets (npts, 2) on rings ``spacing`` apart from 0 to ``reach`` with a ring at
     ``radius``; each ring has a multiple of 4 points, one at angle 0 (mirror-symmetric about both
     axes)."""
-    n_in = max(2, int(math.ceil(radius / spacing)))
+    n_in = max(2, math.ceil(radius / spacing))
     rings = list(np.linspace(0.0, radius, n_in + 1))
     r = radius
     while r < reach - 1e-9:
@@ -499,49 +599,32 @@ def _grid(radius: float, spacing: float, reach: float) -> np.ndarray:
         rings.append(r)
     pts = [np.zeros((1, 2))]
     for rk in rings[1:]:
-        m = max(8, 4 * int(math.ceil(2.0 * math.pi * rk / spacing / 4.0)))
+        m = max(8, 4 * math.ceil(2.0 * math.pi * rk / spacing / 4.0))
         a = 2.0 * math.pi * np.arange(m) / m
         pts.append(np.column_stack([rk * np.cos(a), rk * np.sin(a)]))
     return np.vstack(pts)
 
 
-class _Engine:
-    """Everything one process needs to evaluate cases (built once per process)."""
+class CapabilityEnvironment:
+    """The environments of a capability computation (module docstring): the table's environment at
+    a wind speed, its sea state for a direction, its mean load and the heading of each case.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    options : CapabilityOptions
+        ``table``, ``sea_state`` (the base), ``level`` (the spreads), ``heading``,
+        ``fixed_heading_deg`` and ``seed`` are read.
+    """
 
     def __init__(self, scenario: Any, options: CapabilityOptions):
-        from ..models.mooring import MooringModel
-        from ..models.riser import RiserModel
-        from ..models.system import ThrusterSet
-
         self.sc = sc = scenario
         self.opt = opt = options
-        lim = sc.limits
-        if lim.safe_radius is None:
-            raise CapabilityError(f"scenario {sc.name!r}: limits.safe_radius = None: the capability needs the safe "
-                                  "circle (set [limits] safe_radius)")
-        self.R = float(lim.safe_radius)
         try:
             self.base = sc.sea_state(opt.sea_state)
         except KeyError as exc:
             raise CapabilityError(f"sea_state = {opt.sea_state!r}: {exc.args[0]}") from None
-        self.spacing = float(opt.grid_spacing) if opt.grid_spacing is not None else self.R / 25.0
-        self.reach = (1.0 + opt.relax) * self.R
-        self.P = _grid(self.R, self.spacing, self.reach)
         self.p_cot = np.asarray(sc.turret.position, float)
-        self.free = sc.turret.mode == "free"
-        self.a = float(opt.dynamic_allowance)
-        cf = DNV_CAPACITY_FACTOR if opt.capacity_factor is None else float(opt.capacity_factor)
-        self.capacity_factor = cf
-        cc = int(opt.consequence_class)
-        self.gamma = {"ULS": QUASI_STATIC_FACTORS[("ULS", cc)], "ALS": QUASI_STATIC_FACTORS[("ALS", cc)]}
-        self.intact = MooringModel.from_scenario(sc)
-        self.thrusters = ThrusterSet.from_scenario(sc)
-        self.riser = None
-        if sc.riser is not None:
-            self.riser = RiserModel.from_scenario(sc, self.base)
-            self.theta_lim = (float(sc.riser.critical_top_angle), float(sc.riser.critical_bottom_angle))
-            co = self.riser.coefficients
-            self.c_riser = (co["c_t"], co["c_b"])
         # directions relative to the waves of the base sea state (Level 2 spreads)
         if opt.level == 2:
             self.rel_wind = float(ssa(self.base.wind_direction - self.base.wave_direction))
@@ -549,36 +632,36 @@ class _Engine:
         else:
             self.rel_wind = self.rel_current = 0.0
         self._loads: dict = {}
-        self._tables: dict = {}
-        self._moor: dict = {}
-        self._thr: dict = {}
         self._wv_rows: dict = {}
         self._wv_mid: dict = {}
-        self._gauge_key: tuple | None = None
-        self._gauge = np.zeros((0, 0))
         self.load_calls = 0
-        self.alloc_calls = 0
-        self.evaluations = 0
+
+    def sea_state_from(self, wind: float, direction_deg: float) -> Any:
+        """The sea state of the table at wind speed ``wind`` [m/s] with the environment coming from
+        ``direction_deg`` [deg, clockwise from north]: the base sea state with the environment's
+        values and directions (:meth:`env_at`, :meth:`sea_state`)."""
+        return self.sea_state(self.env_at(wind), math.radians(direction_deg) + math.pi)
+
 
     # -- environment and loads -------------------------------------------------------------------
-    def env_at(self, wind: float) -> _Env:
+    def env_at(self, wind: float) -> TableEnvironment:
         """The environment at wind speed ``wind`` [m/s]: a table row, or Hs, Tp and current
         interpolated linearly in the wind speed between the two rows around it."""
         rows = self.opt.table
         V = [r.wind_speed for r in rows]
         if wind >= V[-1]:
             r = rows[-1]
-            return _Env(r.wind_speed, r.Hs, r.Tp, r.current_speed)
+            return TableEnvironment(r.wind_speed, r.Hs, r.Tp, r.current_speed)
         k = int(np.searchsorted(V, wind, side="right"))
         if k == 0:
             r = rows[0]
-            return _Env(r.wind_speed, r.Hs, r.Tp, r.current_speed)
+            return TableEnvironment(r.wind_speed, r.Hs, r.Tp, r.current_speed)
         r0, r1 = rows[k - 1], rows[k]
         t = (wind - r0.wind_speed) / (r1.wind_speed - r0.wind_speed)
-        return _Env(float(wind), r0.Hs + t * (r1.Hs - r0.Hs), r0.Tp + t * (r1.Tp - r0.Tp),
+        return TableEnvironment(float(wind), r0.Hs + t * (r1.Hs - r0.Hs), r0.Tp + t * (r1.Tp - r0.Tp),
                     r0.current_speed + t * (r1.current_speed - r0.current_speed))
 
-    def sea_state(self, e: _Env, going_to: float) -> Any:
+    def sea_state(self, e: TableEnvironment, going_to: float) -> Any:
         """The base sea state with the environment's values and directions (waves going to
         ``going_to`` [rad]; wind and current collinear, or with the base's spreads at Level 2)."""
         return dataclasses.replace(self.base, Hs=e.Hs, Tp=e.Tp, wind_speed=e.wind_speed,
@@ -586,7 +669,7 @@ class _Engine:
                                    wind_direction=float(ssa(going_to + self.rel_wind)),
                                    current_direction=float(ssa(going_to + self.rel_current)))
 
-    def load(self, e: _Env, beta_from: float, psi: float) -> np.ndarray:
+    def load(self, e: TableEnvironment, beta_from: float, psi: float) -> np.ndarray:
         """Mean environmental load in {B} [N, N, N m] at heading ``psi`` of the environment coming
         from ``beta_from`` [rad] (:func:`~tapm_opt.design.loads.mean_environmental_load`); cached by
         the values and the direction relative to the heading (the load in {B} depends on no other
@@ -607,20 +690,20 @@ class _Engine:
             self._loads[key] = got
         return got
 
-    def current_E(self, e: _Env, beta_from: float) -> np.ndarray:
+    def current_E(self, e: TableEnvironment, beta_from: float) -> np.ndarray:
         """Surface current (x, y) in {E} [m/s] of the environment coming from ``beta_from``."""
         b = beta_from + math.pi + self.rel_current
         return np.array([e.current_speed * math.cos(b), e.current_speed * math.sin(b)])
 
     # -- headings ----------------------------------------------------------------------------------
-    def _moment_about_turret(self, e: _Env, rel: float) -> tuple[float, float]:
+    def _moment_about_turret(self, e: TableEnvironment, rel: float) -> tuple[float, float]:
         """(yaw moment of the mean load about the turret centre [N m], |X, Y| [N]) with the
         environment coming from ``rel`` relative to the bow."""
         tau = self.load(e, rel, 0.0)
         x, y = self.p_cot
         return float(tau[2] - (x * tau[1] - y * tau[0])), float(math.hypot(tau[0], tau[1]))
 
-    def _weathervane_rel(self, e: _Env, guess: float | None = None) -> float:
+    def _weathervane_rel(self, e: TableEnvironment, guess: float | None = None) -> float:
         """Bow-relative direction the environment comes from at the weathervane heading [rad]
         (0: bow into it). Level 1: 0. Level 2: the stable zero of the yaw moment about the turret
         (a + to - sign change with the heading, as :func:`~tapm_opt.design.tables.weathervane_heading`),
@@ -685,13 +768,64 @@ class _Engine:
             return math.radians(self.opt.fixed_heading_deg)
         return float(ssa(beta_from - self.weathervane(wind)))
 
+class _Engine(CapabilityEnvironment):
+    """Everything one process needs to evaluate cases (built once per process)."""
+
+    def __init__(self, scenario: Any, options: CapabilityOptions):
+        from ..models.mooring import MooringModel
+        from ..models.riser import RiserModel
+        from ..models.system import ThrusterSet
+        from .thrust_losses import ThrustLossError, apply_level1_losses
+
+        super().__init__(scenario, options)
+        sc, opt = self.sc, self.opt
+        lim = sc.limits
+        if lim.safe_radius is None:
+            raise CapabilityError(f"scenario {sc.name!r}: limits.safe_radius = None: the capability needs the safe "
+                                  "circle (set [limits] safe_radius)")
+        self.R = float(lim.safe_radius)
+        #: The thrusters as the capability counts them (with the Level 1 losses when asked).
+        self.sc_thr = sc
+        self.losses = None
+        if opt.losses and sc.thrusters:
+            try:
+                self.sc_thr, self.losses = apply_level1_losses(sc, diameter=opt.thruster_diameter)
+            except ThrustLossError as exc:
+                raise CapabilityError(f"losses: {exc}") from None
+        self.spacing = float(opt.grid_spacing) if opt.grid_spacing is not None else self.R / 25.0
+        self.reach = (1.0 + opt.relax) * self.R
+        self.P = _grid(self.R, self.spacing, self.reach)
+        self.free = sc.turret.mode == "free"
+        self.a = float(opt.dynamic_allowance)
+        cf = DNV_CAPACITY_FACTOR if opt.capacity_factor is None else float(opt.capacity_factor)
+        self.capacity_factor = cf
+        cc = int(opt.consequence_class)
+        self.gamma = {"ULS": QUASI_STATIC_FACTORS[("ULS", cc)], "ALS": QUASI_STATIC_FACTORS[("ALS", cc)]}
+        self.intact = MooringModel.from_scenario(sc)
+        self.thrusters = ThrusterSet.from_scenario(self.sc_thr)
+        self.riser = None
+        if sc.riser is not None and opt.riser:
+            self.riser = RiserModel.from_scenario(sc, self.base)
+            self.theta_lim = (float(sc.riser.critical_top_angle), float(sc.riser.critical_bottom_angle))
+            co = self.riser.coefficients
+            self.c_riser = (co["c_t"], co["c_b"])
+        self._tables: dict = {}
+        self._moor: dict = {}
+        self._thr: dict = {}
+        self._gauge_key: tuple | None = None
+        self._gauge = np.zeros((0, 0))
+        self.alloc_calls = 0
+        self.evaluations = 0
+
     # -- mooring ----------------------------------------------------------------------------------
     def mooring(self, broken: str | None) -> tuple[Any, np.ndarray]:
         """(MooringModel, tension limits (n,) [N]) of the intact mooring or with ``broken`` out."""
         if broken not in self._moor:
             m = self.intact if broken is None else self.intact.without([broken])
             state = "ULS" if broken is None else "ALS"
-            self._moor[broken] = (m, self.capacity_factor * np.asarray(m.MBS, float) / self.gamma[state])
+            frac = (self.capacity_factor / self.gamma[state] if self.opt.tension_utilisation is None
+                    else float(self.opt.tension_utilisation))
+            self._moor[broken] = (m, frac * np.asarray(m.MBS, float))
         return self._moor[broken]
 
     def table(self, broken: str | None, psi: float) -> _Table:
@@ -762,31 +896,73 @@ class _Engine:
                 A, b = ts.attainable_polytope(int(self.opt.polytope_directions))
             except TapmError as exc:
                 raise CapabilityError(f"thrusters with {failed!r} failed: {exc}") from None
-            alloc = ThrustAllocator(self.sc.thrusters, dt=1.0e6)
+            specs = self.sc_thr.thrusters
+            alloc = ThrustAllocator(specs, dt=1.0e6)
+            free = None
+            if any(t.forbidden_sectors for t in specs):   # the starts of attained(): a sector-free allocator
+                free = ThrustAllocator([dataclasses.replace(t, forbidden_sectors=()) for t in specs], dt=1.0e6)
             if failed is not None:
                 alloc.set_failed(failed)
+                if free is not None:
+                    free.set_failed(failed)
             # the gauge max_k A_k tau / b_k as one product: tau @ At
-            self._thr[failed] = (alloc, np.ascontiguousarray((np.asarray(A, float) / np.asarray(b, float)[:, None]).T))
-        return self._thr[failed]
+            self._thr[failed] = (alloc, np.ascontiguousarray((np.asarray(A, float) / np.asarray(b, float)[:, None]).T),
+                                 free)
+        return self._thr[failed][:2]
 
-    def attained(self, alloc: Any, tau: np.ndarray) -> bool:
-        """Whether the allocator delivers ``tau`` (slack within :data:`SLACK_TOL`), from rest."""
+    def _starts(self, failed: str | None, tau: np.ndarray) -> list[np.ndarray]:
+        """Azimuth starts for :meth:`attained` with forbidden sectors: the allocator keeps an azimuth
+        on the allowed arc it starts in, so besides the scenario's angles it starts from the
+        azimuths of the sector-free allocation of ``tau``, each azimuth that falls into a sector
+        put just outside it on one side or the other (every combination, at most 64)."""
+        from ..geometry import merge_sectors
+
+        free = self._thr[failed][2]
+        if free is None:
+            return []
         self.alloc_calls += 2
-        alloc.reset()
-        alloc.allocate(tau)
-        r = alloc.allocate(tau)
-        if r.fallback:
-            return False
-        s = np.abs(np.asarray(r.slack, float))
-        return bool(s[0] <= SLACK_TOL * alloc.F_ref and s[1] <= SLACK_TOL * alloc.F_ref
-                    and s[2] <= SLACK_TOL * alloc.F_ref * alloc.L_ref)
+        free.reset()
+        free.allocate(tau)
+        a0 = np.array(free.allocate(tau).alpha, float)
+        sides: list[list[float]] = []
+        for i, t in enumerate(self.sc_thr.thrusters):
+            opts = [float(a0[i])]
+            if t.kind == "azimuth" and t.forbidden_sectors:
+                starts, widths = merge_sectors(t.forbidden_sectors, t.id)
+                for st, w in zip(starts, widths):
+                    if (a0[i] - st) % (2.0 * math.pi) < w:       # inside: either edge, just outside
+                        opts = [st - 1e-6, st + w + 1e-6]
+                        break
+            sides.append(opts)
+        combos = [[]]
+        for opts in sides:
+            combos = [c + [o] for c in combos for o in opts][:64]
+        return [np.array(c) for c in combos]
+
+    def attained(self, failed: str | None, tau: np.ndarray) -> bool:
+        """Whether the allocator (``failed`` out) delivers ``tau`` (slack within :data:`SLACK_TOL`),
+        from rest: from the scenario's azimuths and, with forbidden sectors, from the starts of
+        :meth:`_starts` until one delivers it."""
+        alloc = self._thr[failed][0]
+        for alpha in [None, *(self._starts(failed, tau) if self._thr[failed][2] is not None else [])]:
+            self.alloc_calls += 2
+            alloc.reset(alpha=alpha)
+            alloc.allocate(tau)
+            r = alloc.allocate(tau)
+            if r.fallback:
+                continue
+            sl = np.abs(np.asarray(r.slack, float))
+            if (sl[0] <= SLACK_TOL * alloc.F_ref and sl[1] <= SLACK_TOL * alloc.F_ref
+                    and sl[2] <= SLACK_TOL * alloc.F_ref * alloc.L_ref):
+                return True
+        return False
 
     # -- one environment ---------------------------------------------------------------------------
-    def evaluate_thrust(self, broken: str | None, failed: str | None, e: _Env, beta_from: float, psi: float,
+    def evaluate_thrust(self, broken: str | None, failed: str | None, e: TableEnvironment, beta_from: float, psi: float,
                         *, diagnose: bool = False) -> _Outcome:
         """Whether an equilibrium with thrust exists (module docstring); with ``diagnose``, the
         binding constraint of a failure."""
-        alloc, At = self.thrust(failed)
+        _, At = self.thrust(failed)
         tab = self.table(broken, psi)
         tau_env = self.load(e, beta_from, psi)
         key = (broken, failed, round(psi, 12))
@@ -802,7 +978,7 @@ class _Engine:
             best = idx[np.argpartition(g[idx], K - 1)[:K]] if idx.size > K else idx
             order = best[np.argsort(g[best], kind="stable")]
             for j in order:
-                if self.attained(alloc, -(tab.tau[j] + self.a * tau_env)):
+                if self.attained(failed, -(tab.tau[j] + self.a * tau_env)):
                     return _Outcome(True, psi=psi, offset=(float(self.P[j, 0]), float(self.P[j, 1])),
                                     thrust=float(g[j]), tension=float(tab.r_T[j]))
         if not diagnose:
@@ -831,7 +1007,7 @@ class _Engine:
             name = f"tension {model.line_ids[int(tab.worst[at['tension']])]}"
         return _Outcome(False, limit=name, psi=psi)
 
-    def evaluate_mooring(self, e: _Env, beta_from: float, psi: float, guess: np.ndarray | None, *,
+    def evaluate_mooring(self, e: TableEnvironment, beta_from: float, psi: float, guess: np.ndarray | None, *,
                          diagnose: bool = False) -> _Outcome:
         """Whether the intact mooring alone holds the environment (module docstring)."""
         from ..models.statics import solve_equilibrium
@@ -906,7 +1082,8 @@ class _Engine:
             guess: list = [None]
             cap = math.inf if ceiling is None or float(ceiling[0][i]) >= top else float(ceiling[0][i])
 
-            def ev(V: float, diagnose: bool = False) -> _Outcome:
+            def ev(V: float, diagnose: bool = False, cap: float = cap, i: int = i, beta: float = beta,
+                   guess: list = guess) -> _Outcome:
                 if V > cap + 1e-12:        # the intact system does not hold it before the failure
                     return _Outcome(False, limit=str(ceiling[1][i]))
                 e = self.env_at(V)
@@ -1115,11 +1292,15 @@ def capability(scenario: Any, options: CapabilityOptions | Mapping[str, Any] | N
         "design_sector_deg": DESIGN_SECTOR_DEG,
         "safe_radius_m": engine.R,
         "grid_spacing_m": engine.spacing,
-        "grid_points": int(len(engine.P)),
-        "tension_limit": {"capacity_factor": engine.capacity_factor, "gamma_ULS": engine.gamma["ULS"],
-                          "gamma_ALS": engine.gamma["ALS"], "standard": "DNV-OS-E301 (October 2008), quasi-static"},
-        "riser_limits_deg": (None if sc.riser is None else
+        "grid_points": len(engine.P),
+        "tension_limit": ({"capacity_factor": engine.capacity_factor, "gamma_ULS": engine.gamma["ULS"],
+                           "gamma_ALS": engine.gamma["ALS"], "standard": "DNV-OS-E301 (October 2008), quasi-static"}
+                          if opt.tension_utilisation is None else
+                          {"capacity_factor": float(opt.tension_utilisation), "gamma_ULS": 1.0, "gamma_ALS": 1.0,
+                           "standard": "tension_utilisation x MBS (given)"}),
+        "riser_limits_deg": (None if sc.riser is None or not opt.riser else
                              [math.degrees(sc.riser.critical_top_angle), math.degrees(sc.riser.critical_bottom_angle)]),
+        "thrust_losses": None if engine.losses is None else engine.losses.as_json(),
         "base_sea_state": engine.base.id,
         "spreads_deg": [math.degrees(engine.rel_wind), math.degrees(engine.rel_current)],
         "table": [dataclasses.asdict(r) for r in opt.table],
