@@ -1,7 +1,9 @@
 """The ``tapm capability`` command (registered in :mod:`tapm_opt.cli`).
 
-Computation: :func:`tapm_opt.design.capability.capability`; files and figures:
-:func:`tapm_opt.report.capability.write_capability`; method: ``docs/capability.md``.
+Computation: :func:`tapm_opt.design.capability.capability` (Levels 1 and 2) and
+:func:`tapm_opt.studies.capability_level3.capability_level3` (Level 3, the time domain); files and
+figures: :func:`tapm_opt.report.capability.write_capability` and
+:func:`~tapm_opt.report.capability.write_level3`; method: ``docs/capability.md``.
 """
 
 from __future__ import annotations
@@ -11,6 +13,8 @@ import math
 import os
 
 import click
+
+from ._common import ControllerKindChoice
 
 __all__ = ["capability"]
 
@@ -25,47 +29,78 @@ def _out_dir(ctx: click.Context, param: click.Parameter, value: str | None) -> s
 
 @click.command("capability")
 @click.argument("scenario_name", metavar="SCENARIO")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), required=True, callback=_out_dir,
-              help="Directory for capability.csv, capability.json and the polar plots.")
-@click.option("--level", type=click.Choice(["1", "2"]), default="1", show_default=True,
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None, callback=_out_dir,
+              help="Directory for the files (Levels 1, 2: capability.csv, capability.json and the polar plots; "
+                   "Level 3: capability_level3_<controller>.csv, .json, .png). Without it nothing is written.")
+@click.option("--level", type=click.Choice(["1", "2", "3"]), default="1", show_default=True,
               help="1: wind, waves and current collinear (DNV-ST-0111 Level 1); 2: wind and current keep the base "
-                   "sea state's directions relative to its waves.")
+                   "sea state's directions relative to its waves; 3: the time domain, the controller in the loop on "
+                   "the FEM plant (environments as Level 1).")
 @click.option("--heading", type=click.Choice(["weathervane", "fixed"]), default="weathervane", show_default=True,
               help="Heading with thrust: bow into the environment (weathervane) or --fixed-heading. Mooring alone "
                    "always weathervanes.")
 @click.option("--fixed-heading", "fixed_heading", type=float, default=0.0, show_default=True,
               help="Heading of --heading fixed [deg].")
 @click.option("--condition", type=click.Choice(["all", "intact", "all-single-line", "thruster-failure"]),
-              default="all", show_default=True,
+              default=None,
               help="Cases besides mooring alone and intact: every single line broken, the worst single thruster "
-                   "failure, or both (all).")
+                   "failure, or both (all; the default of Levels 1, 2). Level 3: intact only.")
 @click.option("--sea-state", "sea_state", default=None,
               help="Base sea state (JONSWAP gamma, current profile, Level 2 spreads; default the scenario's first).")
 @click.option("--directions", default=None,
               help="Environment directions [deg, coming from], comma-separated (default 0-350 in 10 deg steps).")
 @click.option("--design-direction", "design_direction", type=float, default=None,
               help="Centre of the ±30 deg sector of A and C [deg, coming from] (default: the base sea state's waves).")
+@click.option("--table", type=click.Choice(["extended", "standard"]), default="extended", show_default=True,
+              help="Environment table: the standard's Beaufort 0-11 with the extension 12-15 (rows beyond the "
+                   "standard's, docs/capability.md), or the standard's alone.")
+@click.option("--losses", is_flag=True,
+              help="Apply DNV-ST-0111's Level 1 thrust losses (the factor 0.9 and the thruster-thruster interaction "
+                   "sectors) to the thrusters.")
+@click.option("--thruster-diameter", "thruster_diameter", type=float, default=None,
+              help="Propeller diameter [m] of the interaction sectors of --losses (default: each thruster's from "
+                   "its thrust).")
+@click.option("--controller", type=ControllerKindChoice(), default=None,
+              help="Level 3: the controller in the loop (a registered kind; default pid).")
+@click.option("--duration", type=float, default=None,
+              help="Level 3: checked length of each run [s] after the warm-up (default 10800, 3 hours).")
+@click.option("--warmup", type=float, default=None,
+              help="Level 3: start of each run left out of the statistics [s] (default 300).")
+@click.option("--seeds", type=int, default=None,
+              help="Level 3: runs per table row, plant seeds 1..N; a row passes when all do (default 1).")
+@click.option("--segments", type=int, default=None,
+              help="Level 3: FEM segments per line (default each line's own).")
+@click.option("--riser/--no-riser", default=None,
+              help="Check the riser's angles (default: Levels 1, 2 yes; Level 3 no: turret offset and line "
+                   "tensions only).")
 @click.option("--workers", type=click.IntRange(1, 64), default=None,
-              help="Processes over the cases (default: 2, or 1 on a single CPU).")
+              help="Processes over the cases (Levels 1, 2) or the directions (Level 3) (default: 2, or 1 on a "
+                   "single CPU).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of text.")
-def capability(scenario_name: str, out_dir: str, level: str, heading: str, fixed_heading: float, condition: str,
-               sea_state: str | None, directions: str | None, design_direction: float | None, workers: int | None,
-               as_json: bool) -> None:
+def capability(scenario_name: str, out_dir: str | None, level: str, heading: str, fixed_heading: float,
+               condition: str | None, sea_state: str | None, directions: str | None, design_direction: float | None,
+               table: str, losses: bool, thruster_diameter: float | None, controller: str | None,
+               duration: float | None, warmup: float | None, seeds: int | None, segments: int | None,
+               riser: bool | None, workers: int | None, as_json: bool) -> None:
     """Thruster-assisted mooring capability envelopes of SCENARIO, DNV-ST-0111 style.
 
-    For every direction and case (mooring alone; thrusters with the mooring intact; each single
-    line broken; the worst single thruster failure) the largest Beaufort row of the standard's
+    Levels 1 and 2: for every direction and case (mooring alone; thrusters with the mooring intact;
+    each single line broken; the worst single thruster failure) the largest Beaufort row of the
     table, and the limiting wind speed between rows, for which a quasi-static equilibrium exists
     with the turret inside the safe circle, the lines within DNV-OS-E301 ULS/ALS and the riser
     within its angles, the thrust allocation supplying the rest (dynamic allowance 1.25). Writes
     OUT/capability.csv, capability.json (the numbers A, B, C, D), capability.png and
-    capability_cases.png. Method: docs/capability.md.
+    capability_cases.png.
+
+    Level 3: for every direction the strongest row in which the closed loop with --controller on
+    the FEM plant keeps the turret inside the safe circle and every fairlead tension below
+    limits.tension_utilisation x MBS for --duration seconds (after --warmup). Writes
+    OUT/capability_level3_<controller>.csv, .json and .png. Method: docs/capability.md.
     """
     from ._common import load, parse_floats
-    from ..design.capability import CapabilityOptions, capability as compute
-    from ..report.capability import write_capability
 
     sc = load(scenario_name)
+    lv = int(level)
     if sea_state is not None and sea_state not in [s.id for s in sc.sea_states]:
         raise click.BadParameter(f"{sea_state!r} is not a sea state of scenario {sc.name!r}; its sea states: "
                                  f"{', '.join(s.id for s in sc.sea_states) or 'none'}", param_hint="'--sea-state'")
@@ -75,6 +110,30 @@ def capability(scenario_name: str, out_dir: str, level: str, heading: str, fixed
     for name, v in (("--fixed-heading", fixed_heading), ("--design-direction", design_direction)):
         if v is not None and not (math.isfinite(v) and abs(v) <= 360.0):
             raise click.BadParameter(f"{v!r} must be a finite angle in [-360, 360] deg", param_hint=f"'{name}'")
+    if thruster_diameter is not None and not (math.isfinite(thruster_diameter) and thruster_diameter > 0):
+        raise click.BadParameter(f"{thruster_diameter!r} must be a positive number of metres",
+                                 param_hint="'--thruster-diameter'")
+    if thruster_diameter is not None and not losses:
+        raise click.BadParameter("is the diameter of the interaction sectors of --losses: give --losses too",
+                                 param_hint="'--thruster-diameter'")
+    level3_only = {"--controller": controller, "--duration": duration, "--warmup": warmup, "--seeds": seeds,
+                   "--segments": segments}
+    if lv != 3:
+        for name, v in level3_only.items():
+            if v is not None:
+                raise click.BadParameter(f"is an option of --level 3 (the time domain), not of --level {lv}",
+                                         param_hint=f"'{name}'")
+    else:
+        if condition not in (None, "intact"):
+            raise click.BadParameter(f"{condition!r}: Level 3 computes the intact case only (give --condition intact "
+                                     "or leave it out)", param_hint="'--condition'")
+        if duration is not None and not (math.isfinite(duration) and duration > 0):
+            raise click.BadParameter(f"{duration!r} must be a positive number of seconds", param_hint="'--duration'")
+        if warmup is not None and not (math.isfinite(warmup) and warmup >= 0):
+            raise click.BadParameter(f"{warmup!r} must be a number of seconds >= 0", param_hint="'--warmup'")
+        for name, v in (("--seeds", seeds), ("--segments", segments)):
+            if v is not None and v < 1:
+                raise click.BadParameter(f"{v!r} must be a whole number >= 1", param_hint=f"'{name}'")
     dirs = None
     if directions is not None:
         vals = parse_floats(directions, "--directions")
@@ -91,11 +150,27 @@ def capability(scenario_name: str, out_dir: str, level: str, heading: str, fixed
         raise click.BadParameter(f"scenario {sc.name!r} has no thrusters: every case but mooring alone needs them",
                                  param_hint="SCENARIO")
     kw = {} if dirs is None else {"directions_deg": dirs}
-    opts = CapabilityOptions(level=int(level), heading=heading, condition=condition, fixed_heading_deg=fixed_heading,
-                             sea_state=sea_state, design_direction_deg=design_direction,
-                             workers=workers or min(2, os.cpu_count() or 1), **kw)
+    n_workers = workers or min(2, os.cpu_count() or 1)
+    if lv == 3:
+        _level3(sc, out_dir, as_json, heading=heading, fixed_heading_deg=fixed_heading, sea_state=sea_state,
+                table=table, losses=losses, thruster_diameter=thruster_diameter, controller=controller or "pid",
+                duration=duration, warmup=warmup, seeds=seeds, segments=segments, riser=bool(riser),
+                workers=n_workers, **kw)
+        return
+    from ..design.capability import CapabilityOptions
+    from ..design.capability import capability as compute
+    from ..report.capability import capability_files, write_capability
+
+    opts = CapabilityOptions(level=lv, heading=heading, condition=condition or "all", fixed_heading_deg=fixed_heading,
+                             sea_state=sea_state, design_direction_deg=design_direction, table=table, losses=losses,
+                             thruster_diameter=thruster_diameter, riser=True if riser is None else riser,
+                             workers=n_workers, **kw)
     res = compute(sc, opts)
-    paths = write_capability(res, out_dir)
+    if out_dir is not None:
+        paths = write_capability(res, out_dir)
+    else:
+        capability_files(res)   # the figures are drawn either way (a failure shows without --out too)
+        paths = []
     n = res.numbers
     if as_json:
         cases = []
@@ -104,8 +179,9 @@ def capability(scenario_name: str, out_dir: str, level: str, heading: str, fixed
             cases.append({"name": c.name, "lowest_beaufort": int(c.beaufort.min()),
                           "lowest_wind_speed": float(c.wind_speed[j]),
                           "at_direction_deg": float(res.directions_deg[j])})
-        click.echo(json.dumps({"scenario": res.scenario, "numbers": n, "cases": cases,
+        click.echo(json.dumps({"scenario": res.scenario, "level": lv, "numbers": n, "cases": cases,
                                "worst_thruster": res.info.get("worst_thruster"),
+                               "losses": bool(losses), "table": table,
                                "files": [str(p) for p in paths], "elapsed_s": res.info["elapsed_s"]}, indent=2))
         return
 
@@ -115,7 +191,9 @@ def capability(scenario_name: str, out_dir: str, level: str, heading: str, fixed
     n_cases = len(res.cases) + max(len(res.thruster_cases) - 1, 0)
     click.echo(f"{res.scenario}: capability, Level {level}, heading {heading}"
                + (f" {fixed_heading:g} deg" if heading == "fixed" else "")
-               + f", {len(res.directions_deg)} directions, {n_cases} cases in {res.info['elapsed_s']:.1f} s")
+               + f", {len(res.directions_deg)} directions, {n_cases} cases in {res.info['elapsed_s']:.1f} s"
+               + (", with DNV-ST-0111 Level 1 thrust losses" if losses else ", no thrust losses")
+               + f", {table} table")
     click.echo(f"  A {f(n['A'])}  B {f(n['B'])}  C {f(n['C'])}"
                + (f" ({n['C_case']})" if n["C_case"] else "") + f"  D {f(n['D'])}"
                + (f" ({n['D_case']})" if n["D_case"] else "")
@@ -125,5 +203,54 @@ def capability(scenario_name: str, out_dir: str, level: str, heading: str, fixed
         j = int(c.wind_speed.argmin())
         click.echo(f"  {c.name:14s} lowest Beaufort {int(c.beaufort.min()):3d}, {c.wind_speed[j]:5.1f} m/s from "
                    f"{res.directions_deg[j]:5.0f} deg ({c.limit[j]})")
+    if table == "extended" and any(int(c.beaufort.max()) > 11 for c in res.cases):
+        click.echo("  (Beaufort above 11: the table's extension, beyond the standard's rows; docs/capability.md)")
+    for p in paths:
+        click.echo(f"wrote {p}")
+
+
+def _level3(sc, out_dir: str | None, as_json: bool, **kw) -> None:
+    """``--level 3``: :func:`~tapm_opt.studies.capability_level3.capability_level3`, its text or
+    JSON summary and its files."""
+    from ..report.capability import level3_files, write_level3
+    from ..studies.capability_level3 import Level3Options, capability_level3
+
+    given = {k: v for k, v in kw.items() if v is not None}
+    opts = Level3Options(**given)
+
+    def progress(line: str) -> None:
+        if not as_json:
+            click.echo(f"  {line}", err=True)
+
+    res = capability_level3(sc, opts, progress=progress)
+    if out_dir is not None:
+        paths = write_level3(res, out_dir)
+    else:
+        level3_files(res)
+        paths = []
+    b1 = res.level1.case("intact").beaufort
+    b0 = res.level1_bound.case("intact").beaufort
+    if as_json:
+        click.echo(json.dumps({"scenario": res.scenario, "level": 3, "controller": opts.controller,
+                               "directions": [{"direction_deg": d.direction_deg, "beaufort": d.beaufort,
+                                               "wind_speed": d.wind_speed, "limit_above": d.limit,
+                                               "level1_beaufort": int(b1[i]), "level1_bound_beaufort": int(b0[i]),
+                                               "runs": len(d.tested)}
+                                              for i, d in enumerate(res.directions)],
+                               "files": [str(p) for p in paths], "elapsed_s": res.info["elapsed_s"]}, indent=2))
+        return
+    click.echo(f"{res.scenario}: capability, Level 3 (time domain), controller {opts.controller}, heading "
+               f"{opts.heading}, {len(res.directions)} directions, {res.info['runs']} runs of "
+               f"{opts.warmup:g} + {opts.duration:g} s in {res.info['elapsed_s']:.1f} s"
+               + (", thrusters with the Level 1 losses" if opts.losses else ""))
+    click.echo("  direction  Level 3 (wind)        L1 / bound  deciding run: offset, T/MBS (line), energy   "
+               "row above: what failed")
+    for i, d in enumerate(res.directions):
+        s = d.decided
+        run = ("-" if s is None else
+               f"{s.offset_max:5.1f} m, {s.util_max:.3f} ({s.util_line}), {s.thrust_energy / 3.6e9:.2f} MWh")
+        above = d.limit if d.above is None else f"BF {d.above.number}: {d.above.detail}"
+        click.echo(f"  {d.direction_deg:6.0f} deg  BF {d.beaufort:3d} ({d.wind_speed:4.1f} m/s)  "
+                   f"{int(b1[i]):4d} / {int(b0[i]):2d}   {run}   {above}")
     for p in paths:
         click.echo(f"wrote {p}")

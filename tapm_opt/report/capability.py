@@ -14,14 +14,20 @@ from a saved study as the command does from a fresh computation:
   nothing);
 * :func:`capability_blocks` / :func:`study_capability_section` — the report's capability section
   (the numbers A-D, the settings, a per-case table and the two figures), for a study directory
-  that holds ``capability/capability.json``.
+  that holds ``capability/capability.json``, and the Level 3 results next to it
+  (``capability/capability_level3_<controller>.json``: one table and one figure per controller,
+  :func:`level3_blocks`);
+* :func:`level3_figure`, :func:`level3_files`, :func:`write_level3` — the time-domain (Level 3)
+  capability of one controller against its two Level 1 references
+  (:mod:`tapm_opt.studies.capability_level3`).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -30,8 +36,9 @@ from .._io import atomic_write_bytes
 from .document import Cell, Fig, Heading, Para, Table, json_section
 from .figures import png_bytes
 
-__all__ = ["CAPABILITY_DIR", "capability_figure", "cases_figure", "capability_files", "write_capability",
-           "capability_blocks", "study_capability_section", "LIMIT_COLORS"]
+__all__ = ["CAPABILITY_DIR", "LIMIT_COLORS", "capability_blocks", "capability_figure", "capability_files",
+           "cases_figure", "level3_blocks", "level3_figure", "level3_files", "study_capability_section",
+           "write_capability", "write_level3"]
 
 #: Folder of a study directory the report reads the capability from.
 CAPABILITY_DIR = "capability"
@@ -76,12 +83,22 @@ def _line_style(k: int, n: int) -> dict:
     return {"color": cmap(k % 20), "lw": 0.9, "ls": "-" if k < 20 else "--"}
 
 
+def _vmax(table: Sequence[dict], values: Sequence[Any]) -> float:
+    """Radius of a polar plot: the first table row above the largest value plotted (the table's top
+    when none is above), plus 5 %."""
+    v = [float(x) for x in values if x is not None and math.isfinite(float(x))]
+    top = max(v, default=0.0)
+    rows = [float(r["wind_speed"]) for r in table]
+    above = [w for w in rows if w > top + 1e-9]
+    return 1.05 * (min(above) if above else rows[-1])
+
+
 def capability_figure(data: dict, *, title: str | None = None) -> Figure:
     """Every reported case's limiting wind speed [m/s] against the direction the environment comes
     from (north up, clockwise), with the Beaufort rows as circles and the design sector shaded."""
     st = data["settings"]
     table = st["table"]
-    vmax = float(table[-1]["wind_speed"]) * 1.05
+    vmax = _vmax(table, [v for c in data["cases"] for v in c["wind_speed"]])
     fig = Figure(figsize=(8.0, 6.6))
     ax = fig.add_axes([0.05, 0.08, 0.62, 0.8], projection="polar")
     _polar(ax, table, vmax)
@@ -125,9 +142,9 @@ def cases_figure(data: dict, *, columns: int = 6) -> Figure:
     binding constraint as the marker colour (:data:`LIMIT_COLORS`)."""
     cases = data["cases"]
     st = data["settings"]
-    vmax = float(st["table"][-1]["wind_speed"]) * 1.05
+    vmax = _vmax(st["table"], [v for c in cases for v in c["wind_speed"]])
     ncol = min(columns, len(cases))
-    nrow = int(math.ceil(len(cases) / ncol))
+    nrow = math.ceil(len(cases) / ncol)
     fig = Figure(figsize=(2.0 * ncol, 2.15 * nrow + 0.5))
     dirs = data["directions_deg"]
     for k, c in enumerate(cases):
@@ -198,8 +215,15 @@ def capability_blocks(data: dict, *, fig_prefix: str = "capability", source: str
         "line broken; DNV-OS-E301 2008, quasi-static)"
         + (f", the riser's top and bottom angles below {st['riser_limits_deg'][0]:g}° and "
            f"{st['riser_limits_deg'][1]:g}°" if st.get("riser_limits_deg") else "")
-        + " and the thrust allocation delivering the rest. Directions: where the environment comes from, "
-          "clockwise from north." + (f" Source: `{source}`." if source else "")))
+        + " and the thrust allocation delivering the rest"
+        + (" (thrusters with DNV-ST-0111's Level 1 losses: factor "
+           f"{st['thrust_losses']['beta_misc']:g} and {len(st['thrust_losses']['pairs'])} interaction sectors)"
+           if st.get("thrust_losses") else " (thrusters without thrust losses)")
+        + ". Directions: where the environment comes from, clockwise from north."
+        + (f" Table: {st.get('table_name', 'standard')}"
+           + (" (rows above Beaufort 11 are the extension, not the standard's)"
+              if st.get("table_name") == "extended" else "") + "." if st.get("table_name") else "")
+        + (f" Source: `{source}`." if source else "")))
     sector = f"±{st['design_sector_deg']:g}° of {data['design_direction_deg']:g}°"
     blocks.append(Table(
         header=["number", "meaning", "Beaufort", "case"],
@@ -239,15 +263,149 @@ def capability_blocks(data: dict, *, fig_prefix: str = "capability", source: str
     return blocks, figs
 
 
+#: Colour of each controller's Level 3 envelope in :func:`level3_figure`.
+LEVEL3_COLORS = {"pid": "tab:orange", "lmpc": "tab:green", "mpc": "tab:purple"}
+
+
+def _level3_wind(data: dict) -> list:
+    """The Level 3 capability as the wind speed of its row (NaN for none) per direction."""
+    return [w if b >= 0 else float("nan") for b, w in zip(data["beaufort"], data["wind_speed"])]
+
+
+def level3_figure(datas: Sequence[dict], *, title: str | None = None) -> Figure:
+    """The Level 3 capability of one or more controllers (``capability_level3_<controller>.json``
+    dicts of one scenario) as the wind speed of the capability row per direction (markers joined
+    by lines), with the first one's Level 1 references: without losses, the same limits, the
+    dynamic allowance 1.25 (dashed) and 1 (dotted, the bound)."""
+    first = datas[0]
+    table = first["settings"]["table"]
+    dirs = first["directions_deg"]
+
+    def intact(ref: dict) -> list:
+        return next(c for c in ref["cases"] if c["kind"] == "intact")["wind_speed"]
+
+    vals = [v for d in datas for v in _level3_wind(d)] + intact(first["level1_bound"])
+    vmax = _vmax(table, vals)
+    fig = Figure(figsize=(9.0, 6.4))
+    ax = fig.add_axes([0.04, 0.1, 0.56, 0.78], projection="polar")
+    _polar(ax, table, vmax)
+    for key, ls, mk, label in (("level1", "--", "x", "Level 1, allowance 1.25"),
+                               ("level1_bound", ":", "+", "Level 1, allowance 1")):
+        th, v = _closed(dirs, intact(first[key]))
+        ax.plot(th, v, color="tab:blue", lw=1.6, ls=ls, marker=mk, ms=5, label=label + "\n(no losses, same limits)")
+    for d in datas:
+        th, v = _closed(d["directions_deg"], _level3_wind(d))
+        ctl = d["controller"]
+        ax.plot(th, v, color=LEVEL3_COLORS.get(ctl, "black"), lw=2.0, marker="o", ms=4,
+                label=f"Level 3, {ctl.upper()} ({d['settings']['duration_s']:g} s x {d['settings']['seeds']} seed"
+                      + ("s" if d["settings"]["seeds"] > 1 else "") + ")")
+    st = first["settings"]
+    ax.set_title(title or f"{first['scenario']}: capability in the time domain, heading {st['heading']}", fontsize=9)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.08, 1.02), fontsize=6.5, frameon=False)
+    fig.text(0.02, 0.02, "Radius: wind speed [m/s] of the strongest table row held (circles: Beaufort rows), against "
+                         "the direction the environment comes from (clockwise from north).", fontsize=6.5)
+    return fig
+
+
+def level3_files(result: Any) -> dict[str, bytes]:
+    """The output files of one Level 3 computation, built in memory:
+    ``capability_level3_<controller>.csv``, ``.json`` and ``.png`` (:func:`level3_figure`)."""
+    files = result.data_files()
+    data = result.as_json()
+    stem = next(iter(files)).rsplit(".", 1)[0]
+    return {**files, f"{stem}.png": png_bytes(level3_figure([data]))}
+
+
+def write_level3(result: Any, out_dir: str | Path) -> list[Path]:
+    """Write :func:`level3_files` into ``out_dir`` (created), each file atomically once all are
+    built. Returns the paths."""
+    files = level3_files(result)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for name, blob in files.items():
+        p = out / name
+        atomic_write_bytes(p, blob)
+        paths.append(p)
+    return paths
+
+
+def _mwh(v: Any) -> str:
+    return "–" if v is None else f"{v / 3.6e9:.2f}"
+
+
+def level3_blocks(datas: Sequence[dict], *, fig_prefix: str = "capability_level3") -> tuple[list, list[Fig]]:
+    """The report's Level 3 part: what was run, one table per controller (per direction: the Level 3
+    capability, the Level 1 references, the deciding run's offset, tension and energy, what failed
+    in the row above) and one figure with every controller."""
+    blocks: list = []
+    first = datas[0]
+    st = first["settings"]
+    blocks.append(Para(
+        f"**Level 3** (time domain, the controller in the loop): per direction the strongest table row in which "
+        f"the closed loop on the FEM plant keeps the turret inside the {st['safe_radius_m']:g} m safe circle and "
+        f"every fairlead tension below {st['tension_utilisation_used']:g}·MBS"
+        + (", the riser within its angles" if st.get("riser_limits_deg") else "")
+        + f" for {st['duration_s']:g} s after a {st['warmup_s']:g} s warm-up ({st['seeds']} seed"
+        + ("s" if st["seeds"] > 1 else "") + " per row; heading " + st["heading"]
+        + ("; thrusters with the Level 1 losses" if st.get("losses") else "") + "). Level 1 for comparison: "
+        "without losses, the same limits, dynamic allowance 1.25 (L1) and 1 (L1 bound)."))
+    for d in datas:
+        b1 = next(c for c in d["level1"]["cases"] if c["kind"] == "intact")["beaufort"]
+        b0 = next(c for c in d["level1_bound"]["cases"] if c["kind"] == "intact")["beaufort"]
+        rows = []
+        for i, e in enumerate(d["directions"]):
+            dec, ab = e["decided"], e["above"]
+            rows.append([Cell(f"{e['direction_deg']:g}"), Cell(str(e["beaufort"])), Cell(str(b1[i])), Cell(str(b0[i])),
+                         Cell("–" if dec is None else f"{dec['offset_max_m']:.1f}"),
+                         Cell("–" if dec is None else f"{dec['util_max']:.3f} ({dec['util_line']})"),
+                         Cell("–" if dec is None else _mwh(dec["thrust_energy_J"])),
+                         Cell(e["limit"] if ab is None else f"{ab['limit']} (BF {ab['beaufort']}: {ab['detail']})")])
+        blocks.append(Para(f"Level 3 with **{d['controller'].upper()}** ({d['settings']['runs']} runs, "
+                           f"{d['settings']['elapsed_s']:.0f} s of wall time)."))
+        blocks.append(Table(header=["direction [°]", "Level 3", "L1", "L1 bound", "offset max [m]", "T/MBS max (line)",
+                                    "energy [MWh]", "row above: what failed"],
+                            rows=rows, align=["r", "r", "r", "r", "r", "r", "r", "l"]))
+    f = Fig(name=fig_prefix, png=png_bytes(level3_figure(datas)),
+            caption="Level 3 capability per controller (the wind speed of the strongest row held) against the "
+                    "direction the environment comes from, with Level 1 without losses at the same limits "
+                    "(dashed: allowance 1.25; dotted: allowance 1).")
+    blocks.append(f)
+    return blocks, [f]
+
+
 def study_capability_section(study_dir: str | Path, problems: list[str] | None = None,
                              *, heading: str = "8 Capability") -> tuple[list, list[Fig]] | None:
     """The report's capability section for a study directory that holds
-    ``capability/capability.json`` (``tapm capability SCENARIO --out DIR/capability``); None when it
-    holds none. An unreadable file gives a short section saying so (and a line in ``problems``)."""
-    path = Path(study_dir) / CAPABILITY_DIR / "capability.json"
-    if not path.is_file():
+    ``capability/capability.json`` (``tapm capability SCENARIO --out DIR/capability``) or Level 3
+    results ``capability/capability_level3_<controller>.json`` (``--level 3``); None when it holds
+    neither. An unreadable file gives a short section saying so (and a line in ``problems``)."""
+    import json
+
+    d = Path(study_dir) / CAPABILITY_DIR
+    path = d / "capability.json"
+    lv3 = sorted(d.glob("capability_level3_*.json")) if d.is_dir() else []
+    if not path.is_file() and not lv3:
         return None
-    more, figs = json_section(path, "tapm-capability/1",
-                              lambda data: capability_blocks(data, source=f"{CAPABILITY_DIR}/capability.json"),
-                              "capability", problems)
+    more: list = []
+    figs: list[Fig] = []
+    if path.is_file():
+        more, figs = json_section(path, "tapm-capability/1",
+                                  lambda data: capability_blocks(data, source=f"{CAPABILITY_DIR}/capability.json"),
+                                  "capability", problems)
+    datas = []
+    for p in lv3:
+        try:
+            data = json.loads(p.read_text(encoding="utf-8"))
+            if data.get("format") != "tapm-capability-level3/1":
+                raise ValueError(f"format = {data.get('format')!r}, expected 'tapm-capability-level3/1'")
+            datas.append(data)
+        except Exception as exc:  # noqa: BLE001 - a broken file must not stop the report
+            if problems is not None:
+                problems.append(f"capability section: {p.name} not drawn: {exc}")
+            more.append(Para(f"**Capability not shown:** {p.name}: {exc}", css="error"))
+    if datas:
+        b3, f3 = level3_blocks(datas)
+        more += b3
+        figs += f3
     return [Heading(2, heading, anchor="capability"), *more], figs
