@@ -216,7 +216,10 @@ def test_losses_lower_level1_by_the_factors_applied():
     assert thrust.any() and np.all(w1[thrust] < w0[thrust] - 0.05) and np.all(w1 <= w0 + 1e-9)
     assert factor.info["thrust_losses"]["beta_misc"] == 0.9 and base.info["thrust_losses"] is None
     full = capability(weak, losses=True, **kw)                                   # with the sectors
-    assert np.all(full.case("intact").wind_speed <= w1 + 1e-9)
+    w2 = full.case("intact").wind_speed
+    # never above the factor alone but for the bisection's tolerance (with sectors the exact check of
+    # the pieces decides where the allocator fails, and it finds a little more than the allocator)
+    assert np.all(w2 <= w1 + 0.1 + 1e-9) and np.all(w2 < w0 + 1e-9)
     assert factor.case("mooring").wind_speed.tolist() == base.case("mooring").wind_speed.tolist()
 
 
@@ -243,3 +246,23 @@ def test_fpso_weathervaning_envelope_ends_inside_the_extended_table():
     b = int(ext.case("intact").beaufort[0])
     assert 11 < b < 15 and ext.case("intact").limit[0] == "thrust"
     assert ext.info["table"][-1]["number"] == 15 and ext.options.settings()["table_name"] == "extended"
+
+
+def test_thrust_with_sectors_is_checked_exactly_where_the_allocator_gives_up():
+    """fpso with the losses, pure sway: by hand the six azimuths deliver about 5.6 MN (A1 and F1
+    across the beam, the others at their sector edges, 63.7/116.3 and 56.9/123.1 deg, the aft row
+    turned down to balance the yaw moment); the convex hull of the capacity ends at 5.69 MN. The
+    allocator from rest stops near 4.7 MN; the capability's exact check of the sector pieces does
+    not."""
+    from tapm_opt.design.capability import _Engine
+
+    sc = tapm_opt.load_scenario("fpso")
+    eng = _Engine(sc, CapabilityOptions(losses=True, condition="intact"))
+    alloc, _ = eng.thrust(None)
+    tau = np.array([0.0, 5.5e6, 0.0])
+    alloc.reset()
+    alloc.allocate(tau)
+    assert np.abs(alloc.allocate(tau).slack[1]) > 0.1e6           # the allocator alone falls short
+    assert eng.attained(None, tau) and eng.exact_calls == 1
+    assert eng.thrusters.max_tau()[1] == pytest.approx(5.69e6, rel=2e-3)
+    assert not eng.attained(None, np.array([0.0, 5.8e6, 0.0]))    # beyond the hull

@@ -605,6 +605,96 @@ def _grid(radius: float, spacing: float, reach: float) -> np.ndarray:
     return np.vstack(pts)
 
 
+#: Largest angle between two vertices of an azimuth's capacity polygon in :func:`_thrust_pieces`
+#: [rad] (inscribed: the polygon reaches cos(2.5 deg) = 0.999 of the thrust between vertices).
+_PIECE_STEP = math.radians(5.0)
+
+
+def _thrust_pieces(specs: Sequence[Any], failed: str | None) -> list[list[np.ndarray]]:
+    """Each working thruster's capacity as convex pieces, columns in tau = (X, Y, N): an azimuth's
+    allowed arcs (the complement of its merged forbidden sectors), each split into pieces of at most
+    180 deg, each the polygon of the origin and points at most :data:`_PIECE_STEP` apart on the arc
+    of its thrust; a tunnel or fixed thruster's segment ``[-max_reverse, max]`` along its axis. The
+    union of a thruster's pieces is what it can deliver (to the polygon's resolution)."""
+    from ..geometry import merge_sectors
+    from ..models.thrust import configuration_matrix
+
+    out = []
+    for t in specs:
+        if t.id == failed:
+            continue
+        x, y = float(t.position[0]), float(t.position[1])
+        if t.kind != "azimuth":
+            ends = [a for a, f in ((t.angle, t.max_thrust), (t.angle + math.pi, t.max_reverse_thrust)) if f > 0]
+            mags = [f for f in (t.max_thrust, t.max_reverse_thrust) if f > 0]
+            cols = configuration_matrix(np.array(ends), np.full(len(ends), x), np.full(len(ends), y)) * np.array(mags)
+            out.append([cols])
+            continue
+        starts, widths = merge_sectors(t.forbidden_sectors, t.id) if t.forbidden_sectors else ((), ())
+        if starts:
+            arcs = [(s0 + w0, starts[(k + 1) % len(starts)] + (2.0 * math.pi if k + 1 == len(starts) else 0.0))
+                    for k, (s0, w0) in enumerate(zip(starts, widths))]
+        else:
+            arcs = [(0.0, 2.0 * math.pi)]
+        pieces = []
+        for a0, a1 in arcs:
+            n_half = max(1, math.ceil((a1 - a0) / math.pi - 1e-12))
+            edges = np.linspace(a0, a1, n_half + 1)
+            for lo, hi in itertools.pairwise(edges):
+                k = max(2, math.ceil((hi - lo) / _PIECE_STEP) + 1)
+                ang = np.linspace(lo, hi, k)
+                pieces.append(configuration_matrix(ang, np.full(k, x), np.full(k, y)) * t.max_thrust)
+        out.append(pieces)
+    return out
+
+
+def _attained_in_pieces(pieces: list[list[np.ndarray]], tau: np.ndarray, tol_f: float, tol_m: float) -> bool:
+    """Whether ``tau`` is a sum of one thrust per thruster, each in one of its convex pieces
+    (:func:`_thrust_pieces`), to ``tol_f`` in X, Y and ``tol_m`` in N. A piece is the convex hull
+    of its columns and the origin (weights >= 0 summing to at most 1). First the convex relaxation
+    (each thruster anywhere in the hull of all its pieces; one LP): infeasible, no choice of pieces
+    can do it; else the choice of each thruster's piece of largest weight in the relaxation, then
+    every other choice, one LP each, until one is feasible."""
+    import scipy.optimize
+
+    tau = np.asarray(tau, float)
+    scale = 1e-3 / np.array([max(tol_f, 1e-9), max(tol_f, 1e-9), max(tol_m, 1e-9)])
+    t = tau * scale
+
+    def lp(groups: list[list[np.ndarray]]) -> Any:
+        cols = [c for g in groups for c in g]
+        B = np.hstack(cols) * scale[:, None]
+        A_ub = np.zeros((len(groups), B.shape[1]))
+        j = 0
+        for i, g in enumerate(groups):
+            n = sum(c.shape[1] for c in g)
+            A_ub[i, j:j + n] = 1.0
+            j += n
+        # the force balance relaxed by the slack tolerance: |B w - tau| <= tol (1e-3 after scaling)
+        return scipy.optimize.linprog(np.zeros(B.shape[1]), A_ub=np.vstack([A_ub, B, -B]),
+                                      b_ub=np.concatenate([np.ones(len(groups)), t + 1e-3, -t + 1e-3]),
+                                      bounds=(0.0, None), method="highs")
+
+    relaxed = lp(pieces)
+    if relaxed.status != 0:
+        return False
+    best = []
+    j = 0
+    for g in pieces:
+        w = []
+        for c in g:
+            w.append(float(relaxed.x[j:j + c.shape[1]].sum()))
+            j += c.shape[1]
+        best.append(int(np.argmax(w)))
+    first = tuple(best)
+    if all(len(g) == 1 for g in pieces):
+        return True
+    for choice in (first, *(c for c in itertools.product(*(range(len(g)) for g in pieces)) if c != first)):
+        if lp([[g[k]] for g, k in zip(pieces, choice)]).status == 0:
+            return True
+    return False
+
+
 class CapabilityEnvironment:
     """The environments of a capability computation (module docstring): the table's environment at
     a wind speed, its sea state for a direction, its mean load and the heading of each case.
@@ -815,6 +905,7 @@ class _Engine(CapabilityEnvironment):
         self._gauge_key: tuple | None = None
         self._gauge = np.zeros((0, 0))
         self.alloc_calls = 0
+        self.exact_calls = 0
         self.evaluations = 0
 
     # -- mooring ----------------------------------------------------------------------------------
@@ -898,64 +989,34 @@ class _Engine(CapabilityEnvironment):
                 raise CapabilityError(f"thrusters with {failed!r} failed: {exc}") from None
             specs = self.sc_thr.thrusters
             alloc = ThrustAllocator(specs, dt=1.0e6)
-            free = None
-            if any(t.forbidden_sectors for t in specs):   # the starts of attained(): a sector-free allocator
-                free = ThrustAllocator([dataclasses.replace(t, forbidden_sectors=()) for t in specs], dt=1.0e6)
             if failed is not None:
                 alloc.set_failed(failed)
-                if free is not None:
-                    free.set_failed(failed)
+            pieces = _thrust_pieces(specs, failed) if any(t.forbidden_sectors for t in specs) else None
             # the gauge max_k A_k tau / b_k as one product: tau @ At
             self._thr[failed] = (alloc, np.ascontiguousarray((np.asarray(A, float) / np.asarray(b, float)[:, None]).T),
-                                 free)
+                                 pieces)
         return self._thr[failed][:2]
 
-    def _starts(self, failed: str | None, tau: np.ndarray) -> list[np.ndarray]:
-        """Azimuth starts for :meth:`attained` with forbidden sectors: the allocator keeps an azimuth
-        on the allowed arc it starts in, so besides the scenario's angles it starts from the
-        azimuths of the sector-free allocation of ``tau``, each azimuth that falls into a sector
-        put just outside it on one side or the other (every combination, at most 64)."""
-        from ..geometry import merge_sectors
-
-        free = self._thr[failed][2]
-        if free is None:
-            return []
-        self.alloc_calls += 2
-        free.reset()
-        free.allocate(tau)
-        a0 = np.array(free.allocate(tau).alpha, float)
-        sides: list[list[float]] = []
-        for i, t in enumerate(self.sc_thr.thrusters):
-            opts = [float(a0[i])]
-            if t.kind == "azimuth" and t.forbidden_sectors:
-                starts, widths = merge_sectors(t.forbidden_sectors, t.id)
-                for st, w in zip(starts, widths):
-                    if (a0[i] - st) % (2.0 * math.pi) < w:       # inside: either edge, just outside
-                        opts = [st - 1e-6, st + w + 1e-6]
-                        break
-            sides.append(opts)
-        combos = [[]]
-        for opts in sides:
-            combos = [c + [o] for c in combos for o in opts][:64]
-        return [np.array(c) for c in combos]
-
     def attained(self, failed: str | None, tau: np.ndarray) -> bool:
-        """Whether the allocator (``failed`` out) delivers ``tau`` (slack within :data:`SLACK_TOL`),
-        from rest: from the scenario's azimuths and, with forbidden sectors, from the starts of
-        :meth:`_starts` until one delivers it."""
-        alloc = self._thr[failed][0]
-        for alpha in [None, *(self._starts(failed, tau) if self._thr[failed][2] is not None else [])]:
-            self.alloc_calls += 2
-            alloc.reset(alpha=alpha)
-            alloc.allocate(tau)
-            r = alloc.allocate(tau)
-            if r.fallback:
-                continue
+        """Whether the thrusters (``failed`` out) deliver ``tau``: the allocator from rest (slack
+        within :data:`SLACK_TOL`); with forbidden sectors, failing that, the exact check of
+        :func:`_attained_in_pieces` (the allocator, linearised about its start for a control loop,
+        keeps an azimuth on the allowed arc it starts on and inside a narrow arc's inscribed
+        rectangle, so it can miss what the thrusters deliver)."""
+        alloc, _, pieces = self._thr[failed]
+        self.alloc_calls += 2
+        alloc.reset()
+        alloc.allocate(tau)
+        r = alloc.allocate(tau)
+        if not r.fallback:
             sl = np.abs(np.asarray(r.slack, float))
             if (sl[0] <= SLACK_TOL * alloc.F_ref and sl[1] <= SLACK_TOL * alloc.F_ref
                     and sl[2] <= SLACK_TOL * alloc.F_ref * alloc.L_ref):
                 return True
-        return False
+        if pieces is None:
+            return False
+        self.exact_calls += 1
+        return _attained_in_pieces(pieces, tau, SLACK_TOL * alloc.F_ref, SLACK_TOL * alloc.F_ref * alloc.L_ref)
 
     # -- one environment ---------------------------------------------------------------------------
     def evaluate_thrust(self, broken: str | None, failed: str | None, e: TableEnvironment, beta_from: float, psi: float,
