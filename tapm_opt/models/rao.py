@@ -138,6 +138,34 @@ Interpolation (:meth:`RAOTable.evaluate`)
     linear and 2 pi periodic (between the last heading and the first + 2 pi); port/starboard
     symmetry is not assumed. A table with a single heading applies it to every heading.
 
+Mean drift coefficients (:class:`DriftTable`, :func:`read_drift_csv`, :func:`write_drift_csv`, :func:`read_wamit_drift`)
+-------------------------------------------------------------------------------------------------------------------------
+The hull's mean (second-order) wave drift force in regular waves, per unit wave amplitude
+squared: ``D_i(omega, beta)`` for surge, sway and yaw (:data:`DRIFT_DOFS`), in {B} and positive
+along its axes (surge forward, sway to starboard [N/m^2], yaw bow to starboard [N m/m^2]), with
+``beta`` in the heading convention above. A regular wave of amplitude ``a`` pushes the hull with
+the constant force ``D_i a^2``.
+
+CSV format. One header line, exactly these four columns (any order)::
+
+    omega_rad_s,beta_deg,dof,D
+
+then one row per (frequency, heading, degree of freedom): ``omega_rad_s`` > 0 [rad/s];
+``beta_deg`` [deg] taken modulo 360; ``dof`` one of ``surge, sway, yaw``; ``D`` any finite
+number [N/m^2 or N m/m^2]. Every (omega, beta) pair of the full omega x beta grid must have the
+three dofs. Blank lines are ignored; rows may come in any order.
+
+WAMIT ``.8`` (momentum conservation) and ``.9`` (pressure integration) mean drift output:
+whitespace-separated rows ``PER BETA1 BETA2 I Mod Pha Re Im``, the mean drift of the wave pair
+(BETA1, BETA2) nondimensional by ``rho g A^2 ULEN`` (forces) or ``rho g A^2 ULEN^2`` (moments).
+Only the diagonal rows (BETA1 = BETA2, the mean drift of one wave train; its value is real, the
+``Re`` column) of modes 1 (surge), 2 (sway) and 6 (yaw) are read; other modes (heave, roll,
+pitch; WAMIT's negative, body-axes modes) and the off-diagonal pairs are skipped. The frame
+change is that of the ``.4`` file: signs +1, -1, -1 for surge, sway, yaw, and ``beta = -BETA``.
+
+Interpolation (:meth:`DriftTable.evaluate`) as :meth:`RAOTable.evaluate`: linear in omega,
+the first row held below the table and 0 above it, linear and 2 pi periodic in beta.
+
 Imports only numpy and the standard library (models layer; nothing from the plant or control).
 """
 
@@ -155,16 +183,24 @@ from ..errors import ModelError
 
 __all__ = [
     "DOFS",
+    "DRIFT_DOFS",
+    "DriftTable",
     "HullMotionParams",
     "RAOTable",
     "closed_form_rao",
+    "read_drift_csv",
     "read_rao_csv",
     "read_wamit4",
+    "read_wamit_drift",
+    "write_drift_csv",
     "write_rao_csv",
 ]
 
 #: Degrees of freedom, in the order of the last axis of a 6-dof RAO.
 DOFS: tuple[str, ...] = ("surge", "sway", "heave", "roll", "pitch", "yaw")
+
+#: Degrees of freedom of a mean drift table (:class:`DriftTable`), in the order of its last axis.
+DRIFT_DOFS: tuple[str, ...] = ("surge", "sway", "yaw")
 
 #: Sign that turns a WAMIT mode (x fwd, y port, z up) into ours (x fwd, y stbd, z down).
 _WAMIT_SIGN = np.array([1.0, -1.0, -1.0, 1.0, -1.0, -1.0])
@@ -351,6 +387,32 @@ def closed_form_rao(omega: Any, beta: Any, hull: HullMotionParams, *, speed: flo
 # ----------------------------------------------------------------------------- tables
 
 
+def _table_axes(omega: Any, beta: Any) -> tuple[np.ndarray, np.ndarray]:
+    """A table's frequencies and headings as checked float copies: each 1-D and not empty, finite,
+    strictly increasing, the frequencies > 0, the headings in [0, 2 pi) (ModelError naming the
+    field, index and value)."""
+    w = _finite_array("table.omega", omega, "rad/s").copy()
+    b = _finite_array("table.beta", beta, "rad").copy()
+    if w.ndim != 1 or w.size < 1:
+        raise ModelError(f"table.omega must have shape (nw,), nw >= 1, got shape {w.shape}")
+    if b.ndim != 1 or b.size < 1:
+        raise ModelError(f"table.beta must have shape (nb,), nb >= 1, got shape {b.shape}")
+    if np.any(w <= 0.0):
+        i = int(np.flatnonzero(w <= 0.0)[0])
+        raise ModelError(f"table.omega[{i}] = {float(w[i])!r} rad/s must be > 0")
+    for name, a, unit in (("table.omega", w, "rad/s"), ("table.beta", b, "rad")):
+        d = np.diff(a)
+        if np.any(d <= 0.0):
+            i = int(np.flatnonzero(d <= 0.0)[0]) + 1
+            raise ModelError(f"{name}[{i}] = {float(a[i])!r} {unit} must be > {name}[{i - 1}] = "
+                             f"{float(a[i - 1])!r} (strictly increasing)")
+    out = (b < 0.0) | (b >= _TWO_PI)
+    if np.any(out):
+        i = int(np.flatnonzero(out)[0])
+        raise ModelError(f"table.beta[{i}] = {float(b[i])!r} rad must be in [0, 2 pi)")
+    return w, b
+
+
 @dataclass(frozen=True, eq=False)
 class RAOTable:
     """A 6-dof RAO table in the module's conventions.
@@ -378,25 +440,7 @@ class RAOTable:
     H: np.ndarray
 
     def __post_init__(self) -> None:
-        w = _finite_array("table.omega", self.omega, "rad/s").copy()
-        b = _finite_array("table.beta", self.beta, "rad").copy()
-        if w.ndim != 1 or w.size < 1:
-            raise ModelError(f"table.omega must have shape (nw,), nw >= 1, got shape {w.shape}")
-        if b.ndim != 1 or b.size < 1:
-            raise ModelError(f"table.beta must have shape (nb,), nb >= 1, got shape {b.shape}")
-        if np.any(w <= 0.0):
-            i = int(np.flatnonzero(w <= 0.0)[0])
-            raise ModelError(f"table.omega[{i}] = {float(w[i])!r} rad/s must be > 0")
-        for name, a, unit in (("table.omega", w, "rad/s"), ("table.beta", b, "rad")):
-            d = np.diff(a)
-            if np.any(d <= 0.0):
-                i = int(np.flatnonzero(d <= 0.0)[0]) + 1
-                raise ModelError(f"{name}[{i}] = {float(a[i])!r} {unit} must be > {name}[{i - 1}] = "
-                                 f"{float(a[i - 1])!r} (strictly increasing)")
-        out = (b < 0.0) | (b >= _TWO_PI)
-        if np.any(out):
-            i = int(np.flatnonzero(out)[0])
-            raise ModelError(f"table.beta[{i}] = {float(b[i])!r} rad must be in [0, 2 pi)")
+        w, b = _table_axes(self.omega, self.beta)
         try:
             H = np.array(self.H, dtype=complex)
         except (TypeError, ValueError):
@@ -430,33 +474,40 @@ class RAOTable:
         ModelError
             A negative or non-finite frequency, or a non-finite heading.
         """
-        w = _finite_array("omega", omega, "rad/s", lo=0.0)
-        b = _finite_array("beta", beta, "rad")
-        w, b = np.broadcast_arrays(w, b)
-        tw, tb, H = self.omega, self.beta, self.H
-        nw, nb = tw.size, tb.size
-        # frequency: index of the left node and weight of the right one
-        wc = np.clip(w, tw[0], tw[-1])
-        if nw > 1:
-            iw = np.clip(np.searchsorted(tw, wc, side="right") - 1, 0, nw - 2)
-            tw_w = (wc - tw[iw]) / (tw[iw + 1] - tw[iw])
-            iw1 = iw + 1
-        else:
-            iw = iw1 = np.zeros(w.shape, dtype=int)
-            tw_w = np.zeros(w.shape)
-        # heading: periodic, the last interval from tb[-1] to tb[0] + 2 pi
-        bb = np.mod(b, _TWO_PI)
-        bb = np.where(bb < tb[0], bb + _TWO_PI, bb)
-        ext = np.append(tb, tb[0] + _TWO_PI)
-        ib = np.clip(np.searchsorted(ext, bb, side="right") - 1, 0, nb - 1)
-        tb_w = (bb - ext[ib]) / (ext[ib + 1] - ext[ib])
-        ib1 = (ib + 1) % nb
-        if nb == 1:
-            tb_w = np.zeros(b.shape)
-        tw_w, tb_w = tw_w[..., None], tb_w[..., None]
-        out = ((1.0 - tw_w) * ((1.0 - tb_w) * H[iw, ib] + tb_w * H[iw, ib1])
-               + tw_w * ((1.0 - tb_w) * H[iw1, ib] + tb_w * H[iw1, ib1]))
-        return np.where((w > tw[-1])[..., None], 0.0 + 0.0j, out)
+        return _interpolate(self.omega, self.beta, self.H, omega, beta)
+
+
+def _interpolate(tw: np.ndarray, tb: np.ndarray, V: np.ndarray, omega: Any, beta: Any) -> np.ndarray:
+    """The table ``V`` (nw, nb, m) on the frequencies ``tw`` and headings ``tb`` at ``omega``
+    [rad/s] (>= 0) and ``beta`` [rad] (finite), broadcast together: linear in omega, the first
+    row held below ``tw[0]`` and 0 above ``tw[-1]``; linear and 2 pi periodic in beta (see the
+    module docstring). Shape ``broadcast(omega, beta).shape + (m,)``, the dtype of ``V``."""
+    w = _finite_array("omega", omega, "rad/s", lo=0.0)
+    b = _finite_array("beta", beta, "rad")
+    w, b = np.broadcast_arrays(w, b)
+    nw, nb = tw.size, tb.size
+    # frequency: index of the left node and weight of the right one
+    wc = np.clip(w, tw[0], tw[-1])
+    if nw > 1:
+        iw = np.clip(np.searchsorted(tw, wc, side="right") - 1, 0, nw - 2)
+        tw_w = (wc - tw[iw]) / (tw[iw + 1] - tw[iw])
+        iw1 = iw + 1
+    else:
+        iw = iw1 = np.zeros(w.shape, dtype=int)
+        tw_w = np.zeros(w.shape)
+    # heading: periodic, the last interval from tb[-1] to tb[0] + 2 pi
+    bb = np.mod(b, _TWO_PI)
+    bb = np.where(bb < tb[0], bb + _TWO_PI, bb)
+    ext = np.append(tb, tb[0] + _TWO_PI)
+    ib = np.clip(np.searchsorted(ext, bb, side="right") - 1, 0, nb - 1)
+    tb_w = (bb - ext[ib]) / (ext[ib + 1] - ext[ib])
+    ib1 = (ib + 1) % nb
+    if nb == 1:
+        tb_w = np.zeros(b.shape)
+    tw_w, tb_w = tw_w[..., None], tb_w[..., None]
+    out = ((1.0 - tw_w) * ((1.0 - tb_w) * V[iw, ib] + tb_w * V[iw, ib1])
+           + tw_w * ((1.0 - tb_w) * V[iw1, ib] + tb_w * V[iw1, ib1]))
+    return np.where((w > tw[-1])[..., None], np.zeros((), V.dtype), out)
 
 
 def _assemble(records: dict[tuple[float, float], dict[int, tuple[complex, int]]], source: str,
@@ -644,3 +695,250 @@ def read_wamit4(path: str | Path, *, ulen: float) -> RAOTable:
                                  f"BETA = {beta_w!r} deg, mode {m + 1})")
             pair[m] = (h, line_no)
     return _assemble(records, src, "WAMIT .4")
+
+
+# ----------------------------------------------------------------------------- mean drift
+
+_DRIFT_COLUMNS = ("omega_rad_s", "beta_deg", "dof", "D")
+
+#: WAMIT modes of the mean drift read (surge, sway, yaw) and their signs in our frame.
+_WAMIT_DRIFT_MODES = {1: (0, 1.0), 2: (1, -1.0), 6: (2, -1.0)}
+
+
+@dataclass(frozen=True, eq=False)
+class DriftTable:
+    """Mean wave drift coefficients of a hull in the module's conventions (see the module
+    docstring): the mean force (moment) in regular waves per unit wave amplitude squared.
+
+    Attributes
+    ----------
+    omega : numpy.ndarray
+        Wave frequencies [rad/s], shape (nw,), nw >= 1, finite, > 0, strictly increasing.
+    beta : numpy.ndarray
+        Headings [rad] (where the waves go to, relative to the bow), shape (nb,), nb >= 1,
+        strictly increasing within [0, 2 pi).
+    D : numpy.ndarray
+        Real coefficients, shape (nw, nb, 3): surge, sway [N/m^2], yaw [N m/m^2] in {B}.
+
+    The arrays are stored as read-only copies.
+
+    Raises
+    ------
+    ModelError
+        Shapes that do not match, non-finite values, frequencies or headings out of range or not
+        strictly increasing (the message names the field, index and value).
+    """
+
+    omega: np.ndarray
+    beta: np.ndarray
+    D: np.ndarray
+
+    def __post_init__(self) -> None:
+        w, b = _table_axes(self.omega, self.beta)
+        try:
+            D = np.array(self.D, dtype=float)
+        except (TypeError, ValueError):
+            raise ModelError("table.D must be real numbers of shape (nw, nb, 3)") from None
+        if D.shape != (w.size, b.size, 3):
+            raise ModelError(f"table.D must have shape (nw, nb, 3) = {(w.size, b.size, 3)}, got {D.shape}")
+        bad = ~np.isfinite(D)
+        if bad.any():
+            i, j, m = (int(v[0]) for v in np.nonzero(bad))
+            raise ModelError(f"table.D[{i}, {j}, {m}] ({DRIFT_DOFS[m]} at omega = {float(w[i])!r} rad/s, beta = "
+                             f"{float(b[j])!r} rad) = {float(D[i, j, m])!r} must be finite")
+        for name, a in (("omega", w), ("beta", b), ("D", D)):
+            a.flags.writeable = False
+            object.__setattr__(self, name, a)
+
+    def evaluate(self, omega: Any, beta: Any) -> np.ndarray:
+        """The coefficients at wave frequencies ``omega`` [rad/s] (>= 0) and headings ``beta``
+        [rad] (finite, taken modulo 2 pi), broadcast together: linear in omega, the first row held
+        below the first frequency and 0 above the last; linear and 2 pi periodic in beta.
+
+        Returns
+        -------
+        numpy.ndarray
+            Real, shape ``broadcast(omega, beta).shape + (3,)`` [N/m^2, N/m^2, N m/m^2].
+
+        Raises
+        ------
+        ModelError
+            A negative or non-finite frequency, or a non-finite heading.
+        """
+        return _interpolate(self.omega, self.beta, self.D, omega, beta)
+
+
+def _assemble_drift(records: dict[tuple[float, float], dict[int, tuple[float, int]]], source: str,
+                    what: str, row: str) -> DriftTable:
+    """A drift table from ``{(omega, beta): {dof: (D, row)}}``, refusing a grid that is not a
+    full omega x beta product or a pair without the three dofs."""
+    if not records:
+        raise ModelError(f"{source}: no {what} rows")
+    omegas = sorted({p[0] for p in records})
+    betas = sorted({p[1] for p in records})
+    D = np.zeros((len(omegas), len(betas), 3))
+    for i, w in enumerate(omegas):
+        for j, b in enumerate(betas):
+            dofs = records.get((w, b))
+            if dofs is None:
+                raise ModelError(f"{source}: the grid is not a full omega x beta product: no {row}s for "
+                                 f"omega = {w!r} rad/s, beta = {math.degrees(b)!r} deg")
+            for m, name in enumerate(DRIFT_DOFS):
+                if m not in dofs:
+                    raise ModelError(f"{source}: omega = {w!r} rad/s, beta = {math.degrees(b)!r} deg has no "
+                                     f"{name} {row} (every pair needs surge, sway and yaw)")
+                D[i, j, m] = dofs[m][0]
+    return DriftTable(np.array(omegas), np.array(betas), D)
+
+
+def read_drift_csv(path: str | Path) -> DriftTable:
+    """Read a mean drift table in the CSV format of the module docstring
+    (``omega_rad_s,beta_deg,dof,D``).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+
+    Returns
+    -------
+    DriftTable
+
+    Raises
+    ------
+    ModelError
+        Missing, extra or repeated columns, a row of the wrong length, a value that is not a
+        finite number, a frequency <= 0, a dof other than surge, sway, yaw (each naming the row,
+        column and value), duplicate rows, a grid that is not a full omega x beta product, or a
+        pair without the three dofs.
+    """
+    path = Path(path)
+    src = str(path)
+    with path.open(newline="") as fh:
+        reader = csv.reader(fh)
+        header = next(reader, None)
+        if header is None:
+            raise ModelError(f"{src}: empty file, expected the header {','.join(_DRIFT_COLUMNS)}")
+        cols = [c.strip() for c in header]
+        missing = [c for c in _DRIFT_COLUMNS if c not in cols]
+        extra = [c for c in cols if c not in _DRIFT_COLUMNS]
+        dup = sorted({c for c in cols if cols.count(c) > 1})
+        if missing or extra or dup:
+            parts = ([f"missing column(s) {missing}"] if missing else []) + (
+                [f"extra column(s) {extra}"] if extra else []) + ([f"repeated column(s) {dup}"] if dup else [])
+            raise ModelError(f"{src}: header {cols}: {'; '.join(parts)}; expected {list(_DRIFT_COLUMNS)}")
+        at = {c: cols.index(c) for c in _DRIFT_COLUMNS}
+        records: dict[tuple[float, float], dict[int, tuple[float, int]]] = {}
+        for row_no, row in enumerate(reader, start=2):
+            if not row or all(not c.strip() for c in row):
+                continue
+            if len(row) != len(cols):
+                raise ModelError(f"{src}: row {row_no} has {len(row)} values, the header has {len(cols)}")
+            vals: dict[str, float] = {}
+            for c in ("omega_rad_s", "beta_deg", "D"):
+                text = row[at[c]].strip()
+                try:
+                    v = float(text)
+                except ValueError:
+                    raise ModelError(f"{src}: row {row_no}, column {c}: {text!r} is not a number") from None
+                if not math.isfinite(v):
+                    raise ModelError(f"{src}: row {row_no}, column {c}: {text!r} must be finite")
+                vals[c] = v
+            dof = row[at["dof"]].strip().lower()
+            if dof not in DRIFT_DOFS:
+                raise ModelError(f"{src}: row {row_no}, column dof: {row[at['dof']]!r} must be one of "
+                                 f"{list(DRIFT_DOFS)}")
+            if vals["omega_rad_s"] <= 0.0:
+                raise ModelError(f"{src}: row {row_no}, column omega_rad_s: {vals['omega_rad_s']!r} must be > 0")
+            key = (vals["omega_rad_s"], _heading_rad(vals["beta_deg"]))
+            m = DRIFT_DOFS.index(dof)
+            pair = records.setdefault(key, {})
+            if m in pair:
+                raise ModelError(f"{src}: row {row_no} repeats row {pair[m][1]} (omega = {key[0]!r} rad/s, "
+                                 f"beta = {vals['beta_deg']!r} deg, dof {dof})")
+            pair[m] = (vals["D"], row_no)
+    return _assemble_drift(records, src, "drift", "row")
+
+
+def write_drift_csv(table: DriftTable, path: str | Path) -> None:
+    """Write ``table`` in the CSV format of the module docstring (full float precision, so that
+    :func:`read_drift_csv` gives it back to rounding of the headings' degrees).
+
+    Raises
+    ------
+    ModelError
+        ``table`` is not a :class:`DriftTable`.
+    """
+    if not isinstance(table, DriftTable):
+        raise ModelError(f"table must be a DriftTable, got {type(table).__name__}")
+    with Path(path).open("w", newline="") as fh:
+        wr = csv.writer(fh, lineterminator="\n")
+        wr.writerow(_DRIFT_COLUMNS)
+        for i, w in enumerate(table.omega):
+            for j, b in enumerate(table.beta):
+                for m, name in enumerate(DRIFT_DOFS):
+                    wr.writerow([repr(float(w)), repr(math.degrees(float(b))), name, repr(float(table.D[i, j, m]))])
+
+
+def read_wamit_drift(path: str | Path, *, ulen: float, rho: float, g: float) -> DriftTable:
+    """Read a WAMIT ``.8`` or ``.9`` mean drift file (format, frame change and signs in the module
+    docstring) into a drift table in SI units.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+    ulen : float
+        WAMIT's length scale ULEN [m], > 0: forces are ``rho g ULEN`` and moments ``rho g ULEN^2``
+        times the file's values (per unit wave amplitude squared).
+    rho, g : float
+        Water density [kg/m^3] and gravity [m/s^2] of the dimensional values, > 0.
+
+    Returns
+    -------
+    DriftTable
+        omega = 2 pi / PER [rad/s], beta = -BETA1 mod 2 pi [rad], D (nw, nb, 3).
+
+    Raises
+    ------
+    ModelError
+        A row without 8 numbers, a value that is not finite, PER <= 0 (WAMIT's zero and infinite
+        period codes), a mode that is not an integer, a modulus that contradicts Re and Im,
+        duplicate rows (each naming the line and value), a grid that is not a full product, or a
+        pair without surge, sway and yaw.
+    """
+    ulen = _number("ulen", ulen, "m", lo=0.0, lo_open=True)
+    rho = _number("rho", rho, "kg/m^3", lo=0.0, lo_open=True)
+    g = _number("g", g, "m/s^2", lo=0.0, lo_open=True)
+    path = Path(path)
+    src = str(path)
+    records: dict[tuple[float, float], dict[int, tuple[float, int]]] = {}
+    with path.open() as fh:
+        for line_no, line in enumerate(fh, start=1):
+            parts = line.split()
+            if not parts:
+                continue
+            try:
+                per, b1, b2, mode, mod, _pha, re_, im_ = (float(p.replace("D", "E").replace("d", "e")) for p in parts)
+            except ValueError:
+                raise ModelError(f"{src}: line {line_no}: {line.strip()!r} is not 8 numbers "
+                                 "(PER BETA1 BETA2 I Mod Pha Re Im)") from None
+            if not all(math.isfinite(v) for v in (per, b1, b2, mode, mod, re_, im_)):
+                raise ModelError(f"{src}: line {line_no}: {line.strip()!r} has a value that is not finite")
+            if per <= 0.0:
+                raise ModelError(f"{src}: line {line_no}: PER = {per!r} s: zero and infinite periods (PER <= 0, "
+                                 "WAMIT's codes 0 and -1) are not supported")
+            if mode != int(mode):
+                raise ModelError(f"{src}: line {line_no}: mode I = {mode!r} must be an integer")
+            if abs(abs(complex(re_, im_)) - mod) > 1e-3 * max(1.0, mod):
+                raise ModelError(f"{src}: line {line_no}: Mod = {mod!r} but |Re + i Im| = {abs(complex(re_, im_))!r} "
+                                 "(columns must be PER BETA1 BETA2 I Mod Pha Re Im)")
+            if b1 != b2 or int(mode) not in _WAMIT_DRIFT_MODES:
+                continue   # a pair of wave directions, or heave, roll, pitch, body-axes modes
+            m, sign = _WAMIT_DRIFT_MODES[int(mode)]
+            scale = rho * g * (ulen * ulen if m == 2 else ulen)
+            key = (_TWO_PI / per, _heading_rad(-b1))
+            pair = records.setdefault(key, {})
+            if m in pair:
+                raise ModelError(f"{src}: line {line_no} repeats line {pair[m][1]} (PER = {per!r} s, "
+                                 f"BETA = {b1!r} deg, mode {int(mode)})")
+            pair[m] = (sign * scale * re_, line_no)
+    return _assemble_drift(records, src, "WAMIT mean drift (BETA1 = BETA2, modes 1, 2, 6)", "line")
