@@ -756,7 +756,8 @@ def _axial_law_issues(sc: Scenario, issues: list[ScenarioIssue]) -> None:
 
 def _wave_motion_issues(v: Any, issues: list[ScenarioIssue]) -> None:
     """``vessel.wave_motion``: the six-degree-of-freedom model needs the hull's block coefficient,
-    GM_T and roll period, and a water-plane coefficient not below the block coefficient."""
+    GM_T and roll period, and a water-plane coefficient not below the block coefficient; a table
+    (``rao_file``, ``drift_file``) must name a file of a format read, and the file must exist."""
     wm = v.wave_motion
     p = "vessel.wave_motion"
     if wm.model == "six_dof":
@@ -787,6 +788,14 @@ def _wave_motion_issues(v: Any, issues: list[ScenarioIssue]) -> None:
             issues.append(ScenarioIssue(f"{p}.rao_file", f"= {f!r} must name a .csv table or a WAMIT .4 file"))
         elif not Path(f).is_file():
             issues.append(ScenarioIssue(f"{p}.rao_file", (
+                f"= {f!r}: no such file (a relative path is read from the scenario file's folder)")))
+    f = wm.drift_file
+    if f is not None:
+        if not f.lower().endswith((".csv", ".8", ".9")):
+            issues.append(ScenarioIssue(f"{p}.drift_file", (
+                f"= {f!r} must name a .csv table of mean drift coefficients or a WAMIT .8 or .9 file")))
+        elif not Path(f).is_file():
+            issues.append(ScenarioIssue(f"{p}.drift_file", (
                 f"= {f!r}: no such file (a relative path is read from the scenario file's folder)")))
     if wm.block_coefficient is not None and wm.waterplane_coefficient is not None \
             and wm.waterplane_coefficient < wm.block_coefficient:
@@ -1166,8 +1175,9 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
         raise ScenarioError(f"{path.name} is empty: a scenario needs [meta], [environment], [vessel], [turret], "
                             "[[line_types]] and [[lines]]", source=str(path))
     wm = data.get("vessel", {}).get("wave_motion") if isinstance(data.get("vessel"), dict) else None
-    if isinstance(wm, dict) and isinstance(wm.get("rao_file"), str) and not Path(wm["rao_file"]).is_absolute():
-        wm["rao_file"] = str(path.parent / wm["rao_file"])   # read from the scenario file's folder
+    for key in ("rao_file", "drift_file"):   # read from the scenario file's folder
+        if isinstance(wm, dict) and isinstance(wm.get(key), str) and not Path(wm[key]).is_absolute():
+            wm[key] = str(path.parent / wm[key])
     return scenario_from_dict(data, source=str(path) if path.parent != BUILTIN_DIR else path.stem)
 
 

@@ -192,7 +192,8 @@ class WaveMotion:
     """First-order (wave-frequency) motion of the hull that the plant puts on the fairleads: surge,
     sway and yaw always (``docs/plant_environment.md``); heave, roll and pitch from the closed-form
     transfer functions of Jensen, Mansour and Olsen (2004) when ``model = "six_dof"``; all six from
-    the user's RAO table when ``model = "table"``."""
+    the user's RAO table when ``model = "table"``. The second-order drift takes the user's mean
+    drift coefficients from ``drift_file`` when it is given (any model), else the wall-sided formula."""
 
     model: Literal["horizontal", "six_dof", "table"] = spec(
         "'horizontal': surge, sway and yaw only; 'six_dof': heave, roll and pitch too, from the closed-form "
@@ -205,6 +206,13 @@ class WaveMotion:
         default=None, check=text_limit(4096, what="a path"))
     rao_ulen: float = spec("WAMIT's length scale ULEN of a .4 rao_file (its rotations are per A/ULEN).", "m",
                            default=1.0, check=positive)
+    drift_file: str | None = spec(
+        "The hull's mean wave drift coefficients, any model: a CSV (omega_rad_s, beta_deg, dof, D: surge, sway "
+        "[N/m^2], yaw [N m/m^2] per unit wave amplitude squared; docs/plant_environment.md) or a WAMIT .8 or .9 "
+        "file; absent: the wall-sided formula. A relative path is read from the scenario file's folder.",
+        default=None, check=text_limit(4096, what="a path"))
+    drift_ulen: float = spec("WAMIT's length scale ULEN of a .8 or .9 drift_file (forces per rho g A^2 ULEN, "
+                             "moments per rho g A^2 ULEN^2).", "m", default=1.0, check=positive)
     block_coefficient: float | None = spec("Block coefficient C_B of the hull (six_dof).",
                                            default=None, check=in_range(0.3, 1.0))
     waterplane_coefficient: float | None = spec(
