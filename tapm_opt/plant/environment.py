@@ -12,6 +12,7 @@ Models, constants, assumptions and references: ``docs/plant_environment.md``."""
 
 from __future__ import annotations
 
+import contextlib
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -24,7 +25,7 @@ from ..models.environment import CurrentProfile, HullWindLoad, finite_array, fin
 
 __all__ = ["PlantError", "jonswap", "npd_spectrum", "CurrentProfile", "WaveParams", "WaveField",
            "WindParams", "Wind", "Environment", "hull_rao", "heading_interp", "N_HEADINGS", "Development",
-           "DevelopingWaveField", "DevelopingWind", "spreading_directions"]
+           "DevelopingWaveField", "DevelopingWind", "spreading_directions", "hull_drift"]
 
 
 class PlantError(TapmError, ValueError):
@@ -57,6 +58,24 @@ N_HEADINGS = 72
 #: Singular values of the heading grid's weights kept in :meth:`WaveField.vertical_block`, relative
 #: to the largest.
 SVD_RTOL = 1e-12
+
+
+_BLAS: Any = None
+
+
+def _one_blas_thread() -> Any:
+    """A context in which the BLAS runs on one thread (threadpoolctl; none without it): the drift
+    sums' block product, (512, 200) by (200, 216), is large enough for OpenBLAS to wake its other
+    threads, which then spin on the cores the compiled plant steps run on (fpso's storm with a
+    full-rank table on 2 cores: 1.4x the plant's time without a table, 1.03x on one thread)."""
+    global _BLAS
+    if _BLAS is None:
+        try:
+            from threadpoolctl import ThreadpoolController
+            _BLAS = ThreadpoolController()
+        except Exception:   # threadpoolctl missing or failing: the BLAS as it is
+            _BLAS = False
+    return _BLAS.limit(limits=1, user_api="blas") if _BLAS else contextlib.nullcontext()
 
 
 def spreading_directions(s: float, rng: np.random.Generator, n: int) -> np.ndarray:
@@ -239,7 +258,10 @@ class WaveField:
       sway ``sin beta sum a h_B sin theta``, yaw ``sin 2beta sum c_psi k h_L a cos theta``.
     * Drift in {B} (Newman 1974): ``F(t) = 2 c(beta) (sum a_k sqrt(R_k) cos theta_k)^2`` of mean
       ``sum D(w_k) a_k^2``, ``D = R(w) c(beta)``, ``c = 1/2 rho g (B cos|cos|, L sin|sin|, -c_N L^2
-      sin 2beta)`` (wall-sided body, Faltinsen 1990 ch. 5), ``R(w) = 1 - exp(-2 k T)``.
+      sin 2beta)`` (wall-sided body, Faltinsen 1990 ch. 5), ``R(w) = 1 - exp(-2 k T)``; or, with
+      the user's coefficients ``drift(omega, beta)`` (:meth:`_drift_weights`), ``F_i = 2 s_i
+      (sum a_k sqrt|D_i(w_k, beta)| cos theta_k)^2``, ``s_i`` the sign of the mean ``sum a_k^2
+      D_i(w_k, beta)``, on the heading grid.
 
     Parameters
     ----------
@@ -248,10 +270,16 @@ class WaveField:
     seed : int, SeedSequence or Generator
         Passed to ``numpy.random.default_rng``.
     params : WaveParams
+    rao : callable, optional
+        The hull's transfer functions ``rao(omega, beta)`` (:func:`hull_rao`; None: the horizontal
+        model).
+    drift : callable, optional
+        The hull's mean drift coefficients ``drift(omega, beta)`` -> (..., 3) [N/m^2, N/m^2,
+        N m/m^2] (:func:`hull_drift`; None: the wall-sided formula).
     """
 
     def __init__(self, sea_state: schema.SeaState, vessel: schema.Vessel, env: schema.Environment,
-                 seed: Any = None, *, params: WaveParams = WaveParams(), rao: Any = None):
+                 seed: Any = None, *, params: WaveParams = WaveParams(), rao: Any = None, drift: Any = None):
         self.Hs = _num("sea_state.Hs", sea_state.Hs, lo=0.0, unit="m")
         self.Tp = _num("sea_state.Tp", sea_state.Tp, lo=0.0, strict=True, unit="s")
         self.direction = _num("sea_state.wave_direction", sea_state.wave_direction, unit="rad")
@@ -296,6 +324,7 @@ class WaveField:
         self._th, self._sin, self._cos = np.empty(N), np.empty(N), np.empty(N)
         self._rot_cache: dict = {}  # rotation tables of the block sums, per step length
         self._vertical_weights(rao, a)
+        self._drift_weights(drift, a)
 
     def _peak_band(self, sea_state: Any) -> tuple[float, float]:
         """The lowest and highest peak frequency [rad/s] the components must cover (the sea
@@ -365,6 +394,68 @@ class WaveField:
         U, sv, Vt = np.linalg.svd(self._Wv, full_matrices=False)
         r = int(np.count_nonzero(sv > SVD_RTOL * sv[0])) if sv.size and sv[0] > 0 else 0
         self._Wv_lr = (U[:, :r] * sv[:r], Vt[:r]) if 0 < r < K * G // 2 else None
+
+    def _drift_weights(self, drift: Any, a: np.ndarray) -> None:
+        """The weights of the drift sums of the user's mean drift coefficients on the heading grid
+        (:data:`N_HEADINGS` headings ``beta_g = 2 pi g / G``, column ``3 g + i`` for surge, sway,
+        yaw): ``q_i(t, beta_g) = sum_k a_k sqrt|D_i(w_k, beta_g + delta_k)| cos theta_k`` with ``D =
+        drift(omega (N, 1), beta (N, G))`` (N, G, 3) (each component at its own direction, as the
+        motion's grid takes it), for component amplitudes ``a`` [m] (ones: per metre); the sign
+        ``s_i`` of the mean ``sum a_k^2 D_i`` and the mean ``s_i sum a_k^2 |D_i|`` of each column,
+        of the amplitudes :attr:`amplitude`. None (``drift_table`` False, no columns) without
+        ``drift``: the wall-sided formula (:meth:`drift_factor`)."""
+        N, G = self.omega.size, N_HEADINGS
+        self.drift_table = drift is not None
+        self._Wd_lr = None
+        if drift is None:
+            self._Wd = np.zeros((N, 0))
+            self._drift_D = np.zeros((N, 0))
+            self._drift_sign = self._drift_mean = np.zeros(0)
+            return
+        beta = 2.0 * math.pi / G * np.arange(G)[None, :] + self.delta[:, None]
+        D = np.asarray(drift(self.omega[:, None], beta), dtype=float)
+        if D.shape != (N, G, 3) or not np.isfinite(D).all():
+            raise PlantError(f"the hull's mean drift coefficients have shape {D.shape} (expected {(N, G, 3)}) "
+                             "or are not finite")
+        self._drift_D = D = D.reshape(N, 3 * G)
+        root = np.sqrt(np.abs(D))
+        self._Wd = a[:, None] * root
+        a2 = self.amplitude**2
+        self._drift_sign = np.sign(a2 @ D)
+        self._drift_mean = self._drift_sign * (a2 @ np.abs(D))
+        # the block's product through the weights' leading singular vectors, as vertical_block's
+        U, sv, Vt = np.linalg.svd(self._Wd, full_matrices=False)
+        r = int(np.count_nonzero(sv > SVD_RTOL * sv[0])) if sv.size and sv[0] > 0 else 0
+        self._Wd_lr = (U[:, :r] * sv[:r], Vt[:r]) if 0 < r < 3 * G // 2 else None
+
+    def _drift_sign_at(self, t: Any) -> np.ndarray:
+        """The sign ``s_i`` of the mean drift on the heading grid (3 G,) at time(s) t (the
+        stationary sea's: the same at every time)."""
+        return self._drift_sign
+
+    def _scale_cos(self, c: np.ndarray, t: Any) -> np.ndarray:
+        """``cos theta`` (..., N) at the times t as the drift weights take them (the stationary
+        field's weights carry the amplitudes: unchanged)."""
+        return c
+
+    def drift_block(self, t0: float, h: float, n: int) -> np.ndarray:
+        """The drift sums ``q_i`` on the heading grid (:meth:`_drift_weights`) at the n times ``t0
+        + j h`` [s], shape (n, 3 G); (n, 0) without the user's drift coefficients. The same angle
+        sums as :meth:`block`, through the weights' leading singular vectors."""
+        if not self._Wd.shape[1]:
+            return np.zeros((int(n), 0))
+        _, cos_th = _block_trig(float(t0), float(h), int(n), self.omega, self.phase, self._rot_cache)
+        cos_th = self._scale_cos(cos_th, float(t0) + float(h) * np.arange(int(n)))
+        with _one_blas_thread():
+            return (cos_th @ self._Wd_lr[0]) @ self._Wd_lr[1] if self._Wd_lr is not None else cos_th @ self._Wd
+
+    def drift_of(self, grid: Any, psi: float, t: float = 0.0) -> np.ndarray:
+        """The drift load (3,) [N, N, N m] in {B} at the LF heading psi [rad] from the drift sums
+        on the heading grid (3 G,) at time t [s] (:meth:`drift_block`): ``2 s q^2`` on the grid,
+        interpolated linearly in the relative heading (:func:`heading_interp`) — the plant's
+        compiled step does the same operations."""
+        F = 2.0 * grid * grid * self._drift_sign_at(t)
+        return heading_interp(F, self.direction, psi)
 
     def _sums(self, t: Any) -> tuple[np.ndarray, np.ndarray]:
         """(W_sin @ sin theta, W_cos @ cos theta), shapes (3, ...) and (4, ...); last t cached."""
@@ -512,17 +603,27 @@ class WaveField:
         """The drift factor c(beta) (3,) [N/m^2, N/m^2, N/m] at the LF heading psi [rad]: the
         wall-sided body's of the mean direction (long-crested), or, short-crested, the mean of
         c(beta + delta_k) weighted by each component's share of the drift (``a_k^2 R_k``), on the
-        heading grid (:func:`heading_interp`)."""
+        heading grid (:func:`heading_interp`). The wall-sided formula's: not used with the user's
+        drift coefficients (:attr:`drift_table`)."""
         if self._drift_grid.size:
             return heading_interp(self._drift_grid, self.direction, _num("psi", psi, unit="rad"))
         return self._dirs(psi)[3]
 
     def mean_drift(self, psi: float) -> np.ndarray:
-        """Newman mean drift ``sum_k D(w_k, beta) a_k^2`` in {B}, shape (3,) [N, N, N m]."""
+        """Newman mean drift ``sum_k D(w_k, beta) a_k^2`` in {B}, shape (3,) [N, N, N m]: the time
+        mean of :meth:`tau_drift`. With the user's coefficients ``s_i sum_k a_k^2 |D_i(w_k,
+        beta)|`` on the heading grid, interpolated linearly at the heading (``sum a^2 D`` where
+        ``D_i`` keeps one sign over the frequencies)."""
+        if self.drift_table:
+            return heading_interp(self._drift_mean, self.direction, _num("psi", psi, unit="rad"))
         return (self.amplitude**2 @ self.reflection) * self.drift_factor(psi)
 
     def tau_drift(self, t: Any, psi: float) -> np.ndarray:
         """Mean + slowly varying drift load in {B} [N, N, N m] (Newman), shape t.shape + (3,)."""
+        if self.drift_table:
+            t = _time(t)
+            c = self._scale_cos(np.cos(np.multiply.outer(t, self.omega) + self.phase), t)
+            return self.drift_of(c @ self._Wd, _num("psi", psi, unit="rad"), t)
         q = self._sums(t)[1][1]
         if np.ndim(q) == 0:
             return 2.0 * q * q * self.drift_factor(psi)
@@ -673,16 +774,18 @@ class DevelopingWaveField(WaveField):
     amplitude and the sums take ``a_k(t)`` at each time. Rates (``eta_wf_dot``,
     ``vertical_dot``) leave out ``da/dt``, of the order of a/(the table's time scale) against a
     omega. :attr:`amplitude` is a(0); ``mean_drift`` is the drift at t = 0; a short-crested sea's
-    drift factor weights the components by their shares at t = 0."""
+    drift factor weights the components by their shares at t = 0. With the user's drift
+    coefficients the sign of each heading's mean drift is that of the moment (``sum a_k(t)^2 D``)."""
 
     def __init__(self, sea_state: schema.SeaState, vessel: schema.Vessel, env: schema.Environment,
-                 seed: Any = None, *, params: WaveParams = WaveParams(), rao: Any = None,
+                 seed: Any = None, *, params: WaveParams = WaveParams(), rao: Any = None, drift: Any = None,
                  development: Development):
         self.development = development
-        super().__init__(sea_state, vessel, env, seed, params=params, rao=rao)
+        super().__init__(sea_state, vessel, env, seed, params=params, rao=rao, drift=drift)
         ones = np.ones_like(self.omega)
         self._Ws, self._Wc = self._horizontal_weights(ones)
         self._vertical_weights(rao, ones)
+        self._drift_weights(drift, ones)
         self._cache = None
 
     def _peak_band(self, sea_state: Any) -> tuple[float, float]:
@@ -700,6 +803,12 @@ class DevelopingWaveField(WaveField):
     def _scale_trig(self, cs: np.ndarray, t: Any) -> np.ndarray:
         A = self.amplitudes(t)
         return cs * np.concatenate([A, A], axis=-1)
+
+    def _scale_cos(self, c: np.ndarray, t: Any) -> np.ndarray:
+        return c * self.amplitudes(t)
+
+    def _drift_sign_at(self, t: Any) -> np.ndarray:
+        return np.sign(self.amplitudes(t) ** 2 @ self._drift_D)
 
     def _sums(self, t: Any) -> tuple[np.ndarray, np.ndarray]:
         t = _time(t)
@@ -815,6 +924,30 @@ def hull_rao(vessel: schema.Vessel, env: schema.Environment) -> Any:
     return lambda omega, beta: rao_mod.closed_form_rao(omega, beta, hull, g=g)
 
 
+def hull_drift(vessel: schema.Vessel, env: schema.Environment) -> Any:
+    """The hull's mean drift coefficients ``drift(omega, beta)`` -> (..., 3) [N/m^2, N/m^2,
+    N m/m^2] of the user's table ``vessel.wave_motion.drift_file`` (a CSV of
+    :func:`~tapm_opt.models.rao.read_drift_csv`, or a WAMIT ``.8`` or ``.9`` file of
+    :func:`~tapm_opt.models.rao.read_wamit_drift` with ``drift_ulen`` and the scenario's water
+    density and gravity), or None (the wall-sided formula) without one."""
+    wm = vessel.wave_motion
+    path = getattr(wm, "drift_file", None)
+    if path is None:
+        return None
+    from ..models import rao as rao_mod
+
+    path = str(path)
+    try:
+        if path.lower().endswith((".8", ".9")):
+            table = rao_mod.read_wamit_drift(path, ulen=float(wm.drift_ulen), rho=float(env.water_density),
+                                             g=float(env.gravity))
+        else:
+            table = rao_mod.read_drift_csv(path)
+    except (ModelError, OSError) as exc:
+        raise PlantError(f"vessel.wave_motion.drift_file = {path!r}: {exc}") from None
+    return table.evaluate
+
+
 class Environment:
     """Current, waves and wind of one sea state of a scenario, with independent random streams.
 
@@ -852,9 +985,11 @@ class Environment:
         self.development = dev = Development(sea_state) if sea_state.development else None
         if dev is not None and (dev.varies("Hs") or dev.varies("Tp")):
             self.waves: WaveField = DevelopingWaveField(sea_state, ves, env, s_wave, params=wave_params,
-                                                        rao=hull_rao(ves, env), development=dev)
+                                                        rao=hull_rao(ves, env), drift=hull_drift(ves, env),
+                                                        development=dev)
         else:
-            self.waves = WaveField(sea_state, ves, env, s_wave, params=wave_params, rao=hull_rao(ves, env))
+            self.waves = WaveField(sea_state, ves, env, s_wave, params=wave_params, rao=hull_rao(ves, env),
+                                   drift=hull_drift(ves, env))
         if dev is not None and (dev.varies("wind_speed") or dev.varies("wind_direction")):
             self.wind: Wind = DevelopingWind(sea_state, ves, env, s_wind, params=wind_params, development=dev)
         else:

@@ -897,17 +897,40 @@ def _heading_interp(grid, direction, psi, out, o):  # pragma: no cover - compile
 
 
 @_jit
-def plant_pre_step(h, f, alpha, f_cmd, alpha_cmd, decay, rate_dt, alpha_rate_dt, V0, q0, S0, S1, C0, vgrid,
+def _drift_interp(dq, sign, direction, psi, out, o):  # pragma: no cover - compiled
+    """:meth:`WaveField.drift_of <tapm_opt.plant.environment.WaveField.drift_of>` into ``out[o:o +
+    3]``: ``2 q q s`` of the drift sums ``dq`` and signs ``sign`` on the heading grid (3 G,) at the
+    two grid headings about ``beta = direction - psi``, interpolated linearly (the operations of
+    :func:`tapm_opt.plant.environment.heading_interp` on ``2 q q s``)."""
+    G = N_HEADINGS
+    b = direction - psi
+    b = b - 2.0 * math.pi * math.floor(b / (2.0 * math.pi))
+    x = b * (G / (2.0 * math.pi))
+    g0 = min(int(x), G - 1)
+    f = x - g0
+    g1 = 0 if g0 == G - 1 else g0 + 1
+    for d in range(3):
+        qa = dq[3 * g0 + d]
+        qb = dq[3 * g1 + d]
+        v0 = 2.0 * qa * qa * sign[3 * g0 + d]
+        v1 = 2.0 * qb * qb * sign[3 * g1 + d]
+        out[o + d] = v0 + f * (v1 - v0)
+
+
+@_jit
+def plant_pre_step(h, f, alpha, f_cmd, alpha_cmd, decay, rate_dt, alpha_rate_dt, V0, q0, S0, S1, C0, vgrid, dq,
                    eta, nu, eta_wf_prev, tau_moor_prev, r, vc,
-                   failed, f_min, f_max, azimuth, x_thr, y_thr, has_env, wind_dir, hull_k, wave_dir, drift_c, drift_grid, wf,
+                   failed, f_min, f_max, azimuth, x_thr, y_thr, has_env, wind_dir, hull_k, wave_dir, drift_c, drift_grid,
+                   drift_sign, wf,
                    v_c, M, M_A, M_inv, D_lin, d_quad, has_riser, riser_c,
                    cur_kind, cur_clamps, cur_depths, cur_factors, cur_depth, cur_surface):  # pragma: no cover - compiled
     """The plant's outer step of ``h`` [s] up to its lines (``Plant._outer_step``, no winch, a
     steady current) in one call: :func:`thruster_step` (``f`` and ``alpha`` in place), the wind
     load (``HullWindLoad.tau`` at the wind speed ``V0`` [m/s] going to ``wind_dir`` [rad], the
     coefficients ``hull_k``) and the wave drift (``2 q0^2`` times the drift factor of the heading,
-    ``drift_c`` the constants of ``WaveField._dirs``) at the start of the step (zero unless
-    ``has_env``), :func:`vessel_step` on their sum with the thrust and ``tau_moor_prev``, the
+    ``drift_c`` the constants of ``WaveField._dirs``; with the user's drift coefficients, non-empty
+    ``drift_sign``, :func:`_drift_interp` of the sums ``dq`` on the heading grid) at the start of
+    the step (zero unless ``has_env``), :func:`vessel_step` on their sum with the thrust and ``tau_moor_prev``, the
     wave-frequency pose at the end (the sums ``S0, S1, C0`` of ``WaveField._motion`` there; zero
     unless ``wf``; and the heave, roll and pitch from ``vgrid``, the sums on the heading grid of
     ``WaveField.vertical_block``, empty: none), the total poses ``eta + eta_wf_prev`` and the new one, the riser angles at the
@@ -941,7 +964,9 @@ def plant_pre_step(h, f, alpha, f_cmd, alpha_cmd, decay, rate_dt, alpha_rate_dt,
         cbt = math.cos(beta)
         sbt = math.sin(beta)
         q2 = 2.0 * q0 * q0
-        if drift_grid.shape[0] > 0:   # short-crested: the drift factor on the heading grid (WaveField.drift_factor)
+        if drift_sign.shape[0] > 0:   # the user's drift coefficients on the heading grid (WaveField.drift_of)
+            _drift_interp(dq, drift_sign, wave_dir, psi, out, 15)
+        elif drift_grid.shape[0] > 0:   # short-crested: the drift factor on the heading grid (WaveField.drift_factor)
             _heading_interp(drift_grid, wave_dir, psi, out, 15)
             for i in range(3):
                 out[15 + i] = q2 * out[15 + i]
@@ -1028,8 +1053,8 @@ _plant_pre_step, _mooring_step = plant_pre_step, mooring_step
 @_jit
 def plant_steps(h, n_sub, steps0, t_fem, sums, f, alpha, f_cmd, alpha_cmd, decay, rate_dt, alpha_rate_dt,
                 eta, nu, eta_wf, vert, tau_moor, rate, r, v, vc,
-                failed, f_min, f_max, azimuth, x_thr, y_thr, has_env, wind_dir, hull_k, wave_dir, drift_c, drift_grid, wf,
-                v_c, M, M_A, M_inv, D_lin, d_quad, has_riser, riser_c,
+                failed, f_min, f_max, azimuth, x_thr, y_thr, has_env, wind_dir, hull_k, wave_dir, drift_c, drift_grid,
+                drift_sign, wf, v_c, M, M_A, M_inv, D_lin, d_quad, has_riser, riser_c,
                 cur_kind, cur_clamps, cur_depths, cur_factors, cur_depth, cur_surface,
                 p_cot, p_T, turret_angle, locked, z_fl,
                 l0, EA, tabi, tab, c_int, bond_ok, node_weight, node_mass, cdn, cdt, can_half, cat_half,
@@ -1039,8 +1064,10 @@ def plant_steps(h, n_sub, steps0, t_fem, sums, f, alpha, f_cmd, alpha_cmd, decay
     """Up to ``sums.shape[0]`` plant outer steps of ``h`` [s] in one call (``Plant._fused_steps``):
     each :func:`plant_pre_step`, then :func:`mooring_step` in ``n_sub`` substeps, the functions and
     arguments of the plant's per-step fused path (``Plant._fused_step``), so the same numbers. Row
-    ``i`` of ``sums`` is step i's environment sums ``(V0, q0, S0, S1, C0)`` and the heave, roll and
-    pitch sums on the heading grid (none without them); ``vert`` the heave, roll and pitch at the start. The state passes from
+    ``i`` of ``sums`` is step i's environment sums ``(V0, q0, S0, S1, C0)``, the heave, roll and
+    pitch sums on the heading grid (none without them) and the drift sums on the heading grid at
+    the step's start (its last ``drift_sign.shape[0]`` columns; none without the user's drift
+    coefficients); ``vert`` the heave, roll and pitch at the start. The state passes from
     step to step as the plant passes it: the pose, velocity, wave-frequency pose and riser angles
     from the packed output, the mooring load and the pose rate, the node positions and velocities;
     ``f``, ``alpha`` (thrusters) and ``vc`` (current at the nodes) are written in place;
@@ -1070,6 +1097,7 @@ def plant_steps(h, n_sub, steps0, t_fem, sums, f, alpha, f_cmd, alpha_cmd, decay
         The FEM time after the ``k`` steps.
     """
     n = sums.shape[0]
+    nv = sums.shape[1] - drift_sign.shape[0]   # the heave, roll and pitch sums end there, the drift sums follow
     outs = np.zeros((n, OUT_SIZE))
     eta_c = eta.copy()
     nu_c = nu.copy()
@@ -1086,10 +1114,10 @@ def plant_steps(h, n_sub, steps0, t_fem, sums, f, alpha, f_cmd, alpha_cmd, decay
     dt = h / n_sub
     for i in range(n):
         status, out = _plant_pre_step(h, f, alpha, f_cmd, alpha_cmd, decay, rate_dt, alpha_rate_dt,
-                                     sums[i, 0], sums[i, 1], sums[i, 2], sums[i, 3], sums[i, 4], sums[i, 5:],
-                                     eta_c, nu_c, wf_c, tau_c, r, vc,
+                                     sums[i, 0], sums[i, 1], sums[i, 2], sums[i, 3], sums[i, 4], sums[i, 5:nv],
+                                     sums[i, nv:], eta_c, nu_c, wf_c, tau_c, r, vc,
                                      failed, f_min, f_max, azimuth, x_thr, y_thr, has_env, wind_dir, hull_k, wave_dir,
-                                     drift_c, drift_grid, wf, v_c, M, M_A, M_inv, D_lin, d_quad, has_riser, riser_c,
+                                     drift_c, drift_grid, drift_sign, wf, v_c, M, M_A, M_inv, D_lin, d_quad, has_riser, riser_c,
                                      cur_kind, cur_clamps, cur_depths, cur_factors, cur_depth, cur_surface)
         outs[i, :] = out
         if status != 0:

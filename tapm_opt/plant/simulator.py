@@ -69,7 +69,7 @@ OVERLOAD_NEAR = 0.98
 #: the block sums of the environment (:meth:`Plant._env_block`).
 _ULP4 = 4.0 * 2.220446049250313e-16
 _EMPTY = np.zeros(1)
-_NO_SUMS = (0.0, 0.0, 0.0, 0.0, 0.0, np.zeros(0))
+_NO_SUMS = (0.0, 0.0, 0.0, 0.0, 0.0, np.zeros(0), np.zeros(0))
 
 __all__ = ["Plant", "ThrusterCommand", "run_open_loop", "PlantError", "SimulationDiverged"]
 
@@ -411,32 +411,39 @@ class Plant:
         if len(times) >= 2:
             S, C = env.waves.block(t0, h, len(times))
             Vg = env.waves.vertical_block(t0, h, len(times))
+            Dq = env.waves.drift_block(t0, h, len(times))
             V = env.wind.block(t0, h, len(times))
         else:  # the next time is off the grid of h (rounding drift): the two times on their own
             times.append(round(t0 + h, 9))
             rows = [env.waves.block(t, h, 1) for t in times]
             S, C = np.concatenate([r[0] for r in rows]), np.concatenate([r[1] for r in rows])
             Vg = np.concatenate([env.waves.vertical_block(t, h, 1) for t in times])
+            Dq = np.concatenate([env.waves.drift_block(t, h, 1) for t in times])
             V = env.wind.block(times[0], h, 1) + env.wind.block(times[1], h, 1)
         # the sums of each step from the block's time i to i + 1, packed for the compiled steps
         # (Plant._fused_steps): V and q at i, S[0], S[1], C[0] and the heave, roll and pitch sums
-        # on the heading grid at i + 1, as _env_sums gives them
-        packed = np.empty((len(times) - 1, 5 + Vg.shape[1]))
+        # on the heading grid at i + 1, the drift sums on the heading grid at i (the user's drift
+        # coefficients), as _env_sums gives them
+        nv = Vg.shape[1]
+        packed = np.empty((len(times) - 1, 5 + nv + Dq.shape[1]))
         packed[:, 0] = V[:-1]
         packed[:, 1] = C[:-1, 1]
         packed[:, 2] = S[1:, 0]
         packed[:, 3] = S[1:, 1]
         packed[:, 4] = C[1:, 0]
-        packed[:, 5:] = Vg[1:]
-        self._blk = (times, V, C[:, 1].tolist(), S[:, 0].tolist(), S[:, 1].tolist(), C[:, 0].tolist(), packed, Vg)
+        packed[:, 5:5 + nv] = Vg[1:]
+        packed[:, 5 + nv:] = Dq[:-1]
+        self._blk = (times, V, C[:, 1].tolist(), S[:, 0].tolist(), S[:, 1].tolist(), C[:, 0].tolist(), packed, Vg,
+                     Dq)
         self._blk_j = 0
 
     def _env_sums(self, t0: float, t1: float, h: float) -> tuple:
         """The environment's sums of the outer step from ``t0`` to ``t1`` [s]: the wind speed V [m/s]
         and the drift sum q at ``t0`` (:meth:`Wind.speed`, ``WaveField._sums``), the motion sums
         ``S[0], S[1], C[0]`` and the heave, roll and pitch sums on the heading grid (3 G,)
-        (:meth:`WaveField.vertical_block`, empty without them) at ``t1``, from the block (a new one
-        when the times are not its next)."""
+        (:meth:`WaveField.vertical_block`, empty without them) at ``t1``, and the drift sums on the
+        heading grid (3 G,) at ``t0`` (:meth:`WaveField.drift_block`, empty without the user's
+        drift coefficients), from the block (a new one when the times are not its next)."""
         j = self._blk_j
         b = self._blk
         if b is None or j + 1 >= len(b[0]) or b[0][j] != t0 or b[0][j + 1] != t1:
@@ -444,7 +451,7 @@ class Plant:
             j = 0
             b = self._blk
         self._blk_j = j + 1
-        return b[1][j], b[2][j], b[3][j + 1], b[4][j + 1], b[5][j + 1], b[7][j + 1]
+        return b[1][j], b[2][j], b[3][j + 1], b[4][j + 1], b[5][j + 1], b[7][j + 1], b[8][j]
 
     def _outer_step(self, h: float) -> None:
         if self._fault_i < len(self._faults):
@@ -474,7 +481,10 @@ class Plant:
             # velocity: the vessel step below checks them) from the block's sums
             tau_wind = env.wind.hull.tau(sums[0], env.wind.direction_at(t0), psi0, float(self.nu[0]),
                                          float(self.nu[1]))
-            tau_drift = 2.0 * sums[1] * sums[1] * env.waves.drift_factor(psi0)
+            if env.waves.drift_table:   # the user's coefficients: the sums on the heading grid
+                tau_drift = env.waves.drift_of(sums[6], psi0, t0)
+            else:
+                tau_drift = 2.0 * sums[1] * sums[1] * env.waves.drift_factor(psi0)
         else:
             tau_wind = tau_drift = np.zeros(3)
         tau = tau_thr + tau_wind + tau_drift + self._tau_moor
@@ -582,9 +592,10 @@ class Plant:
         if env is not None:
             w, wv = env.wind, env.waves
             env_c = (True, float(w.direction), np.ascontiguousarray(w.hull.k, dtype=float), float(wv.direction),
-                     np.ascontiguousarray(wv._drift_c, dtype=float), np.ascontiguousarray(wv._drift_grid, dtype=float))
+                     np.ascontiguousarray(wv._drift_c, dtype=float), np.ascontiguousarray(wv._drift_grid, dtype=float),
+                     np.ascontiguousarray(wv._drift_sign, dtype=float))
         else:
-            env_c = (False, 0.0, np.zeros(3), 0.0, np.zeros(3), np.zeros(0))
+            env_c = (False, 0.0, np.zeros(3), 0.0, np.zeros(3), np.zeros(0), np.zeros(0))
         if self.riser is not None:
             rz = self.riser
             riser = (True, np.array(rz._hangoff_xy + rz._wellhead_xy + rz._cc + rz._hh + rz._g_default_xy, dtype=float))
@@ -627,12 +638,15 @@ class Plant:
         fem = m.fem
         th = self.thrusters
         n_sub, r, v = self._fused_prologue(h)
-        V0, q0, S0, S1, C0, vg = sums if sums is not None else _NO_SUMS
+        if sums is None:
+            sums = _NO_SUMS
+        V0, q0, S0, S1, C0, vg = sums[:6]
+        dq = sums[6] if len(sums) > 6 else _NO_SUMS[6]
         kern = _fem_kernel()
         vc = m._vc
         cmd = self._cmd
         status, out = kern.plant_pre_step(h, th._f, th._alpha, cmd.f, cmd.alpha, th._decay, th._rate_dt,
-                                          th._alpha_rate_dt, V0, q0, S0, S1, C0, vg, self.eta, self.nu, self._eta_wf,
+                                          th._alpha_rate_dt, V0, q0, S0, S1, C0, vg, dq, self.eta, self.nu, self._eta_wf,
                                           self._tau_moor, r, vc, *pre)
         if status == 1:
             self._diverged(t0, out[0:3], out[3:6])
