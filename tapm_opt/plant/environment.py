@@ -506,7 +506,8 @@ class WaveField:
             return np.zeros((int(n), 0))
         sin_th, cos_th = _block_trig(float(t0), float(h), int(n), self.omega, self.phase, self._rot_cache)
         cs = np.concatenate([cos_th, sin_th], axis=1)
-        out = (cs @ self._Wv_lr[0]) @ self._Wv_lr[1] if self._Wv_lr is not None else cs @ self._Wv
+        with _one_blas_thread():
+            out = (cs @ self._Wv_lr[0]) @ self._Wv_lr[1] if self._Wv_lr is not None else cs @ self._Wv
         if t0 < self.Tp:   # the first peak period: heave, roll and pitch brought in by the ramp
             m = min(int(n), int(math.ceil((self.Tp - t0) / h)) + 1)
             K = out.shape[1] // N_HEADINGS
@@ -828,7 +829,8 @@ class DevelopingWaveField(WaveField):
         sin_th, cos_th = _block_trig(float(t0), float(h), int(n), self.omega, self.phase, self._rot_cache)
         A = self.amplitudes(float(t0) + float(h) * np.arange(int(n)))
         cs = np.concatenate([A * cos_th, A * sin_th], axis=1)
-        out = (cs @ self._Wv_lr[0]) @ self._Wv_lr[1] if self._Wv_lr is not None else cs @ self._Wv
+        with _one_blas_thread():
+            out = (cs @ self._Wv_lr[0]) @ self._Wv_lr[1] if self._Wv_lr is not None else cs @ self._Wv
         if t0 < self.Tp:
             m = min(int(n), int(math.ceil((self.Tp - t0) / h)) + 1)
             K = out.shape[1] // N_HEADINGS
