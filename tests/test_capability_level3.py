@@ -64,7 +64,6 @@ def test_level3_never_above_level1_without_losses_at_the_same_limits(aamo4, leve
     bound = same.case("intact").beaufort
     assert np.array_equal(bound, res.level1_bound.case("intact").beaufort)
     assert np.all(res.beaufort <= bound), (res.beaufort, bound)
-    assert np.any(res.beaufort == bound)        # on the beam the bound is reached: the check is sharp there
     # the search found a limit inside the table, not the table's top or bottom: the comparison says something
     assert np.all(res.beaufort >= 0) and all(d.limit != "table" for d in res.directions)
     # every direction's deciding runs and the row above: the reported limits hold and are broken
@@ -74,13 +73,16 @@ def test_level3_never_above_level1_without_losses_at_the_same_limits(aamo4, leve
         assert not d.above.passed and d.above.number == COARSE[[r.number for r in COARSE].index(d.beaufort) + 1].number
         lim = d.above.limit
         assert (d.above.offset_max > R if lim == "offset" else
-                d.above.util_max > util if lim.startswith("tension") else lim.startswith(("line break", "diverged")))
+                d.above.util_max > util if lim.startswith("tension") else
+                d.above.heading_error_max > 5.0 if lim == "heading" else lim.startswith(("line break", "diverged")))
+        assert d.decided.heading_error_max <= 5.0
 
 
-def _by_hand(sc, row, direction_deg: float, seed: int = 1) -> tuple[float, float]:
+def _by_hand(sc, row, direction_deg: float, seed: int = 1) -> tuple[float, float, float]:
     """The closed loop of a Level 3 run built by hand: the row's environment coming from
     ``direction_deg``, PID, the FEM plant started at the field zero point at the heading 0;
-    the largest LF turret offset [m] and the largest fairlead tension over MBS after the warm-up."""
+    the largest LF turret offset [m], the largest fairlead tension over MBS and the largest heading
+    error [deg] after the warm-up."""
     from tapm_opt.plant.simulator import Plant
     from tapm_opt.studies.closed_loop import ClosedLoopSettings, run_closed_loop
     from tapm_opt.studies.controllers import build_controller
@@ -100,19 +102,20 @@ def _by_hand(sc, row, direction_deg: float, seed: int = 1) -> tuple[float, float
     px, py = turret_offset(eta, sc.turret.position)
     mbs = {ln.id: sc.line_type(ln).MBS for ln in sc.lines}
     util = max(float(np.max(res[f"T_fairlead[{i}]"][keep])) / m for i, m in mbs.items())
-    return float(np.max(np.hypot(px, py))), util
+    head = float(np.degrees(np.max(np.abs(ssa(res["psi"][keep] - psi)))))
+    return float(np.max(np.hypot(px, py))), util, head
 
 
 def test_a_direction_checked_by_a_closed_loop_run_at_the_envelope_and_one_row_above(aamo4, level3):
-    d = level3.directions[2]                       # on the beam: close to the tension limit
+    d = level3.directions[0]                       # ahead: one row up a line is over its limit
     rows = {r.number: r for r in COARSE}
     above = COARSE[[r.number for r in COARSE].index(d.beaufort) + 1]
     R, util = aamo4.limits.safe_radius, aamo4.limits.tension_utilisation
-    off, u = _by_hand(aamo4, rows[d.beaufort], d.direction_deg)
-    assert off <= R and u <= util, (off, u)                    # held at the envelope ...
+    off, u, head = _by_hand(aamo4, rows[d.beaufort], d.direction_deg)
+    assert off <= R and u <= util and head <= 5.0, (off, u, head)   # held at the envelope ...
     assert off == pytest.approx(d.decided.offset_max, rel=1e-9) and u == pytest.approx(d.decided.util_max, rel=1e-9)
-    off2, u2 = _by_hand(aamo4, above, d.direction_deg)
-    assert off2 > R or u2 > util, (off2, u2)                   # ... not one row above
+    off2, u2, head2 = _by_hand(aamo4, above, d.direction_deg)
+    assert off2 > R or u2 > util or head2 > 5.0, (off2, u2, head2)   # ... not one row above
     # (a line that breaks counts at its breaking tension in the KPI, above the logged samples)
     assert off2 == pytest.approx(d.above.offset_max, rel=1e-9) and u2 <= d.above.util_max + 1e-12
     # run_row repeats the search's run of one row
@@ -144,6 +147,7 @@ def test_level3_files_and_report_section(aamo4, level3, tmp_path):
     ({"controller": "lqr"}, "controller = 'lqr'"), ({"duration": 0.0}, "duration = 0.0"),
     ({"warmup": -1.0}, "warmup = -1.0"), ({"seeds": 0}, "seeds = 0"), ({"segments": 0}, "segments = 0"),
     ({"heading": "north"}, "heading = 'north'"), ({"directions_deg": (0.0, 360.0)}, "must not repeat"),
+    ({"heading_tolerance": 0.0}, "heading_tolerance = 0.0"),
     ({"tension_utilisation": 1.5}, "tension_utilisation = 1.5"), ({"table": "big"}, "table = 'big'"),
 ])
 def test_bad_level3_options_are_typed_errors_naming_the_option(kw, text):
@@ -157,7 +161,7 @@ def test_bad_level3_options_are_typed_errors_naming_the_option(kw, text):
     (("--level", "3", "--controller", "lqr"), "--controller"), (("--duration", "600"), "--duration"),
     (("--level", "3", "--condition", "all"), "--condition"), (("--level", "3", "--warmup", "nan"), "--warmup"),
     (("--thruster-diameter", "4"), "--thruster-diameter"), (("--level", "4"), "--level"),
-    (("--table", "huge"), "--table"),
+    (("--table", "huge"), "--table"), (("--level", "3", "--heading-tolerance", "0"), "--heading-tolerance"),
 ])
 def test_cli_refuses_bad_level3_and_loss_options_naming_them(capsys, tmp_path, args, text):
     out = tmp_path / "cap"

@@ -70,6 +70,8 @@ def _out_dir(ctx: click.Context, param: click.Parameter, value: str | None) -> s
               help="Level 3: runs per table row, plant seeds 1..N; a row passes when all do (default 1).")
 @click.option("--segments", type=int, default=None,
               help="Level 3: FEM segments per line (default each line's own).")
+@click.option("--heading-tolerance", "heading_tolerance", type=float, default=None,
+              help="Level 3: largest heading error allowed [deg] (default 5).")
 @click.option("--riser/--no-riser", default=None,
               help="Check the riser's angles (default: Levels 1, 2 yes; Level 3 no: turret offset and line "
                    "tensions only).")
@@ -81,7 +83,7 @@ def capability(scenario_name: str, out_dir: str | None, level: str, heading: str
                condition: str | None, sea_state: str | None, directions: str | None, design_direction: float | None,
                table: str, losses: bool, thruster_diameter: float | None, controller: str | None,
                duration: float | None, warmup: float | None, seeds: int | None, segments: int | None,
-               riser: bool | None, workers: int | None, as_json: bool) -> None:
+               heading_tolerance: float | None, riser: bool | None, workers: int | None, as_json: bool) -> None:
     """Thruster-assisted mooring capability envelopes of SCENARIO, DNV-ST-0111 style.
 
     Levels 1 and 2: for every direction and case (mooring alone; thrusters with the mooring intact;
@@ -117,7 +119,7 @@ def capability(scenario_name: str, out_dir: str | None, level: str, heading: str
         raise click.BadParameter("is the diameter of the interaction sectors of --losses: give --losses too",
                                  param_hint="'--thruster-diameter'")
     level3_only = {"--controller": controller, "--duration": duration, "--warmup": warmup, "--seeds": seeds,
-                   "--segments": segments}
+                   "--segments": segments, "--heading-tolerance": heading_tolerance}
     if lv != 3:
         for name, v in level3_only.items():
             if v is not None:
@@ -131,6 +133,9 @@ def capability(scenario_name: str, out_dir: str | None, level: str, heading: str
             raise click.BadParameter(f"{duration!r} must be a positive number of seconds", param_hint="'--duration'")
         if warmup is not None and not (math.isfinite(warmup) and warmup >= 0):
             raise click.BadParameter(f"{warmup!r} must be a number of seconds >= 0", param_hint="'--warmup'")
+        if heading_tolerance is not None and not (math.isfinite(heading_tolerance) and 0 < heading_tolerance <= 180):
+            raise click.BadParameter(f"{heading_tolerance!r} must be an angle in (0, 180] deg",
+                                     param_hint="'--heading-tolerance'")
         for name, v in (("--seeds", seeds), ("--segments", segments)):
             if v is not None and v < 1:
                 raise click.BadParameter(f"{v!r} must be a whole number >= 1", param_hint=f"'{name}'")
@@ -154,7 +159,8 @@ def capability(scenario_name: str, out_dir: str | None, level: str, heading: str
     if lv == 3:
         _level3(sc, out_dir, as_json, heading=heading, fixed_heading_deg=fixed_heading, sea_state=sea_state,
                 table=table, losses=losses, thruster_diameter=thruster_diameter, controller=controller or "pid",
-                duration=duration, warmup=warmup, seeds=seeds, segments=segments, riser=bool(riser),
+                duration=duration, warmup=warmup, seeds=seeds, segments=segments,
+                heading_tolerance=heading_tolerance, riser=bool(riser),
                 workers=n_workers, **kw)
         return
     from ..design.capability import CapabilityOptions
@@ -243,12 +249,13 @@ def _level3(sc, out_dir: str | None, as_json: bool, **kw) -> None:
                f"{opts.heading}, {len(res.directions)} directions, {res.info['runs']} runs of "
                f"{opts.warmup:g} + {opts.duration:g} s in {res.info['elapsed_s']:.1f} s"
                + (", thrusters with the Level 1 losses" if opts.losses else ""))
-    click.echo("  direction  Level 3 (wind)        L1 / bound  deciding run: offset, T/MBS (line), energy   "
-               "row above: what failed")
+    click.echo("  direction  Level 3 (wind)        L1 / bound  deciding run: offset, T/MBS (line), heading error, "
+               "energy   row above: what failed")
     for i, d in enumerate(res.directions):
         s = d.decided
         run = ("-" if s is None else
-               f"{s.offset_max:5.1f} m, {s.util_max:.3f} ({s.util_line}), {s.thrust_energy / 3.6e9:.2f} MWh")
+               f"{s.offset_max:5.1f} m, {s.util_max:.3f} ({s.util_line}), {s.heading_error_max:.1f} deg, "
+               f"{s.thrust_energy / 3.6e9:.2f} MWh")
         above = d.limit if d.above is None else f"BF {d.above.number}: {d.above.detail}"
         click.echo(f"  {d.direction_deg:6.0f} deg  BF {d.beaufort:3d} ({d.wind_speed:4.1f} m/s)  "
                    f"{int(b1[i]):4d} / {int(b0[i]):2d}   {run}   {above}")

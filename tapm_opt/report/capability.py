@@ -346,6 +346,8 @@ def level3_blocks(datas: Sequence[dict], *, fig_prefix: str = "capability_level3
         f"the closed loop on the FEM plant keeps the turret inside the {st['safe_radius_m']:g} m safe circle and "
         f"every fairlead tension below {st['tension_utilisation_used']:g}·MBS"
         + (", the riser within its angles" if st.get("riser_limits_deg") else "")
+        + (f", the heading within {st['heading_tolerance_deg']:g}° of its setpoint" if "heading_tolerance_deg" in st
+           else "")
         + f" for {st['duration_s']:g} s after a {st['warmup_s']:g} s warm-up ({st['seeds']} seed"
         + ("s" if st["seeds"] > 1 else "") + " per row; heading " + st["heading"]
         + ("; thrusters with the Level 1 losses" if st.get("losses") else "") + "). Level 1 for comparison: "
@@ -359,13 +361,15 @@ def level3_blocks(datas: Sequence[dict], *, fig_prefix: str = "capability_level3
             rows.append([Cell(f"{e['direction_deg']:g}"), Cell(str(e["beaufort"])), Cell(str(b1[i])), Cell(str(b0[i])),
                          Cell("–" if dec is None else f"{dec['offset_max_m']:.1f}"),
                          Cell("–" if dec is None else f"{dec['util_max']:.3f} ({dec['util_line']})"),
+                         Cell("–" if dec is None or dec.get("heading_error_max_deg") is None
+                              else f"{dec['heading_error_max_deg']:.1f}"),
                          Cell("–" if dec is None else _mwh(dec["thrust_energy_J"])),
-                         Cell(e["limit"] if ab is None else f"{ab['limit']} (BF {ab['beaufort']}: {ab['detail']})")])
+                         Cell(e["limit"] if ab is None else f"BF {ab['beaufort']}: {ab['detail'] or ab['limit']}")])
         blocks.append(Para(f"Level 3 with **{d['controller'].upper()}** ({d['settings']['runs']} runs, "
                            f"{d['settings']['elapsed_s']:.0f} s of wall time)."))
         blocks.append(Table(header=["direction [°]", "Level 3", "L1", "L1 bound", "offset max [m]", "T/MBS max (line)",
-                                    "energy [MWh]", "row above: what failed"],
-                            rows=rows, align=["r", "r", "r", "r", "r", "r", "r", "l"]))
+                                    "heading error max [°]", "energy [MWh]", "row above: what failed"],
+                            rows=rows, align=["r", "r", "r", "r", "r", "r", "r", "r", "l"]))
     f = Fig(name=fig_prefix, png=png_bytes(level3_figure(datas)),
             caption="Level 3 capability per controller (the wind speed of the strongest row held) against the "
                     "direction the environment comes from, with Level 1 without losses at the same limits "

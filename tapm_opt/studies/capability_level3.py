@@ -10,6 +10,9 @@ warm-up,
   ``offset_max``, :func:`~tapm_opt.geometry.turret_offset`) at most ``limits.safe_radius``;
 * every line's fairlead tension at most its allowed tension: the largest FEM fairlead tension over
   MBS (the KPI ``util_max[<line>]``) at most ``limits.tension_utilisation`` (or the option's);
+* the heading within ``heading_tolerance`` of its setpoint (the KPI ``heading_error_max``; a
+  vessel that cannot hold its heading has lost position control, and a heading that yields to the
+  weather carries another load than the one Level 1 balances);
 * no line broken (an overload break is a failure whenever it happens, warm-up included) and the
   simulation sound (a diverged run fails);
 * with ``riser=True`` also the riser's largest top and bottom angles within their mean critical
@@ -69,6 +72,7 @@ from ..geometry import body_from_turret
 __all__ = [
     "LEVEL3_CSV_COLUMNS",
     "LEVEL3_DURATION",
+    "LEVEL3_HEADING_TOLERANCE",
     "LEVEL3_WARMUP",
     "Level3Direction",
     "Level3Options",
@@ -85,9 +89,12 @@ LEVEL3_DURATION = 10800.0
 #: Default warm-up left out of the statistics [s]: about one surge natural period of fpso (259 s)
 #: and the time its controllers take to take up a step of the environment.
 LEVEL3_WARMUP = 300.0
+#: Default largest heading error [deg] (the project's choice, the order of a DP heading alarm).
+LEVEL3_HEADING_TOLERANCE = 5.0
 #: Columns of ``capability_level3_<controller>.csv``.
 LEVEL3_CSV_COLUMNS = ("direction_deg", "controller", "beaufort", "wind_speed", "limit", "offset_max", "util_max",
-                      "util_line", "thrust_energy_MWh", "level1_beaufort", "level1_bound_beaufort", "runs")
+                      "util_line", "heading_error_max", "thrust_energy_MWh", "level1_beaufort",
+                      "level1_bound_beaufort", "runs")
 
 
 def level3_file_stem(controller: str) -> str:
@@ -120,6 +127,8 @@ class Level3Options:
         Diameter of the losses' interaction sectors [m].
     riser : bool
         Also check the riser's largest angles (default False: turret offset and line tensions).
+    heading_tolerance : float
+        Largest heading error allowed [deg], > 0 (default :data:`LEVEL3_HEADING_TOLERANCE`).
     tension_utilisation : float, optional
         Allowed fairlead tension over MBS (default the scenario's ``limits.tension_utilisation``).
     segments : int, optional
@@ -140,6 +149,7 @@ class Level3Options:
     losses: bool = False
     thruster_diameter: float | None = None
     riser: bool = False
+    heading_tolerance: float = LEVEL3_HEADING_TOLERANCE
     tension_utilisation: float | None = None
     segments: int | None = None
     workers: int = 1
@@ -153,11 +163,11 @@ class Level3Options:
         kinds = controller_types()
         if self.controller not in kinds:
             raise bad("controller", f"must be one of {', '.join(kinds)}")
-        for name, lo, strict in (("duration", 0.0, True), ("warmup", 0.0, False)):
+        for name, lo, strict in (("duration", 0.0, True), ("warmup", 0.0, False), ("heading_tolerance", 0.0, True)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < lo or (
                     strict and v == lo):
-                raise bad(name, f"must be a number of seconds {'>' if strict else '>='} {lo:g}")
+                raise bad(name, f"must be a number {'>' if strict else '>='} {lo:g}")
         for name, lo in (("seeds", 1), ("workers", 1)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
@@ -192,7 +202,8 @@ class Level3Options:
                 "fixed_heading_deg": self.fixed_heading_deg, "sea_state": self.sea_state,
                 "table_name": table_name(self.table), "table": [dataclasses.asdict(r) for r in self.table],
                 "losses": bool(self.losses), "thruster_diameter": self.thruster_diameter, "riser": bool(self.riser),
-                "tension_utilisation": self.tension_utilisation, "segments": self.segments}
+                "heading_tolerance_deg": self.heading_tolerance, "tension_utilisation": self.tension_utilisation,
+                "segments": self.segments}
 
 
 @dataclass(frozen=True)
@@ -207,7 +218,7 @@ class RunSummary:
         Its wind speed [m/s].
     passed : bool
     limit : str
-        What failed (``offset``, ``tension <line>``, ``riser top``, ``riser bottom``,
+        What failed (``offset``, ``tension <line>``, ``heading``, ``riser top``, ``riser bottom``,
         ``line break <line>``, ``diverged``), "" when it passed.
     seeds : tuple of int
         Seeds run.
@@ -216,6 +227,8 @@ class RunSummary:
     util_max : float
         Largest fairlead tension over MBS [-], on line ``util_line``.
     util_line : str
+    heading_error_max : float
+        Largest heading error over the runs [deg].
     thrust_energy : float
         Mean thrust energy of the runs over the checked window [J].
     riser_max_deg : tuple of float
@@ -235,6 +248,7 @@ class RunSummary:
     util_max: float
     util_line: str
     thrust_energy: float
+    heading_error_max: float = math.nan
     riser_max_deg: tuple = (math.nan, math.nan)
     detail: str = ""
     wall_time: float = 0.0
@@ -245,7 +259,8 @@ class RunSummary:
 
         return {"beaufort": self.number, "wind_speed": self.wind_speed, "passed": self.passed, "limit": self.limit,
                 "seeds": list(self.seeds), "offset_max_m": num(self.offset_max), "util_max": num(self.util_max),
-                "util_line": self.util_line, "thrust_energy_J": num(self.thrust_energy),
+                "util_line": self.util_line, "heading_error_max_deg": num(self.heading_error_max),
+                "thrust_energy_J": num(self.thrust_energy),
                 "riser_max_deg": [num(v) for v in self.riser_max_deg], "detail": self.detail,
                 "wall_time_s": self.wall_time}
 
@@ -331,7 +346,8 @@ class Level3Result:
 
             rows.append((d.direction_deg, self.options.controller, d.beaufort, d.wind_speed, d.limit,
                          r(s.offset_max, 3) if s else "", r(s.util_max, 4) if s else "", s.util_line if s else "",
-                         r(s.thrust_energy / 3.6e9, 4) if s else "", int(b1[i]), int(b0[i]), len(d.tested)))
+                         r(s.heading_error_max, 3) if s else "", r(s.thrust_energy / 3.6e9, 4) if s else "",
+                         int(b1[i]), int(b0[i]), len(d.tested)))
         return csv_text(LEVEL3_CSV_COLUMNS, rows)
 
     def as_json(self) -> dict:
@@ -409,7 +425,7 @@ class _Runner:
         bx, by = body_from_turret((0.0, 0.0), psi, self.p_cot)
         settings = ClosedLoopSettings(duration=opt.warmup + opt.duration, eta_d=(0.0, 0.0, psi), heading="fixed")
         out = {"offset_max": math.nan, "util_max": math.nan, "util_line": "", "thrust_energy": math.nan,
-               "riser": (math.nan, math.nan), "limit": "", "detail": ""}
+               "heading_error_max": math.nan, "riser": (math.nan, math.nan), "limit": "", "detail": ""}
         ctrl = build_controller(system, {"type": opt.controller}, where="controller",
                                 dt_control=settings.dt_control, estimator=settings.estimator)
         plant = Plant(system, sea_state=self.states[k].id, seed=int(seed), segments=opt.segments,
@@ -433,9 +449,10 @@ class _Runner:
         worst = max(utils, key=lambda i: utils[i]) if utils else ""
         riser = (float(kp.get("riser_top_angle_max_deg", math.nan)), float(kp.get("riser_bottom_angle_max_deg", math.nan)))
         out.update(offset_max=float(kp["offset_max"]), util_max=utils.get(worst, math.nan), util_line=worst,
-                   thrust_energy=float(kp["thrust_energy"]), riser=riser)
+                   thrust_energy=float(kp["thrust_energy"]), heading_error_max=float(kp["heading_error_max"]),
+                   riser=riser)
         breaks = [msg for _, msg in plant.events if "broke" in msg]
-        ratios = {"offset": out["offset_max"] / self.R}
+        ratios = {"offset": out["offset_max"] / self.R, "heading": out["heading_error_max"] / opt.heading_tolerance}
         if worst:
             ratios[f"tension {worst}"] = utils[worst] / self.util_lim
         rs = system.scenario.riser
@@ -474,7 +491,7 @@ class _Runner:
         row = self.rows[k]
         return RunSummary(number=row.number, wind_speed=row.wind_speed, passed=failed is None,
                           limit="" if failed is None else failed["limit"], seeds=tuple(s for s, _ in runs),
-                          offset_max=mx("offset_max"), util_max=u, util_line=line,
+                          offset_max=mx("offset_max"), util_max=u, util_line=line, heading_error_max=mx("heading_error_max"),
                           thrust_energy=float(np.mean(energy)) if energy else math.nan, riser_max_deg=riser,
                           detail="" if failed is None else failed["detail"], wall_time=time.perf_counter() - w0)
 
@@ -622,6 +639,7 @@ def capability_level3(scenario: Any, options: Level3Options | Mapping[str, Any] 
             "riser_limits_deg": (None if scenario.riser is None or not opt.riser else
                                  [math.degrees(scenario.riser.critical_top_angle),
                                   math.degrees(scenario.riser.critical_bottom_angle)]),
+            "heading_tolerance_deg": float(opt.heading_tolerance),
             "closed_loop": "ClosedLoopSettings defaults (EKF, tension-residual detector, dt_control 1 s), fixed "
                            "setpoint at the field zero point with the Level 1 heading",
             "runs": runs, "simulated_s": runs * (opt.warmup + opt.duration),
