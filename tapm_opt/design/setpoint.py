@@ -10,9 +10,17 @@ riser end from the measured signals. Here both come from the scenario alone:
 * ``sigma`` is quasi-static: the wave-frequency turret motion of the plant's wave field
   (:meth:`~tapm_opt.plant.environment.WaveField.eta_wf`) over ``exposure`` seconds, mapped through
   the gradient of each line's tension and each riser angle at the optimum (re-evaluated once at the
-  first optimum); ``n`` its zero up-crossings in ``exposure`` and ``k`` the Gumbel factor. Line
-  dynamics add to the dynamic tension in deep water, so this ``sigma`` is a lower bound on what the
-  closed loop's monitor measures (``docs/controllers.md`` compares them).
+  first optimum); ``n`` its zero up-crossings in ``exposure`` and ``k`` the Gumbel factor. With the
+  scenario's six-degree-of-freedom hull (``vessel.wave_motion.model = "six_dof"`` or a table) each
+  line's response also has its fairlead's share of the hull's heave, roll and pitch
+  (:meth:`~tapm_opt.plant.environment.WaveField.vertical`, the same realisation), moved as the
+  plant moves it (:func:`~tapm_opt.plant.mooring_fem.vertical_offset`: ``(theta z, -phi z,
+  z_h + phi y - theta x)`` in {B}): the horizontal part through the same tension gradient, the
+  vertical part through ``dT/dz`` at the working point
+  (:meth:`~tapm_opt.models.mooring.MooringModel.depth_sensitivity`). The riser's angles take the
+  hang-off's horizontal motion only, as the plant's do. Line dynamics add to the dynamic tension in
+  deep water, so this ``sigma`` is a lower bound on what the closed loop's monitor measures
+  (``docs/controllers.md`` compares them).
 
 For ``unified`` the numeric optimum is compared with [R]'s closed form about the working point (one
 linearised step, as the paper's formula) and with the closed form iterated to its fixed point
@@ -29,13 +37,15 @@ import numpy as np
 
 from ..control.setpoint_opt import METHODS, SetpointOptError, SetpointOptions, SetpointProblem, WorkingPoint
 from ..estimation.reliability import gumbel_k
-from ..geometry import rot2_apply, ssa
+from ..geometry import body_from_turret, rot2_apply, ssa
 from ..models.system import System
 from ..plant.environment import Environment
+from ..plant.mooring_fem import vertical_offset
 from .loads import mean_environmental_load
 from .tables import weathervane_heading
 
-__all__ = ["StaticSetpoint", "static_setpoint", "wave_frequency_ksigma", "ReliabilityMap", "reliability_map"]
+__all__ = ["StaticSetpoint", "static_setpoint", "wave_frequency_ksigma", "fairlead_wf_motion", "ReliabilityMap",
+           "reliability_map"]
 
 
 @dataclass(frozen=True)
@@ -90,10 +100,13 @@ class StaticSetpoint:
         return out
 
 
-def _point_wf(scenario: Any, sea_state: Any, psi: float, exposure: float, dt: float, seed: int,
-              points_B: Any) -> list[np.ndarray]:
+def _hull_wf(scenario: Any, sea_state: Any, psi: float, exposure: float, dt: float, seed: int,
+             points_B: Any) -> tuple[list[np.ndarray], np.ndarray | None]:
     """Wave-frequency motion (dx, dy) in {E} [m] of body-fixed points (each (2,) in {B}) over
-    ``exposure`` s, each shape (N, 2)."""
+    ``exposure`` s, each shape (N, 2), and the hull's heave [m, down], roll and pitch [rad] (N, 3)
+    of the same realisation at the same times (:meth:`WaveField.vertical
+    <tapm_opt.plant.environment.WaveField.vertical>`), None without the six-degree-of-freedom
+    motion."""
     env = Environment(scenario, sea_state, seed=seed)
     t = np.arange(0.0, float(exposure), float(dt))
     wf = env.waves.eta_wf(t, psi)
@@ -102,23 +115,54 @@ def _point_wf(scenario: Any, sea_state: Any, psi: float, exposure: float, dt: fl
         cx, cy = rot2_apply(psi, float(pt[0]), float(pt[1]))
         # R(psi + dpsi) c - R(psi) c ~ dpsi (-c_y, c_x)
         out.append(np.stack([wf[:, 0] - cy * wf[:, 2], wf[:, 1] + cx * wf[:, 2]], axis=1))
-    return out
+    return out, (env.waves.vertical(t, psi) if env.waves.six_dof else None)
+
+
+def _point_wf(scenario: Any, sea_state: Any, psi: float, exposure: float, dt: float, seed: int,
+              points_B: Any) -> list[np.ndarray]:
+    """Wave-frequency motion (dx, dy) in {E} [m] of body-fixed points (each (2,) in {B}) over
+    ``exposure`` s, each shape (N, 2) (:func:`_hull_wf` without the heave, roll and pitch)."""
+    return _hull_wf(scenario, sea_state, psi, exposure, dt, seed, points_B)[0]
+
+
+def fairlead_wf_motion(prob: SetpointProblem, psi: float, p: Any, vertical: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Each modelled fairlead's displacement (x, y, z) in {E} [m], each (N, n_lines), by the hull's
+    heave, roll and pitch ``vertical`` (N, 3) at turret offset ``p`` and heading ``psi``
+    (:func:`~tapm_opt.plant.mooring_fem.vertical_offset`, the plant's kinematics: ``(theta z, -phi
+    z, z_h + phi y - theta x)`` in {B} for the fairlead at ``(x, y, z)`` in {B})."""
+    lines = prob.system.lines
+    bx, by = body_from_turret(np.asarray(p, float), psi, prob.p_cot_B)
+    fx, fy = lines.fairleads(np.array([bx, by, psi]))
+    v = np.asarray(vertical, float)
+    z_fl = float(prob.system.scenario.turret.fairlead_depth)
+    out = vertical_offset(v[:, 0:1], v[:, 1:2], v[:, 2:3], (np.asarray(fx) - bx)[None, :],
+                          (np.asarray(fy) - by)[None, :], z_fl, math.cos(psi), math.sin(psi))
+    return tuple(np.broadcast_to(o, (len(v), len(fx))) for o in out)
 
 
 def wave_frequency_ksigma(prob: SetpointProblem, wp: WorkingPoint, p: Any, motion: np.ndarray,
-                          exposure: float, motion_hangoff: np.ndarray | None = None
-                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                          exposure: float, motion_hangoff: np.ndarray | None = None,
+                          vertical: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Quasi-static ``k sigma`` of every modelled line's tension [N] and of the riser's two angles
     [rad] at turret offset ``p`` under the wave-frequency turret ``motion`` (N, 2) [m] (the riser's
     under its hang-off's, ``motion_hangoff``, default the turret's; at a fixed heading a hang-off
-    displacement is a turret-offset displacement) (module docstring). Returns ``(ksigma_lines (n,),
+    displacement is a turret-offset displacement) and, when given, the hull's heave, roll and pitch
+    ``vertical`` (N, 3) [m, rad, rad] at the same times: each line's tension then also takes its
+    fairlead's displacement by them (:func:`fairlead_wf_motion`), horizontally through the tension's
+    gradient, vertically through ``dT/dz`` (module docstring). Returns ``(ksigma_lines (n,),
     ksigma_riser (2,), n_maxima (m,))``."""
     _, G = prob.linearise(wp.at(p))              # d delta / d p, rows: lines with an index, riser top, bottom
     scale = np.concatenate([prob.sigma_b[prob.has_index], prob.sigma_r if prob.riser is not None else []])
     Gs = -(G * scale[:, None])                   # d response / d p: tensions [N/m], angles [rad/m]
     m = int(np.sum(prob.has_index))
     mh = motion if motion_hangoff is None else motion_hangoff
-    resp = np.hstack([motion @ Gs[:m].T, mh @ Gs[m:].T])  # WF response of each tension [N] / angle [rad]
+    resp_lines = motion @ Gs[:m].T
+    if vertical is not None:                     # each fairlead's share of the heave, roll and pitch
+        ox, oy, oz = (o[:, prob.has_index] for o in fairlead_wf_motion(prob, wp.psi, p, vertical))
+        bx, by = body_from_turret(np.asarray(p, float), wp.psi, prob.p_cot_B)
+        dTdz = prob.system.lines.depth_sensitivity(np.array([bx, by, wp.psi]))[prob.has_index]
+        resp_lines = resp_lines + (ox * Gs[:m, 0] + oy * Gs[:m, 1] + oz * dTdz)
+    resp = np.hstack([resp_lines, mh @ Gs[m:].T])  # WF response of each tension [N] / angle [rad]
     sigma = resp.std(axis=0)
     wd = resp - resp.mean(axis=0)
     n = np.sum((wd[:-1] < 0) & (wd[1:] >= 0), axis=0) * 1.0
@@ -175,14 +219,14 @@ def static_setpoint(scenario: Any, sea_state: Any, method: str, *, broken: Itera
     v_c = np.zeros(2) if riser is None else np.asarray(riser.v_c, float)[:2]
     wp = WorkingPoint(p=wp0, psi=psi, tau_env=tau, ksigma_lines=np.zeros(len(prob.line_ids)), v_c=v_c)
     pts = [scenario.turret.position] + ([scenario.riser.hangoff] if riser is not None else [])
-    motions = _point_wf(scenario, ss, psi, exposure, min(0.5, ss.Tp / 20.0), seed, pts)
+    motions, vert = _hull_wf(scenario, ss, psi, exposure, min(0.5, ss.Tp / 20.0), seed, pts)
     motion, motion_h = motions[0], motions[-1]
-    ks_l, ks_r, _ = wave_frequency_ksigma(prob, wp, wp0, motion, exposure, motion_h)
+    ks_l, ks_r, _ = wave_frequency_ksigma(prob, wp, wp0, motion, exposure, motion_h, vert)
     p_opt = wp0
     for _ in range(2):   # sigma at the optimum, then the optimum with that sigma
         wp = WorkingPoint(p=wp0, psi=psi, tau_env=tau, ksigma_lines=ks_l, ksigma_riser=ks_r, v_c=v_c)
         p_opt, info = prob.solve(wp, starts=(p_opt,))
-        ks_l, ks_r, _ = wave_frequency_ksigma(prob, wp, p_opt, motion, exposure, motion_h)
+        ks_l, ks_r, _ = wave_frequency_ksigma(prob, wp, p_opt, motion, exposure, motion_h, vert)
     wp = WorkingPoint(p=wp0, psi=psi, tau_env=tau, ksigma_lines=ks_l, ksigma_riser=ks_r, v_c=v_c)
     p_opt, info = prob.solve(wp, starts=(p_opt,))
     ev = prob.evaluate(p_opt, wp)

@@ -54,7 +54,7 @@ from .._checks import finite
 from .._io import atomic_write_bytes
 from ..errors import TapmError
 from ..models import catenary
-from ..models.mooring import MooringModel
+from ..models.mooring import MooringModel, tension_depth_sensitivity
 
 __all__ = ["AnchorSlamError", "TensionRangeMap", "VirtualVessel", "VirtualVesselNetwork", "AnchorSLAM",
            "SlamSettings", "SlamResult", "PositionFix", "TensionPositionEstimator", "run_anchor_slam", "survey_anchors",
@@ -216,9 +216,9 @@ class TensionRangeMap:
 
     def heave_sensitivity(self, X: Any, *, lines: Any = None) -> np.ndarray:
         """``k_T = dTF/dz`` [N/m] (eq. 10) at ``X`` [m]: the tension change per metre the fairlead
-        sinks (z down, so ``ZF`` shrinks): ``-(HF dHF/dZF + VF dVF/dZF) / TF``."""
-        s = self._at(X, lines)
-        return -(s.HF * s.dHF_dZF + s.VF * s.dVF_dZF) / s.TF
+        sinks (z down, so ``ZF`` shrinks): ``-(HF dHF/dZF + VF dVF/dZF) / TF``
+        (:func:`~tapm_opt.models.mooring.tension_depth_sensitivity`)."""
+        return tension_depth_sensitivity(self._at(X, lines))
 
     # -- inverse ---------------------------------------------------------------------------
     def distance(self, T: Any, *, lines: Any = None, clip: bool = False, tol: float = 1e-9) -> np.ndarray:
@@ -344,8 +344,9 @@ class VirtualVessel:
     range_bias : ndarray (M,) or None
         The mean error of the tension -> range map along this record [m] (eq. 8's ``Delta T_c``
         and ``Delta T_v`` together, as range): the line model driven along the record's observer
-        track plus the wave-frequency motion of its sea state, under its current
-        (``studies.anchor_network.range_bias_along``). Subtracted from the record's ranges where
+        track plus the wave-frequency motion of its sea state (with the scenario's
+        six-degree-of-freedom hull, its heave, roll and pitch at the fairleads too), under its
+        current (``studies.anchor_network.range_bias_along``). Subtracted from the record's ranges where
         known (:meth:`ranges`), in place of ``current_tension``. None for the live vessel, whose
         track is what is sought.
     """

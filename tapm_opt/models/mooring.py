@@ -34,10 +34,18 @@ from ..geometry import fairleads_E, rot2_apply, rot_z
 from . import catenary, composite as _composite
 from .statics import EquilibriumError, solve_equilibrium
 
-__all__ = ["MooringModel", "LinearMooring"]
+__all__ = ["MooringModel", "LinearMooring", "tension_depth_sensitivity"]
 
 _SOLUTION_ARRAYS = ("HF", "VF", "HA", "VA", "TF", "TA", "LBot", "regime", "dHF_dXF", "dHF_dZF", "dVF_dXF", "dVF_dZF")
 """The per-configuration arrays of a CatenarySolution."""
+
+
+def tension_depth_sensitivity(sol: catenary.CatenarySolution) -> np.ndarray:
+    """``dTF/dz`` [N/m]: the change of the fairlead tension magnitude per metre its fairlead sinks
+    (z down, the horizontal span held: ``ZF`` shrinks), ``-(HF dHF/dZF + VF dVF/dZF) / TF`` from the
+    line's exact vertical stiffness (0 where ``TF`` is 0). Negative for a hanging line: a deeper
+    fairlead slackens it."""
+    return -(sol.HF * sol.dHF_dZF + sol.VF * sol.dVF_dZF) / np.maximum(sol.TF, 1e-300)
 
 
 def _own_solver(sec: dict) -> bool:
@@ -467,6 +475,13 @@ class MooringModel:
     def tensions(self, eta) -> np.ndarray:
         """Fairlead tension magnitude TF of every line [N], shape (n,)."""
         return self.solve_lines(eta).TF
+
+    def depth_sensitivity(self, eta) -> np.ndarray:
+        """``dTF/dz`` of every line [N/m], shape (n,), at pose ``eta``: the change of its fairlead
+        tension per metre its fairlead sinks with its horizontal position held
+        (:func:`tension_depth_sensitivity`; the hull's heave, roll and pitch move the fairleads
+        vertically, the 3-DOF model holds them at their depth)."""
+        return tension_depth_sensitivity(self.solve_lines(self._check_eta(eta)))
 
     def stiffness(self, eta) -> np.ndarray:
         """Exact stiffness K = -d tau_moor / d eta, shape (3, 3), at pose ``eta``.

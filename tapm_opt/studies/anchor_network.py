@@ -120,11 +120,12 @@ def range_bias_along(scenario: Any, sea_state: Any, positions: Any, headings: An
     ``i`` to the COT, with the lines (the plant's FEM, ``segments`` per line) settled at the first
     pose and then driven along ``positions`` (n, 2) [m] and ``headings`` (n,) [rad] (the record's
     LF track, samples ``dt`` [s] apart, linear in between) plus the wave-frequency motion of
-    ``sea_state`` (the plant's wave model, realisation ``seed``), under its current; the first
-    ``skip`` [s] are left out. The seed's eq. 8 terms ``Delta T_c`` (current) and ``Delta T_v``
-    (vessel motion) together, as range: the taut lines' mean wave-frequency dynamic tension
-    shortens their mapped ranges (up to 2 m on ren8 with ``Hs`` 3 m). Subtracted from a stored
-    record's ranges (``VirtualVessel.range_bias``)."""
+    ``sea_state`` (the plant's wave model, realisation ``seed``: surge, sway and yaw, and with the
+    scenario's six-degree-of-freedom hull its heave, roll and pitch, as the plant moves the
+    fairleads), under its current; the first ``skip`` [s] are left out. The seed's eq. 8 terms
+    ``Delta T_c`` (current) and ``Delta T_v`` (vessel motion) together, as range: the taut lines'
+    mean wave-frequency dynamic tension shortens their mapped ranges (up to 2 m on ren8 with ``Hs``
+    3 m). Subtracted from a stored record's ranges (``VirtualVessel.range_bias``)."""
     from ..estimation.anchor_slam import TensionRangeMap
     from ..geometry import rot_z
     from ..plant.environment import Environment
@@ -146,6 +147,7 @@ def range_bias_along(scenario: Any, sea_state: Any, positions: Any, headings: An
     fem.settle(pose0, max_time=3000.0)
     nsub = max(1, int(round(dt / fem.dt)))
     a = np.arange(1, nsub + 1) / nsub
+    six_dof = env.waves.six_dof
     err = []
     for k in range(len(P) - 1):
         t = (k + a) * dt
@@ -153,6 +155,9 @@ def range_bias_along(scenario: Any, sea_state: Any, positions: Any, headings: An
         lf = np.column_stack([P[k, 0] + a * d_lf[0], P[k, 1] + a * d_lf[1], psi[k] + a * d_lf[2]])
         eta = lf + env.eta_wf(t, float(psi[k]))
         eta_dot = np.repeat((d_lf / dt)[None, :], nsub, axis=0) + env.eta_wf_dot(t, float(psi[k]))
+        if six_dof:   # the hull's heave, roll and pitch move the fairleads too, as on the plant
+            eta = np.hstack([eta, env.waves.vertical(t, float(psi[k]))])
+            eta_dot = np.hstack([eta_dot, env.waves.vertical_dot(t, float(psi[k]))])
         fem.advance(eta, eta_dot)
         if t[-1] >= skip:
             e = eta[-1]
