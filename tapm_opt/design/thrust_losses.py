@@ -5,8 +5,9 @@ The losses of the standard's Level 1 that the scenario's data allow (``docs/capa
 (section numbers of that edition; **not checked against the standard itself**):
 
 * **[3.9.3] miscellaneous losses**: every thruster's thrust is multiplied by the constant
-  ``beta_misc = 0.9`` (:data:`BETA_MISC`). Level 1 prescribes no separate thruster-hull or current
-  inflow loss beside it; this constant is what the standard's Level 1 charges for them.
+  ``beta_misc = 0.9`` (:data:`BETA_MISC`, "a constant 10 % thrust loss" in the transcription). The
+  transcription has no separate Level 1 model of thruster-hull interaction or current inflow; that
+  this constant stands for them is the project's reading, unchecked.
 * **[3.11.3] thruster-thruster interaction**: a thruster ``i`` may not flush a *working* thruster
   ``j`` closer than ``15 D_i`` (:data:`FLUSHING_DISTANCE_D`) unless ``j`` is a tunnel thruster:
   ``i``'s thrust direction must not lie within ``atan(0.1 + D_i / s)`` of the direction of the
