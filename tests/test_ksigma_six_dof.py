@@ -15,11 +15,11 @@ heave, roll and pitch (``vessel.wave_motion.model = "six_dof"``).
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
 import pytest
+from _six_dof import six_dof
 
 import tapm_opt
 from tapm_opt.control.setpoint_opt import SetpointProblem, WorkingPoint
@@ -30,11 +30,6 @@ from tapm_opt.geometry import body_from_turret
 from tapm_opt.models.system import System
 from tapm_opt.plant.environment import Environment, WaveField
 from tapm_opt.plant.mooring_fem import MooringFEM
-
-
-def six_dof(sc, **kw):
-    wm = dataclasses.replace(sc.vessel.wave_motion, model="six_dof", **kw)
-    return dataclasses.replace(sc, vessel=dataclasses.replace(sc.vessel, wave_motion=wm))
 
 
 @pytest.fixture(scope="module")

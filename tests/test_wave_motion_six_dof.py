@@ -19,6 +19,7 @@ import math
 import numpy as np
 import pytest
 from _bitwise import assert_same
+from _six_dof import six_dof
 
 import tapm_opt
 from tapm_opt.config import WaveMotion, validate
@@ -36,11 +37,6 @@ from tapm_opt.plant.simulator import Plant, run_open_loop
 
 #: fpso's hull for the closed form (the values of the built-in scenario file)
 HULL = {"block_coefficient": 0.83, "GM_T": 6.0, "roll_period": 15.5, "roll_damping": 0.05}
-
-
-def six_dof(sc, **kw):
-    wm = dataclasses.replace(sc.vessel.wave_motion, model="six_dof", **kw)
-    return dataclasses.replace(sc, vessel=dataclasses.replace(sc.vessel, wave_motion=wm))
 
 
 def test_the_built_in_hull_is_the_tests(fpso):

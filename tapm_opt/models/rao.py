@@ -512,8 +512,17 @@ def _interpolate(tw: np.ndarray, tb: np.ndarray, V: np.ndarray, omega: Any, beta
 
 def _assemble(records: dict[tuple[float, float], dict[int, tuple[complex, int]]], source: str,
               what: str) -> RAOTable:
-    """A table from ``{(omega, beta): {dof: (H, row)}}``, refusing a grid that is not a full
-    omega x beta product or a pair without all six dofs."""
+    """An RAO table from ``{(omega, beta): {dof: (H, row)}}`` (:func:`_assemble_grid`: a full
+    omega x beta product, all six dofs at every pair)."""
+    omegas, betas, H = _assemble_grid(records, source, what, DOFS, "row", "all six dofs", complex)
+    return RAOTable(np.array(omegas), np.array(betas), H)
+
+
+def _assemble_grid(records: dict[tuple[float, float], dict[int, tuple[Any, int]]], source: str, what: str,
+                   dofs: tuple[str, ...], row: str, needs: str, dtype: Any) -> tuple[list, list, np.ndarray]:
+    """The frequencies, headings and values (nw, nb, len(dofs)) of ``{(omega, beta): {dof: (value,
+    row)}}``, refusing no rows, a grid that is not a full omega x beta product or a pair without
+    all its dofs (``row``: what the file's records are called; ``needs``: which dofs a pair needs)."""
     if not records:
         raise ModelError(f"{source}: no {what} rows")
     omegas = sorted({p[0] for p in records})
@@ -521,18 +530,108 @@ def _assemble(records: dict[tuple[float, float], dict[int, tuple[complex, int]]]
     for w in omegas:
         for b in betas:
             if (w, b) not in records:
-                raise ModelError(f"{source}: the grid is not a full omega x beta product: no rows for "
+                raise ModelError(f"{source}: the grid is not a full omega x beta product: no {row}s for "
                                  f"omega = {w!r} rad/s, beta = {math.degrees(b)!r} deg")
-    H = np.zeros((len(omegas), len(betas), 6), dtype=complex)
+    V = np.zeros((len(omegas), len(betas), len(dofs)), dtype=dtype)
     for i, w in enumerate(omegas):
         for j, b in enumerate(betas):
-            dofs = records[(w, b)]
-            for m, name in enumerate(DOFS):
-                if m not in dofs:
+            pair = records[(w, b)]
+            for m, name in enumerate(dofs):
+                if m not in pair:
                     raise ModelError(f"{source}: omega = {w!r} rad/s, beta = {math.degrees(b)!r} deg has no "
-                                     f"{name} row (every pair needs all six dofs)")
-                H[i, j, m] = dofs[m][0]
-    return RAOTable(np.array(omegas), np.array(betas), H)
+                                     f"{name} {row} (every pair needs {needs})")
+                V[i, j, m] = pair[m][0]
+    return omegas, betas, V
+
+
+def _read_grid_csv(path: str | Path, columns: tuple[str, ...], numeric: tuple[str, ...], dofs: tuple[str, ...],
+                   value_of: Any) -> tuple[str, dict[tuple[float, float], dict[int, tuple[Any, int]]]]:
+    """The records ``{(omega, beta): {dof: (value, row)}}`` of a table in CSV (:func:`read_rao_csv`,
+    :func:`read_drift_csv`): the header exactly ``columns`` (any order), every ``numeric`` column a
+    finite number, ``dof`` one of ``dofs``, ``omega_rad_s`` > 0, no pair and dof twice; a row's
+    value is ``value_of(vals, row_no, src)`` (which may refuse it). Each error names the file, the
+    row, the column and the value."""
+    path = Path(path)
+    src = str(path)
+    with path.open(newline="") as fh:
+        reader = csv.reader(fh)
+        header = next(reader, None)
+        if header is None:
+            raise ModelError(f"{src}: empty file, expected the header {','.join(columns)}")
+        cols = [c.strip() for c in header]
+        missing = [c for c in columns if c not in cols]
+        extra = [c for c in cols if c not in columns]
+        dup = sorted({c for c in cols if cols.count(c) > 1})
+        if missing or extra or dup:
+            parts = ([f"missing column(s) {missing}"] if missing else []) + (
+                [f"extra column(s) {extra}"] if extra else []) + ([f"repeated column(s) {dup}"] if dup else [])
+            raise ModelError(f"{src}: header {cols}: {'; '.join(parts)}; expected {list(columns)}")
+        at = {c: cols.index(c) for c in columns}
+        records: dict[tuple[float, float], dict[int, tuple[Any, int]]] = {}
+        for row_no, row in enumerate(reader, start=2):
+            if not row or all(not c.strip() for c in row):
+                continue
+            if len(row) != len(cols):
+                raise ModelError(f"{src}: row {row_no} has {len(row)} values, the header has {len(cols)}")
+            vals: dict[str, float] = {}
+            for c in numeric:
+                text = row[at[c]].strip()
+                try:
+                    v = float(text)
+                except ValueError:
+                    raise ModelError(f"{src}: row {row_no}, column {c}: {text!r} is not a number") from None
+                if not math.isfinite(v):
+                    raise ModelError(f"{src}: row {row_no}, column {c}: {text!r} must be finite")
+                vals[c] = v
+            dof = row[at["dof"]].strip().lower()
+            if dof not in dofs:
+                raise ModelError(f"{src}: row {row_no}, column dof: {row[at['dof']]!r} must be one of {list(dofs)}")
+            if vals["omega_rad_s"] <= 0.0:
+                raise ModelError(f"{src}: row {row_no}, column omega_rad_s: {vals['omega_rad_s']!r} must be > 0")
+            value = value_of(vals, row_no, src)
+            key = (vals["omega_rad_s"], _heading_rad(vals["beta_deg"]))
+            m = dofs.index(dof)
+            pair = records.setdefault(key, {})
+            if m in pair:
+                raise ModelError(f"{src}: row {row_no} repeats row {pair[m][1]} (omega = {key[0]!r} rad/s, "
+                                 f"beta = {vals['beta_deg']!r} deg, dof {dof})")
+            pair[m] = (value, row_no)
+    return src, records
+
+
+def _wamit_rows(path: str | Path, names: str) -> Any:
+    """``(src, line_no, line, values)`` of every non-blank line of a WAMIT output file whose
+    columns are ``names`` (e.g. "PER BETA I Mod Pha Re Im"): all numbers (Fortran exponents
+    read), finite (but Pha), PER > 0 (WAMIT's zero and infinite period codes refused); Mod
+    is left to the caller (:func:`_check_modulus`); each error names the line and value."""
+    path = Path(path)
+    src = str(path)
+    n = len(names.split())
+    with path.open() as fh:
+        for line_no, line in enumerate(fh, start=1):
+            parts = line.split()
+            if not parts:
+                continue
+            try:
+                vals = tuple(float(p.replace("D", "E").replace("d", "e")) for p in parts)
+            except ValueError:
+                vals = ()
+            if len(vals) != n:
+                raise ModelError(f"{src}: line {line_no}: {line.strip()!r} is not {n} numbers ({names})")
+            per = vals[0]
+            if not all(math.isfinite(v) for i, v in enumerate(vals) if i != n - 3):   # Pha may be anything
+                raise ModelError(f"{src}: line {line_no}: {line.strip()!r} has a value that is not finite")
+            if per <= 0.0:
+                raise ModelError(f"{src}: line {line_no}: PER = {per!r} s: zero and infinite periods (PER <= 0, "
+                                 "WAMIT's codes 0 and -1) are not supported")
+            yield src, line_no, line, vals
+
+
+def _check_modulus(src: str, line_no: int, mod: float, re_: float, im_: float, names: str) -> None:
+    """Refuse a WAMIT line whose Mod contradicts ``|Re + i Im|`` (columns out of order)."""
+    if abs(abs(complex(re_, im_)) - mod) > 1e-3 * max(1.0, mod):
+        raise ModelError(f"{src}: line {line_no}: Mod = {mod!r} but |Re + i Im| = {abs(complex(re_, im_))!r} "
+                         f"(columns must be {names})")
 
 
 def _heading_rad(deg: float) -> float:
@@ -559,54 +658,14 @@ def read_rao_csv(path: str | Path) -> RAOTable:
         or infinite values, a negative amplitude, an unknown dof, a frequency <= 0, duplicate
         rows, a grid that is not a full omega x beta product, or a pair without all six dofs.
     """
-    path = Path(path)
-    src = str(path)
-    with path.open(newline="") as fh:
-        reader = csv.reader(fh)
-        header = next(reader, None)
-        if header is None:
-            raise ModelError(f"{src}: empty file, expected the header {','.join(_CSV_COLUMNS)}")
-        cols = [c.strip() for c in header]
-        missing = [c for c in _CSV_COLUMNS if c not in cols]
-        extra = [c for c in cols if c not in _CSV_COLUMNS]
-        dup = sorted({c for c in cols if cols.count(c) > 1})
-        if missing or extra or dup:
-            parts = ([f"missing column(s) {missing}"] if missing else []) + (
-                [f"extra column(s) {extra}"] if extra else []) + ([f"repeated column(s) {dup}"] if dup else [])
-            raise ModelError(f"{src}: header {cols}: {'; '.join(parts)}; expected {list(_CSV_COLUMNS)}")
-        at = {c: cols.index(c) for c in _CSV_COLUMNS}
-        records: dict[tuple[float, float], dict[int, tuple[complex, int]]] = {}
-        for row_no, row in enumerate(reader, start=2):
-            if not row or all(not c.strip() for c in row):
-                continue
-            if len(row) != len(cols):
-                raise ModelError(f"{src}: row {row_no} has {len(row)} values, the header has {len(cols)}")
-            vals: dict[str, float] = {}
-            for c in ("omega_rad_s", "beta_deg", "amplitude", "phase_deg"):
-                text = row[at[c]].strip()
-                try:
-                    v = float(text)
-                except ValueError:
-                    raise ModelError(f"{src}: row {row_no}, column {c}: {text!r} is not a number") from None
-                if not math.isfinite(v):
-                    raise ModelError(f"{src}: row {row_no}, column {c}: {text!r} must be finite")
-                vals[c] = v
-            dof = row[at["dof"]].strip().lower()
-            if dof not in DOFS:
-                raise ModelError(f"{src}: row {row_no}, column dof: {row[at['dof']]!r} must be one of {list(DOFS)}")
-            if vals["omega_rad_s"] <= 0.0:
-                raise ModelError(f"{src}: row {row_no}, column omega_rad_s: {vals['omega_rad_s']!r} must be > 0")
-            if vals["amplitude"] < 0.0:
-                raise ModelError(f"{src}: row {row_no}, column amplitude: {vals['amplitude']!r} must be >= 0")
-            key = (vals["omega_rad_s"], _heading_rad(vals["beta_deg"]))
-            m = DOFS.index(dof)
-            pair = records.setdefault(key, {})
-            if m in pair:
-                raise ModelError(f"{src}: row {row_no} repeats row {pair[m][1]} (omega = {key[0]!r} rad/s, "
-                                 f"beta = {vals['beta_deg']!r} deg, dof {dof})")
-            H = vals["amplitude"] * complex(math.cos(math.radians(vals["phase_deg"])),
-                                            math.sin(math.radians(vals["phase_deg"])))
-            pair[m] = (H, row_no)
+    def value_of(vals: dict[str, float], row_no: int, src: str) -> complex:
+        if vals["amplitude"] < 0.0:
+            raise ModelError(f"{src}: row {row_no}, column amplitude: {vals['amplitude']!r} must be >= 0")
+        return vals["amplitude"] * complex(math.cos(math.radians(vals["phase_deg"])),
+                                           math.sin(math.radians(vals["phase_deg"])))
+
+    src, records = _read_grid_csv(path, _CSV_COLUMNS, ("omega_rad_s", "beta_deg", "amplitude", "phase_deg"), DOFS,
+                                  value_of)
     return _assemble(records, src, "RAO")
 
 
@@ -661,39 +720,21 @@ def read_wamit4(path: str | Path, *, ulen: float) -> RAOTable:
         product, or a pair without all six modes (each naming the line and value).
     """
     ulen = _number("ulen", ulen, "m", lo=0.0, lo_open=True)
-    path = Path(path)
-    src = str(path)
+    names = "PER BETA I Mod Pha Re Im"
     records: dict[tuple[float, float], dict[int, tuple[complex, int]]] = {}
-    with path.open() as fh:
-        for line_no, line in enumerate(fh, start=1):
-            parts = line.split()
-            if not parts:
-                continue
-            try:
-                per, beta_w, mode, mod, _pha, re_, im_ = (float(p.replace("D", "E").replace("d", "e")) for p in parts)
-            except ValueError:
-                raise ModelError(f"{src}: line {line_no}: {line.strip()!r} is not 7 numbers "
-                                 "(PER BETA I Mod Pha Re Im)") from None
-            vals = (per, beta_w, mode, mod, re_, im_)
-            if not all(math.isfinite(v) for v in vals):
-                raise ModelError(f"{src}: line {line_no}: {line.strip()!r} has a value that is not finite")
-            if per <= 0.0:
-                raise ModelError(f"{src}: line {line_no}: PER = {per!r} s: zero and infinite periods (PER <= 0, "
-                                 "WAMIT's codes 0 and -1) are not supported")
-            if mode != int(mode) or not 1 <= int(mode) <= 6:
-                raise ModelError(f"{src}: line {line_no}: mode I = {mode!r} must be 1..6")
-            m = int(mode) - 1
-            x = complex(re_, im_)
-            if abs(abs(x) - mod) > 1e-3 * max(1.0, mod):
-                raise ModelError(f"{src}: line {line_no}: Mod = {mod!r} but |Re + i Im| = {abs(x)!r} "
-                                 "(columns must be PER BETA I Mod Pha Re Im)")
-            h = _WAMIT_SIGN[m] * x / (ulen if m >= 3 else 1.0)
-            key = (_TWO_PI / per, _heading_rad(-beta_w))
-            pair = records.setdefault(key, {})
-            if m in pair:
-                raise ModelError(f"{src}: line {line_no} repeats line {pair[m][1]} (PER = {per!r} s, "
-                                 f"BETA = {beta_w!r} deg, mode {m + 1})")
-            pair[m] = (h, line_no)
+    src = str(path)
+    for src, line_no, _, (per, beta_w, mode, mod, _pha, re_, im_) in _wamit_rows(path, names):
+        if mode != int(mode) or not 1 <= int(mode) <= 6:
+            raise ModelError(f"{src}: line {line_no}: mode I = {mode!r} must be 1..6")
+        m = int(mode) - 1
+        _check_modulus(src, line_no, mod, re_, im_, names)
+        h = _WAMIT_SIGN[m] * complex(re_, im_) / (ulen if m >= 3 else 1.0)
+        key = (_TWO_PI / per, _heading_rad(-beta_w))
+        pair = records.setdefault(key, {})
+        if m in pair:
+            raise ModelError(f"{src}: line {line_no} repeats line {pair[m][1]} (PER = {per!r} s, "
+                             f"BETA = {beta_w!r} deg, mode {m + 1})")
+        pair[m] = (h, line_no)
     return _assemble(records, src, "WAMIT .4")
 
 
@@ -770,24 +811,9 @@ class DriftTable:
 
 def _assemble_drift(records: dict[tuple[float, float], dict[int, tuple[float, int]]], source: str,
                     what: str, row: str) -> DriftTable:
-    """A drift table from ``{(omega, beta): {dof: (D, row)}}``, refusing a grid that is not a
-    full omega x beta product or a pair without the three dofs."""
-    if not records:
-        raise ModelError(f"{source}: no {what} rows")
-    omegas = sorted({p[0] for p in records})
-    betas = sorted({p[1] for p in records})
-    D = np.zeros((len(omegas), len(betas), 3))
-    for i, w in enumerate(omegas):
-        for j, b in enumerate(betas):
-            dofs = records.get((w, b))
-            if dofs is None:
-                raise ModelError(f"{source}: the grid is not a full omega x beta product: no {row}s for "
-                                 f"omega = {w!r} rad/s, beta = {math.degrees(b)!r} deg")
-            for m, name in enumerate(DRIFT_DOFS):
-                if m not in dofs:
-                    raise ModelError(f"{source}: omega = {w!r} rad/s, beta = {math.degrees(b)!r} deg has no "
-                                     f"{name} {row} (every pair needs surge, sway and yaw)")
-                D[i, j, m] = dofs[m][0]
+    """A drift table from ``{(omega, beta): {dof: (D, row)}}`` (:func:`_assemble_grid`: a full
+    omega x beta product, surge, sway and yaw at every pair)."""
+    omegas, betas, D = _assemble_grid(records, source, what, DRIFT_DOFS, row, "surge, sway and yaw", float)
     return DriftTable(np.array(omegas), np.array(betas), D)
 
 
@@ -811,51 +837,8 @@ def read_drift_csv(path: str | Path) -> DriftTable:
         column and value), duplicate rows, a grid that is not a full omega x beta product, or a
         pair without the three dofs.
     """
-    path = Path(path)
-    src = str(path)
-    with path.open(newline="") as fh:
-        reader = csv.reader(fh)
-        header = next(reader, None)
-        if header is None:
-            raise ModelError(f"{src}: empty file, expected the header {','.join(_DRIFT_COLUMNS)}")
-        cols = [c.strip() for c in header]
-        missing = [c for c in _DRIFT_COLUMNS if c not in cols]
-        extra = [c for c in cols if c not in _DRIFT_COLUMNS]
-        dup = sorted({c for c in cols if cols.count(c) > 1})
-        if missing or extra or dup:
-            parts = ([f"missing column(s) {missing}"] if missing else []) + (
-                [f"extra column(s) {extra}"] if extra else []) + ([f"repeated column(s) {dup}"] if dup else [])
-            raise ModelError(f"{src}: header {cols}: {'; '.join(parts)}; expected {list(_DRIFT_COLUMNS)}")
-        at = {c: cols.index(c) for c in _DRIFT_COLUMNS}
-        records: dict[tuple[float, float], dict[int, tuple[float, int]]] = {}
-        for row_no, row in enumerate(reader, start=2):
-            if not row or all(not c.strip() for c in row):
-                continue
-            if len(row) != len(cols):
-                raise ModelError(f"{src}: row {row_no} has {len(row)} values, the header has {len(cols)}")
-            vals: dict[str, float] = {}
-            for c in ("omega_rad_s", "beta_deg", "D"):
-                text = row[at[c]].strip()
-                try:
-                    v = float(text)
-                except ValueError:
-                    raise ModelError(f"{src}: row {row_no}, column {c}: {text!r} is not a number") from None
-                if not math.isfinite(v):
-                    raise ModelError(f"{src}: row {row_no}, column {c}: {text!r} must be finite")
-                vals[c] = v
-            dof = row[at["dof"]].strip().lower()
-            if dof not in DRIFT_DOFS:
-                raise ModelError(f"{src}: row {row_no}, column dof: {row[at['dof']]!r} must be one of "
-                                 f"{list(DRIFT_DOFS)}")
-            if vals["omega_rad_s"] <= 0.0:
-                raise ModelError(f"{src}: row {row_no}, column omega_rad_s: {vals['omega_rad_s']!r} must be > 0")
-            key = (vals["omega_rad_s"], _heading_rad(vals["beta_deg"]))
-            m = DRIFT_DOFS.index(dof)
-            pair = records.setdefault(key, {})
-            if m in pair:
-                raise ModelError(f"{src}: row {row_no} repeats row {pair[m][1]} (omega = {key[0]!r} rad/s, "
-                                 f"beta = {vals['beta_deg']!r} deg, dof {dof})")
-            pair[m] = (vals["D"], row_no)
+    src, records = _read_grid_csv(path, _DRIFT_COLUMNS, ("omega_rad_s", "beta_deg", "D"), DRIFT_DOFS,
+                                  lambda vals, row_no, src: vals["D"])
     return _assemble_drift(records, src, "drift", "row")
 
 
@@ -908,37 +891,21 @@ def read_wamit_drift(path: str | Path, *, ulen: float, rho: float, g: float) -> 
     ulen = _number("ulen", ulen, "m", lo=0.0, lo_open=True)
     rho = _number("rho", rho, "kg/m^3", lo=0.0, lo_open=True)
     g = _number("g", g, "m/s^2", lo=0.0, lo_open=True)
-    path = Path(path)
-    src = str(path)
+    names = "PER BETA1 BETA2 I Mod Pha Re Im"
     records: dict[tuple[float, float], dict[int, tuple[float, int]]] = {}
-    with path.open() as fh:
-        for line_no, line in enumerate(fh, start=1):
-            parts = line.split()
-            if not parts:
-                continue
-            try:
-                per, b1, b2, mode, mod, _pha, re_, im_ = (float(p.replace("D", "E").replace("d", "e")) for p in parts)
-            except ValueError:
-                raise ModelError(f"{src}: line {line_no}: {line.strip()!r} is not 8 numbers "
-                                 "(PER BETA1 BETA2 I Mod Pha Re Im)") from None
-            if not all(math.isfinite(v) for v in (per, b1, b2, mode, mod, re_, im_)):
-                raise ModelError(f"{src}: line {line_no}: {line.strip()!r} has a value that is not finite")
-            if per <= 0.0:
-                raise ModelError(f"{src}: line {line_no}: PER = {per!r} s: zero and infinite periods (PER <= 0, "
-                                 "WAMIT's codes 0 and -1) are not supported")
-            if mode != int(mode):
-                raise ModelError(f"{src}: line {line_no}: mode I = {mode!r} must be an integer")
-            if abs(abs(complex(re_, im_)) - mod) > 1e-3 * max(1.0, mod):
-                raise ModelError(f"{src}: line {line_no}: Mod = {mod!r} but |Re + i Im| = {abs(complex(re_, im_))!r} "
-                                 "(columns must be PER BETA1 BETA2 I Mod Pha Re Im)")
-            if b1 != b2 or int(mode) not in _WAMIT_DRIFT_MODES:
-                continue   # a pair of wave directions, or heave, roll, pitch, body-axes modes
-            m, sign = _WAMIT_DRIFT_MODES[int(mode)]
-            scale = rho * g * (ulen * ulen if m == 2 else ulen)
-            key = (_TWO_PI / per, _heading_rad(-b1))
-            pair = records.setdefault(key, {})
-            if m in pair:
-                raise ModelError(f"{src}: line {line_no} repeats line {pair[m][1]} (PER = {per!r} s, "
-                                 f"BETA = {b1!r} deg, mode {int(mode)})")
-            pair[m] = (sign * scale * re_, line_no)
+    src = str(path)
+    for src, line_no, _, (per, b1, b2, mode, mod, _pha, re_, im_) in _wamit_rows(path, names):
+        if mode != int(mode):
+            raise ModelError(f"{src}: line {line_no}: mode I = {mode!r} must be an integer")
+        _check_modulus(src, line_no, mod, re_, im_, names)
+        if b1 != b2 or int(mode) not in _WAMIT_DRIFT_MODES:
+            continue   # a pair of wave directions, or heave, roll, pitch, body-axes modes
+        m, sign = _WAMIT_DRIFT_MODES[int(mode)]
+        scale = rho * g * (ulen * ulen if m == 2 else ulen)
+        key = (_TWO_PI / per, _heading_rad(-b1))
+        pair = records.setdefault(key, {})
+        if m in pair:
+            raise ModelError(f"{src}: line {line_no} repeats line {pair[m][1]} (PER = {per!r} s, "
+                             f"BETA = {b1!r} deg, mode {int(mode)})")
+        pair[m] = (sign * scale * re_, line_no)
     return _assemble_drift(records, src, "WAMIT mean drift (BETA1 = BETA2, modes 1, 2, 6)", "line")

@@ -94,19 +94,27 @@ def spreading_directions(s: float, rng: np.random.Generator, n: int) -> np.ndarr
     return rng.permutation(np.interp(u, cdf, theta))
 
 
-def heading_interp(grid: Any, direction: float, psi: float) -> np.ndarray:
-    """Linear interpolation (K,) of sums on the heading grid ``grid`` (K G,) (column ``K g + d`` at
-    the relative heading ``beta_g = 2 pi g / G``, G = :data:`N_HEADINGS`) at ``beta = direction -
-    psi`` [rad] taken into [0, 2 pi); rows of sums (n, K G) give (n, K). Plain float arithmetic, the same operations as the compiled plant's
-    (:func:`tapm_opt.plant.fem_kernel.plant_pre_step`)."""
+def heading_bracket(direction: float, psi: float) -> tuple[int, int, float]:
+    """The grid headings g0, g1 = g0 + 1 (mod G) about ``beta = direction - psi`` [rad] taken
+    into [0, 2 pi) and the fraction f [-] of the way from g0 to g1 (G = :data:`N_HEADINGS`).
+    Plain float arithmetic, the compiled plant's ``fem_kernel._heading_bracket`` the same."""
     G = N_HEADINGS
-    K = np.shape(grid)[-1] // G
     b = direction - psi
     b = b - 2.0 * math.pi * math.floor(b / (2.0 * math.pi))
     x = b * (G / (2.0 * math.pi))
     g0 = min(int(x), G - 1)
     f = x - g0
     g1 = 0 if g0 == G - 1 else g0 + 1
+    return g0, g1, f
+
+
+def heading_interp(grid: Any, direction: float, psi: float) -> np.ndarray:
+    """Linear interpolation (K,) of sums on the heading grid ``grid`` (K G,) (column ``K g + d`` at
+    the relative heading ``beta_g = 2 pi g / G``, G = :data:`N_HEADINGS`) at ``beta = direction -
+    psi`` [rad] taken into [0, 2 pi); rows of sums (n, K G) give (n, K). Plain float arithmetic, the same operations as the compiled plant's
+    (:func:`tapm_opt.plant.fem_kernel.plant_pre_step`)."""
+    K = np.shape(grid)[-1] // N_HEADINGS
+    g0, g1, f = heading_bracket(direction, psi)
     if np.ndim(grid) > 1:   # rows of sums (a time series): the same operations, elementwise
         v0 = grid[..., K * g0:K * g0 + K]
         return v0 + f * (grid[..., K * g1:K * g1 + K] - v0)
@@ -505,7 +513,7 @@ class WaveField:
         if not self._Wv.shape[1]:
             return np.zeros((int(n), 0))
         sin_th, cos_th = _block_trig(float(t0), float(h), int(n), self.omega, self.phase, self._rot_cache)
-        cs = np.concatenate([cos_th, sin_th], axis=1)
+        cs = self._scale_trig(np.concatenate([cos_th, sin_th], axis=1), float(t0) + float(h) * np.arange(int(n)))
         with _one_blas_thread():
             out = (cs @ self._Wv_lr[0]) @ self._Wv_lr[1] if self._Wv_lr is not None else cs @ self._Wv
         if t0 < self.Tp:   # the first peak period: heave, roll and pitch brought in by the ramp
@@ -822,20 +830,6 @@ class DevelopingWaveField(WaveField):
         sin_th, cos_th = _block_trig(float(t0), float(h), int(n), self.omega, self.phase, self._rot_cache)
         A = self.amplitudes(float(t0) + float(h) * np.arange(int(n)))
         return (A * sin_th) @ self._Ws.T, (A * cos_th) @ self._Wc.T
-
-    def vertical_block(self, t0: float, h: float, n: int) -> np.ndarray:
-        if not self._Wv.shape[1]:
-            return np.zeros((int(n), 0))
-        sin_th, cos_th = _block_trig(float(t0), float(h), int(n), self.omega, self.phase, self._rot_cache)
-        A = self.amplitudes(float(t0) + float(h) * np.arange(int(n)))
-        cs = np.concatenate([A * cos_th, A * sin_th], axis=1)
-        with _one_blas_thread():
-            out = (cs @ self._Wv_lr[0]) @ self._Wv_lr[1] if self._Wv_lr is not None else cs @ self._Wv
-        if t0 < self.Tp:
-            m = min(int(n), int(math.ceil((self.Tp - t0) / h)) + 1)
-            K = out.shape[1] // N_HEADINGS
-            out[:m].reshape(m, N_HEADINGS, K)[:, :, :3] *= self.ramp(t0 + h * np.arange(m))[0][:, None, None]
-        return out
 
     def elevation(self, t: Any) -> np.ndarray:
         t = _time(t)

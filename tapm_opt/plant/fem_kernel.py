@@ -881,16 +881,24 @@ def _current_at_nodes(r, vc, kind, clamps, depths, factors, water_depth, surface
 
 
 @_jit
-def _heading_interp(grid, direction, psi, out, o):  # pragma: no cover - compiled
-    """:func:`tapm_opt.plant.environment.heading_interp` into ``out[o:o + K]``: the same operations."""
+def _heading_bracket(direction, psi):  # pragma: no cover - compiled
+    """:func:`tapm_opt.plant.environment.heading_bracket`: the two grid headings about ``beta =
+    direction - psi`` and the fraction between them, the same operations."""
     G = N_HEADINGS
-    K = grid.shape[0] // G
     b = direction - psi
     b = b - 2.0 * math.pi * math.floor(b / (2.0 * math.pi))
     x = b * (G / (2.0 * math.pi))
     g0 = min(int(x), G - 1)
     f = x - g0
     g1 = 0 if g0 == G - 1 else g0 + 1
+    return g0, g1, f
+
+
+@_jit
+def _heading_interp(grid, direction, psi, out, o):  # pragma: no cover - compiled
+    """:func:`tapm_opt.plant.environment.heading_interp` into ``out[o:o + K]``: the same operations."""
+    K = grid.shape[0] // N_HEADINGS
+    g0, g1, f = _heading_bracket(direction, psi)
     for d in range(K):
         v0 = grid[K * g0 + d]
         out[o + d] = v0 + f * (grid[K * g1 + d] - v0)
@@ -902,13 +910,7 @@ def _drift_interp(dq, sign, direction, psi, out, o):  # pragma: no cover - compi
     3]``: ``2 q q s`` of the drift sums ``dq`` and signs ``sign`` on the heading grid (3 G,) at the
     two grid headings about ``beta = direction - psi``, interpolated linearly (the operations of
     :func:`tapm_opt.plant.environment.heading_interp` on ``2 q q s``)."""
-    G = N_HEADINGS
-    b = direction - psi
-    b = b - 2.0 * math.pi * math.floor(b / (2.0 * math.pi))
-    x = b * (G / (2.0 * math.pi))
-    g0 = min(int(x), G - 1)
-    f = x - g0
-    g1 = 0 if g0 == G - 1 else g0 + 1
+    g0, g1, f = _heading_bracket(direction, psi)
     for d in range(3):
         qa = dq[3 * g0 + d]
         qb = dq[3 * g1 + d]

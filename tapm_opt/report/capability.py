@@ -176,10 +176,9 @@ def capability_files(result: Any) -> dict[str, bytes]:
             "capability_cases.png": png_bytes(cases_figure(data))}
 
 
-def write_capability(result: Any, out_dir: str | Path) -> list[Path]:
-    """Write :func:`capability_files` into ``out_dir`` (created): every file is built before the
-    first is written, and each is written atomically. Returns the paths."""
-    files = capability_files(result)
+def _write_files(files: dict[str, bytes], out_dir: str | Path) -> list[Path]:
+    """Write the built ``files`` (name: bytes) into ``out_dir`` (created), each atomically.
+    Returns the paths."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     paths = []
@@ -188,6 +187,12 @@ def write_capability(result: Any, out_dir: str | Path) -> list[Path]:
         atomic_write_bytes(p, blob)
         paths.append(p)
     return paths
+
+
+def write_capability(result: Any, out_dir: str | Path) -> list[Path]:
+    """Write :func:`capability_files` into ``out_dir`` (created): every file is built before the
+    first is written, and each is written atomically. Returns the paths."""
+    return _write_files(capability_files(result), out_dir)
 
 
 def _fmt(x: Any) -> str:
@@ -319,15 +324,7 @@ def level3_files(result: Any) -> dict[str, bytes]:
 def write_level3(result: Any, out_dir: str | Path) -> list[Path]:
     """Write :func:`level3_files` into ``out_dir`` (created), each file atomically once all are
     built. Returns the paths."""
-    files = level3_files(result)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    paths = []
-    for name, blob in files.items():
-        p = out / name
-        atomic_write_bytes(p, blob)
-        paths.append(p)
-    return paths
+    return _write_files(level3_files(result), out_dir)
 
 
 def _mwh(v: Any) -> str:
