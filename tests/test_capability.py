@@ -326,6 +326,44 @@ def test_report_section_from_a_study_directory(tmp_path):
     assert not figs and problems and "capability.json" in problems[0]
 
 
+def test_a_study_capability_is_recomputed_when_a_default_changes(tmp_path, monkeypatch):
+    """The stamp holds the resolved options: a result computed under another default (here the
+    standard table, the default before the extended one) or stamped with the study's options only
+    is recomputed; the same resolved options are not."""
+    import tapm_opt.design.capability as cap_module
+    from tapm_opt.studies.runner import write_study_capability
+    from tapm_opt.studies.spec import load_study
+
+    f = tmp_path / "s.toml"
+    f.write_text('[study]\nname = "s"\nscenario = "fpso"\nduration = 4.0\nsegments = 6\n[[sea_states]]\nid = "storm"\n'
+                 '[[controllers]]\nname = "PID"\ntype = "pid"\n'
+                 '[capability]\ncondition = "intact"\ndirections_deg = [0.0, 90.0]\n')
+    study = load_study(f)
+    calls = []
+
+    class _Result:
+        def data_files(self):
+            return {"capability.json": b"{}\n", "capability.csv": b"direction_deg\n"}
+
+    monkeypatch.setattr(cap_module, "capability", lambda sc, opt: calls.append(dict(opt)) or _Result())
+    d = write_study_capability(study, tmp_path / "run")
+    assert len(calls) == 1 and calls[0]["directions_deg"] == [0.0, 90.0]
+    write_study_capability(study, tmp_path / "run")
+    assert len(calls) == 1                                        # same resolved options
+    stamp_file = d / "study_capability.json"
+    stamp = json.loads(stamp_file.read_text())
+    assert stamp["options"]["table_name"] == "extended" and stamp["options"]["level"] == 1
+    stale = {**stamp, "options": {**stamp["options"], "table_name": "standard",
+                                  "table": stamp["options"]["table"][:12]}}
+    stamp_file.write_text(json.dumps(stale))
+    write_study_capability(study, tmp_path / "run")
+    assert len(calls) == 2                                        # computed under the old default
+    stamp_file.write_text(json.dumps({**stamp, "options": study.capability}))
+    write_study_capability(study, tmp_path / "run")
+    assert len(calls) == 3                                        # stamped with the study's options only
+    assert json.loads(stamp_file.read_text()) == stamp
+
+
 def test_a_study_that_asks_for_capability_gets_it_in_its_folder_and_report(tmp_path):
     from tapm_opt.report import write_report
     from tapm_opt.studies.spec import load_study

@@ -236,20 +236,25 @@ def write_study_verification(study: Study, out_dir: str | Path) -> Any:
 def write_study_capability(study: Study, out_dir: str | Path, *, workers: int = 1) -> Path | None:
     """The capability envelopes a study's ``[capability]`` table asks for, of its scenario, into
     ``DIR/capability`` (``capability.csv`` and ``capability.json``, :mod:`tapm_opt.design.capability`),
-    where the report finds them and draws their figures (the study writes data, the report draws). Not recomputed when ``capability.json`` holds the same options
-    and scenario, computed by the same version. Returns the folder (None when the study asks for none)."""
+    where the report finds them and draws their figures (the study writes data, the report draws). Not
+    recomputed when ``study_capability.json`` holds the same resolved options (the study's, with every
+    default of this version filled in, the environment table's rows included) and scenario, computed by
+    the same version. Returns the folder (None when the study asks for none)."""
+    import dataclasses
     import json
 
     from ..config import scenario_from_dict
     from .._io import atomic_write_bytes
-    from ..design.capability import capability
+    from ..design.capability import CapabilityOptions, capability
 
     if study.capability is None or study.scenario is None:
         return None
     from .. import __version__
 
     d = Path(out_dir) / "capability"
-    stamp = {"options": study.capability, "scenario": study.scenario, "tapm_opt_version": __version__}
+    resolved = CapabilityOptions(**study.capability)
+    stamp = {"options": {**resolved.settings(), "table": [dataclasses.asdict(r) for r in resolved.table]},
+             "scenario": study.scenario, "tapm_opt_version": __version__}
     try:
         old = json.loads((d / "study_capability.json").read_text())
     except (OSError, ValueError):
