@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 import pytest
-from _six_dof import six_dof
+from _six_dof import horizontal, six_dof
 
 import tapm_opt
 from tapm_opt.control.setpoint_opt import SetpointProblem, WorkingPoint
@@ -34,7 +34,8 @@ from tapm_opt.plant.mooring_fem import MooringFEM
 
 @pytest.fixture(scope="module")
 def fpso():
-    return tapm_opt.load_scenario("fpso")
+    """fpso with surge, sway and yaw only (the built-in moves in six degrees of freedom)."""
+    return horizontal(tapm_opt.load_scenario("fpso"))
 
 
 @pytest.fixture(scope="module")

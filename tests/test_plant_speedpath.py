@@ -53,7 +53,11 @@ def _scalar_sums(plant):
         S, C = env.waves._sums(t1)
         w = env.waves
         th = t1 * w.omega + w.phase
-        vg = np.concatenate([np.cos(th), np.sin(th)]) @ w._Wv   # the heave, roll and pitch sums (none here)
+        vg = np.concatenate([np.cos(th), np.sin(th)]) @ w._Wv   # the heave, roll and pitch sums on the grid
+        if vg.size:   # brought in by the start-up ramp (WaveField.ramp), as the block does
+            vg = vg.reshape(fem_kernel.N_HEADINGS, -1).copy()
+            vg[:, :3] *= float(w.ramp(t1)[0])
+            vg = vg.ravel()
         return (env.wind.speed(t0), float(env.waves._sums(t0)[1][1]), float(S[0]), float(S[1]), float(C[0]), vg)
 
     return sums

@@ -133,7 +133,9 @@ FIELD_RANGES = [
     ("fpso", "environment.water_depth", 2.0e4, "= 20000 m", None),
     ("fpso", "vessel.length_pp", 2000.0, "= 2000 m", None),
     ("fpso", "vessel.breadth", 500.0, "= 500 m", 190.0),
-    ("fpso", "vessel.draught", 300.0, "= 300 m", 240.0),                 # spars draw 80-200 m
+    # spars draw 80-200 m; on fpso_equivalent, whose hull moves in surge, sway and yaw only (fpso's
+    # six-degree-of-freedom motion also needs CO on the water line, which a new draught moves)
+    ("fpso_equivalent", "vessel.draught", 300.0, "= 300 m", 240.0),
     ("fpso", "turret.angle_deg", 400.0, "= 400 deg", -360.0),
     ("fpso", "lines[0].fairlead_angle_deg", -400.0, "= -400 deg", None),
     ("fpso", "thrusters[0].angle_deg", 1e300, "= 1e+300 deg", 350.0),

@@ -14,6 +14,8 @@ homogeneous equivalent line it had before, kept for comparison.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -70,8 +72,12 @@ def test_both_load_validate_and_are_builtins(sc, eq):
         assert np.hypot(*(np.array(ln.anchor[:2]) - COT)) == pytest.approx(1970.0, abs=1e-3)
     # the wire is the stronger: the chain's MBS is the line's
     assert sc.line_type_by_id("wire165").MBS > sc.line_type_by_id("chain137").MBS == sc.line_arrays["MBS"][0]
-    # everything but the mooring is the equivalent's
-    for f in ("environment", "vessel", "turret", "thrusters", "sea_states", "riser", "limits"):
+    # everything but the mooring and the hull's wave motion model is the equivalent's (fpso moves
+    # in six degrees of freedom, the equivalent keeps the earlier surge, sway and yaw)
+    assert sc.vessel.wave_motion.model == "six_dof" and eq.vessel.wave_motion.model == "horizontal"
+    assert dataclasses.replace(sc.vessel.wave_motion, model="horizontal") == eq.vessel.wave_motion
+    assert dataclasses.replace(sc.vessel, wave_motion=eq.vessel.wave_motion) == eq.vessel
+    for f in ("environment", "turret", "thrusters", "sea_states", "riser", "limits"):
         assert getattr(sc, f) == getattr(eq, f), f
 
 

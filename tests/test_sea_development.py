@@ -17,6 +17,7 @@ import math
 import numpy as np
 import pytest
 from _bitwise import assert_same
+from _six_dof import horizontal, six_dof
 
 import tapm_opt
 from tapm_opt.config import scenario_from_dict, scenario_to_dict, validate
@@ -110,9 +111,14 @@ def test_compiled_and_numpy_plants_agree_in_a_short_crested_sea(fpso, model):
 
 
 def test_a_long_crested_sea_carries_no_grid(fpso):
-    w = Environment(fpso, "storm", seed=1).waves
+    """Without spreading and heave, roll and pitch no heading grid; the closed form's heave, roll
+    and pitch alone carry one of three columns per heading."""
+    w = Environment(horizontal(fpso), "storm", seed=1).waves
     assert w.spreading is None and w._drift_grid.size == 0 and w._Wv.shape[1] == 0
     assert not w.grid_horizontal
+    w6 = Environment(six_dof(fpso), "storm", seed=1).waves
+    assert w6.spreading is None and w6._drift_grid.size == 0 and w6._Wv.shape[1] == 3 * N_HEADINGS
+    assert not w6.grid_horizontal
     assert N_HEADINGS == fem_kernel.N_HEADINGS
 
 

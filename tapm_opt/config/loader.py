@@ -535,9 +535,7 @@ def _plausibility(sc: Scenario, fl_x: np.ndarray, fl_y: np.ndarray, issues: list
                 f"= {area:g} m^2 is over {MAX_WINDAGE_HEIGHT:g} m x {name} ({side:g} m): a mean height above water "
                 "taller than any superstructure")))
     x, y, z = v.reference_point  # NaN: not given
-    bad_x = abs(x - v.length_pp / 2) > v.length_pp  # False for NaN
-    bad_z = math.isfinite(z) and not -v.draught <= z <= v.draught + MAX_WINDAGE_HEIGHT
-    if bad_x or abs(y) > v.breadth or bad_z:
+    if _co_outside_hull(v):
         issues.append(ScenarioIssue("vessel.reference_point", (
             f"= ({x:g}, {y:g}, {z:g}) m puts CO outside the hull: x from the aft perpendicular within "
             f"[{-v.length_pp / 2:g}, {1.5 * v.length_pp:g}] m, |y| <= breadth {v.breadth:g} m, z above the keel within "
@@ -754,6 +752,16 @@ def _axial_law_issues(sc: Scenario, issues: list[ScenarioIssue]) -> None:
                 "with a table EA is that secant (leave EA out)")))
 
 
+def _co_outside_hull(v: Any) -> bool:
+    """The body origin CO (``vessel.reference_point``; NaN: not given) outside the hull's box: x from
+    the aft perpendicular beyond [-L/2, 1.5 L], |y| beyond the breadth, z above the keel beyond
+    [-T, T + MAX_WINDAGE_HEIGHT]."""
+    x, y, z = v.reference_point
+    bad_x = abs(x - v.length_pp / 2) > v.length_pp  # False for NaN
+    bad_z = math.isfinite(z) and not -v.draught <= z <= v.draught + MAX_WINDAGE_HEIGHT
+    return bool(bad_x or abs(y) > v.breadth or bad_z)
+
+
 def _wave_motion_issues(v: Any, issues: list[ScenarioIssue]) -> None:
     """``vessel.wave_motion``: the six-degree-of-freedom model needs the hull's block coefficient,
     GM_T and roll period, and a water-plane coefficient not below the block coefficient; a table
@@ -768,7 +776,8 @@ def _wave_motion_issues(v: Any, issues: list[ScenarioIssue]) -> None:
                 issues.append(ScenarioIssue(f"{p}.{name}", (
                     f"is missing: model = 'six_dof' needs {what} for the closed-form heave, roll and pitch "
                     "transfer functions (or model = 'horizontal')")))
-    if wm.model == "six_dof":   # the closed form's motion is at midships on the water line, the plant's about CO
+    if wm.model == "six_dof" and not _co_outside_hull(v):   # (outside: the hull's own check says so)
+        # the closed form's motion is at midships on the water line, the plant's about CO
         rp, L, T = v.reference_point, v.length_pp, v.draught
         for i, (where, at, tol) in enumerate((("midships", L / 2.0, 0.01 * L), ("the centre line", 0.0, 0.01 * L),
                                               ("the water line", T, 0.05 * T))):
