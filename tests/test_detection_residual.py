@@ -75,7 +75,7 @@ def statistical(model):
     """Settings where the CUSUM works in its statistical range: cell noise 3 % of MBS (510 kN) and
     a fixed scale (adapt=False), so that the design shift is about 3 standard deviations; a
     3-sample confirmation, whose cap h / 3 per sample the mean step stays below (with the default
-    8 samples the cap clips most steps and the delay is no longer Wald's)."""
+    16 samples the cap clips most steps and the delay is no longer Wald's)."""
     det = TensionResidualDetector(model, noise_rel=0.03, dynamic_rel=0.05, adapt=False, min_samples=3)
     return det, det.sigma_design
 
@@ -131,13 +131,13 @@ def test_a_break_is_confirmed_by_min_samples_then_latched_and_the_model_reduced(
         if k == 300:
             s_before = det.sigma[6], det.bias[6]
         det.update(float(k), T, ETA)
-        if k < 307:
+        if k < 315:
             assert det.broken == frozenset(), k
-    assert det.min_samples == 8                          # BREAK_CONFIRMATION_TIME 8 s at 1 Hz
+    assert det.min_samples == 16                         # BREAK_CONFIRMATION_TIME 16 s at 1 Hz
     assert det.broken == frozenset({"7"})
     (ev,) = det.events
-    assert ev["t"] == 307.0 and ev["line"] == "7" and ev["event"] == "line break detected"
-    assert ev["statistic"] >= det.threshold * (1 - 1e-12)     # eight capped steps of h / 8
+    assert ev["t"] == 315.0 and ev["line"] == "7" and ev["event"] == "line break detected"
+    assert ev["statistic"] >= det.threshold * (1 - 1e-12)     # sixteen capped steps of h / 16
     assert (det.sigma[6], det.bias[6]) == s_before      # frozen while the alarm was building
     # latched: intact readings again change nothing; the other lines are predicted without line 7
     assert _feed(det, [T_eta] * 5, t0=500.0) == 500.0 and len(det.events) == 1
@@ -153,11 +153,11 @@ def test_isolation_picks_the_largest_normalised_shift(model, T_eta):
     """Lines 2 (to zero) and 5 (to 40 % of its tension) cross at the same sample: line 2 is
     isolated there, line 5 at the next sample."""
     det = TensionResidualDetector(model)
-    rows = np.tile(T_eta, (12, 1))
+    rows = np.tile(T_eta, (20, 1))
     rows[:, 1] = 0.0
     rows[:, 4] *= 0.4
     _feed(det, rows)
-    assert [(e["t"], e["line"]) for e in det.events] == [(7.0, "2"), (8.0, "5")]
+    assert [(e["t"], e["line"]) for e in det.events] == [(15.0, "2"), (16.0, "5")]
 
 
 def test_a_break_below_the_fairlead_is_found_where_the_drop_detector_sees_nothing(model, T_eta):
@@ -168,26 +168,26 @@ def test_a_break_below_the_fairlead_is_found_where_the_drop_detector_sees_nothin
     rows = np.tile(T_eta, (30, 1))
     rows[:, 0] = hang
     res, drop = TensionResidualDetector(model), TensionDropDetector(model)
-    assert _feed(res, rows) == 7.0 and res.broken == frozenset({"1"})
+    assert _feed(res, rows) == 15.0 and res.broken == frozenset({"1"})
     assert _feed(drop, rows) is None
 
 
 def test_no_test_before_the_first_pose(model, T_eta):
     det = TensionResidualDetector(model)
-    rows = np.tile(T_eta, (20, 1))
+    rows = np.tile(T_eta, (30, 1))
     rows[:, 3] = 0.0
     for k in range(10):
         assert det.update(float(k), rows[k], None) == frozenset()
     assert det.samples == 0
-    assert _feed(det, rows[10:], t0=10.0) == 17.0
+    assert _feed(det, rows[10:], t0=10.0) == 25.0
 
 
 def test_a_held_sample_is_counted_once(model, T_eta):
-    """Control steps of 0.25 s with 1 Hz tension cells: eight samples take 7 s, not 1.75 s."""
+    """Control steps of 0.25 s with 1 Hz tension cells: sixteen samples take 15 s, not 3.75 s."""
     det = TensionResidualDetector(model)
-    rows = np.tile(T_eta, (32, 1))
+    rows = np.tile(T_eta, (64, 1))
     rows[:, 8] = 0.0
-    assert _feed(det, rows, dt=0.25) == 7.0 and det.samples == 8
+    assert _feed(det, rows, dt=0.25) == 15.0 and det.samples == 16
 
 
 def test_estimator_with_the_residual_detector(model, T_eta):
@@ -201,10 +201,10 @@ def test_estimator_with_the_residual_detector(model, T_eta):
         return Measurement(t=t, position=ETA[:2], heading=float(ETA[2]), tensions=T, t_position=t, t_heading=t,
                            t_tensions=t, tau_thr=np.zeros(3))
 
-    seen = [est.update(float(t), m(float(t))).broken_lines for t in range(10)]
-    assert seen == [frozenset()] * 8 + [frozenset({"5"})] * 2      # no pose at t = 0; samples 1 to 8
+    seen = [est.update(float(t), m(float(t))).broken_lines for t in range(18)]
+    assert seen == [frozenset()] * 16 + [frozenset({"5"})] * 2     # no pose at t = 0; samples 1 to 16
     assert "5" not in est.model.line_ids
-    assert est.log()[0]["t"] == 8.0 and est.log()[0]["line"] == "5"
+    assert est.log()[0]["t"] == 16.0 and est.log()[0]["line"] == "5"
 
 
 # -- the tabulated line model ------------------------------------------------------------------
@@ -319,14 +319,17 @@ def intact_storm(model):
 
 @pytest.mark.slow
 def test_intact_storm_half_hour_has_no_false_alarm(intact_storm):
-    """Measured (seed 3): no statistic leaves zero; the deepest intact residual (line 10) is 14 %
-    of the design shift (the statistic grows above 50 %)."""
+    """Measured (seed 3, the hull's heave, roll and pitch at the fairleads): the deepest intact
+    residuals, of the lee bundles' lines 5-12, reach 47-59 % of the design shift in their wave
+    dips (14 % on line 10 with surge, sway and yaw only), so the statistic leaves zero there, to
+    2.7 (h = 19.75); the weather bundle's lines 1-4 stay at 17-18 %."""
     r, res, drop = intact_storm
     assert break_times(r) == {}
     assert res.events == [] and drop.events == [] and r.meta["estimator_log"] == []
     assert res.samples >= 1790
-    assert np.max(res.peak) < 0.5 * res.threshold
-    assert np.nanmax(res.worst_drop) < 0.3
+    assert np.max(res.peak) < 0.25 * res.threshold
+    assert np.nanmax(res.worst_drop) < 0.8
+    assert np.nanmax(res.worst_drop[:4]) < 0.3
 
 
 @pytest.fixture(scope="module")
@@ -356,7 +359,7 @@ def test_the_most_and_least_loaded_lines_are_bundle_1_and_3(loaded_lines):
 @pytest.mark.slow
 @pytest.mark.parametrize("which", ["most", "least"])
 def test_storm_break_is_detected_and_isolated_by_both_detectors(break_runs, which):
-    """Measured: the residual test declares the break 8 s after it (its eight confirming tension
+    """Measured: the residual test declares the break 16 s after it (its sixteen confirming tension
     samples, ``BREAK_CONFIRMATION_TIME``), the drop detector 6 s after it (its 5 s hold), both
     isolate the line, no other line is declared."""
     delays = {}
@@ -366,6 +369,6 @@ def test_storm_break_is_detected_and_isolated_by_both_detectors(break_runs, whic
         log = r.meta["estimator_log"]
         assert [e["line"] for e in log] == [line], (kind, log)
         delays[kind] = log[0]["t"] - 600.0
-    assert delays["residual"] == 8.0
+    assert delays["residual"] == 16.0
     assert 0 < delays["drop"] <= 30.0
     assert break_runs[which, "residual"][1].meta["estimator_log"][0]["statistic"] >= 19.75
