@@ -141,6 +141,81 @@ def test_level3_files_and_report_section(aamo4, level3, tmp_path):
     assert "Level 3" in md and "PID" in md and len(figs) == 1
 
 
+def _level3_study(tmp_path, capability_toml: str):
+    from tapm_opt.studies.spec import load_study
+
+    f = tmp_path / "s.toml"
+    f.write_text('[study]\nname = "s"\nscenario = "aamo4"\nduration = 4.0\nsegments = 6\n[[sea_states]]\nid = "tidal"\n'
+                 '[[controllers]]\nname = "PID"\ntype = "pid"\n[capability]\n' + capability_toml)
+    return load_study(f)
+
+
+def test_a_study_asks_for_level3_and_gets_each_controllers_files_once(tmp_path, level3, monkeypatch):
+    """``[capability]`` with ``level = 3``: one computation per controller kind into
+    DIR/capability (the options the same as ``tapm capability --level 3``), not repeated while the
+    options stay, and an earlier table's files removed when the table changes."""
+    import tapm_opt.studies.capability_level3 as lv3_mod
+    from tapm_opt.report.capability import study_capability_section
+    from tapm_opt.report.document import render_markdown
+    from tapm_opt.studies.runner import write_study_capability
+
+    table = ('level = 3\ncontrollers = ["pid"]\nduration = 150.0\nwarmup = 30.0\nsegments = 6\nheading = "fixed"\n'
+             'directions_deg = [0.0, 45.0, 90.0]\n')
+    study = _level3_study(tmp_path, table)
+    calls = []
+    real = lv3_mod.capability_level3
+
+    def counted(sc, opt, **kw):
+        calls.append(opt)
+        assert dataclasses.replace(opt, table=COARSE, workers=2) == Level3Options(
+            controller="pid", directions_deg=(0.0, 45.0, 90.0), workers=2, **FAST)
+        return level3                     # the module's run of the same options on the coarse table
+
+    monkeypatch.setattr(lv3_mod, "capability_level3", counted)
+    out = tmp_path / "run"
+    d = write_study_capability(study, out, workers=2)
+    assert len(calls) == 1 and calls[0].table == EXTENDED_TABLE      # the study's default table
+    assert sorted(p.name for p in d.iterdir()) == ["capability_level3_pid.csv", "capability_level3_pid.json",
+                                                    "study_capability_level3_pid.json"]
+    write_study_capability(study, out, workers=2)
+    assert len(calls) == 1                                              # the same options: kept
+    blocks, figs = study_capability_section(out)
+    assert "Level 3" in render_markdown(blocks, "files") and len(figs) == 1
+    # another controller added: only its computation runs
+    two = _level3_study(tmp_path, table.replace('["pid"]', '["pid", "lmpc"]'))
+    monkeypatch.setattr(lv3_mod, "capability_level3",
+                        lambda sc, opt, **kw: calls.append(opt) or dataclasses.replace(level3, options=opt))
+    write_study_capability(two, out, workers=2)
+    assert [c.controller for c in calls] == ["pid", "lmpc"]
+    assert (d / "capability_level3_lmpc.json").is_file()
+    # back to Level 1: the Level 3 files go, the Level 1 ones come
+    monkeypatch.setattr(lv3_mod, "capability_level3", real)
+    import tapm_opt.design.capability as cap_mod
+
+    class _Result:
+        def data_files(self):
+            return {"capability.json": b"{}\n", "capability.csv": b"direction_deg\n"}
+
+    monkeypatch.setattr(cap_mod, "capability", lambda sc, opt: _Result())
+    write_study_capability(_level3_study(tmp_path, 'condition = "intact"\n'), out)
+    assert sorted(p.name for p in d.iterdir()) == ["capability.csv", "capability.json", "study_capability.json"]
+
+
+@pytest.mark.parametrize("table, text", [
+    ('level = 3\ncontrollers = "pid"\n', "capability.controllers = 'pid' must be a non-empty list"),
+    ('level = 3\ncontrollers = ["pid", "lqr"]\n', "'lqr' is not a controller kind"),
+    ('level = 3\nduration = -5.0\n', "capability.duration = -5.0 must be a number > 0"),
+    ('level = 3\ncondition = "intact"\n', "capability.condition: unknown option with level = 3"),
+    ('level = 3\nsea_state = "storm"\n', "capability.sea_state = 'storm' is not a sea state"),
+    ('controllers = ["pid"]\n', "capability.controllers: unknown option"),
+])
+def test_a_bad_level3_study_table_is_refused_naming_the_option(tmp_path, table, text):
+    from tapm_opt.studies.store import StudyError
+
+    with pytest.raises(StudyError, match=text.replace("(", r"\(").replace("[", r"\[")):
+        _level3_study(tmp_path, table)
+
+
 # -- bad input ---------------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("kw, text", [

@@ -78,9 +78,11 @@ __all__ = [
     "Level3Options",
     "Level3Result",
     "RunSummary",
+    "STUDY_OPTIONS",
     "capability_level3",
     "level3_file_stem",
     "run_row",
+    "study_level3_options",
 ]
 
 #: Default length of the checked part of a run [s]: 3 hours, the storm duration of the
@@ -100,6 +102,47 @@ LEVEL3_CSV_COLUMNS = ("direction_deg", "controller", "beaufort", "wind_speed", "
 def level3_file_stem(controller: str) -> str:
     """``capability_level3_<controller>``: the stem of a Level 3 computation's files."""
     return f"capability_level3_{controller}"
+
+
+#: The keys of a study's ``[capability]`` table with ``level = 3``: :class:`Level3Options`' own
+#: (but ``controller`` and ``workers``) and ``controllers``, the controller kinds run (default
+#: ``["pid"]``; the study's workers run the directions).
+STUDY_OPTIONS = ("level", "controllers", "duration", "warmup", "seeds", "directions_deg", "heading",
+                 "fixed_heading_deg", "sea_state", "table", "losses", "thruster_diameter", "riser",
+                 "heading_tolerance", "tension_utilisation", "segments")
+
+
+def study_level3_options(table: Mapping[str, Any]) -> list["Level3Options"]:
+    """The :class:`Level3Options` of a study's ``[capability]`` table with ``level = 3``, one per
+    kind in its ``controllers`` (default ``["pid"]``), each checked.
+
+    Raises
+    ------
+    CapabilityError
+        An unknown key, ``controllers`` not a non-empty list of distinct kinds, or a bad option
+        (named, as :class:`Level3Options` names it).
+    """
+    bad = sorted(set(table) - set(STUDY_OPTIONS))
+    if bad:
+        raise CapabilityError(f"{bad[0]}: unknown option with level = 3; allowed: {', '.join(STUDY_OPTIONS)}")
+    kinds = table.get("controllers", ["pid"])
+    if not (isinstance(kinds, (list, tuple)) and kinds and all(isinstance(k, str) for k in kinds)
+            and len(set(kinds)) == len(kinds)):
+        raise CapabilityError(f"controllers = {kinds!r} must be a non-empty list of distinct controller kinds "
+                              "(pid, lmpc, mpc)")
+    from .controllers import controller_types
+
+    unknown = [k for k in kinds if k not in controller_types()]
+    if unknown:
+        raise CapabilityError(f"controllers = {list(kinds)!r}: {unknown[0]!r} is not a controller kind "
+                              f"({', '.join(controller_types())})")
+    rest = {k: v for k, v in table.items() if k not in ("level", "controllers")}
+    if "directions_deg" in rest and isinstance(rest["directions_deg"], list):
+        rest["directions_deg"] = tuple(rest["directions_deg"])
+    try:
+        return [Level3Options(controller=k, **rest) for k in kinds]
+    except TypeError as exc:
+        raise CapabilityError(str(exc)) from None
 
 
 @dataclass(frozen=True, kw_only=True)

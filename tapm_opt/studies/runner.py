@@ -235,38 +235,63 @@ def write_study_verification(study: Study, out_dir: str | Path) -> Any:
 
 def write_study_capability(study: Study, out_dir: str | Path, *, workers: int = 1) -> Path | None:
     """The capability envelopes a study's ``[capability]`` table asks for, of its scenario, into
-    ``DIR/capability`` (``capability.csv`` and ``capability.json``, :mod:`tapm_opt.design.capability`),
-    where the report finds them and draws their figures (the study writes data, the report draws). Not
-    recomputed when ``study_capability.json`` holds the same resolved options (the study's, with every
-    default of this version filled in, the environment table's rows included) and scenario, computed by
-    the same version. Returns the folder (None when the study asks for none)."""
+    ``DIR/capability``, where the report finds them and draws their figures (the study writes data,
+    the report draws): Levels 1 and 2 as ``capability.csv`` and ``capability.json``
+    (:mod:`tapm_opt.design.capability`); Level 3 (``level = 3``) as
+    ``capability_level3_<controller>.csv`` and ``.json`` per controller of its ``controllers``
+    (:mod:`tapm_opt.studies.capability_level3`). Each is stamped (``study_capability.json``,
+    ``study_capability_level3_<controller>.json``) with its resolved options (the study's, with every
+    default of this version filled in, the environment table's rows included), the scenario and the
+    version, and not recomputed while they are the same; the files of an earlier ``[capability]``
+    table that this one no longer asks for are removed. Returns the folder (None when the study
+    asks for none)."""
     import dataclasses
     import json
 
     from ..config import scenario_from_dict
     from .._io import atomic_write_bytes
     from ..design.capability import CapabilityOptions, capability
+    from .capability_level3 import capability_level3, level3_file_stem, study_level3_options
 
     if study.capability is None or study.scenario is None:
         return None
     from .. import __version__
 
     d = Path(out_dir) / "capability"
-    resolved = CapabilityOptions(**study.capability)
-    stamp = {"options": {**resolved.settings(), "table": [dataclasses.asdict(r) for r in resolved.table]},
-             "scenario": study.scenario, "tapm_opt_version": __version__}
-    try:
-        old = json.loads((d / "study_capability.json").read_text())
-    except (OSError, ValueError):
-        old = None
-    if old == json.loads(json.dumps(stamp)) and (d / "capability.json").is_file():
-        return d
-    res = capability(scenario_from_dict(study.scenario, source=f"study {study.name}"),
-                     {**study.capability, "workers": workers})
-    d.mkdir(parents=True, exist_ok=True)
-    for name, blob in res.data_files().items():
-        atomic_write_bytes(d / name, blob)
-    store.write_json(d / "study_capability.json", stamp)
+    tab = study.capability
+    if tab.get("level") == 3:
+        jobs = []
+        for opt in study_level3_options(tab):
+            stem = level3_file_stem(opt.controller)
+            jobs.append((f"study_{stem}.json", (f"{stem}.csv", f"{stem}.json"), opt.settings(),
+                         lambda opt=opt: capability_level3(
+                             scenario_from_dict(study.scenario, source=f"study {study.name}"),
+                             dataclasses.replace(opt, workers=max(1, workers)))))
+    else:
+        resolved = CapabilityOptions(**tab)
+        jobs = [("study_capability.json", ("capability.csv", "capability.json"),
+                 {**resolved.settings(), "table": [dataclasses.asdict(r) for r in resolved.table]},
+                 lambda: capability(scenario_from_dict(study.scenario, source=f"study {study.name}"),
+                                    {**tab, "workers": workers}))]
+    wanted = {stamp_name for stamp_name, *_ in jobs}
+    for old in sorted(d.glob("study_capability*.json")) if d.is_dir() else []:   # an earlier table's files
+        if old.name not in wanted:
+            stem = old.name[len("study_"):-len(".json")]
+            for f in (d / f"{stem}.csv", d / f"{stem}.json", old):
+                f.unlink(missing_ok=True)
+    for stamp_name, names, options, compute in jobs:
+        stamp = {"options": options, "scenario": study.scenario, "tapm_opt_version": __version__}
+        try:
+            old = json.loads((d / stamp_name).read_text())
+        except (OSError, ValueError):
+            old = None
+        if old == json.loads(json.dumps(stamp)) and all((d / n).is_file() for n in names):
+            continue
+        res = compute()
+        d.mkdir(parents=True, exist_ok=True)
+        for name, blob in res.data_files().items():
+            atomic_write_bytes(d / name, blob)
+        store.write_json(d / stamp_name, stamp)
     return d
 
 

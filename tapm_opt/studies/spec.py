@@ -70,8 +70,10 @@ class Study:
         The study file's text as loaded (copied to ``DIR/study.toml``).
     capability : dict or None
         The study's ``[capability]`` table (options of
-        :class:`~tapm_opt.design.capability.CapabilityOptions`, checked): the capability envelopes
-        of its scenario are computed into ``DIR/capability`` and shown in the report; None: none.
+        :class:`~tapm_opt.design.capability.CapabilityOptions`, or with ``level = 3`` of
+        :func:`~tapm_opt.studies.capability_level3.study_level3_options`, checked): the capability
+        envelopes of its scenario are computed into ``DIR/capability`` and shown in the report;
+        None: none.
     scenario : dict or None
         The study's scenario (as loaded, without the cases' faults), for the capability envelopes.
     verification : dict or None
@@ -840,13 +842,22 @@ def _capability_table(data: Mapping[str, Any], base_dir: str | Path, source: str
     if not isinstance(tab, Mapping):
         raise StudyError(f"capability must be a table of options ({', '.join(STUDY_OPTIONS)}), got {tab!r}",
                          source=source)
-    bad = sorted(set(tab) - set(STUDY_OPTIONS))
-    if bad:
-        raise StudyError(f"capability.{bad[0]}: unknown option; allowed: {', '.join(STUDY_OPTIONS)}", source=source)
-    try:
-        CapabilityOptions(**dict(tab))
-    except (CapabilityError, TypeError, ValueError) as exc:
-        raise StudyError(f"capability: {exc}", source=source) from None
+    if tab.get("level") == 3:   # time domain, the controllers in the loop (studies.capability_level3)
+        from .capability_level3 import study_level3_options
+
+        try:
+            study_level3_options(tab)
+        except (CapabilityError, TypeError, ValueError) as exc:
+            raise StudyError(f"capability.{exc}", source=source) from None
+    else:
+        bad = sorted(set(tab) - set(STUDY_OPTIONS))
+        if bad:
+            raise StudyError(f"capability.{bad[0]}: unknown option; allowed: {', '.join(STUDY_OPTIONS)} "
+                             "(level = 3: more)", source=source)
+        try:
+            CapabilityOptions(**dict(tab))
+        except (CapabilityError, TypeError, ValueError) as exc:
+            raise StudyError(f"capability: {exc}", source=source) from None
     if "sea_state" in tab:   # the envelopes are of the study's scenario: one of its sea states
         ids = [ss.id for ss in load_scenario(_resolve_scenario(data["study"]["scenario"], Path(base_dir))).sea_states]
         if tab["sea_state"] not in ids:
