@@ -168,6 +168,35 @@ def test_miner_damage_of_a_sinusoid():
     assert v.miner_damage(series, w.a_D, w.m, aw) == pytest.approx(N * (2 * A / aw / 1e6) ** w.m / w.a_D, rel=1e-9)
 
 
+def test_polyester_damage_is_the_tension_ratio_curve():
+    """DNV-OS-E301's polyester curve n_c = 0.259 R^-13.46 in the ratio R = range / MBS: a sinusoid
+    of range 2A on a rope of strength MBS does N (2A / MBS)^13.46 / 0.259; its 'area' is MBS / 1 MPa,
+    so the stress-range formula of the other curves gives the same; the area needs the MBS."""
+    c = v.TN_CURVES["polyester_rope"]
+    assert (c.m, c.a_D) == (13.46, 0.259)
+    N, A, T0, per, MBS = 40, 1.5e6, 4.0e6, 32, 1.5e7
+    t = np.arange(N * per + 1) / per
+    series = T0 - A * np.cos(2 * np.pi * t)
+    area = v.nominal_area("polyester_rope", MBS=MBS)
+    assert area == pytest.approx(15.0, rel=1e-15)
+    assert v.miner_damage(series, c.a_D, c.m, area) == pytest.approx(N * (2 * A / MBS) ** 13.46 / 0.259, rel=1e-9)
+    with pytest.raises(v.VerificationError, match="range / MBS; give MBS"):
+        v.nominal_area("polyester_rope", 0.24)
+
+
+def test_a_polyester_line_type_takes_its_curve_and_strength():
+    import tapm_opt
+    from tapm_opt.studies.verification_study import line_type_curves, verification_settings
+
+    sc = tapm_opt.load_scenario("fpso_deep")
+    st = verification_settings({"standard": "DNV-OS-E301", "consequence_class": 1}, sc)
+    cur = line_type_curves(st, sc, ["poly240", "chain137"])
+    poly = cur["poly240"]
+    assert poly.component == "polyester_rope" and (poly.m, poly.a_D) == (13.46, 0.259)
+    assert poly.area == pytest.approx(sc.line_type_by_id("poly240").MBS / 1e6, rel=1e-15)
+    assert cur["chain137"].component == "studless_chain"
+
+
 def test_annual_damage_and_fatigue_life():
     # 3-h records (10800 s): 365.25 * 86400 / 10800 = 2922 records a year.
     # sum p D = 0.7 * 1e-6 + 0.3 * 4e-6 = 1.9e-6  ->  D_year = 2922 * 1.9e-6 = 5.5518e-3

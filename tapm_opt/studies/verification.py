@@ -280,7 +280,9 @@ def utilisation(T_c: float, MBS: float, capacity_factor: float = DNV_CAPACITY_FA
 class TNCurve:
     """A T-N curve ``n_c(s) = a_D s^(-m)``: cycles to failure at the nominal stress range ``s``
     [MPa]. ``bars`` is how many bar cross-sections of diameter ``d`` make the nominal area
-    (2 for a chain link, 1 for a wire rope)."""
+    (2 for a chain link, 1 for a wire rope); 0 for a curve in the tension ratio ``R = range /
+    MBS`` (fibre rope), whose "area" is ``MBS / 1 MPa`` so that ``s = range / area`` is ``R``
+    (:func:`nominal_area`)."""
 
     m: float
     a_D: float
@@ -288,26 +290,37 @@ class TNCurve:
 
 
 #: T-N curves of DNV-OS-E301 as commonly transcribed (project standards notes; edition unchecked;
-#: the wire-rope values from secondary sources, unchecked).
+#: the wire-rope values from secondary sources, unchecked). Polyester rope: ``n_c(R) = 0.259
+#: R^-13.46`` in the ratio R of the tension range to the rope's characteristic strength (MBS), the
+#: curve DNV-OS-E301 gives for polyester (as widely quoted in the fibre-mooring literature;
+#: secondary, unchecked against the standard).
 TN_CURVES: dict[str, TNCurve] = {
     "studlink_chain": TNCurve(m=3.0, a_D=1.2e11, bars=2),
     "studless_chain": TNCurve(m=3.0, a_D=6.0e10, bars=2),
     "six_strand_wire": TNCurve(m=4.0, a_D=3.4e14, bars=1),
     "spiral_strand_wire": TNCurve(m=4.8, a_D=1.7e17, bars=1),
+    "polyester_rope": TNCurve(m=13.46, a_D=0.259, bars=0),
 }
 
 
-def nominal_area(component: str, d: float) -> float:
+def nominal_area(component: str, d: float | None = None, *, MBS: float | None = None) -> float:
     """Nominal cross-section area [m²] used to turn a tension range into a stress range.
 
     Chain (``"studlink_chain"``, ``"studless_chain"``): the two bars of a link, ``2 pi d^2 / 4``
     with ``d`` [m] the bar (nominal chain) diameter. Wire rope (``"six_strand_wire"``,
     ``"spiral_strand_wire"``): ``pi d^2 / 4`` with ``d`` the nominal rope diameter (the project's
     convention; the standard's definition of the wire's nominal area is unchecked).
+    Fibre rope (``"polyester_rope"``, a curve in the tension ratio): ``MBS / 1e6`` with ``MBS`` [N]
+    the rope's strength, the area on which the MBS is 1 MPa, so that the stress range ``range /
+    area`` in MPa is the ratio ``range / MBS`` the curve takes (``d`` unused).
     Source: DNV-OS-E301 as transcribed in the project's standards notes (chain).
     """
     if component not in TN_CURVES:
         raise VerificationError(f"component = {component!r}: expected one of {', '.join(TN_CURVES)}")
+    if TN_CURVES[component].bars == 0:
+        if MBS is None:
+            raise VerificationError(f"component = {component!r}: its T-N curve is in range / MBS; give MBS [N]")
+        return _finite("MBS", MBS, positive=True) / 1e6
     dd = _finite("d", d, positive=True)
     return TN_CURVES[component].bars * math.pi * dd * dd / 4.0
 

@@ -307,6 +307,8 @@ def _default_component(type_id: str) -> str:
         return "studless_chain"
     if "spiral" in s:
         return "spiral_strand_wire"
+    if "polyester" in s or s.startswith("poly"):
+        return "polyester_rope"
     return "six_strand_wire"
 
 
@@ -317,7 +319,8 @@ def line_type_curves(settings: VerificationSettings, scenario: Any,
 
     Defaults for what ``settings.line_types[<id>]`` does not give: ``component`` from the type's
     id — ``studlink`` in it: studlink chain, else ``chain``: studless chain, else ``spiral``:
-    spiral-strand wire, else six-strand wire (the most damaging wire curve); ``nominal_diameter``
+    spiral-strand wire, else ``polyester`` or an id starting ``poly``: polyester rope (its curve in range / MBS, the area
+    ``MBS / 1 MPa``), else six-strand wire (the most damaging wire curve); ``nominal_diameter``
     the type's ``diameter`` divided by :data:`CHAIN_HYDRODYNAMIC_RATIO` for chain (whose
     ``diameter`` is the hydrodynamic one, 1.8 d, in the built-in scenarios), the ``diameter`` itself
     otherwise; ``a_D`` and ``m`` the component's :data:`TN_CURVES`; ``area``
@@ -338,6 +341,8 @@ def line_type_curves(settings: VerificationSettings, scenario: Any,
         d = given.get("nominal_diameter")
         if "area" in given:
             area = float(given["area"])
+        elif curve is not None and curve.bars == 0:   # a curve in range / MBS: the type's strength
+            area = nominal_area(comp, MBS=float(lt.MBS))
         else:
             if d is None:
                 d = float(lt.diameter) / (CHAIN_HYDRODYNAMIC_RATIO if comp.endswith("_chain") else 1.0)
