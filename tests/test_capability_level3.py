@@ -141,6 +141,37 @@ def test_level3_files_and_report_section(aamo4, level3, tmp_path):
     assert "Level 3" in md and "PID" in md and len(figs) == 1
 
 
+def test_level3_after_a_line_loss_holds_no_more_than_intact_and_its_static_bound(aamo4, level3, tmp_path):
+    """``failed_line``: the system after the loss of line 1 from the start (aamo4's 4 lines: 3 left).
+    It holds no more than the intact system in any direction, nor more than Level 1's case
+    ``line 1`` after the failure with the allowance 1; its files carry the line in their name and
+    the report draws the two cases apart."""
+    from tapm_opt.report.capability import study_capability_section, write_level3
+    from tapm_opt.report.document import render_markdown
+
+    res = capability_level3(aamo4, controller="pid", directions_deg=(0.0, 45.0, 90.0), workers=2,
+                            failed_line="1", **FAST)
+    assert res.options.case == "line 1"
+    assert np.all(res.beaufort <= level3.beaufort), (res.beaufort, level3.beaufort)
+    assert np.any(res.beaufort < level3.beaufort)                  # one line of four does matter somewhere
+    bound = res.level1_bound.case("line 1")
+    assert bound.failed == "1" and np.all(res.beaufort <= bound.beaufort)
+    assert res.level1.options.post_failure_only and res.level1.options.condition == "all-single-line"
+    d = res.directions[0].decided or res.directions[0].above
+    assert d is not None
+    write_level3(level3, tmp_path / "capability")
+    paths = write_level3(res, tmp_path / "capability")
+    assert sorted(p.name for p in paths) == ["capability_level3_pid_line1.csv", "capability_level3_pid_line1.json",
+                                             "capability_level3_pid_line1.png"]
+    data = json.loads((tmp_path / "capability" / "capability_level3_pid_line1.json").read_text())
+    assert data["settings"]["failed_line"] == "1"
+    blocks, figs = study_capability_section(tmp_path)
+    md = render_markdown(blocks, "files")
+    assert "after the loss of line 1" in md and len(figs) == 2
+    with pytest.raises(CapabilityError, match="failed_line = '7' is not a line of scenario"):
+        capability_level3(aamo4, controller="pid", directions_deg=(0.0,), failed_line="7", **FAST)
+
+
 def _level3_study(tmp_path, capability_toml: str):
     from tapm_opt.studies.spec import load_study
 
@@ -237,6 +268,7 @@ def test_bad_level3_options_are_typed_errors_naming_the_option(kw, text):
     (("--level", "3", "--condition", "all"), "--condition"), (("--level", "3", "--warmup", "nan"), "--warmup"),
     (("--thruster-diameter", "4"), "--thruster-diameter"), (("--level", "4"), "--level"),
     (("--table", "huge"), "--table"), (("--level", "3", "--heading-tolerance", "0"), "--heading-tolerance"),
+    (("--level", "3", "--failed-line", "9"), "--failed-line"), (("--failed-line", "1"), "--failed-line"),
 ])
 def test_cli_refuses_bad_level3_and_loss_options_naming_them(capsys, tmp_path, args, text):
     out = tmp_path / "cap"

@@ -72,6 +72,9 @@ def _out_dir(ctx: click.Context, param: click.Parameter, value: str | None) -> s
               help="Level 3: FEM segments per line (default each line's own).")
 @click.option("--heading-tolerance", "heading_tolerance", type=float, default=None,
               help="Level 3: largest heading error allowed [deg] (default 5).")
+@click.option("--failed-line", "failed_line", default=None, metavar="ID",
+              help="Level 3: the system after the loss of line ID (plant and controllers without it from the "
+                   "start; compared with Level 1's case 'line ID' after the failure). Default: intact.")
 @click.option("--riser/--no-riser", default=None,
               help="Check the riser's angles (default: Levels 1, 2 yes; Level 3 no: turret offset and line "
                    "tensions only).")
@@ -83,7 +86,8 @@ def capability(scenario_name: str, out_dir: str | None, level: str, heading: str
                condition: str | None, sea_state: str | None, directions: str | None, design_direction: float | None,
                table: str, losses: bool, thruster_diameter: float | None, controller: str | None,
                duration: float | None, warmup: float | None, seeds: int | None, segments: int | None,
-               heading_tolerance: float | None, riser: bool | None, workers: int | None, as_json: bool) -> None:
+               heading_tolerance: float | None, failed_line: str | None, riser: bool | None, workers: int | None,
+               as_json: bool) -> None:
     """Thruster-assisted mooring capability envelopes of SCENARIO, DNV-ST-0111 style.
 
     Levels 1 and 2: for every direction and case (mooring alone; thrusters with the mooring intact;
@@ -96,8 +100,10 @@ def capability(scenario_name: str, out_dir: str | None, level: str, heading: str
 
     Level 3: for every direction the strongest row in which the closed loop with --controller on
     the FEM plant keeps the turret inside the safe circle and every fairlead tension below
-    limits.tension_utilisation x MBS for --duration seconds (after --warmup). Writes
-    OUT/capability_level3_<controller>.csv, .json and .png. Method: docs/capability.md.
+    limits.tension_utilisation x MBS for --duration seconds (after --warmup); with --failed-line,
+    the same after the loss of that line. Writes OUT/capability_level3_<controller>.csv, .json and
+    .png (capability_level3_<controller>_line<ID>.* after a line's loss). Method:
+    docs/capability.md.
     """
     from ._common import load, parse_floats
 
@@ -119,7 +125,7 @@ def capability(scenario_name: str, out_dir: str | None, level: str, heading: str
         raise click.BadParameter("is the diameter of the interaction sectors of --losses: give --losses too",
                                  param_hint="'--thruster-diameter'")
     level3_only = {"--controller": controller, "--duration": duration, "--warmup": warmup, "--seeds": seeds,
-                   "--segments": segments, "--heading-tolerance": heading_tolerance}
+                   "--segments": segments, "--heading-tolerance": heading_tolerance, "--failed-line": failed_line}
     if lv != 3:
         for name, v in level3_only.items():
             if v is not None:
@@ -127,8 +133,11 @@ def capability(scenario_name: str, out_dir: str | None, level: str, heading: str
                                          param_hint=f"'{name}'")
     else:
         if condition not in (None, "intact"):
-            raise click.BadParameter(f"{condition!r}: Level 3 computes the intact case only (give --condition intact "
-                                     "or leave it out)", param_hint="'--condition'")
+            raise click.BadParameter(f"{condition!r}: Level 3 computes one case, intact or after --failed-line ID "
+                                     "(give --condition intact or leave it out)", param_hint="'--condition'")
+        if failed_line is not None and failed_line not in [ln.id for ln in sc.lines]:
+            raise click.BadParameter(f"{failed_line!r} is not a line of scenario {sc.name!r}; lines are "
+                                     f"{[ln.id for ln in sc.lines]}", param_hint="'--failed-line'")
         if duration is not None and not (math.isfinite(duration) and duration > 0):
             raise click.BadParameter(f"{duration!r} must be a positive number of seconds", param_hint="'--duration'")
         if warmup is not None and not (math.isfinite(warmup) and warmup >= 0):
@@ -160,7 +169,7 @@ def capability(scenario_name: str, out_dir: str | None, level: str, heading: str
         _level3(sc, out_dir, as_json, heading=heading, fixed_heading_deg=fixed_heading, sea_state=sea_state,
                 table=table, losses=losses, thruster_diameter=thruster_diameter, controller=controller or "pid",
                 duration=duration, warmup=warmup, seeds=seeds, segments=segments,
-                heading_tolerance=heading_tolerance, riser=bool(riser),
+                heading_tolerance=heading_tolerance, failed_line=failed_line, riser=bool(riser),
                 workers=n_workers, **kw)
         return
     from ..design.capability import CapabilityOptions
@@ -234,10 +243,11 @@ def _level3(sc, out_dir: str | None, as_json: bool, **kw) -> None:
     else:
         level3_files(res)
         paths = []
-    b1 = res.level1.case("intact").beaufort
-    b0 = res.level1_bound.case("intact").beaufort
+    b1 = res.level1.case(opts.case).beaufort
+    b0 = res.level1_bound.case(opts.case).beaufort
     if as_json:
         click.echo(json.dumps({"scenario": res.scenario, "level": 3, "controller": opts.controller,
+                               "case": opts.case,
                                "directions": [{"direction_deg": d.direction_deg, "beaufort": d.beaufort,
                                                "wind_speed": d.wind_speed, "limit_above": d.limit,
                                                "level1_beaufort": int(b1[i]), "level1_bound_beaufort": int(b0[i]),
@@ -245,7 +255,8 @@ def _level3(sc, out_dir: str | None, as_json: bool, **kw) -> None:
                                               for i, d in enumerate(res.directions)],
                                "files": [str(p) for p in paths], "elapsed_s": res.info["elapsed_s"]}, indent=2))
         return
-    click.echo(f"{res.scenario}: capability, Level 3 (time domain), controller {opts.controller}, heading "
+    click.echo(f"{res.scenario}: capability, Level 3 (time domain), controller {opts.controller}, case "
+               f"{opts.case}" + (" (the system after the failure)" if opts.failed_line is not None else "") + ", heading "
                f"{opts.heading}, {len(res.directions)} directions, {res.info['runs']} runs of "
                f"{opts.warmup:g} + {opts.duration:g} s in {res.info['elapsed_s']:.1f} s"
                + (", thrusters with the Level 1 losses" if opts.losses else ""))

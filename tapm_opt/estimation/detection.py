@@ -470,10 +470,11 @@ class TensionResidualDetector:
     ``false_alarm_time`` [s] (default one year: h = 19.75 for fpso's 12 lines at 1 Hz, about 3000
     times the 3 h of a storm). The real residual is not independent (wave groups,
     the LF pose error) nor exactly Gaussian; what protects against that is the reference level
-    ``Delta_i / 2``, below the intact residuals of fpso's calm, normal and storm seas, and the
+    ``Delta_i / 2``, below the intact residuals of fpso's calm and normal seas, and the
     confirmation over ``min_samples`` samples, longer than an intact line's wave-frequency dips
-    below the reference in its extreme sea (up to 5 s) (:attr:`worst_drop` reports how close they
-    came; docs/estimation.md gives the figures). Expected delay of a loss of ``D_i >= Delta_i / 2``:
+    below the reference in its storm (up to 6 s) and extreme sea (up to 10 s) with the hull's heave,
+    roll and pitch at the fairleads (:attr:`worst_drop` reports how deep they went;
+    docs/estimation.md gives the figures). Expected delay of a loss of ``D_i >= Delta_i / 2``:
     about ``h / min(d_i (D_i / s_i - d_i / 2), h / min_samples)`` samples (Basseville & Nikiforov §5.2),
     i.e. ``min_samples`` samples for a break on fpso in any of its sea states.
 

@@ -277,17 +277,30 @@ def _level3_wind(data: dict) -> list:
     return [w if b >= 0 else float("nan") for b, w in zip(data["beaufort"], data["wind_speed"])]
 
 
+def level3_case(data: dict) -> str:
+    """The case of a ``capability_level3_*.json`` dict: ``intact``, or ``line <id>`` after that
+    line's loss (its settings' ``failed_line``)."""
+    fl = data["settings"].get("failed_line")
+    return "intact" if fl is None else f"line {fl}"
+
+
+def _level1_case(ref: dict, case: str) -> dict:
+    return next(c for c in ref["cases"] if c["name"] == case)
+
+
 def level3_figure(datas: Sequence[dict], *, title: str | None = None) -> Figure:
     """The Level 3 capability of one or more controllers (``capability_level3_<controller>.json``
     dicts of one scenario) as the wind speed of the capability row per direction (markers joined
     by lines), with the first one's Level 1 references: without losses, the same limits, the
-    dynamic allowance 1.25 (dashed) and 1 (dotted, the bound)."""
+    dynamic allowance 1.25 (dashed) and 1 (dotted, the bound), of the first one's case
+    (:func:`level3_case`)."""
     first = datas[0]
     table = first["settings"]["table"]
     dirs = first["directions_deg"]
+    case = level3_case(first)
 
     def intact(ref: dict) -> list:
-        return next(c for c in ref["cases"] if c["kind"] == "intact")["wind_speed"]
+        return _level1_case(ref, case)["wind_speed"]
 
     vals = [v for d in datas for v in _level3_wind(d)] + intact(first["level1_bound"])
     vmax = _vmax(table, vals)
@@ -305,7 +318,8 @@ def level3_figure(datas: Sequence[dict], *, title: str | None = None) -> Figure:
                 label=f"Level 3, {ctl.upper()} ({d['settings']['duration_s']:g} s x {d['settings']['seeds']} seed"
                       + ("s" if d["settings"]["seeds"] > 1 else "") + ")")
     st = first["settings"]
-    ax.set_title(title or f"{first['scenario']}: capability in the time domain, heading {st['heading']}", fontsize=9)
+    ax.set_title(title or f"{first['scenario']}: capability in the time domain, heading {st['heading']}"
+                 + ("" if case == "intact" else f", after the loss of {case}"), fontsize=9)
     ax.legend(loc="upper left", bbox_to_anchor=(1.08, 1.02), fontsize=6.5, frameon=False)
     fig.text(0.02, 0.02, "Radius: wind speed [m/s] of the strongest table row held (circles: Beaufort rows), against "
                          "the direction the environment comes from (clockwise from north).", fontsize=6.5)
@@ -338,8 +352,11 @@ def level3_blocks(datas: Sequence[dict], *, fig_prefix: str = "capability_level3
     blocks: list = []
     first = datas[0]
     st = first["settings"]
+    case = level3_case(first)
     blocks.append(Para(
-        f"**Level 3** (time domain, the controller in the loop): per direction the strongest table row in which "
+        f"**Level 3** (time domain, the controller in the loop"
+        + ("" if case == "intact" else f"; the system after the loss of {case}, from the start") +
+        "): per direction the strongest table row in which "
         f"the closed loop on the FEM plant keeps the turret inside the {st['safe_radius_m']:g} m safe circle and "
         f"every fairlead tension below {st['tension_utilisation_used']:g}·MBS"
         + (", the riser within its angles" if st.get("riser_limits_deg") else "")
@@ -348,10 +365,11 @@ def level3_blocks(datas: Sequence[dict], *, fig_prefix: str = "capability_level3
         + f" for {st['duration_s']:g} s after a {st['warmup_s']:g} s warm-up ({st['seeds']} seed"
         + ("s" if st["seeds"] > 1 else "") + " per row; heading " + st["heading"]
         + ("; thrusters with the Level 1 losses" if st.get("losses") else "") + "). Level 1 for comparison: "
-        "without losses, the same limits, dynamic allowance 1.25 (L1) and 1 (L1 bound)."))
+        f"without losses, the same limits, case {case}" + ("" if case == "intact" else " after the failure") +
+        ", dynamic allowance 1.25 (L1) and 1 (L1 bound)."))
     for d in datas:
-        b1 = next(c for c in d["level1"]["cases"] if c["kind"] == "intact")["beaufort"]
-        b0 = next(c for c in d["level1_bound"]["cases"] if c["kind"] == "intact")["beaufort"]
+        b1 = _level1_case(d["level1"], level3_case(d))["beaufort"]
+        b0 = _level1_case(d["level1_bound"], level3_case(d))["beaufort"]
         rows = []
         for i, e in enumerate(d["directions"]):
             dec, ab = e["decided"], e["above"]
@@ -405,8 +423,12 @@ def study_capability_section(study_dir: str | Path, problems: list[str] | None =
             if problems is not None:
                 problems.append(f"capability section: {p.name} not drawn: {exc}")
             more.append(Para(f"**Capability not shown:** {p.name}: {exc}", css="error"))
-    if datas:
-        b3, f3 = level3_blocks(datas)
+    cases: dict[str, list] = {}
+    for data in datas:   # one part per case (intact, after a line's loss), each with its figure
+        cases.setdefault(level3_case(data), []).append(data)
+    for case in sorted(cases, key=lambda c: (c != "intact", c)):
+        b3, f3 = level3_blocks(cases[case], fig_prefix="capability_level3" if case == "intact"
+                               else f"capability_level3_{case.replace(' ', '')}")
         more += b3
         figs += f3
     return [Heading(2, heading, anchor="capability"), *more], figs

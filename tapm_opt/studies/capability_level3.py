@@ -99,17 +99,10 @@ LEVEL3_CSV_COLUMNS = ("direction_deg", "controller", "beaufort", "wind_speed", "
                       "level1_bound_beaufort", "runs")
 
 
-def level3_file_stem(controller: str) -> str:
-    """``capability_level3_<controller>``: the stem of a Level 3 computation's files."""
-    return f"capability_level3_{controller}"
-
-
-#: The keys of a study's ``[capability]`` table with ``level = 3``: :class:`Level3Options`' own
-#: (but ``controller`` and ``workers``) and ``controllers``, the controller kinds run (default
-#: ``["pid"]``; the study's workers run the directions).
-STUDY_OPTIONS = ("level", "controllers", "duration", "warmup", "seeds", "directions_deg", "heading",
-                 "fixed_heading_deg", "sea_state", "table", "losses", "thruster_diameter", "riser",
-                 "heading_tolerance", "tension_utilisation", "segments")
+def level3_file_stem(controller: str, failed_line: str | None = None) -> str:
+    """``capability_level3_<controller>`` (intact) or ``capability_level3_<controller>_line<id>``
+    (after the loss of line ``failed_line``): the stem of a Level 3 computation's files."""
+    return f"capability_level3_{controller}" + ("" if failed_line is None else f"_line{failed_line}")
 
 
 def study_level3_options(table: Mapping[str, Any]) -> list["Level3Options"]:
@@ -125,20 +118,18 @@ def study_level3_options(table: Mapping[str, Any]) -> list["Level3Options"]:
     bad = sorted(set(table) - set(STUDY_OPTIONS))
     if bad:
         raise CapabilityError(f"{bad[0]}: unknown option with level = 3; allowed: {', '.join(STUDY_OPTIONS)}")
+    from .controllers import controller_types
+
     kinds = table.get("controllers", ["pid"])
     if not (isinstance(kinds, (list, tuple)) and kinds and all(isinstance(k, str) for k in kinds)
             and len(set(kinds)) == len(kinds)):
         raise CapabilityError(f"controllers = {kinds!r} must be a non-empty list of distinct controller kinds "
-                              "(pid, lmpc, mpc)")
-    from .controllers import controller_types
-
+                              f"({', '.join(controller_types())})")
     unknown = [k for k in kinds if k not in controller_types()]
     if unknown:
         raise CapabilityError(f"controllers = {list(kinds)!r}: {unknown[0]!r} is not a controller kind "
                               f"({', '.join(controller_types())})")
     rest = {k: v for k, v in table.items() if k not in ("level", "controllers")}
-    if "directions_deg" in rest and isinstance(rest["directions_deg"], list):
-        rest["directions_deg"] = tuple(rest["directions_deg"])
     try:
         return [Level3Options(controller=k, **rest) for k in kinds]
     except TypeError as exc:
@@ -176,6 +167,11 @@ class Level3Options:
         Allowed fairlead tension over MBS (default the scenario's ``limits.tension_utilisation``).
     segments : int, optional
         FEM segments per line (default each line's own).
+    failed_line : str, optional
+        The system after the loss of this line (its id): the plant and the controllers' model
+        without it from the start, the post-failure capability of DNV-ST-0111's single-failure
+        cases (their Level 1 references the case ``line <id>`` with ``post_failure_only``); None
+        (default): intact.
     workers : int
         Processes over the directions (1: in this process).
     """
@@ -195,6 +191,7 @@ class Level3Options:
     heading_tolerance: float = LEVEL3_HEADING_TOLERANCE
     tension_utilisation: float | None = None
     segments: int | None = None
+    failed_line: str | None = None
     workers: int = 1
 
     def __post_init__(self) -> None:
@@ -220,20 +217,33 @@ class Level3Options:
             raise bad("segments", "must be a whole number >= 1")
         if self.heading not in HEADINGS:
             raise bad("heading", f"must be one of {', '.join(HEADINGS)}")
+        if self.failed_line is not None and not (isinstance(self.failed_line, str) and self.failed_line.strip()):
+            raise bad("failed_line", "must be a line id (text) or absent (intact)")
         if self.tension_utilisation is not None and not (
                 isinstance(self.tension_utilisation, (int, float)) and 0.0 < self.tension_utilisation <= 1.0):
             raise bad("tension_utilisation", "must be a number in (0, 1]")
-        # the Level 1 options check the rest (directions, table, angles, sea state name, losses)
+        # the Level 1 options check the rest (directions, table, angles, sea state name, and the
+        # losses' switch and diameter, which the Level 1 references themselves leave out)
         lv1 = self.level1_options()
+        dataclasses.replace(lv1, losses=self.losses, thruster_diameter=self.thruster_diameter)
         object.__setattr__(self, "directions_deg", lv1.directions_deg)
         object.__setattr__(self, "table", lv1.table)
+
+    @property
+    def case(self) -> str:
+        """The Level 1 case compared: ``intact``, or ``line <id>`` after a line's loss."""
+        return "intact" if self.failed_line is None else f"line {self.failed_line}"
 
     def level1_options(self, *, dynamic_allowance: float = DYNAMIC_ALLOWANCE, tension_utilisation: float | None = None,
                        workers: int = 1) -> CapabilityOptions:
         """The Level 1 options of the same environments, heading and limits, without thrust losses,
-        case ``intact`` (``tension_utilisation`` None: this one's, which may itself be None)."""
+        case ``intact``, or with ``failed_line`` every single-line case, the system after the failure
+        alone (``post_failure_only``) (``tension_utilisation`` None: this one's, which may itself be
+        None)."""
         tu = self.tension_utilisation if tension_utilisation is None else tension_utilisation
-        return CapabilityOptions(level=1, heading=self.heading, condition="intact", directions_deg=self.directions_deg,
+        return CapabilityOptions(level=1, heading=self.heading,
+                                 condition="intact" if self.failed_line is None else "all-single-line",
+                                 post_failure_only=self.failed_line is not None, directions_deg=self.directions_deg,
                                  fixed_heading_deg=self.fixed_heading_deg, sea_state=self.sea_state,
                                  table=self.table,
                                  losses=False, riser=self.riser, tension_utilisation=tu,
@@ -246,7 +256,14 @@ class Level3Options:
                 "table_name": table_name(self.table), "table": [dataclasses.asdict(r) for r in self.table],
                 "losses": bool(self.losses), "thruster_diameter": self.thruster_diameter, "riser": bool(self.riser),
                 "heading_tolerance_deg": self.heading_tolerance, "tension_utilisation": self.tension_utilisation,
-                "segments": self.segments}
+                "segments": self.segments, "failed_line": self.failed_line}
+
+
+#: The keys of a study's ``[capability]`` table with ``level = 3``: :class:`Level3Options`' own
+#: fields but ``controller`` and ``workers``, and ``controllers``, the controller kinds run (default
+#: ``["pid"]``; the study's workers run the directions).
+STUDY_OPTIONS = ("level", "controllers",
+                 *(f.name for f in dataclasses.fields(Level3Options) if f.name not in ("controller", "workers")))
 
 
 @dataclass(frozen=True)
@@ -379,8 +396,8 @@ class Level3Result:
     def csv_text(self) -> str:
         """One row per direction (:data:`LEVEL3_CSV_COLUMNS`)."""
         rows = []
-        b1 = self.level1.case("intact").beaufort
-        b0 = self.level1_bound.case("intact").beaufort
+        b1 = self.level1.case(self.options.case).beaufort
+        b0 = self.level1_bound.case(self.options.case).beaufort
         for i, d in enumerate(self.directions):
             s = d.decided
 
@@ -395,7 +412,8 @@ class Level3Result:
 
     def as_json(self) -> dict:
         """``capability_level3_<controller>.json``: settings, limits, every direction's result and
-        the two Level 1 references (their ``intact`` and ``mooring`` envelopes)."""
+        the two Level 1 references (their reported envelopes: ``mooring``, ``intact`` and, after a
+        line's loss, every ``line <id>``; :attr:`Level3Options.case` is the one compared)."""
         def ref(res: CapabilityResult) -> dict:
             return {"dynamic_allowance": res.options.dynamic_allowance,
                     "cases": [c.as_json() for c in res.cases]}
@@ -414,7 +432,7 @@ class Level3Result:
         """``capability_level3_<controller>.csv`` and ``.json``."""
         import json
 
-        stem = level3_file_stem(self.options.controller)
+        stem = level3_file_stem(self.options.controller, self.options.failed_line)
         return {f"{stem}.csv": self.csv_text().encode("utf-8"),
                 f"{stem}.json": (json.dumps(self.as_json(), indent=1, allow_nan=False) + "\n").encode("utf-8")}
 
@@ -446,8 +464,11 @@ class _Runner:
             ss = env.sea_state_from(row.wind_speed, self.direction)
             self.states.append(dataclasses.replace(ss, id=f"capability-{k}-BF{row.number}"))
             self.headings.append(env.heading("intact", math.radians(self.direction), row.wind_speed))
-        # the table's sea states in the scenario, so that the loop's observers find theirs by id
-        self.scenario = dataclasses.replace(sc, sea_states=tuple(self.states) + tuple(sc.sea_states), faults=())
+        # the table's sea states in the scenario, so that the loop's observers find theirs by id; after
+        # a line's loss the system without it (plant and controllers' model)
+        lines = tuple(ln for ln in sc.lines if ln.id != opt.failed_line)
+        self.scenario = dataclasses.replace(sc, sea_states=tuple(self.states) + tuple(sc.sea_states), faults=(),
+                                            lines=lines)
         self.system = System.from_scenario(self.scenario)
         self.R = float(sc.limits.safe_radius)
         self.util_lim = float(sc.limits.tension_utilisation if opt.tension_utilisation is None
@@ -641,6 +662,10 @@ def capability_level3(scenario: Any, options: Level3Options | Mapping[str, Any] 
         raise CapabilityError(f"scenario {scenario.name!r}: limits.safe_radius = None: Level 3 needs the safe circle")
     if not scenario.thrusters:
         raise CapabilityError(f"scenario {scenario.name!r} has no thrusters: Level 3 runs a controller")
+    ids = [ln.id for ln in scenario.lines]
+    if opt.failed_line is not None and opt.failed_line not in ids:
+        raise CapabilityError(f"failed_line = {opt.failed_line!r} is not a line of scenario {scenario.name!r}; "
+                              f"lines are {ids}")
     util = float(scenario.limits.tension_utilisation if opt.tension_utilisation is None else opt.tension_utilisation)
     workers = min(opt.workers, max(1, len(opt.directions_deg)))
     lv1 = capability(scenario, opt.level1_options(tension_utilisation=util, workers=min(2, opt.workers)))
@@ -654,7 +679,7 @@ def capability_level3(scenario: Any, options: Level3Options | Mapping[str, Any] 
     except (ControllerSpecError, TapmError) as exc:
         raise CapabilityError(f"controller = {opt.controller!r}: {exc}") from None
     numbers = [r.number for r in opt.table]
-    starts = [numbers.index(int(b)) if int(b) in numbers else 0 for b in lv1.case("intact").beaufort]
+    starts = [numbers.index(int(b)) if int(b) in numbers else 0 for b in lv1.case(opt.case).beaufort]
     dirs = list(opt.directions_deg)
     out: dict[float, Level3Direction] = {}
 

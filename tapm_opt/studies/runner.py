@@ -214,8 +214,7 @@ def _run_locked(study: Study, out: Path, workers: int | None, client: Any, progr
     write_tables(study, out)
     if study.verification is not None:
         write_study_verification(study, out)
-    if study.capability is not None:
-        write_study_capability(study, out, workers=min(2, workers or os.cpu_count() or 1))
+    write_study_capability(study, out, workers=min(2, workers or os.cpu_count() or 1))   # (or removes old ones)
     return outcomes, todo, skipped
 
 
@@ -242,9 +241,10 @@ def write_study_capability(study: Study, out_dir: str | Path, *, workers: int = 
     (:mod:`tapm_opt.studies.capability_level3`). Each is stamped (``study_capability.json``,
     ``study_capability_level3_<controller>.json``) with its resolved options (the study's, with every
     default of this version filled in, the environment table's rows included), the scenario and the
-    version, and not recomputed while they are the same; the files of an earlier ``[capability]``
-    table that this one no longer asks for are removed. Returns the folder (None when the study
-    asks for none)."""
+    version (for Level 3 also the controller's registry defaults, which it runs), and not
+    recomputed while they are the same; the files of an earlier ``[capability]`` table that this one
+    no longer asks for (or of any, when the study has none) are removed. Returns the folder (None
+    when the study asks for none)."""
     import dataclasses
     import json
 
@@ -253,32 +253,36 @@ def write_study_capability(study: Study, out_dir: str | Path, *, workers: int = 
     from ..design.capability import CapabilityOptions, capability
     from .capability_level3 import capability_level3, level3_file_stem, study_level3_options
 
-    if study.capability is None or study.scenario is None:
-        return None
     from .. import __version__
+    from ..design.registry import kind
 
     d = Path(out_dir) / "capability"
-    tab = study.capability
-    if tab.get("level") == 3:
-        jobs = []
+    tab = study.capability if study.scenario is not None else None
+    jobs = []
+    if tab is not None and tab.get("level") == 3:
         for opt in study_level3_options(tab):
-            stem = level3_file_stem(opt.controller)
-            jobs.append((f"study_{stem}.json", (f"{stem}.csv", f"{stem}.json"), opt.settings(),
+            stem = level3_file_stem(opt.controller, opt.failed_line)
+            # the controller runs at its registry defaults: they are part of what was computed
+            jobs.append((f"study_{stem}.json", (f"{stem}.csv", f"{stem}.json"),
+                         {**opt.settings(), "controller_defaults": kind(opt.controller).defaults()},
                          lambda opt=opt: capability_level3(
                              scenario_from_dict(study.scenario, source=f"study {study.name}"),
                              dataclasses.replace(opt, workers=max(1, workers)))))
-    else:
+    elif tab is not None:
         resolved = CapabilityOptions(**tab)
         jobs = [("study_capability.json", ("capability.csv", "capability.json"),
                  {**resolved.settings(), "table": [dataclasses.asdict(r) for r in resolved.table]},
                  lambda: capability(scenario_from_dict(study.scenario, source=f"study {study.name}"),
-                                    {**tab, "workers": workers}))]
+                                    {**tab, "workers": max(1, workers)}))]
     wanted = {stamp_name for stamp_name, *_ in jobs}
-    for old in sorted(d.glob("study_capability*.json")) if d.is_dir() else []:   # an earlier table's files
+    stamps = ([d / "study_capability.json", *d.glob("study_capability_level3_*.json")] if d.is_dir() else [])
+    for old in sorted(p for p in stamps if p.is_file()):   # an earlier table's files (the study's own, stamped)
         if old.name not in wanted:
             stem = old.name[len("study_"):-len(".json")]
             for f in (d / f"{stem}.csv", d / f"{stem}.json", old):
                 f.unlink(missing_ok=True)
+    if not jobs:
+        return None
     for stamp_name, names, options, compute in jobs:
         stamp = {"options": options, "scenario": study.scenario, "tapm_opt_version": __version__}
         try:

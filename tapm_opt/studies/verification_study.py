@@ -31,6 +31,7 @@ records, groups them and writes the files. Conventions, columns and sources: ``d
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping, Sequence
@@ -307,7 +308,7 @@ def _default_component(type_id: str) -> str:
         return "studless_chain"
     if "spiral" in s:
         return "spiral_strand_wire"
-    if "polyester" in s or s.startswith("poly"):
+    if "polyester" in s or re.match(r"poly\d", s):   # "poly240"; not polypropylene, polyethylene
         return "polyester_rope"
     return "six_strand_wire"
 
@@ -319,7 +320,7 @@ def line_type_curves(settings: VerificationSettings, scenario: Any,
 
     Defaults for what ``settings.line_types[<id>]`` does not give: ``component`` from the type's
     id — ``studlink`` in it: studlink chain, else ``chain``: studless chain, else ``spiral``:
-    spiral-strand wire, else ``polyester`` or an id starting ``poly``: polyester rope (its curve in range / MBS, the area
+    spiral-strand wire, else ``polyester``, or ``poly`` then a digit (``poly240``): polyester rope (its curve in range / MBS, the area
     ``MBS / 1 MPa``), else six-strand wire (the most damaging wire curve); ``nominal_diameter``
     the type's ``diameter`` divided by :data:`CHAIN_HYDRODYNAMIC_RATIO` for chain (whose
     ``diameter`` is the hydrodynamic one, 1.8 d, in the built-in scenarios), the ``diameter`` itself
