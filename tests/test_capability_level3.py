@@ -230,6 +230,11 @@ def test_a_study_asks_for_level3_and_gets_each_controllers_files_once(tmp_path, 
     monkeypatch.setattr(cap_mod, "capability", lambda sc, opt: _Result())
     write_study_capability(_level3_study(tmp_path, 'condition = "intact"\n'), out)
     assert sorted(p.name for p in d.iterdir()) == ["capability.csv", "capability.json", "study_capability.json"]
+    # no [capability] any more: the study's own files go, a file it did not write stays
+    (d / "notes.txt").write_text("mine")
+    none = dataclasses.replace(_level3_study(tmp_path, 'condition = "intact"\n'), capability=None)
+    assert write_study_capability(none, out) is None
+    assert sorted(p.name for p in d.iterdir()) == ["notes.txt"]
 
 
 @pytest.mark.parametrize("table, text", [
@@ -255,6 +260,8 @@ def test_a_bad_level3_study_table_is_refused_naming_the_option(tmp_path, table, 
     ({"heading": "north"}, "heading = 'north'"), ({"directions_deg": (0.0, 360.0)}, "must not repeat"),
     ({"heading_tolerance": 0.0}, "heading_tolerance = 0.0"),
     ({"tension_utilisation": 1.5}, "tension_utilisation = 1.5"), ({"table": "big"}, "table = 'big'"),
+    ({"losses": "no"}, "losses = 'no'"), ({"thruster_diameter": math.nan}, "thruster_diameter = nan"),
+    ({"failed_line": ""}, "failed_line = ''"),
 ])
 def test_bad_level3_options_are_typed_errors_naming_the_option(kw, text):
     with pytest.raises(CapabilityError, match=text) as exc:
