@@ -294,7 +294,7 @@ def test_a_buoy_loss_is_found_isolated_and_the_model_takes_it(upper_model):
 
 
 def test_a_break_is_not_taken_for_a_buoy_loss_and_a_buoy_loss_not_for_a_break(upper_model):
-    """A break of line 3 (its cell reads noise about zero) is a break after the break's 8 samples,
+    """A break of line 3 (its cell reads noise about zero) is a break after the break's 16 samples,
     and line 3's buoy leaves the test; a buoy loss (tension up) never raises line 3's break test."""
     m = upper_model
     rng = np.random.default_rng(6)
@@ -304,7 +304,7 @@ def test_a_break_is_not_taken_for_a_buoy_loss_and_a_buoy_loss_not_for_a_break(up
     rows[100:, 2] = 35e3 * rng.standard_normal(100)
     _feed(det, rows)
     assert det.broken == frozenset({"3"}) and det.lost_points == frozenset()
-    assert [e["event"] for e in det.events] == ["line break detected"] and det.events[0]["t"] == 107.0
+    assert [e["event"] for e in det.events] == ["line break detected"] and det.events[0]["t"] == 115.0
     assert ("3", 1) not in [h for h in det._hyp]
     assert det.buoy_statistics[("3", 1)]["peak"] < det.threshold
     det.reset()

@@ -298,7 +298,7 @@ def test_budget_follows_the_setpoint(system, storm_load):
 def test_in_the_storm_the_mpc_tightens_after_a_lee_break_not_a_weather_one(line, radius):
     """Closed loop with the study defaults (the EKF, the tension test, heading chasing, the linear
     MPC's 30 m dead band and 22.5 m once a break is known, budgeted; fpso, design storm, 10
-    segments): a break at 400 s is reported 8 s later and the MPC's next solve (at 410 s) switches to
+    segments): a break at 400 s is reported 16 s later and the MPC's next solve (at 420 s) switches to
     the damaged dead band — 22.5 m for the lee line 9, 30 m for the weather line 4 — from the mean
     load so far (the running mean before 300 s of estimates have passed), and the KPI counts the
     switch."""
@@ -312,7 +312,7 @@ def test_in_the_storm_the_mpc_tightens_after_a_lee_break_not_a_weather_one(line,
     plant = Plant(sc, sea_state="storm", seed=1, segments=10, faults=[Fault(kind="line_break", line=line, time=400.0)])
     r = run_closed_loop(plant, build_controller(sysm, {"type": "lmpc"}),
                         ClosedLoopSettings(duration=430.0, heading="chasing"), system=sysm)
-    assert [(e["t"], e["line"]) for e in r.meta["estimator_log"]] == [(408.0, line)]
-    assert r.meta["controller_log"] == [{"t": 410.0, "event": "mode switch", "from": "intact", "to": "damaged",
+    assert [(e["t"], e["line"]) for e in r.meta["estimator_log"]] == [(416.0, line)]
+    assert r.meta["controller_log"] == [{"t": 420.0, "event": "mode switch", "from": "intact", "to": "damaged",
                                          "radius": radius, "broken": [line]}]
     assert case_kpis(r, sc)["mode_switches"] == 1
