@@ -317,6 +317,7 @@ def test_compiled_and_numpy_plants_agree_with_a_table(fpso, shaped_file, spread)
         p.compiled, p._multi_step = compiled, multi
         runs.append((p, run_open_loop(p, 20.0, thruster_cmd=_cmd(len(fpso.thrusters)), dt_log=0.1)))
     (p, r), (_, r_single), (_, r_numpy) = runs
+    assert r.meta["drift_file"] == sc.vessel.wave_motion.drift_file and r.meta["wave_motion"] == "six_dof"
     assert np.array_equal(r.data, r_single.data)   # the same compiled functions, one call or many
     assert_same(r.data, r_numpy.data)
     # the logged drift is the table's at each outer step's start time and heading

@@ -269,6 +269,8 @@ def test_a_users_rao_table_moves_the_hull_as_its_numbers_say(tmp_path, fpso, fps
             assert np.all(np.abs(a - b).max(axis=0) <= 4e-3 * np.abs(b).max(axis=0) + 1e-12)
     runs = [run_open_loop(Plant(s, sea_state="storm", seed=4), 30.0) for s in (sc_t, fpso6)]
     assert runs[0].channels == runs[1].channels
+    assert (runs[0].meta["wave_motion"], runs[0].meta["rao_file"]) == ("table", sc_t.vessel.wave_motion.rao_file)
+    assert (runs[1].meta["wave_motion"], runs[1].meta["rao_file"], runs[1].meta["drift_file"]) == ("six_dof", None, None)
     scale = np.abs(runs[1].data).max(axis=0)
     assert np.all(np.abs(runs[0].data - runs[1].data).max(axis=0) <= 5e-3 * scale + 1e-6)
     # a missing or misnamed file is named in the scenario's own terms

@@ -819,6 +819,8 @@ class Plant:
         from .. import __version__
 
         ss = self.sea_state
+        wm = self.scenario.vessel.wave_motion
+        drift = self.env is not None and self.env.waves.drift_table
         return {
             "scenario": self.scenario.name,
             "sea_state": None if ss is None else ss.id,
@@ -826,7 +828,10 @@ class Plant:
             "fem_dt": self.mooring.dt,
             "outer_dt": self.outer_dt,
             "wave_frequency": self.wave_frequency,
-            "wave_motion": "six_dof" if self.six_dof else "horizontal",
+            # the hull's wave motion as run: the model, the user's RAO and drift tables (None: not used)
+            "wave_motion": wm.model if self.six_dof else "horizontal",
+            "rao_file": wm.rao_file if self.six_dof and wm.model == "table" else None,
+            "drift_file": wm.drift_file if drift else None,
             "settle": {"time": self.settle_info.time, "converged": self.settle_info.converged},
             "break_on_overload": self.break_on_overload,
             "events": [[t, e] for t, e in self.events],
