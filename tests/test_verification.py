@@ -186,7 +186,10 @@ def test_polyester_damage_is_the_tension_ratio_curve():
 
 def test_a_polyester_line_type_takes_its_curve_and_strength():
     import tapm_opt
-    from tapm_opt.studies.verification_study import line_type_curves, verification_settings
+    from tapm_opt.studies.verification_study import (
+        line_type_curves,
+        verification_settings,
+    )
 
     sc = tapm_opt.load_scenario("fpso_deep")
     st = verification_settings({"standard": "DNV-OS-E301", "consequence_class": 1}, sc)

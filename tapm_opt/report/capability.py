@@ -354,7 +354,7 @@ def level3_blocks(datas: Sequence[dict], *, fig_prefix: str = "capability_level3
     st = first["settings"]
     case = level3_case(first)
     blocks.append(Para(
-        f"**Level 3** (time domain, the controller in the loop"
+        "**Level 3** (time domain, the controller in the loop"
         + ("" if case == "intact" else f"; the system after the loss of {case}, from the start") +
         "): per direction the strongest table row in which "
         f"the closed loop on the FEM plant keeps the turret inside the {st['safe_radius_m']:g} m safe circle and "

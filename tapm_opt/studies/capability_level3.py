@@ -74,11 +74,11 @@ __all__ = [
     "LEVEL3_DURATION",
     "LEVEL3_HEADING_TOLERANCE",
     "LEVEL3_WARMUP",
+    "STUDY_OPTIONS",
     "Level3Direction",
     "Level3Options",
     "Level3Result",
     "RunSummary",
-    "STUDY_OPTIONS",
     "capability_level3",
     "level3_file_stem",
     "run_row",
@@ -105,7 +105,7 @@ def level3_file_stem(controller: str, failed_line: str | None = None) -> str:
     return f"capability_level3_{controller}" + ("" if failed_line is None else f"_line{failed_line}")
 
 
-def study_level3_options(table: Mapping[str, Any]) -> list["Level3Options"]:
+def study_level3_options(table: Mapping[str, Any]) -> list[Level3Options]:
     """The :class:`Level3Options` of a study's ``[capability]`` table with ``level = 3``, one per
     kind in its ``controllers`` (default ``["pid"]``), each checked.
 

@@ -23,7 +23,7 @@ from . import executors, store
 from .spec import Study
 from .store import StudyRunError
 
-__all__ = ["StudySummary", "run_study", "write_tables", "write_study_verification"]
+__all__ = ["StudySummary", "run_study", "write_study_verification", "write_tables"]
 
 
 @dataclass(frozen=True)
@@ -248,13 +248,16 @@ def write_study_capability(study: Study, out_dir: str | Path, *, workers: int = 
     import dataclasses
     import json
 
-    from ..config import scenario_from_dict
-    from .._io import atomic_write_bytes
-    from ..design.capability import CapabilityOptions, capability
-    from .capability_level3 import capability_level3, level3_file_stem, study_level3_options
-
     from .. import __version__
+    from .._io import atomic_write_bytes
+    from ..config import scenario_from_dict
+    from ..design.capability import CapabilityOptions, capability
     from ..design.registry import kind
+    from .capability_level3 import (
+        capability_level3,
+        level3_file_stem,
+        study_level3_options,
+    )
 
     d = Path(out_dir) / "capability"
     tab = study.capability if study.scenario is not None else None
