@@ -16,10 +16,11 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import _six_dof
 import numpy as np
 import pytest
 from _bitwise import assert_same
-from _six_dof import horizontal, six_dof
+from _six_dof import six_dof
 
 import tapm_opt
 from tapm_opt.config import WaveMotion, validate
@@ -38,20 +39,11 @@ from tapm_opt.plant.simulator import Plant, run_open_loop
 #: fpso's hull for the closed form (the values of the built-in scenario file)
 HULL = {"block_coefficient": 0.83, "GM_T": 6.0, "roll_period": 15.5, "roll_damping": 0.05}
 
+fpso, fpso6 = _six_dof.fpso, _six_dof.fpso6   # fixtures: fpso horizontal, fpso6 in six degrees of freedom
+
 
 def test_the_built_in_hull_is_the_tests(fpso):
     assert {k: getattr(fpso.vessel.wave_motion, k) for k in HULL} == HULL
-
-
-@pytest.fixture(scope="module")
-def fpso():
-    """fpso with surge, sway and yaw only (the built-in moves in six degrees of freedom)."""
-    return horizontal(tapm_opt.load_scenario("fpso"))
-
-
-@pytest.fixture(scope="module")
-def fpso6(fpso):
-    return six_dof(fpso)
 
 
 @pytest.mark.parametrize("mode", ["locked", "free"])

@@ -118,13 +118,6 @@ def _hull_wf(scenario: Any, sea_state: Any, psi: float, exposure: float, dt: flo
     return out, (env.waves.vertical(t, psi) if env.waves.six_dof else None)
 
 
-def _point_wf(scenario: Any, sea_state: Any, psi: float, exposure: float, dt: float, seed: int,
-              points_B: Any) -> list[np.ndarray]:
-    """Wave-frequency motion (dx, dy) in {E} [m] of body-fixed points (each (2,) in {B}) over
-    ``exposure`` s, each shape (N, 2) (:func:`_hull_wf` without the heave, roll and pitch)."""
-    return _hull_wf(scenario, sea_state, psi, exposure, dt, seed, points_B)[0]
-
-
 def fairlead_wf_motion(prob: SetpointProblem, psi: float, p: Any, vertical: np.ndarray) -> tuple[np.ndarray, ...]:
     """Each modelled fairlead's displacement (x, y, z) in {E} [m], each (N, n_lines), by the hull's
     heave, roll and pitch ``vertical`` (N, 3) at turret offset ``p`` and heading ``psi``
