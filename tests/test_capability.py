@@ -326,6 +326,23 @@ def test_report_section_from_a_study_directory(tmp_path):
     assert not figs and problems and "capability.json" in problems[0]
 
 
+def test_one_lines_condition_is_that_case_of_every_single_line():
+    """``condition = "line <id>"`` computes that line's case alone: the same envelope as the case of
+    ``all-single-line``; an id the scenario does not have is refused by name."""
+    sc = tapm_opt.load_scenario("aamo4")
+    kw = {"directions_deg": [0.0, 90.0], "heading": "fixed"}
+    one = capability(sc, {"condition": "line 2", **kw})
+    every = capability(sc, {"condition": "all-single-line", **kw})
+    assert [c.name for c in one.cases] == ["mooring", "intact", "line 2"]
+    assert np.array_equal(one.case("line 2").beaufort, every.case("line 2").beaufort)
+    assert np.array_equal(one.case("line 2").wind_speed, every.case("line 2").wind_speed)
+    assert one.numbers["D_case"] == "line 2"
+    with pytest.raises(CapabilityError, match="condition = 'line 9': '9' is not a line of scenario 'aamo4'"):
+        capability(sc, {"condition": "line 9", **kw})
+    with pytest.raises(CapabilityError, match="condition = 'lines' must be one of"):
+        CapabilityOptions(condition="lines")
+
+
 def test_a_study_capability_is_recomputed_when_a_default_changes(tmp_path, monkeypatch):
     """The stamp holds the resolved options: a result computed under another default (here the
     standard table, the default before the extended one) or stamped with the study's options only

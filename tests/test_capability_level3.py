@@ -156,7 +156,8 @@ def test_level3_after_a_line_loss_holds_no_more_than_intact_and_its_static_bound
     assert np.any(res.beaufort < level3.beaufort)                  # one line of four does matter somewhere
     bound = res.level1_bound.case("line 1")
     assert bound.failed == "1" and np.all(res.beaufort <= bound.beaufort)
-    assert res.level1.options.post_failure_only and res.level1.options.condition == "all-single-line"
+    assert res.level1.options.post_failure_only and res.level1.options.condition == "line 1"
+    assert [c.name for c in res.level1.cases] == ["mooring", "intact", "line 1"]   # that case alone
     d = res.directions[0].decided or res.directions[0].above
     assert d is not None
     write_level3(level3, tmp_path / "capability")
@@ -244,6 +245,7 @@ def test_a_study_asks_for_level3_and_gets_each_controllers_files_once(tmp_path, 
     ('level = 3\ncondition = "intact"\n', "capability.condition: unknown option with level = 3"),
     ('level = 3\nsea_state = "storm"\n', "capability.sea_state = 'storm' is not a sea state"),
     ('controllers = ["pid"]\n', "capability.controllers: unknown option"),
+    ('condition = "line 9"\n', "capability.condition = 'line 9': '9' is not a line of scenario 'aamo4'"),
 ])
 def test_a_bad_level3_study_table_is_refused_naming_the_option(tmp_path, table, text):
     from tapm_opt.studies.store import StudyError

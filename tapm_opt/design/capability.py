@@ -251,9 +251,10 @@ class CapabilityOptions:
         (Level 2, a stable zero as :func:`~tapm_opt.design.tables.weathervane_heading`);
         ``fixed`` — ``fixed_heading_deg``. Mooring alone always weathervanes (without thrust a
         heading cannot be held).
-    condition : {"all", "intact", "all-single-line", "thruster-failure"}
+    condition : {"all", "intact", "all-single-line", "thruster-failure"} or "line <id>"
         ``intact``: the cases ``mooring`` and ``intact``; ``all-single-line`` adds ``line <id>``
-        for every line; ``thruster-failure`` adds the worst ``thruster <id>``; ``all`` both.
+        for every line; ``thruster-failure`` adds the worst ``thruster <id>``; ``all`` both;
+        ``line <id>`` adds that line's case alone.
     directions_deg : sequence of float
         Environment directions [deg]: where the environment comes FROM, in {E}, clockwise from
         north (DNV-ST-0111 plots; the scenario's "going to" direction minus 180 deg).
@@ -359,8 +360,8 @@ class CapabilityOptions:
             raise bad("level", f"must be one of {', '.join(map(str, LEVELS))}")
         if self.heading not in HEADINGS:
             raise bad("heading", f"must be one of {', '.join(HEADINGS)}")
-        if self.condition not in CONDITIONS:
-            raise bad("condition", f"must be one of {', '.join(CONDITIONS)}")
+        if self.condition not in CONDITIONS and _single_line(self.condition) is None:
+            raise bad("condition", f"must be one of {', '.join(CONDITIONS)} or 'line <id>'")
         try:
             dirs = tuple(float(d) for d in self.directions_deg)
         except (TypeError, ValueError):
@@ -1210,12 +1211,30 @@ def _worker_case(spec: tuple[str, str | None], ceiling: tuple | None) -> CaseEnv
     return _WORKER["engine"].envelope(*spec, ceiling=ceiling)
 
 
+def _single_line(condition: Any) -> str | None:
+    """The line id of a condition ``"line <id>"``, else None."""
+    if isinstance(condition, str) and condition.startswith("line ") and condition[5:].strip():
+        return condition[5:].strip()
+    return None
+
+
 def case_names(scenario: Any, condition: str) -> list[tuple[str, str | None]]:
     """The cases ``(kind, failed id)`` of a condition: mooring and intact, then every line
-    (``all-single-line``, ``all``), then every thruster (``thruster-failure``, ``all``)."""
-    if condition not in CONDITIONS:
-        raise CapabilityError(f"condition = {condition!r} must be one of {', '.join(CONDITIONS)}")
+    (``all-single-line``, ``all``) or the one line of ``line <id>``, then every thruster
+    (``thruster-failure``, ``all``)."""
+    one = _single_line(condition)
+    if condition not in CONDITIONS and one is None:
+        raise CapabilityError(f"condition = {condition!r} must be one of {', '.join(CONDITIONS)} or 'line <id>'")
     out: list[tuple[str, str | None]] = [("mooring", None), ("intact", None)]
+    if one is not None:
+        ids = [ln.id for ln in scenario.lines]
+        if one not in ids:
+            raise CapabilityError(f"condition = {condition!r}: {one!r} is not a line of scenario {scenario.name!r}; "
+                                  f"lines are {ids}")
+        if len(ids) < 2:
+            raise CapabilityError(f"condition = {condition!r}: scenario {scenario.name!r} has 1 line; a line "
+                                  "broken leaves no mooring")
+        return out + [("line", one)]
     if condition in ("all", "all-single-line"):
         if len(scenario.lines) < 2:
             raise CapabilityError(f"condition = {condition!r}: scenario {scenario.name!r} has "

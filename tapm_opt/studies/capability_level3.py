@@ -64,6 +64,7 @@ from ..design.capability import (
     CapabilityOptions,
     CapabilityResult,
     capability,
+    case_names,
     table_name,
 )
 from ..errors import TapmError
@@ -231,18 +232,18 @@ class Level3Options:
 
     @property
     def case(self) -> str:
-        """The Level 1 case compared: ``intact``, or ``line <id>`` after a line's loss."""
+        """The Level 1 case compared (and its condition): ``intact``, or ``line <id>`` after a
+        line's loss."""
         return "intact" if self.failed_line is None else f"line {self.failed_line}"
 
     def level1_options(self, *, dynamic_allowance: float = DYNAMIC_ALLOWANCE, tension_utilisation: float | None = None,
                        workers: int = 1) -> CapabilityOptions:
         """The Level 1 options of the same environments, heading and limits, without thrust losses,
-        case ``intact``, or with ``failed_line`` every single-line case, the system after the failure
-        alone (``post_failure_only``) (``tension_utilisation`` None: this one's, which may itself be
-        None)."""
+        condition :attr:`case` (``intact``, or with ``failed_line`` that line's case, the system after
+        the failure alone: ``post_failure_only``) (``tension_utilisation`` None: this one's, which
+        may itself be None)."""
         tu = self.tension_utilisation if tension_utilisation is None else tension_utilisation
-        return CapabilityOptions(level=1, heading=self.heading,
-                                 condition="intact" if self.failed_line is None else "all-single-line",
+        return CapabilityOptions(level=1, heading=self.heading, condition=self.case,
                                  post_failure_only=self.failed_line is not None, directions_deg=self.directions_deg,
                                  fixed_heading_deg=self.fixed_heading_deg, sea_state=self.sea_state,
                                  table=self.table,
@@ -413,7 +414,7 @@ class Level3Result:
     def as_json(self) -> dict:
         """``capability_level3_<controller>.json``: settings, limits, every direction's result and
         the two Level 1 references (their reported envelopes: ``mooring``, ``intact`` and, after a
-        line's loss, every ``line <id>``; :attr:`Level3Options.case` is the one compared)."""
+        line's loss, that ``line <id>``; :attr:`Level3Options.case` is the one compared)."""
         def ref(res: CapabilityResult) -> dict:
             return {"dynamic_allowance": res.options.dynamic_allowance,
                     "cases": [c.as_json() for c in res.cases]}
@@ -662,10 +663,12 @@ def capability_level3(scenario: Any, options: Level3Options | Mapping[str, Any] 
         raise CapabilityError(f"scenario {scenario.name!r}: limits.safe_radius = None: Level 3 needs the safe circle")
     if not scenario.thrusters:
         raise CapabilityError(f"scenario {scenario.name!r} has no thrusters: Level 3 runs a controller")
-    ids = [ln.id for ln in scenario.lines]
-    if opt.failed_line is not None and opt.failed_line not in ids:
-        raise CapabilityError(f"failed_line = {opt.failed_line!r} is not a line of scenario {scenario.name!r}; "
-                              f"lines are {ids}")
+    if opt.failed_line is not None:   # the Level 1 case's own check of the line, named as this option
+        try:
+            case_names(scenario, opt.case)
+        except CapabilityError as exc:
+            raise CapabilityError(str(exc).replace(f"condition = {opt.case!r}: {opt.failed_line!r}",
+                                                   f"failed_line = {opt.failed_line!r}")) from None
     util = float(scenario.limits.tension_utilisation if opt.tension_utilisation is None else opt.tension_utilisation)
     workers = min(opt.workers, max(1, len(opt.directions_deg)))
     lv1 = capability(scenario, opt.level1_options(tension_utilisation=util, workers=min(2, opt.workers)))

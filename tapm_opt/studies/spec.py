@@ -836,7 +836,7 @@ def _capability_table(data: Mapping[str, Any], base_dir: str | Path, source: str
     """The ``[capability]`` table, its options checked by building them (None without one)."""
     if "capability" not in data:
         return None
-    from ..design.capability import STUDY_OPTIONS, CapabilityError, CapabilityOptions
+    from ..design.capability import CONDITIONS, STUDY_OPTIONS, CapabilityError, CapabilityOptions, case_names
 
     tab = data["capability"]
     if not isinstance(tab, Mapping):
@@ -858,11 +858,18 @@ def _capability_table(data: Mapping[str, Any], base_dir: str | Path, source: str
             CapabilityOptions(**dict(tab))
         except (CapabilityError, TypeError, ValueError) as exc:
             raise StudyError(f"capability: {exc}", source=source) from None
-    if "sea_state" in tab:   # the envelopes are of the study's scenario: one of its sea states
-        ids = [ss.id for ss in load_scenario(_resolve_scenario(data["study"]["scenario"], Path(base_dir))).sea_states]
-        if tab["sea_state"] not in ids:
+    one_line = tab.get("condition", "all") not in CONDITIONS and tab.get("level") != 3
+    if "sea_state" in tab or one_line:   # the envelopes are of the study's scenario: its sea states, its lines
+        sc = load_scenario(_resolve_scenario(data["study"]["scenario"], Path(base_dir)))
+        ids = [ss.id for ss in sc.sea_states]
+        if "sea_state" in tab and tab["sea_state"] not in ids:
             raise StudyError(f"capability.sea_state = {tab['sea_state']!r} is not a sea state of the scenario "
                              f"({', '.join(ids)})", source=source)
+        if one_line:   # condition = "line <id>": a line of the scenario
+            try:
+                case_names(sc, tab["condition"])
+            except CapabilityError as exc:
+                raise StudyError(f"capability.{exc}", source=source) from None
     return dict(tab)
 
 
