@@ -299,17 +299,17 @@ def level3_figure(datas: Sequence[dict], *, title: str | None = None) -> Figure:
     dirs = first["directions_deg"]
     case = level3_case(first)
 
-    def intact(ref: dict) -> list:
+    def reference(ref: dict) -> list:
         return _level1_case(ref, case)["wind_speed"]
 
-    vals = [v for d in datas for v in _level3_wind(d)] + intact(first["level1_bound"])
+    vals = [v for d in datas for v in _level3_wind(d)] + reference(first["level1_bound"])
     vmax = _vmax(table, vals)
     fig = Figure(figsize=(9.0, 6.4))
     ax = fig.add_axes([0.04, 0.1, 0.56, 0.78], projection="polar")
     _polar(ax, table, vmax)
     for key, ls, mk, label in (("level1", "--", "x", "Level 1, allowance 1.25"),
                                ("level1_bound", ":", "+", "Level 1, allowance 1")):
-        th, v = _closed(dirs, intact(first[key]))
+        th, v = _closed(dirs, reference(first[key]))
         ax.plot(th, v, color="tab:blue", lw=1.6, ls=ls, marker=mk, ms=5, label=label + "\n(no losses, same limits)")
     for d in datas:
         th, v = _closed(d["directions_deg"], _level3_wind(d))

@@ -261,44 +261,42 @@ def write_study_capability(study: Study, out_dir: str | Path, *, workers: int = 
 
     d = Path(out_dir) / "capability"
     tab = study.capability if study.scenario is not None else None
-    jobs = []
+    jobs = []   # (file stem, resolved options, computation): files <stem>.csv, .json, stamp study_<stem>.json
     if tab is not None and tab.get("level") == 3:
         for opt in study_level3_options(tab):
-            stem = level3_file_stem(opt.controller, opt.failed_line)
             # the controller runs at its registry defaults: they are part of what was computed
-            jobs.append((f"study_{stem}.json", (f"{stem}.csv", f"{stem}.json"),
+            jobs.append((level3_file_stem(opt.controller, opt.failed_line),
                          {**opt.settings(), "controller_defaults": kind(opt.controller).defaults()},
                          lambda opt=opt: capability_level3(
                              scenario_from_dict(study.scenario, source=f"study {study.name}"),
                              dataclasses.replace(opt, workers=max(1, workers)))))
     elif tab is not None:
         resolved = CapabilityOptions(**tab)
-        jobs = [("study_capability.json", ("capability.csv", "capability.json"),
-                 {**resolved.settings(), "table": [dataclasses.asdict(r) for r in resolved.table]},
+        jobs = [("capability", {**resolved.settings(), "table": [dataclasses.asdict(r) for r in resolved.table]},
                  lambda: capability(scenario_from_dict(study.scenario, source=f"study {study.name}"),
                                     {**tab, "workers": max(1, workers)}))]
-    wanted = {stamp_name for stamp_name, *_ in jobs}
+    wanted = {stem for stem, *_ in jobs}
     stamps = ([d / "study_capability.json", *d.glob("study_capability_level3_*.json")] if d.is_dir() else [])
-    for old in sorted(p for p in stamps if p.is_file()):   # an earlier table's files (the study's own, stamped)
-        if old.name not in wanted:
-            stem = old.name[len("study_"):-len(".json")]
-            for f in (d / f"{stem}.csv", d / f"{stem}.json", old):
+    for stamp_file in sorted(p for p in stamps if p.is_file()):   # an earlier table's files (the study's own)
+        stem = stamp_file.name[len("study_"):-len(".json")]
+        if stem not in wanted:
+            for f in (d / f"{stem}.csv", d / f"{stem}.json", stamp_file):
                 f.unlink(missing_ok=True)
     if not jobs:
         return None
-    for stamp_name, names, options, compute in jobs:
+    for stem, options, compute in jobs:
         stamp = {"options": options, "scenario": study.scenario, "tapm_opt_version": __version__}
         try:
-            old = json.loads((d / stamp_name).read_text())
+            old = json.loads((d / f"study_{stem}.json").read_text())
         except (OSError, ValueError):
             old = None
-        if old == json.loads(json.dumps(stamp)) and all((d / n).is_file() for n in names):
+        if old == json.loads(json.dumps(stamp)) and all((d / f"{stem}.{x}").is_file() for x in ("csv", "json")):
             continue
         res = compute()
         d.mkdir(parents=True, exist_ok=True)
         for name, blob in res.data_files().items():
             atomic_write_bytes(d / name, blob)
-        store.write_json(d / stamp_name, stamp)
+        store.write_json(d / f"study_{stem}.json", stamp)
     return d
 
 
