@@ -135,19 +135,7 @@ def capability(scenario_name: str, out_dir: str | None, level: str, heading: str
         if condition not in (None, "intact"):
             raise click.BadParameter(f"{condition!r}: Level 3 computes one case, intact or after --failed-line ID "
                                      "(give --condition intact or leave it out)", param_hint="'--condition'")
-        if failed_line is not None and failed_line not in [ln.id for ln in sc.lines]:
-            raise click.BadParameter(f"{failed_line!r} is not a line of scenario {sc.name!r}; lines are "
-                                     f"{[ln.id for ln in sc.lines]}", param_hint="'--failed-line'")
-        if duration is not None and not (math.isfinite(duration) and duration > 0):
-            raise click.BadParameter(f"{duration!r} must be a positive number of seconds", param_hint="'--duration'")
-        if warmup is not None and not (math.isfinite(warmup) and warmup >= 0):
-            raise click.BadParameter(f"{warmup!r} must be a number of seconds >= 0", param_hint="'--warmup'")
-        if heading_tolerance is not None and not (math.isfinite(heading_tolerance) and 0 < heading_tolerance <= 180):
-            raise click.BadParameter(f"{heading_tolerance!r} must be an angle in (0, 180] deg",
-                                     param_hint="'--heading-tolerance'")
-        for name, v in (("--seeds", seeds), ("--segments", segments)):
-            if v is not None and v < 1:
-                raise click.BadParameter(f"{v!r} must be a whole number >= 1", param_hint=f"'{name}'")
+        # the Level 3 options themselves are checked by Level3Options and the scenario's lines (_level3)
     dirs = None
     if directions is not None:
         vals = parse_floats(directions, "--directions")
@@ -227,11 +215,21 @@ def capability(scenario_name: str, out_dir: str | None, level: str, heading: str
 def _level3(sc, out_dir: str | None, as_json: bool, **kw) -> None:
     """``--level 3``: :func:`~tapm_opt.studies.capability_level3.capability_level3`, its text or
     JSON summary and its files."""
+    from ..design.capability import CapabilityError
     from ..report.capability import level3_files, write_level3
-    from ..studies.capability_level3 import Level3Options, capability_level3
+    from ..studies.capability_level3 import (
+        Level3Options,
+        capability_level3,
+        check_failed_line,
+    )
 
     given = {k: v for k, v in kw.items() if v is not None}
-    opts = Level3Options(**given)
+    try:   # the options' own checks, each error named as its command-line option
+        opts = Level3Options(**given)
+        check_failed_line(sc, opts)
+    except CapabilityError as exc:
+        field = str(exc).split(" ", 1)[0]
+        raise click.BadParameter(str(exc), param_hint=f"'--{field.replace('_', '-')}'") from None
 
     def progress(line: str) -> None:
         if not as_json:

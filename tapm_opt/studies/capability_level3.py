@@ -81,6 +81,7 @@ __all__ = [
     "Level3Result",
     "RunSummary",
     "capability_level3",
+    "check_failed_line",
     "level3_file_stem",
     "run_row",
     "study_level3_options",
@@ -104,6 +105,19 @@ def level3_file_stem(controller: str, failed_line: str | None = None) -> str:
     """``capability_level3_<controller>`` (intact) or ``capability_level3_<controller>_line<id>``
     (after the loss of line ``failed_line``): the stem of a Level 3 computation's files."""
     return f"capability_level3_{controller}" + ("" if failed_line is None else f"_line{failed_line}")
+
+
+def check_failed_line(scenario: Any, options: Level3Options) -> None:
+    """Refuse ``options.failed_line`` when it is not a line of ``scenario`` (or the scenario's only
+    line): the Level 1 case's own check (:func:`~tapm_opt.design.capability.case_names`), its
+    :class:`CapabilityError` named as this option."""
+    if options.failed_line is None:
+        return
+    try:
+        case_names(scenario, options.case)
+    except CapabilityError as exc:
+        raise CapabilityError(str(exc).replace(f"condition = {options.case!r}: {options.failed_line!r}",
+                                               f"failed_line = {options.failed_line!r}")) from None
 
 
 def study_level3_options(table: Mapping[str, Any]) -> list[Level3Options]:
@@ -163,7 +177,7 @@ class Level3Options:
     riser : bool
         Also check the riser's largest angles (default False: turret offset and line tensions).
     heading_tolerance : float
-        Largest heading error allowed [deg], > 0 (default :data:`LEVEL3_HEADING_TOLERANCE`).
+        Largest heading error allowed [deg], in (0, 180] (default :data:`LEVEL3_HEADING_TOLERANCE`).
     tension_utilisation : float, optional
         Allowed fairlead tension over MBS (default the scenario's ``limits.tension_utilisation``).
     segments : int, optional
@@ -209,6 +223,8 @@ class Level3Options:
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < lo or (
                     strict and v == lo):
                 raise bad(name, f"must be a number {'>' if strict else '>='} {lo:g}")
+        if self.heading_tolerance > 180.0:
+            raise bad("heading_tolerance", "must be an angle of at most 180 deg")
         for name, lo in (("seeds", 1), ("workers", 1)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
@@ -663,12 +679,7 @@ def capability_level3(scenario: Any, options: Level3Options | Mapping[str, Any] 
         raise CapabilityError(f"scenario {scenario.name!r}: limits.safe_radius = None: Level 3 needs the safe circle")
     if not scenario.thrusters:
         raise CapabilityError(f"scenario {scenario.name!r} has no thrusters: Level 3 runs a controller")
-    if opt.failed_line is not None:   # the Level 1 case's own check of the line, named as this option
-        try:
-            case_names(scenario, opt.case)
-        except CapabilityError as exc:
-            raise CapabilityError(str(exc).replace(f"condition = {opt.case!r}: {opt.failed_line!r}",
-                                                   f"failed_line = {opt.failed_line!r}")) from None
+    check_failed_line(scenario, opt)
     util = float(scenario.limits.tension_utilisation if opt.tension_utilisation is None else opt.tension_utilisation)
     workers = min(opt.workers, max(1, len(opt.directions_deg)))
     lv1 = capability(scenario, opt.level1_options(tension_utilisation=util, workers=min(2, opt.workers)))
