@@ -246,6 +246,7 @@ def test_a_study_asks_for_level3_and_gets_each_controllers_files_once(tmp_path, 
     ('level = 3\nsea_state = "storm"\n', "capability.sea_state = 'storm' is not a sea state"),
     ('controllers = ["pid"]\n', "capability.controllers: unknown option"),
     ('condition = "line 9"\n', "capability.condition = 'line 9': '9' is not a line of scenario 'aamo4'"),
+    ('level = 3\nfailed_line = "9"\n', "capability.failed_line = '9' is not a line of scenario 'aamo4'"),
 ])
 def test_a_bad_level3_study_table_is_refused_naming_the_option(tmp_path, table, text):
     from tapm_opt.studies.store import StudyError

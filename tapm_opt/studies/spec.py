@@ -836,17 +836,24 @@ def _capability_table(data: Mapping[str, Any], base_dir: str | Path, source: str
     """The ``[capability]`` table, its options checked by building them (None without one)."""
     if "capability" not in data:
         return None
-    from ..design.capability import CONDITIONS, STUDY_OPTIONS, CapabilityError, CapabilityOptions, case_names
+    from ..design.capability import (
+        CONDITIONS,
+        STUDY_OPTIONS,
+        CapabilityError,
+        CapabilityOptions,
+        case_names,
+    )
 
     tab = data["capability"]
     if not isinstance(tab, Mapping):
         raise StudyError(f"capability must be a table of options ({', '.join(STUDY_OPTIONS)}), got {tab!r}",
                          source=source)
+    lv3 = []
     if tab.get("level") == 3:   # time domain, the controllers in the loop (studies.capability_level3)
-        from .capability_level3 import study_level3_options
+        from .capability_level3 import check_failed_line, study_level3_options
 
         try:
-            study_level3_options(tab)
+            lv3 = study_level3_options(tab)
         except (CapabilityError, TypeError, ValueError) as exc:
             raise StudyError(f"capability.{exc}", source=source) from None
     else:
@@ -859,17 +866,19 @@ def _capability_table(data: Mapping[str, Any], base_dir: str | Path, source: str
         except (CapabilityError, TypeError, ValueError) as exc:
             raise StudyError(f"capability: {exc}", source=source) from None
     one_line = tab.get("condition", "all") not in CONDITIONS and tab.get("level") != 3
-    if "sea_state" in tab or one_line:   # the envelopes are of the study's scenario: its sea states, its lines
+    if "sea_state" in tab or one_line or "failed_line" in tab:   # of the study's scenario: its sea states, lines
         sc = load_scenario(_resolve_scenario(data["study"]["scenario"], Path(base_dir)))
         ids = [ss.id for ss in sc.sea_states]
         if "sea_state" in tab and tab["sea_state"] not in ids:
             raise StudyError(f"capability.sea_state = {tab['sea_state']!r} is not a sea state of the scenario "
                              f"({', '.join(ids)})", source=source)
-        if one_line:   # condition = "line <id>": a line of the scenario
-            try:
+        try:   # condition = "line <id>", failed_line: a line of the scenario
+            if one_line:
                 case_names(sc, tab["condition"])
-            except CapabilityError as exc:
-                raise StudyError(f"capability.{exc}", source=source) from None
+            for opt in lv3[:1]:
+                check_failed_line(sc, opt)
+        except CapabilityError as exc:
+            raise StudyError(f"capability.{exc}", source=source) from None
     return dict(tab)
 
 
