@@ -31,6 +31,12 @@ def configuration_matrix(alpha, x, y):
     x, y : array_like (n,)
         Thruster positions in {B} [m].
     """
+    if type(alpha) is np.ndarray and alpha.ndim == 1:   # the plant's and allocator's per-step call
+        c, s = np.cos(alpha), np.sin(alpha)
+        T = np.empty((3, alpha.shape[0]))
+        T[0], T[1] = c, s
+        T[2] = np.asarray(x, float) * s - np.asarray(y, float) * c
+        return T
     c, s = bk.cos(alpha), bk.sin(alpha)
     if bk.is_symbolic(alpha):
         x, y = ca.DM(np.asarray(x, float)), ca.DM(np.asarray(y, float))
