@@ -141,7 +141,7 @@ def test_the_prediction_moves_the_setpoint_toward_the_damaged_lines_anchors():
     """A line that cycles alone (its measured sigma the largest, its damage the largest): the optimum
     lies toward its anchor (its stiffness, hence its cycles, fall there), and the move is bounded by
     the step limit per update and by the search radius."""
-    system, lay = _layer({"warmup": 0.0, "period": 10.0, "max_rate": 0.5, "K_T": 0.05, "grid": 7})
+    system, lay = _layer({"warmup": 0.0, "period": 20.0, "max_rate": 0.5, "K_T": 0.05, "grid": 5})
     ids = list(lay.monitor.ids)
     j = ids.index("8")
     rng = np.random.default_rng(1)
@@ -208,3 +208,82 @@ setpoint_options = { max_rate = -1 }
     # the unified setpoint's options are not the fatigue layer's
     assert loops["ok"]["setpoint"] == "fatigue" and "setpoint_options" not in loops["ok"]
     assert loops["bad"]["setpoint_options"] == {"max_rate": 0.1}
+
+
+# -- closed loop: the layer against plain chasing, same sea, same seed ----------------------------
+
+class _Recorder:
+    """A setpoint layer that hands on to ``inner`` and keeps the measured tensions it was given."""
+
+    def __init__(self, inner):
+        self.inner, self.tensions = inner, []
+
+    def update(self, t, estimate):
+        self.tensions.append(np.array(estimate.tensions, float))
+        return self.inner.update(t, estimate)
+
+    def reset(self):
+        self.inner.reset()
+        self.tensions = []
+
+
+def test_the_layer_lowers_the_worst_lines_damage_against_chasing_in_the_same_sea():
+    """fpso storm, PID, seed 1, 900 s: chasing leaves the cycles on bundle 2 (line 8 worst, ~3 times
+    the mean); the fatigue-aware layer moves toward bundle 2's anchors and lowers the worst line's
+    damage (plant tension, the fatigue_damage KPIs) and the spread, paying thrust. Its on-line
+    damage is the offline damage of the measured tensions it was handed."""
+    from tapm_opt.models.system import System
+    from tapm_opt.plant.simulator import Plant
+    from tapm_opt.studies import ClosedLoopSettings
+    from tapm_opt.studies.closed_loop import default_setpoint_layer, run_closed_loop
+    from tapm_opt.studies.controllers import build_controller
+    from tapm_opt.studies.kpis import case_kpis
+
+    sc = load_scenario("fpso")
+    system = System.from_scenario(sc)
+    opts = {"K_T": 0.3, "max_rate": 0.2, "warmup": 60.0, "period": 30.0, "grid": 7}
+    out = {}
+    for sp in ("chasing", "fatigue"):
+        st = ClosedLoopSettings(duration=900.0, setpoint=sp, setpoint_options=opts if sp == "fatigue" else None,
+                                heading="chasing")
+        layer = _Recorder(default_setpoint_layer(system, st))
+        ctrl = build_controller(system, {"type": "pid"}, dt_control=st.dt_control, estimator=st.estimator)
+        plant = Plant(system, sea_state="storm", seed=1, segments=6)
+        res = run_closed_loop(plant, ctrl, st, system=system, setpoint_layer=layer)
+        out[sp] = (case_kpis(res, system), layer)
+    kc, kf = out["chasing"][0], out["fatigue"][0]
+    worst = max((k for k in kc if k.startswith("fatigue_damage[")), key=kc.get)
+    assert worst in ("fatigue_damage[7]", "fatigue_damage[8]") and kc["fatigue_damage_spread"] > 2.5
+    assert kf["fatigue_damage_max"] < 0.92 * kc["fatigue_damage_max"]
+    assert kf["fatigue_damage_spread"] < 0.92 * kc["fatigue_damage_spread"]
+    assert kf["thrust_energy"] > kc["thrust_energy"]            # the price
+    # the on-line count of the measured tensions is the offline count of the same record
+    lay = out["fatigue"][1]
+    fl = lay.inner.inner                                            # inside the heading layer
+    assert isinstance(fl, FatigueAwareSetpoint)
+    T = np.array(lay.tensions)
+    curves = fat.line_curves(sc)
+    off = [v.miner_damage(T[:, j], c.a_D, c.m, c.area) for j, c in enumerate(curves.values())]
+    np.testing.assert_allclose(fl.monitor.damage, off, rtol=1e-10)
+    assert fl.log() and fl.target is not None
+
+
+def test_narrow_band_rate_is_the_rayleigh_mean_of_the_sinusoids_damage():
+    """A narrow-band Gaussian tension (many sinusoids within +-3 % of f0, random phases): its
+    rainflow damage over a long record is the narrow-band rate times the duration (within the
+    sampling scatter), and the rate scales as sigma^m."""
+    rng = np.random.default_rng(3)
+    f0, sigma, dur, fs = 0.1, 8.0e4, 40000.0, 4.0
+    t = np.arange(0.0, dur, 1.0 / fs)
+    f = f0 * (1 + rng.uniform(-0.03, 0.03, 60))
+    a = sigma * math.sqrt(2.0 / len(f))
+    x = 3.0e6 + a * np.cos(2 * np.pi * np.outer(t, f) + rng.uniform(0, 2 * np.pi, len(f))).sum(axis=1)
+    c = v.TN_CURVES["studless_chain"]
+    area = v.nominal_area("studless_chain", 0.137)
+    s_meas = float(np.std(x))
+    wd = x - x.mean()
+    nu0 = np.sum((wd[:-1] < 0) & (wd[1:] >= 0)) / dur
+    D = v.miner_damage(x, c.a_D, c.m, area)
+    rate = float(fat.narrow_band_damage_rate(s_meas, nu0, c.a_D, c.m, area))
+    assert D == pytest.approx(rate * dur, rel=0.1)
+    assert float(fat.narrow_band_damage_rate(2 * s_meas, nu0, c.a_D, c.m, area)) == pytest.approx(8 * rate, rel=1e-12)
