@@ -274,8 +274,7 @@ def _sea_state(system: System, sea_state_id: Any) -> Any:
 
 def default_setpoint_layer(system: System, settings: ClosedLoopSettings, sea_state: Any = None) -> Any:
     """The setpoint layer a :class:`ClosedLoopSettings` describes (fixed, chasing, optimal or
-    fatigue-aware, with
-    the heading fixed or chased). ``sea_state`` gives the current the riser model of the optimal
+    fatigue-aware, with the heading fixed or chased). ``sea_state`` gives the current the riser model of the optimal
     setpoints sees (None: still water)."""
     s = settings
     R = system.limits.safe_radius
