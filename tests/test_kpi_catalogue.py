@@ -64,7 +64,7 @@ def test_per_line_kpis_are_pattern_entries():
     assert kpi("T_max").per == "" and kpi("T_max").pattern is None
     assert kpi("delta_min[7]").direction == "maximise" and kpi("dnv_als[2]").unit == "-"
     assert [e.base for e in cat.per_line_kpis()] == ["T_max", "T_mean", "util_max", "delta_min", "delta_frac_below",
-                                                      "delta_min_offline", "dnv_uls", "dnv_als"]
+                                                      "delta_min_offline", "fatigue_damage", "dnv_uls", "dnv_als"]
     with pytest.raises(ValueError, match="not built per line"):
         kpi("T_max").name_for("3")
 

@@ -73,13 +73,17 @@ class ClosedLoopSettings:
     true_state : bool
         Hand the controller the true LF state and the true mean environmental load instead of the
         low-pass estimate.
-    setpoint : {"fixed", "chasing", "quadratic", "reliability", "unified"}
+    setpoint : {"fixed", "chasing", "quadratic", "reliability", "unified", "fatigue"}
         Fixed setpoint ``eta_d``; setpoint chasing (survey eq. 38) with time constant
-        ``chase_time`` projected into ``chase_margin`` times the safe radius; or the optimum of the
+        ``chase_time`` projected into ``chase_margin`` times the safe radius; the optimum of the
         quadratic (eq. 34), reliability (eq. 36) or unified riser + mooring cost ([R] §2.2) of
-        :class:`~tapm_opt.control.setpoint_opt.OptimalSetpoint`, started at ``eta_d``.
+        :class:`~tapm_opt.control.setpoint_opt.OptimalSetpoint`, started at ``eta_d``; or the
+        fatigue-aware chasing (survey §4.2.4) of
+        :class:`~tapm_opt.control.fatigue_setpoint.FatigueAwareSetpoint` (chasing with the same
+        time constant and circle).
     setpoint_options : mapping or None
-        Options of the optimal setpoints (:class:`~tapm_opt.control.setpoint_opt.SetpointOptions`).
+        Options of the optimal setpoints (:class:`~tapm_opt.control.setpoint_opt.SetpointOptions`)
+        or of the fatigue-aware layer (:class:`~tapm_opt.control.fatigue_setpoint.FatigueOptions`).
     eta_d : (3,)
         Fixed setpoint — turret offset x [m], y [m] (the centre of turret relative to its
         field-zero-point position) and heading [rad] — or the heading of the chased setpoint.
@@ -119,7 +123,7 @@ class ClosedLoopSettings:
     controller_period: float | None = None
     dt_log: float = 1.0
     true_state: bool = False
-    setpoint: Literal["fixed", "chasing", "quadratic", "reliability", "unified"] = "fixed"
+    setpoint: Literal["fixed", "chasing", "quadratic", "reliability", "unified", "fatigue"] = "fixed"
     setpoint_options: Mapping[str, Any] | None = None
     heading: Literal["fixed", "chasing"] = "fixed"
     eta_d: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -160,17 +164,22 @@ class ClosedLoopSettings:
         if self.setpoint_options is not None:
             if not isinstance(self.setpoint_options, Mapping):
                 raise ClosedLoopError(f"setpoint_options = {self.setpoint_options!r} must be a table of options")
-            if self.setpoint_options and self.setpoint not in METHODS:
-                raise ClosedLoopError(f"setpoint_options are for the optimal setpoints ({', '.join(METHODS)}), "
-                                      f"not setpoint = {self.setpoint!r}")
-            SetpointOptions.from_mapping(self.setpoint_options)
+            if self.setpoint_options and self.setpoint not in (*METHODS, "fatigue"):
+                raise ClosedLoopError(f"setpoint_options are for the optimal setpoints ({', '.join(METHODS)}) "
+                                      f"and 'fatigue', not setpoint = {self.setpoint!r}")
+            if self.setpoint == "fatigue":
+                from ..control.fatigue_setpoint import FatigueOptions
+
+                FatigueOptions.from_mapping(self.setpoint_options)
+            else:
+                SetpointOptions.from_mapping(self.setpoint_options)
         ratio = self.dt_log / self.dt_control
         if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
             raise ClosedLoopError(f"dt_log = {self.dt_log:g} s must be a whole multiple of dt_control = {self.dt_control:g} s")
 
 
 #: Every ``ClosedLoopSettings.setpoint``.
-SETPOINT_KINDS = ("fixed", "chasing", *METHODS)
+SETPOINT_KINDS = ("fixed", "chasing", *METHODS, "fatigue")
 #: Every ``ClosedLoopSettings.estimator`` and ``.detector``.
 ESTIMATOR_KINDS = ("lowpass", "passive", "ekf")
 DETECTOR_KINDS = ("tension", "drop", "bank", "none")
@@ -264,14 +273,21 @@ def _sea_state(system: System, sea_state_id: Any) -> Any:
 
 
 def default_setpoint_layer(system: System, settings: ClosedLoopSettings, sea_state: Any = None) -> Any:
-    """The setpoint layer a :class:`ClosedLoopSettings` describes (fixed, chasing or optimal, with
-    the heading fixed or chased). ``sea_state`` gives the current the riser model of the optimal
+    """The setpoint layer a :class:`ClosedLoopSettings` describes (fixed, chasing, optimal or
+    fatigue-aware, with the heading fixed or chased). ``sea_state`` gives the current the riser model of the optimal
     setpoints sees (None: still water)."""
     s = settings
     R = system.limits.safe_radius
     if s.setpoint in METHODS:
         layer: Any = optimal_setpoint_layer(system, s.setpoint, sea_state, options=s.setpoint_options,
                                             eta_d=s.eta_d)
+    elif s.setpoint == "fatigue":
+        from ..control.fatigue_setpoint import FatigueAwareSetpoint
+        from ..models.fatigue import line_curves
+
+        layer = FatigueAwareSetpoint(system.lines, line_curves(system.scenario), system.thrusters.max_tau(),
+                                     s.chase_time, None if R is None else s.chase_margin * R, s.eta_d[2],
+                                     p_cot_B=system.p_cot_B, options=s.setpoint_options)
     elif s.setpoint == "chasing":
         layer = SetpointChasing(s.chase_time, None if R is None else s.chase_margin * R, s.eta_d[2],
                                      p_cot_B=system.p_cot_B)

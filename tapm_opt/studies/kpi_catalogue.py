@@ -154,6 +154,11 @@ _ENTRIES: tuple[KpiDef, ...] = (
     _k("delta_frac_below", "-", "minimise", "max over the lines of the fraction of ready time with the causal "
                                             "index below delta_s"),
     _k("delta_min_offline", "-", "maximise", "min over the lines of the offline (whole-record) reliability index"),
+    # fatigue (Miner's damage of the fairlead tension record, docs/fatigue_setpoint.md)
+    _k("fatigue_damage_max", "-", "minimise", "max over the lines of fatigue_damage[<id>]: the worst line's "
+                                              "accumulated damage over the record"),
+    _k("fatigue_damage_spread", "-", "minimise", "fatigue_damage_max over the mean of fatigue_damage[<id>] over the "
+                                                 "lines: 1 when every line takes the same damage"),
     # DNV-OS-E301 line check
     _k("dnv_uls_max", "-", "minimise", "max over the lines of the DNV-OS-E301 ULS utilisation (<= 1 passes)"),
     _k("dnv_uls_pass", "lines", "maximise", "lines whose ULS utilisation is <= 1", kind="count"),
@@ -214,6 +219,8 @@ _ENTRIES: tuple[KpiDef, ...] = (
     _line("delta_frac_below", "-", "minimise", "fraction of the line's ready time with the causal index below "
                                                "delta_s"),
     _line("delta_min_offline", "-", "maximise", "min offline reliability index of the line"),
+    _line("fatigue_damage", "-", "minimise", "Miner's damage of the line's fairlead tension record (rainflow "
+                                             "ranges, its type's T-N curve)"),
     _line("dnv_uls", "-", "minimise", "DNV-OS-E301 ULS utilisation of the line on the intact record"),
     _line("dnv_als", "-", "minimise", "DNV-OS-E301 ALS utilisation of a remaining line after the first break"),
 )

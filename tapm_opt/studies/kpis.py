@@ -31,7 +31,8 @@ from ..estimation.reliability import LP_WINDOW_DEFAULT, SIGMA_WINDOW_DEFAULT, ca
 from ..geometry import ssa, turret_offset
 from ..results import Result
 from ..standards import DNV_CAPACITY_FACTOR, DNV_E301_2008_FACTORS  # noqa: F401  (re-exported)
-from .verification import characteristic_tension, utilisation
+from ..models.fatigue import line_curves
+from .verification import characteristic_tension, miner_damage, utilisation
 from .kpi_catalogue import kpi as _catalogue_kpi
 from .kpi_catalogue import kpi_order, kpi_unit, per_line_kpis
 
@@ -518,6 +519,7 @@ def _compute(result: Result, scenario: Any, *, t_start: float, lp_window: float,
     rel_cols: list[int] = []  # lines with a reliability index (MBS_std > 0, alive after t_start)
     tensions: dict[str, np.ndarray] = {}
     alive_of: dict[str, np.ndarray] = {}
+    curves = line_curves(scenario)
     for j, lid in enumerate(line_ids):
         T = _channel(result, f"T_fairlead[{lid}]", f"the tension KPIs of line {lid}", win)
         mbs, mbs_std = float(mbs_all[j]), float(mbs_std_all[j])
@@ -534,6 +536,9 @@ def _compute(result: Result, scenario: Any, *, t_start: float, lp_window: float,
         per["T_max"][lid] = t_max
         per["T_mean"][lid] = _tmean(ta, Ta)
         per["util_max"][lid] = t_max / mbs
+        if Ta.size >= 2:
+            c = curves[lid]
+            per["fatigue_damage"][lid] = miner_damage(Ta, c.a_D, c.m, c.area)
         peak_intact = peak if breaks.get(lid, math.inf) <= t_b1 + eps else -math.inf
         if intact.any():
             per["dnv_uls"][lid] = _dnv_ratio(t[intact], T[intact], mbs, "ULS", consequence_class,
@@ -565,6 +570,12 @@ def _compute(result: Result, scenario: Any, *, t_start: float, lp_window: float,
         out["delta_frac_below"] = max(per["delta_frac_below"].values())
     if per["delta_min_offline"]:
         out["delta_min_offline"] = min(per["delta_min_offline"].values())
+    dmg = list(per["fatigue_damage"].values())
+    if dmg:
+        out["fatigue_damage_max"] = max(dmg)
+        mean = sum(dmg) / len(dmg)
+        if mean > 0:
+            out["fatigue_damage_spread"] = max(dmg) / mean
     for ls in ("uls", "als"):
         r = per[f"dnv_{ls}"]
         if r:

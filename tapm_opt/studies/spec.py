@@ -307,6 +307,7 @@ def _parse_sea_states(ck: Checker, data: Mapping, out: _Parsed) -> None:
 def _setpoint_fields(ck: Checker, table: Mapping, where: str, default: dict, inherited: str | None = None) -> dict:
     """``setpoint`` and ``setpoint_options`` of a [study] or [[controllers]] table, checked;
     options with a setpoint (its own, else ``inherited``) that takes none are an error."""
+    from ..control.fatigue_setpoint import FatigueOptions, FatigueSetpointError
     from ..control.setpoint_opt import METHODS, SetpointOptError, SetpointOptions
     from .closed_loop import SETPOINT_KINDS
 
@@ -316,14 +317,17 @@ def _setpoint_fields(ck: Checker, table: Mapping, where: str, default: dict, inh
     if "setpoint_options" in table:
         opts = ck.table(table["setpoint_options"], f"{where}.setpoint_options")
         kind = out.get("setpoint", inherited)
-        if opts is not None and kind is not None and kind not in METHODS:
-            ck.err(f"{where}.setpoint_options", f"are options of the optimal setpoints ({', '.join(METHODS)}); "
-                   f"the setpoint here is {kind!r}")
+        if opts is not None and kind is not None and kind not in (*METHODS, "fatigue"):
+            ck.err(f"{where}.setpoint_options", f"are options of the optimal setpoints ({', '.join(METHODS)}) "
+                   f"and of 'fatigue'; the setpoint here is {kind!r}")
         elif opts is not None:
             try:
-                SetpointOptions.from_mapping(opts, where=f"{where}.setpoint_options")
+                if kind == "fatigue":
+                    FatigueOptions.from_mapping(opts, where=f"{where}.setpoint_options")
+                else:
+                    SetpointOptions.from_mapping(opts, where=f"{where}.setpoint_options")
                 out["setpoint_options"] = dict(opts)
-            except SetpointOptError as exc:
+            except (SetpointOptError, FatigueSetpointError) as exc:
                 ck.err("", str(exc))
     return out
 
@@ -375,16 +379,22 @@ def _winch_fields(ck: Checker, table: Mapping, where: str) -> dict:
 def _loop(study: dict, controller: dict) -> dict:
     """The closed-loop settings of one controller's cases: the study's, with the controller's own
     setpoint in place of the study's and its options over the study's (key by key); a controller
-    whose setpoint is fixed or chased takes none of the study's options."""
+    whose setpoint is fixed or chased takes none of the study's options, nor one whose setpoint
+    takes other options (the fatigue-aware layer's against the optimal setpoints')."""
     from ..control.setpoint_opt import METHODS
 
     out = dict(study)
     for key in ("setpoint", "estimator", "detector", "winch", "winch_options"):
         if key in controller:
             out[key] = controller[key]
-    opts = {**(study.get("setpoint_options") or {}), **(controller.get("setpoint_options") or {})}
     out.pop("setpoint_options", None)
-    if opts and out.get("setpoint") in METHODS:
+
+    def family(kind: Any) -> str:   # the optimal setpoints share their options; the fatigue layer has its own
+        return "fatigue" if kind == "fatigue" else "optimal" if kind in METHODS else str(kind)
+
+    inherited = (study.get("setpoint_options") or {}) if family(study.get("setpoint")) == family(out.get("setpoint")) else {}
+    opts = {**inherited, **(controller.get("setpoint_options") or {})}
+    if opts and out.get("setpoint") in (*METHODS, "fatigue"):
         out["setpoint_options"] = opts
     return out
 

@@ -24,13 +24,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
 
 from .._checks import finite
-from ..errors import TapmError
+from ..models.fatigue import (TN_CURVES, TNCurve, VerificationError, finite_series, miner_damage, nominal_area,
+                              rainflow_ranges)
 from ..standards import (DNV_CAPACITY_FACTOR, DNV_CLASS1_COMMON_FACTOR, DNV_E301_2008_FACTORS,
                          DNV_E301_QUASI_STATIC_FACTORS)
 
@@ -55,26 +55,9 @@ __all__ = [
 ]
 
 
-class VerificationError(TapmError, ValueError):
-    """An input of a limit-state statistic is invalid; the message names the argument and value."""
-
-
 # -- helpers -------------------------------------------------------------------------------------
 
-def _finite_array(name: str, x: object, *, min_len: int = 0) -> np.ndarray:
-    try:
-        a = np.asarray(x, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise VerificationError(f"{name}: expected a sequence of numbers, got {x!r}") from exc
-    if a.ndim != 1:
-        raise VerificationError(f"{name}: expected a 1-D sequence, got an array of shape {a.shape}")
-    if a.size < min_len:
-        raise VerificationError(f"{name}: need at least {min_len} values, got {a.size} ({a.tolist()!r})")
-    bad = np.flatnonzero(~np.isfinite(a))
-    if bad.size:
-        i = int(bad[0])
-        raise VerificationError(f"{name}[{i}] = {float(a[i])!r} is not finite")
-    return a
+_finite_array = finite_series
 
 
 def _finite(name: str, x: object, *, positive: bool = False, nonnegative: bool = False) -> float:
@@ -276,90 +259,8 @@ def utilisation(T_c: float, MBS: float, capacity_factor: float = DNV_CAPACITY_FA
 
 # -- fatigue: T-N curves, rainflow, Miner ---------------------------------------------------------
 
-@dataclass(frozen=True)
-class TNCurve:
-    """A T-N curve ``n_c(s) = a_D s^(-m)``: cycles to failure at the nominal stress range ``s``
-    [MPa]. ``bars`` is how many bar cross-sections of diameter ``d`` make the nominal area
-    (2 for a chain link, 1 for a wire rope); 0 for a curve in the tension ratio ``R = range /
-    MBS`` (fibre rope), whose "area" is ``MBS / 1 MPa`` so that ``s = range / area`` is ``R``
-    (:func:`nominal_area`)."""
-
-    m: float
-    a_D: float
-    bars: int
-
-
-#: T-N curves of DNV-OS-E301 as commonly transcribed (project standards notes; edition unchecked;
-#: the wire-rope values from secondary sources, unchecked). Polyester rope: ``n_c(R) = 0.259
-#: R^-13.46`` in the ratio R of the tension range to the rope's characteristic strength (MBS), the
-#: curve DNV-OS-E301 gives for polyester (as widely quoted in the fibre-mooring literature;
-#: secondary, unchecked against the standard).
-TN_CURVES: dict[str, TNCurve] = {
-    "studlink_chain": TNCurve(m=3.0, a_D=1.2e11, bars=2),
-    "studless_chain": TNCurve(m=3.0, a_D=6.0e10, bars=2),
-    "six_strand_wire": TNCurve(m=4.0, a_D=3.4e14, bars=1),
-    "spiral_strand_wire": TNCurve(m=4.8, a_D=1.7e17, bars=1),
-    "polyester_rope": TNCurve(m=13.46, a_D=0.259, bars=0),
-}
-
-
-def nominal_area(component: str, d: float | None = None, *, MBS: float | None = None) -> float:
-    """Nominal cross-section area [m²] used to turn a tension range into a stress range.
-
-    Chain (``"studlink_chain"``, ``"studless_chain"``): the two bars of a link, ``2 pi d^2 / 4``
-    with ``d`` [m] the bar (nominal chain) diameter. Wire rope (``"six_strand_wire"``,
-    ``"spiral_strand_wire"``): ``pi d^2 / 4`` with ``d`` the nominal rope diameter (the project's
-    convention; the standard's definition of the wire's nominal area is unchecked).
-    Fibre rope (``"polyester_rope"``, a curve in the tension ratio): ``MBS / 1e6`` with ``MBS`` [N]
-    the rope's strength, the area on which the MBS is 1 MPa, so that the stress range ``range /
-    area`` in MPa is the ratio ``range / MBS`` the curve takes (``d`` unused).
-    Source: DNV-OS-E301 as transcribed in the project's standards notes (chain).
-    """
-    if component not in TN_CURVES:
-        raise VerificationError(f"component = {component!r}: expected one of {', '.join(TN_CURVES)}")
-    if TN_CURVES[component].bars == 0:
-        if MBS is None:
-            raise VerificationError(f"component = {component!r}: its T-N curve is in range / MBS; give MBS [N]")
-        return _finite("MBS", MBS, positive=True) / 1e6
-    dd = _finite("d", d, positive=True)
-    return TN_CURVES[component].bars * math.pi * dd * dd / 4.0
-
-
-def rainflow_ranges(series: Sequence[float] | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Rainflow-counted ranges of a record (ASTM E1049-85, rainflow counting, section 5.4.4).
-
-    ``series`` [N, or any unit]: the tension record, at least 2 finite samples. Returns
-    ``(ranges, counts)``, ranges ascending in the unit of ``series``, counts in cycles with each
-    half cycle (the residue, and ranges containing the start point) counted as 0.5. Equal ranges
-    are merged; ranges of zero (a constant record) are left out, as they do no damage. Counting
-    is done by the ``rainflow`` package (``rainflow.count_cycles``), which reduces the record to
-    its reversals first.
-    """
-    import rainflow
-
-    x = _finite_array("series", series, min_len=2)
-    pairs = [(r, n) for r, n in rainflow.count_cycles(x) if r > 0]
-    if not pairs:
-        return np.zeros(0), np.zeros(0)
-    r, n = zip(*pairs)
-    return np.asarray(r, dtype=float), np.asarray(n, dtype=float)
-
-
-def miner_damage(series: Sequence[float] | np.ndarray, a_D: float, m: float, area: float) -> float:
-    """Miner's fatigue damage of a tension record (dimensionless).
-
-    ``D = sum_i n_i / n_c(s_i) = sum_i n_i s_i^m / a_D``, with ``(R_i, n_i)`` the rainflow ranges
-    [N] and counts of ``series`` (:func:`rainflow_ranges`), ``s_i = R_i / area / 1e6`` the nominal
-    stress range [MPa], ``area`` [m²] the nominal area (:func:`nominal_area`), and ``a_D``, ``m``
-    the T-N curve (:data:`TN_CURVES`). Source: DNV-OS-E301 fatigue limit state as transcribed in
-    the project's standards notes (unchecked); counting per ASTM E1049.
-    """
-    aD = _finite("a_D", a_D, positive=True)
-    mm = _finite("m", m, positive=True)
-    A = _finite("area", area, positive=True)
-    ranges, counts = rainflow_ranges(series)
-    s = ranges / A / 1e6
-    return float(np.sum(counts * s ** mm) / aD)
+# T-N curves, nominal areas, rainflow counting and Miner's sum: :mod:`tapm_opt.models.fatigue`
+# (one definition, shared with the fatigue-aware setpoint layer), re-exported here.
 
 
 #: Seconds in a year (365.25 days).

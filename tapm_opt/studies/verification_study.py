@@ -31,7 +31,6 @@ records, groups them and writes the files. Conventions, columns and sources: ``d
 from __future__ import annotations
 
 import math
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping, Sequence
@@ -41,6 +40,7 @@ import numpy as np
 from .._checks import fmt as _fmt
 from .._io import atomic_write_text, csv_text
 from ..geometry import turret_offset
+from ..models.fatigue import CHAIN_HYDRODYNAMIC_RATIO, default_component, default_nominal_diameter
 from ..standards import DNV_CAPACITY_FACTOR
 from . import store
 from ._checks import Checker
@@ -76,10 +76,6 @@ MPM_METHODS: tuple[str, ...] = ("mle", "moments")
 #: Components a line type's T-N curve may be taken from: the curves of :data:`TN_CURVES`, or
 #: ``"custom"`` (then ``a_D``, ``m`` and ``area`` are given).
 COMPONENTS: tuple[str, ...] = (*TN_CURVES, "custom")
-#: The hydrodynamic diameter of chain as a multiple of its nominal (bar) diameter, the convention
-#: of the built-in scenarios (OrcaFlex's chain line types: 1.8 d): a chain line type's default
-#: nominal diameter is its ``diameter`` / 1.8.
-CHAIN_HYDRODYNAMIC_RATIO = 1.8
 #: Default design fatigue factor: the lowest of the 5-10 quoted in the project's standards notes
 #: (secondary transcription of DNV-OS-E301, unchecked); set ``design_fatigue_factor``.
 DEFAULT_DESIGN_FATIGUE_FACTOR = 5.0
@@ -300,19 +296,6 @@ class LineTypeCurve:
                 "inferred": list(self.inferred)}
 
 
-def _default_component(type_id: str) -> str:
-    s = type_id.lower()
-    if "studlink" in s or "stud_link" in s:
-        return "studlink_chain"
-    if "chain" in s:
-        return "studless_chain"
-    if "spiral" in s:
-        return "spiral_strand_wire"
-    if "polyester" in s or re.match(r"poly\d", s):   # "poly240"; not polypropylene, polyethylene
-        return "polyester_rope"
-    return "six_strand_wire"
-
-
 def line_type_curves(settings: VerificationSettings, scenario: Any,
                      type_ids: Sequence[str] | None = None) -> dict[str, LineTypeCurve]:
     """The :class:`LineTypeCurve` of each line type (default: the fairlead line type of each line,
@@ -336,7 +319,7 @@ def line_type_curves(settings: VerificationSettings, scenario: Any,
         inferred: list[str] = []
         comp = given.get("component")
         if comp is None:
-            comp = _default_component(tid)
+            comp = default_component(tid)
             inferred.append("component")
         curve = TN_CURVES.get(comp)
         d = given.get("nominal_diameter")
@@ -346,7 +329,7 @@ def line_type_curves(settings: VerificationSettings, scenario: Any,
             area = nominal_area(comp, MBS=float(lt.MBS))
         else:
             if d is None:
-                d = float(lt.diameter) / (CHAIN_HYDRODYNAMIC_RATIO if comp.endswith("_chain") else 1.0)
+                d = default_nominal_diameter(comp, lt.diameter)
                 inferred.append("nominal_diameter")
             area = nominal_area(comp, d)
         out[tid] = LineTypeCurve(
