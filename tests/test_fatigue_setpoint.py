@@ -288,3 +288,21 @@ def test_narrow_band_rate_is_the_rayleigh_mean_of_the_sinusoids_damage():
     rate = float(fat.narrow_band_damage_rate(s_meas, nu0, c.a_D, c.m, area))
     assert D == pytest.approx(rate * dur, rel=0.1)
     assert float(fat.narrow_band_damage_rate(2 * s_meas, nu0, c.a_D, c.m, area)) == pytest.approx(8 * rate, rel=1e-12)
+
+
+def test_simulate_takes_the_fatigue_layer_and_refuses_its_bad_options(tmp_path, capsys):
+    """``tapm simulate --setpoint fatigue``: its options checked as a study's are (the option named,
+    nothing written), and a short run logs the layer."""
+    from tapm_opt.cli import main
+
+    code = main(["simulate", "aamo4", "--duration", "10", "--setpoint", "fatigue", "--setpoint-option", "bogus=1",
+                 "--out", str(tmp_path / "bad")])
+    err = capsys.readouterr().err
+    assert code != 0 and "--setpoint-option" in err and "bogus" in err
+    assert not (tmp_path / "bad").exists()
+    code = main(["simulate", "aamo4", "--duration", "30", "--segments", "4", "--setpoint", "fatigue",
+                 "--setpoint-option", "period=10", "--out", str(tmp_path / "ok")])
+    assert code == 0
+    from tapm_opt.results import Result
+
+    assert Result.load(tmp_path / "ok" / "result.npz").meta["setpoint"] == "fatigue"

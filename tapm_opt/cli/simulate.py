@@ -28,12 +28,13 @@ from ._common import ControllerKindChoice, check_issues, cli, key_values, load, 
 @click.option("--segments", type=click.IntRange(2, 1000), default=None, help="FEM segments per line.")
 @click.option("--dt-control", type=float, default=1.0, show_default=True,
               help="Control/allocation period [s], >= 0.01; the run is logged every control step, at least 1 s apart.")
-@click.option("--setpoint", type=click.Choice(["fixed", "chasing", "quadratic", "reliability", "unified"]),
+@click.option("--setpoint", type=click.Choice(["fixed", "chasing", "quadratic", "reliability", "unified", "fatigue"]),
               default="fixed", show_default=True,
-              help="Fixed setpoint (turret at its field-zero-point position), setpoint chasing (survey eq. 38), or "
-                   "the optimum of the quadratic (eq. 34), reliability-index (eq. 36) or unified riser + mooring cost.")
+              help="Fixed setpoint (turret at its field-zero-point position), setpoint chasing (survey eq. 38), "
+                   "the optimum of the quadratic (eq. 34), reliability-index (eq. 36) or unified riser + mooring "
+                   "cost, or fatigue-aware chasing (survey 4.2.4, docs/fatigue_setpoint.md).")
 @click.option("--setpoint-option", "setpoint_options", multiple=True, metavar="KEY=VALUE",
-              help="Option of the optimal setpoints, e.g. --setpoint-option period=60 (repeatable).")
+              help="Option of the optimal or fatigue-aware setpoints, e.g. --setpoint-option period=60 (repeatable).")
 @click.option("--heading", type=click.Choice(["chasing", "fixed"]), default=None,
               help="Weather-optimal heading (bow into the estimated mean environmental force) or fixed north "
                    "[default: chasing; fixed with --winch tension, whose changing line lengths the estimated "
@@ -102,10 +103,14 @@ def simulate(scenario_name: str, controller: str, duration: float, out_dir: str,
     except ClosedLoopError as exc:
         raise click.BadParameter(str(exc), param_hint="'--winch-option'" if w_opts else "'--winch'") from None
     sp_opts = key_values(setpoint_options, "--setpoint-option")
-    if sp_opts and setpoint not in ("quadratic", "reliability", "unified"):
-        raise click.BadParameter(f"--setpoint-option is for the optimal setpoints (quadratic, reliability, unified), "
-                                 f"not --setpoint {setpoint}")
-    if sp_opts:
+    if sp_opts and setpoint not in ("quadratic", "reliability", "unified", "fatigue"):
+        raise click.BadParameter(f"--setpoint-option is for the optimal setpoints (quadratic, reliability, unified) "
+                                 f"and fatigue-aware chasing, not --setpoint {setpoint}")
+    if sp_opts and setpoint == "fatigue":
+        from ..control.fatigue_setpoint import FatigueOptions
+
+        FatigueOptions.from_mapping(sp_opts, where="--setpoint-option")
+    elif sp_opts:
         from ..control.setpoint_opt import SetpointOptions
 
         SetpointOptions.from_mapping(sp_opts, where="--setpoint-option")
