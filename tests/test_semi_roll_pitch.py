@@ -79,6 +79,22 @@ def test_free_decay_matches_the_damped_oscillator(semi):
     assert x[1] == 0.0   # pitch untouched: uncoupled modes
 
 
+def test_symbolic_and_numeric_roll_pitch_models_agree(semi):
+    """roll_pitch_rhs and roll_pitch_moments over CasADi symbols (for a prediction model) give the
+    numpy values."""
+    import casadi as ca
+
+    rp = System.from_scenario(semi).vessel.roll_pitch
+    x, mom, tt, tw = ca.SX.sym("x", 4), ca.SX.sym("m", 2), ca.SX.sym("tt", 3), ca.SX.sym("tw", 3)
+    f = ca.Function("f", [x, mom, tt, tw], [roll_pitch_rhs(x, mom, rp), roll_pitch_moments(rp, tt, tw)])
+    rng = np.random.default_rng(0)
+    xv, mv, tv, wv = rng.normal(size=4) * 0.01, rng.normal(size=2) * 1e7, rng.normal(size=3) * 1e6, \
+        rng.normal(size=3) * 1e5
+    a, b = (np.asarray(o.full()).ravel() for o in f(xv, mv, tv, wv))
+    assert a == pytest.approx(roll_pitch_rhs(xv, mv, rp), rel=1e-12)
+    assert b == pytest.approx(roll_pitch_moments(rp, tv, wv), rel=1e-12)
+
+
 def test_moment_signs_and_levers(semi):
     rp = System.from_scenario(semi).vessel.roll_pitch
     lt = 23.6 - 4.1
@@ -152,6 +168,24 @@ def test_a_steady_sway_thrust_heels_the_hull_statically(semi):
     assert np.mean(K_lines) > 0                         # the lines oppose it
     assert np.mean(phi) == pytest.approx((K_thr + np.mean(K_lines)) / p.roll_pitch.C[0], rel=0.05)
     assert np.mean(phi) < -0.1
+
+
+def test_compiled_and_numpy_outer_steps_agree_with_roll_and_pitch(semi):
+    """The per-outer-step path with the lines compiled (numba) and in numpy (``Plant.compiled``), in
+    the high sea with the hull rolling and pitching: the same numbers (bit for bit where the
+    machine allows, tests/_bitwise.py)."""
+    rows = []
+    for compiled in (True, False):
+        p = Plant(semi, sea_state="high", seed=4, segments=6)
+        p.compiled = compiled
+        cmd = ThrusterCommand(np.full(p.thrusters.n, 2e5), np.full(p.thrusters.n, 0.7))
+        r = []
+        for _ in range(15):
+            p.step(1.0, cmd)
+            r.append(p.sample_row())
+        rows.append(np.array(r))
+    assert np.abs(rows[0][:, -4:-2]).max() > 1e-3          # it does roll and pitch
+    assert_same(rows[0], rows[1])
 
 
 # -- the MRU -------------------------------------------------------------------------------------
@@ -237,6 +271,13 @@ def _variant(semi, **rp):
 def test_bad_roll_pitch_config_is_refused_naming_the_field(semi, field, value):
     with pytest.raises(ScenarioError, match=rf"vessel\.roll_pitch\.{field}"):
         scenario_from_dict(_variant(semi, **{field: value}))
+
+
+def test_bad_mru_config_is_refused_naming_the_field(semi):
+    d = scenario_to_dict(semi)
+    d["sensors"]["mru_rate"] = 0.0
+    with pytest.raises(ScenarioError, match=r"sensors\.mru_rate"):
+        scenario_from_dict(d)
 
 
 def test_bad_model_and_controller_input_is_refused(semi):

@@ -13,6 +13,11 @@ Conventions (Fossen / survey notation, NED):
 ``vessel_rhs`` is written once over numpy arrays and CasADi symbols; ``vessel_function`` and
 ``moored_function`` compile it into named ``casadi.Function`` objects that MPC uses symbolically
 and the plant and tests call numerically. A control input is ``tau_thr``/``tau_cmd``, never ``u``.
+
+A vessel may also have low-frequency roll and pitch (:class:`RollPitchParams`, the scenario's
+``[vessel.roll_pitch]``, off by default; survey §4.2.3, ``docs/semi.md``): two uncoupled modes
+about the centre of gravity, :func:`roll_pitch_rhs` under the moments of :func:`roll_pitch_moments`
+(thrust, wind, drift) and of the lines (the plant); the surge–sway–yaw model above is unchanged.
 """
 
 from __future__ import annotations

@@ -102,12 +102,15 @@ class Sensors:
         self._t_held[i] = t
         return True
 
-    def sample(self, t: float, eta_total: Any, tensions: Any, riser_angles: Any = None) -> Measurement:
+    def sample(self, t: float, eta_total: Any, tensions: Any, riser_angles: Any = None,
+               attitude: Any = None) -> Measurement:
         """Measurement at time t [s] of the true pose ``eta_total`` (3,) = (x [m], y [m], psi [rad])
         in {E} (LF + WF), the true fairlead tensions (n_lines,) [N] and, for a vessel with a riser,
         the true riser angles (4,) = (top_x, top_y, bottom_x, bottom_y) [rad] in {E} (None: no
-        riser, and ``Measurement.riser_angles`` is None). Times must not decrease."""
-        return Measurement(**self._fields(t, eta_total, tensions, riser_angles))
+        riser, and ``Measurement.riser_angles`` is None), and for a vessel with roll and pitch the
+        true attitude (4,) = (roll [rad], pitch [rad], roll rate [rad/s], pitch rate [rad/s]) the
+        MRU reads (None: no MRU, ``Measurement.attitude`` is None). Times must not decrease."""
+        return Measurement(**self._fields(t, eta_total, tensions, riser_angles, attitude))
 
     def _fields(self, t: float, eta_total: Any, tensions: Any, riser_angles: Any = None, attitude: Any = None) -> dict:
         """The fields of :meth:`sample`'s Measurement (:meth:`Plant.measure` adds the thruster

@@ -12,6 +12,12 @@ Time stepping (multirate, all explicit):
   the fairleads following the *total* motion (LF + wave-frequency), interpolated linearly over the
   outer step.
 
+A vessel with low-frequency roll and pitch (``vessel.roll_pitch``, :attr:`Plant.roll_pitch`;
+``docs/semi.md``) integrates them in the per-outer-step path with the same semi-implicit Euler, from
+the thrust, wind and drift moments at the start of the step and the lines' moments at the end of the
+previous one; they add to the pose's roll and pitch, so the fairleads follow them (the fused
+multi-step path is not used then). Without it the plant is the 3-DOF one, to the bit.
+
 A scenario with a riser also gets its quasi-static end angles
 (:class:`tapm_opt.models.riser.RiserModel`, the affine map of the tensioned beam) at the
 instantaneous hang-off (LF + wave-frequency pose) and the sea state's current, at the end of
