@@ -778,7 +778,8 @@ class Sensors:
                                 "standard deviation.", "deg", default=math.radians(0.02),
                                 check=bounded(0.0, 90.0, "an inclination"))
     mru_rate_std: float = spec("Motion reference unit: roll and pitch rate noise, standard deviation.", "deg/s",
-                               default=math.radians(0.01), check=bounded(0.0, 90.0, "a rate of a quarter turn a second"))
+                               default=math.radians(0.01),
+                               check=bounded(0.0, 90.0, "a rate of a quarter turn a second"))
     mru_rate: float = spec("Motion reference unit update rate.", "Hz", default=10.0, check=positive)
 
 

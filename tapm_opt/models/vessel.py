@@ -37,7 +37,8 @@ from .statics import EquilibriumError, solve_equilibrium
 if TYPE_CHECKING:  # python-control loads on first use (linearise)
     import control
 
-__all__ = ["VesselParams", "RollPitchParams", "roll_pitch_rhs", "roll_pitch_moments", "coriolis", "vessel_rhs", "vessel_function", "moored_function",
+__all__ = ["VesselParams", "RollPitchParams", "roll_pitch_rhs", "roll_pitch_moments", "coriolis", "vessel_rhs",
+           "vessel_function", "moored_function",
            "linearise", "equilibrium", "FORMS", "STATE_NAMES", "INPUT_NAMES"]
 
 #: Model forms: ``"design"`` (eq. 14–15) and ``"rich"`` (eq. 8–11).

@@ -39,8 +39,8 @@ from ..estimation import DEFAULT_ESTIMATOR
 from ..estimation.detection import TensionDropDetector, TensionResidualDetector
 from ..estimation.lowpass import LowPassEstimator, TrueStateEstimator
 from ..estimation.reliability import monitor_for
-from ..interfaces import (AttitudeAware, Controller, ControllerStep, Estimate, Estimator, FaultAware, Logged, Setpoint, SetpointLayer,
-                          ThrusterCommand, ThrusterController, WinchController)
+from ..interfaces import (AttitudeAware, Controller, ControllerStep, Estimate, Estimator, FaultAware, Logged, Setpoint,
+                          SetpointLayer, ThrusterCommand, ThrusterController, WinchController)
 from ..models.system import System
 from ..plant.simulator import Plant
 from ..results import Result, ResultBuilder
