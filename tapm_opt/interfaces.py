@@ -26,7 +26,7 @@ import numpy as np
 from ._io import readonly
 
 __all__ = ["Measurement", "Truth", "Estimate", "Setpoint", "ThrusterCommand", "ControllerStep",
-           "Controller", "ThrusterController", "FaultAware", "Logged", "Estimator", "SetpointLayer",
+           "Controller", "ThrusterController", "FaultAware", "AttitudeAware", "Logged", "Estimator", "SetpointLayer",
            "WinchController"]
 
 
@@ -76,6 +76,12 @@ class Measurement:
         ``t_riser_angles``. None without a riser.
     t_riser_angles : float or None
         Time [s] at which the held riser angles were sampled (None without a riser).
+    attitude : ndarray, shape (4,) or None
+        Motion reference unit of a vessel with low-frequency roll and pitch
+        (``vessel.roll_pitch``): measured (roll [rad], pitch [rad], roll rate [rad/s], pitch rate
+        [rad/s]), held since ``t_attitude``; None without it.
+    t_attitude : float or None
+        Time [s] at which the held attitude was sampled (None without it).
     """
 
     t: float
@@ -92,9 +98,11 @@ class Measurement:
     truth: Truth | None = None
     riser_angles: np.ndarray | None = None
     t_riser_angles: float | None = None
+    attitude: np.ndarray | None = None
+    t_attitude: float | None = None
 
     def __post_init__(self) -> None:
-        for name in ("position", "tensions", "thruster_f", "thruster_alpha", "tau_thr", "riser_angles"):
+        for name in ("position", "tensions", "thruster_f", "thruster_alpha", "tau_thr", "riser_angles", "attitude"):
             v = getattr(self, name)
             if v is not None:
                 object.__setattr__(self, name, readonly(v))
@@ -240,7 +248,8 @@ def _trusted(cls: type, **fields: Any) -> Any:
 
 _DEFAULTS: dict[type, dict[str, Any]] = {
     Measurement: {"thruster_f": None, "thruster_alpha": None, "thruster_failed": None, "tau_thr": None,
-                  "truth": None, "riser_angles": None, "t_riser_angles": None},
+                  "truth": None, "riser_angles": None, "t_riser_angles": None, "attitude": None,
+                  "t_attitude": None},
     Estimate: {"tensions": None, "riser_angles": None, "broken_lines": frozenset(), "reliability": None,
                "eta_wf": None, "lost_points": frozenset()},
     Setpoint: {},
@@ -291,6 +300,15 @@ class FaultAware(Protocol):
     """A component that is told which thrusters the feedback reports as failed."""
 
     def set_failed_thrusters(self, failed: frozenset[str]) -> None:
+        ...
+
+
+@runtime_checkable
+class AttitudeAware(Protocol):
+    """A component that reads the motion reference unit of a vessel with low-frequency roll and
+    pitch (:attr:`Measurement.attitude`), e.g. the PID's roll–pitch damping mode."""
+
+    def set_attitude(self, t: float, attitude: np.ndarray) -> None:
         ...
 
 

@@ -34,7 +34,7 @@ from tapm_opt.errors import ScenarioError, ScenarioIssue
 from tapm_opt.models.mooring import MooringModel
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "scenarios.md"
-EXPECTED_BUILTINS = {"aamo4", "fang12", "fpso", "fpso_deep", "fpso_equivalent", "ren8"}
+EXPECTED_BUILTINS = {"aamo4", "fang12", "fpso", "fpso_deep", "fpso_equivalent", "ren8", "semi"}
 
 
 # ------------------------------------------------------------------------------------------
@@ -775,7 +775,8 @@ def test_field_reference_covers_every_field_with_unit_default_and_range():
     top = {key for key, _, _ in SECTIONS if "." not in key}
     assert top == {file_key(f) for f in dataclasses.fields(schema.Scenario)}
     # and the tables within them
-    assert {key for key, _, _ in SECTIONS if "." in key} == {"vessel.wave_motion", "lines.sections", "sea_states.development"}
+    assert {key for key, _, _ in SECTIONS if "." in key} == {"vessel.wave_motion", "vessel.roll_pitch", "lines.sections",
+                                                              "sea_states.development"}
     tables = md.split("\n### ")
     for key, toml_name, cls in SECTIONS:
         table = next(t for t in tables if t.startswith(f"`{toml_name}`"))

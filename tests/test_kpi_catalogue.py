@@ -186,7 +186,7 @@ def _full_result() -> Result:
         cols[f"P[{th.id}]"] = np.full(n, 1e5)
     cols.update({"riser_top_angle": np.radians(2 + 0.5 * c), "riser_bottom_angle": np.radians(1 + 0.3 * c),
                  "tau_cmd[X]": np.full(n, 1e6), "tau_cmd[Y]": np.zeros(n), "tau_thr[X]": np.full(n, 2e5),
-                 "tau_thr[Y]": np.zeros(n)})
+                 "tau_thr[Y]": np.zeros(n), "roll": np.radians(1 + 0.5 * c), "pitch": np.radians(-0.3 * c)})
     meta = {"events": [[800.0, "line 1 broke"], [1200.0, "line 3 lost its buoy at joint 0"]],
             "estimator_log": [{"t": 300.0, "line": "5", "event": "line break detected"},
                               {"t": 808.0, "line": "1", "event": "line break detected"},
@@ -208,6 +208,10 @@ def test_the_catalogue_holds_what_the_kpi_functions_write_and_nothing_else():
     assert [n for n in KPIS if n not in covered] == []
     assert written["false_alarms"] == 1 and written["mode_switches"] == 1 and written["detection_delay"] == 8.0
     assert written["buoys_lost"] == 1 and written["buoy_loss_detection_delay"] == 40.0
+    assert written["roll_max_deg"] == pytest.approx(1.5) and written["pitch_max_deg"] == pytest.approx(0.3)
+    c = np.cos(2 * np.pi * res.time / 10.0)
+    assert written["roll_std_deg"] == pytest.approx(0.5 * np.std(c))
+    assert written["pitch_std_deg"] == pytest.approx(0.3 * np.std(c))
     assert written["buoy_loss_isolated"] == 1.0 and written["buoy_loss_detected_at"] == 1240.0
 
 

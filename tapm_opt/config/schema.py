@@ -227,6 +227,39 @@ class WaveMotion:
 
 
 @dataclass(frozen=True, kw_only=True)
+class RollPitch:
+    """Low-frequency roll and pitch of the hull (survey §4.2.3; ``docs/semi.md``): two uncoupled
+    second-order modes about the centre of gravity, ``(I + A) phi_dd + B phi_d + rho g nabla GM phi =
+    K``, driven by the thrusters, the mooring lines and the wind through their vertical lever arms.
+    Absent: the vessel is 3-DOF (surge, sway, yaw) as before. For hulls whose roll and pitch periods
+    lie within the positioning controller's bandwidth (semi-submersibles)."""
+
+    displacement: float = spec("Displaced volume nabla.", "m^3", check=positive)
+    GM_T: float = spec("Transverse metacentric height (C44 = rho g nabla GM_T).", "m",
+                       check=positive_at_most(50.0, "floating units have GM of 0.3-10 m"))
+    GM_L: float = spec("Longitudinal metacentric height (C55 = rho g nabla GM_L).", "m",
+                       check=positive_at_most(500.0, "ships have GM_L of up to a few hundred m"))
+    roll_gyration: float = spec("Roll radius of gyration r_44 about the centre of gravity (I44 = rho nabla r_44^2).",
+                                "m", check=positive_at_most(200.0, "a radius of gyration beyond the largest hull"))
+    pitch_gyration: float = spec("Pitch radius of gyration r_55 about the centre of gravity.", "m",
+                                 check=positive_at_most(500.0, "a radius of gyration beyond the longest hull"))
+    roll_added_inertia: float = spec("Low-frequency roll added inertia A44 about the centre of gravity.", "kg m^2",
+                                     check=nonneg)
+    pitch_added_inertia: float = spec("Low-frequency pitch added inertia A55 about the centre of gravity.", "kg m^2",
+                                      check=nonneg)
+    roll_damping: float = spec("Linear roll damping as a fraction of critical, zeta_4.",
+                               check=bounded(0.0, 0.99, "below critical"))
+    pitch_damping: float = spec("Linear pitch damping as a fraction of critical, zeta_5.",
+                                check=bounded(0.0, 0.99, "below critical"))
+    cg_depth: float = spec("Depth of the centre of gravity below the mean water line (negative: above it).", "m",
+                           check=bounded(-100.0, 250.0, "a centre of gravity beyond the hull"))
+    thruster_depth: float = spec("Depth below the mean water line at which the thrusters' horizontal thrust acts "
+                                 "(all thrusters).", "m", check=bounded(0.0, 250.0, "below the deepest hull"))
+    wind_height: float = spec("Height of the wind load's centre above the mean water line.", "m",
+                              check=bounded(0.0, 300.0, "above the tallest derrick"))
+
+
+@dataclass(frozen=True, kw_only=True)
 class Vessel:
     """Hull and low-frequency hydrodynamics in 3 DOF (surge, sway, yaw) about the body origin CO."""
 
@@ -265,6 +298,8 @@ class Vessel:
         shape=(3,),
     )
     wave_motion: WaveMotion = spec("Wave-frequency motion of the hull at the fairleads.", default=WaveMotion())
+    roll_pitch: RollPitch | None = spec(
+        "Low-frequency roll and pitch (docs/semi.md); absent: surge, sway and yaw only.", default=None)
 
     @cached_property
     def M(self) -> np.ndarray:
@@ -739,6 +774,13 @@ class Sensors:
                                   "deviation per component.", "deg", default=math.radians(0.05),
                                   check=bounded(0.0, 90.0, "an angle from the vertical"))
     riser_angle_rate: float = spec("Riser-angle update rate.", "Hz", default=1.0, check=positive)
+    mru_angle_std: float = spec("Motion reference unit (vessels with vessel.roll_pitch): roll and pitch noise, "
+                                "standard deviation.", "deg", default=math.radians(0.02),
+                                check=bounded(0.0, 90.0, "an inclination"))
+    mru_rate_std: float = spec("Motion reference unit: roll and pitch rate noise, standard deviation.", "deg/s",
+                               default=math.radians(0.01),
+                               check=bounded(0.0, 90.0, "a rate of a quarter turn a second"))
+    mru_rate: float = spec("Motion reference unit update rate.", "Hz", default=10.0, check=positive)
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -12,7 +12,16 @@ and H_xy = diag(1, 1, 0) (xi_dot = eta - eta_d, heading error wrapped with ``ssa
     3. surge-sway restoring -H_xy K_p R^T (eta - eta_d)
     4. surge-sway mean      -H_xy K_i R^T xi
 
-The enabled modes are summed; :data:`MODE_SETS` holds the combinations of [S] Table 3. The
+The enabled modes are summed; :data:`MODE_SETS` holds the combinations of [S] Table 3. A vessel
+with low-frequency roll and pitch (a semi-submersible) may add the **roll–pitch damping** mode of
+[S] §4.2.3 (:class:`RollPitchDamping`, off by default): the measured roll and pitch rates (and,
+optionally, angles) of its motion reference unit, low-pass filtered, make a sway and a surge force
+whose moment about the centre of gravity through the thrusters' vertical lever arm ell = z_T - z_G
+opposes the motion (``docs/semi.md`` eq. RP6)::
+
+    Y_rp = (K_d,roll p + K_p,roll phi) / ell,    X_rp = -(K_d,pitch q + K_p,pitch theta) / ell
+
+so the thrust's roll moment is -K_d,roll p - K_p,roll phi (and likewise in pitch). The
 position in eta - eta_d is that of the controller's reference point — the centre of turret for a
 turret-moored vessel, as a turret offset (``geometry.turret_offset``) — so a hull turning about
 the turret gives no position error.
@@ -53,6 +62,7 @@ __all__ = [
     "H_PSI",
     "H_XY",
     "PIDGains",
+    "RollPitchDamping",
     "TAPMPID",
 ]
 
@@ -176,6 +186,52 @@ class PIDGains:
             object.__setattr__(self, name, _gain_matrix(name, getattr(self, name)))
 
 
+@dataclass(frozen=True, kw_only=True)
+class RollPitchDamping:
+    """Gains of the roll–pitch damping mode ([S] §4.2.3, ``docs/semi.md`` eq. RP6).
+
+    Parameters
+    ----------
+    lever : float
+        Vertical lever arm ell = z_T - z_G of the thrust below the centre of gravity [m], non-zero
+        (:attr:`tapm_opt.models.vessel.RollPitchParams.thruster_lever`).
+    Kd_roll, Kd_pitch : float
+        Roll and pitch damping the thrust adds [N m s/rad], >= 0.
+    Kp_roll, Kp_pitch : float
+        Roll and pitch stiffness the thrust adds [N m/rad], >= 0 (default 0: damping only).
+    filter_time : float
+        Time constant of the first-order low-pass filter on the measured attitude [s], >= 0 (0: none);
+        it keeps the sensor noise out of the thrust. A hull whose MRU also reads wave-frequency roll
+        and pitch (``six_dof``) needs a longer one (or a notch) so that the thrusters do not chase
+        them; the default 2 s lags the semi's 108 s roll by 7 deg and its 36 s pitch by 19 deg.
+    """
+
+    lever: float
+    Kd_roll: float
+    Kd_pitch: float
+    Kp_roll: float = 0.0
+    Kp_pitch: float = 0.0
+    filter_time: float = 2.0
+
+    def __post_init__(self) -> None:
+        for name in ("lever", "Kd_roll", "Kd_pitch", "Kp_roll", "Kp_pitch", "filter_time"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise ControlError(f"roll_pitch_damping.{name} = {v!r} must be a finite number")
+            if name != "lever" and v < 0.0:
+                raise ControlError(f"roll_pitch_damping.{name} = {v!r} must be >= 0")
+            object.__setattr__(self, name, float(v))
+        if self.lever == 0.0:
+            raise ControlError("roll_pitch_damping.lever = 0 m: thrust at the centre of gravity's depth makes no roll "
+                               "or pitch moment")
+
+    def force(self, attitude: np.ndarray) -> tuple[float, float]:
+        """(X, Y) [N] in {B} for the (filtered) attitude (roll, pitch, roll rate, pitch rate)."""
+        phi, theta, p, q = attitude
+        return (-(self.Kd_pitch * q + self.Kp_pitch * theta) / self.lever,
+                (self.Kd_roll * p + self.Kp_roll * phi) / self.lever)
+
+
 def _limit(name: str, value: Any, *, allow_zero: bool) -> np.ndarray | None:
     if value is None:
         return None
@@ -255,6 +311,10 @@ class TAPMPID:
         limit stays.
     line_model : MooringModel, optional
         The intact line model, for ``fault_tolerance``.
+    roll_pitch : RollPitchDamping, optional
+        The roll–pitch damping mode ([S] §4.2.3): its surge and sway force, from the attitude of
+        the last :meth:`set_attitude` (the motion reference unit), is added to the command before
+        the saturation. None (default): off.
     fault_tolerance : bool
         When the estimate reports broken lines (``Estimate.broken_lines``) or lost buoys
         (``Estimate.lost_points``), add the load the mooring no longer gives the vessel at the
@@ -275,9 +335,12 @@ class TAPMPID:
                  tau_limit: Any = None, integral_limit: Any = None, anti_windup: bool = True,
                  env_feedforward: bool = False, reference_point: Any = (0.0, 0.0),
                  period: float | None = None, thrusters: Any = None, line_model: Any = None,
-                 fault_tolerance: bool = False) -> None:
+                 fault_tolerance: bool = False, roll_pitch: RollPitchDamping | None = None) -> None:
         if not isinstance(gains, PIDGains):
             raise ControlError(f"gains must be a PIDGains, got {type(gains).__name__}")
+        if roll_pitch is not None and not isinstance(roll_pitch, RollPitchDamping):
+            raise ControlError(f"roll_pitch must be a RollPitchDamping or None, got {type(roll_pitch).__name__}")
+        self._rpd = roll_pitch
         if not isinstance(fault_tolerance, bool):
             raise ControlError(f"fault_tolerance = {fault_tolerance!r} must be true or false")
         if fault_tolerance and line_model is None:
@@ -325,6 +388,39 @@ class TAPMPID:
         self._tau_unsat = np.zeros(3)
         self._psi = 0.0
         self._last: ControllerStep | None = None
+        self._att: np.ndarray | None = None   # the filtered attitude of the roll–pitch damping mode
+        self._t_att: float | None = None
+        self._tau_rp = np.zeros(3)
+
+    @property
+    def roll_pitch(self) -> RollPitchDamping | None:
+        """The roll–pitch damping mode's gains, or None (off)."""
+        return self._rpd
+
+    @property
+    def roll_pitch_force(self) -> np.ndarray:
+        """The roll–pitch damping mode's part of the last command (X [N], Y [N], 0) in {B}, before the
+        saturation; zeros when off."""
+        return readonly(self._tau_rp)
+
+    def set_attitude(self, t: float, attitude: Any) -> None:
+        """The motion reference unit's attitude at ``t`` [s]: (roll [rad], pitch [rad], roll rate
+        [rad/s], pitch rate [rad/s]) (:attr:`tapm_opt.interfaces.Measurement.attitude`), low-pass
+        filtered with ``roll_pitch.filter_time`` (exact discretisation of the first-order filter
+        over the time since the previous call). Ignored when the roll–pitch mode is off."""
+        if self._rpd is None:
+            return
+        a = np.asarray(attitude, dtype=float)
+        if a.shape != (4,) or not np.isfinite(a).all():
+            raise ControlError(f"attitude = {a.tolist()} must be 4 finite numbers (roll [rad], pitch [rad], "
+                               "roll rate [rad/s], pitch rate [rad/s]): the controller will not command thrust from it")
+        t = float(t)
+        if self._att is None or self._rpd.filter_time == 0.0:
+            self._att = a.copy()
+        elif t > self._t_att:
+            k = 1.0 - math.exp(-(t - self._t_att) / self._rpd.filter_time)
+            self._att = self._att + k * (a - self._att)
+        self._t_att = t
 
     def last_step(self) -> ControllerStep | None:
         """Diagnostics of the latest update: ``active`` holds ``"saturated"`` when ``tau_limit``
@@ -455,6 +551,10 @@ class TAPMPID:
             tau = tau - tau_env
         if self._ft and (estimate.broken_lines or estimate.lost_points):
             tau = tau + self.lost_load(eta, frozenset(estimate.broken_lines), frozenset(estimate.lost_points))
+        if self._rpd is not None and self._att is not None:   # roll–pitch damping ([S] §4.2.3)
+            X, Y = self._rpd.force(self._att)
+            self._tau_rp = np.array([X, Y, 0.0])
+            tau = tau + self._tau_rp
         self._tau_unsat = tau
         if self._tau_limit is not None:
             self._sat = np.abs(tau) > self._tau_limit

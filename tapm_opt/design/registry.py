@@ -245,6 +245,11 @@ class PIDOptions:
     supervisor: Any = _opt(False, "sea-state supervision (survey §4.5): true or a table of SeaStateSupervisor "
                            "options, e.g. {dwell = 600}")
     initial_sea_state: Any = _opt(None, "sea-state class before the supervisor's first decision")
+    roll_pitch_damping: Any = _opt(False, "roll-pitch damping mode (survey §4.2.3, docs/semi.md; a scenario with "
+                                   "vessel.roll_pitch): true, or a table of zeta_roll, zeta_pitch (added damping "
+                                   "as a fraction of critical, default 0.3 each), Kd_roll, Kd_pitch [N m s/rad] "
+                                   "(instead of zeta), Kp_roll, Kp_pitch [N m/rad] (default 0), filter_time [s] "
+                                   "(default 2)")
 
 
 def _positive_triple(value: Any, key: str, where: str, example: tuple) -> tuple:
@@ -283,6 +288,48 @@ def _dp_force_limit(system: Any, winch: Mapping[str, Any] | None, where: str,
     return box + np.array([r, r, 0.0])
 
 
+#: Added roll and pitch damping of the roll–pitch damping mode by default, as a fraction of critical.
+ROLL_PITCH_ZETA = 0.3
+_RPD_KEYS = ("zeta_roll", "zeta_pitch", "Kd_roll", "Kd_pitch", "Kp_roll", "Kp_pitch", "filter_time")
+
+
+def _roll_pitch_damping(system: Any, value: Any, where: str) -> Any:
+    """The PID's :class:`~tapm_opt.control.pid.RollPitchDamping` from the option
+    ``roll_pitch_damping`` (false, true or a table; see :class:`PIDOptions`): K_d = 2 zeta sqrt(C I)
+    of the vessel's roll–pitch model unless K_d is given (docs/semi.md eq. RP6)."""
+    from ..control.pid import ControlError, RollPitchDamping
+
+    key = f"{where}.roll_pitch_damping"
+    if value is False:
+        return None
+    if value is not True and not isinstance(value, Mapping):
+        raise ControllerSpecError(f"{key} = {value!r} must be true, false or a table of {', '.join(_RPD_KEYS)}")
+    rp = system.vessel.roll_pitch
+    if rp is None:
+        raise ControllerSpecError(f"{key}: scenario {system.scenario.name!r} has no low-frequency roll and pitch "
+                                  "(give its vessel a [vessel.roll_pitch] table)")
+    opts = dict(value) if isinstance(value, Mapping) else {}
+    unknown = sorted(set(opts) - set(_RPD_KEYS))
+    if unknown:
+        raise ControllerSpecError(f"{key}: unknown option(s) {unknown}; options are {', '.join(_RPD_KEYS)}")
+    for k, v in opts.items():
+        if isinstance(v, bool) or not _is_number(v) or not math.isfinite(float(v)) or float(v) < 0:
+            raise ControllerSpecError(f"{key}.{k} = {v!r} must be a number >= 0")
+    (c4, c5), (i4, i5) = rp.C, rp.inertia
+    kd = {}
+    for axis, c, i in (("roll", c4, i4), ("pitch", c5, i5)):
+        if f"Kd_{axis}" in opts and f"zeta_{axis}" in opts:
+            raise ControllerSpecError(f"{key}: give Kd_{axis} or zeta_{axis}, not both")
+        kd[axis] = float(opts[f"Kd_{axis}"]) if f"Kd_{axis}" in opts else \
+            2.0 * float(opts.get(f"zeta_{axis}", ROLL_PITCH_ZETA)) * math.sqrt(c * i)
+    try:
+        return RollPitchDamping(lever=rp.thruster_lever, Kd_roll=kd["roll"], Kd_pitch=kd["pitch"],
+                                Kp_roll=float(opts.get("Kp_roll", 0.0)), Kp_pitch=float(opts.get("Kp_pitch", 0.0)),
+                                filter_time=float(opts.get("filter_time", 2.0)))
+    except ControlError as exc:
+        raise ControllerSpecError(f"{where}: {exc}") from None
+
+
 def _build_pid(system: Any, o: PIDOptions, ctx: BuildContext) -> Any:
     from ..control.pid import TAPMPID
     from ..control.pid_design import design_from_scenario
@@ -299,6 +346,9 @@ def _build_pid(system: Any, o: PIDOptions, ctx: BuildContext) -> Any:
         raise ControllerSpecError(f"{where}.supervisor = {sup!r} must be true, false or a table of supervisor options")
     if table is not None and not isinstance(table, (str, Mapping)):
         raise ControllerSpecError(f"{where}.gain_table = {table!r} must be the path of gains.json")
+    if o.roll_pitch_damping is not False and (sup is not False or table is not None):
+        raise ControllerSpecError(f"{where}.roll_pitch_damping is not available with a supervisor or a gain_table "
+                                  "(the supervised PID does not read the motion reference unit)")
     if sup is False and table is None and o.initial_sea_state is not None:
         raise ControllerSpecError(f"{where}.initial_sea_state needs supervisor = true or a gain_table")
     with warnings.catch_warnings():
@@ -315,7 +365,8 @@ def _build_pid(system: Any, o: PIDOptions, ctx: BuildContext) -> Any:
         tau_limit = _dp_force_limit(system, ctx.winch, where, o.capacity_fraction)
     ctrl = TAPMPID.from_design(design, modes=o.modes if isinstance(o.modes, str) else tuple(o.modes),
                                tau_limit=tau_limit, reference_point=system.p_cot_B, thrusters=system.thrusters,
-                               line_model=system.lines, fault_tolerance=o.fault_tolerance)
+                               line_model=system.lines, fault_tolerance=o.fault_tolerance,
+                               roll_pitch=_roll_pitch_damping(system, o.roll_pitch_damping, where))
     ctrl.design = design
     if sup is False and table is None:
         return ctrl

@@ -13,10 +13,16 @@ Conventions (Fossen / survey notation, NED):
 ``vessel_rhs`` is written once over numpy arrays and CasADi symbols; ``vessel_function`` and
 ``moored_function`` compile it into named ``casadi.Function`` objects that MPC uses symbolically
 and the plant and tests call numerically. A control input is ``tau_thr``/``tau_cmd``, never ``u``.
+
+A vessel may also have low-frequency roll and pitch (:class:`RollPitchParams`, the scenario's
+``[vessel.roll_pitch]``, off by default; survey §4.2.3, ``docs/semi.md``): two uncoupled modes
+about the centre of gravity, :func:`roll_pitch_rhs` under the moments of :func:`roll_pitch_moments`
+(thrust, wind, drift) and of the lines (the plant); the surge–sway–yaw model above is unchanged.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -31,7 +37,8 @@ from .statics import EquilibriumError, solve_equilibrium
 if TYPE_CHECKING:  # python-control loads on first use (linearise)
     import control
 
-__all__ = ["VesselParams", "coriolis", "vessel_rhs", "vessel_function", "moored_function",
+__all__ = ["VesselParams", "RollPitchParams", "roll_pitch_rhs", "roll_pitch_moments", "coriolis", "vessel_rhs",
+           "vessel_function", "moored_function",
            "linearise", "equilibrium", "FORMS", "STATE_NAMES", "INPUT_NAMES"]
 
 #: Model forms: ``"design"`` (eq. 14–15) and ``"rich"`` (eq. 8–11).
@@ -98,12 +105,17 @@ class VesselParams:
     d_quad : array_like, shape (3,), optional
         Quadratic damping (X_|u|u [N s^2/m^2], Y_|v|v [N s^2/m^2], N_|r|r [N m s^2]) >= 0; the
         force is ``-d_quad[i] * |nu_r[i]| * nu_r[i]``. Default zeros. Used by the rich form only.
+    roll_pitch : RollPitchParams, optional
+        Low-frequency roll and pitch (survey §4.2.3, ``docs/semi.md``); None (default): the
+        vessel is 3-DOF and every model of this module is unchanged.
     """
 
     M: np.ndarray
     D_lin: np.ndarray
     M_A: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
     d_quad: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    #: Low-frequency roll and pitch (:class:`RollPitchParams`), or None: 3-DOF (the default).
+    roll_pitch: RollPitchParams | None = None
     #: Inverse of ``M`` [1/kg, ...], derived.
     M_inv: np.ndarray = field(init=False, repr=False)
 
@@ -125,6 +137,8 @@ class VesselParams:
         _check_psd("D_lin", D_lin)
         if np.any(d_quad < 0.0):
             raise ModelError(f"d_quad must be >= 0, got d_quad={d_quad.tolist()}")
+        if self.roll_pitch is not None and not isinstance(self.roll_pitch, RollPitchParams):
+            raise ModelError(f"roll_pitch must be a RollPitchParams or None, got {type(self.roll_pitch).__name__}")
         M_inv = np.linalg.inv(M)
         M_inv.flags.writeable = False
         for name, val in (("M", M), ("M_A", M_A), ("D_lin", D_lin), ("d_quad", d_quad),
@@ -142,9 +156,156 @@ class VesselParams:
         ``added_mass`` or None, ``linear_damping``, ``quadratic_damping``), all SI."""
         ves = scenario.vessel
         M_A = ves.added_mass if getattr(ves, "added_mass", None) is not None else np.zeros((3, 3))
+        rp = getattr(ves, "roll_pitch", None)
         return cls(M=np.asarray(ves.mass_matrix, dtype=float), M_A=np.asarray(M_A, dtype=float),
                    D_lin=np.asarray(ves.linear_damping, dtype=float),
-                   d_quad=np.asarray(ves.quadratic_damping, dtype=float))
+                   d_quad=np.asarray(ves.quadratic_damping, dtype=float),
+                   roll_pitch=None if rp is None else RollPitchParams.from_config(rp, scenario.environment))
+
+
+# --- low-frequency roll and pitch (survey §4.2.3) -------------------------------------------
+
+def _positive(name: str, value: Any, *, zero: bool = False) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ModelError(f"{name}={value!r} is not a number") from None
+    if not math.isfinite(v) or v < 0.0 or (v == 0.0 and not zero):
+        raise ModelError(f"{name}={value!r} must be {'>= 0' if zero else '> 0'} and finite")
+    return v
+
+
+@dataclass(frozen=True, kw_only=True)
+class RollPitchParams:
+    """Low-frequency roll and pitch of the hull: two uncoupled modes about the centre of gravity
+    (survey §4.2.3; ``docs/semi.md`` eq. RP1–RP4)::
+
+        (I44 + A44) phi_dd   + B44 phi_d   + C44 phi   = K      C44 = rho g nabla GM_T   (RP1, RP2)
+        (I55 + A55) theta_dd + B55 theta_d + C55 theta = M      C55 = rho g nabla GM_L
+
+    with ``I44 = rho nabla r44^2`` (rigid body, mass rho nabla), ``B = 2 zeta sqrt(C (I + A))``.
+    phi [rad] is roll (starboard down), theta [rad] pitch (bow up), as
+    :func:`tapm_opt.plant.mooring_fem.vertical_offset`.
+
+    Parameters
+    ----------
+    displacement : float
+        Displaced volume nabla [m^3].
+    GM_T, GM_L : float
+        Transverse and longitudinal metacentric heights [m].
+    roll_gyration, pitch_gyration : float
+        Radii of gyration r44, r55 about the centre of gravity [m].
+    roll_added_inertia, pitch_added_inertia : float
+        A44, A55 [kg m^2] about the centre of gravity.
+    roll_damping, pitch_damping : float
+        zeta_4, zeta_5: linear damping as a fraction of critical [-], in [0, 1).
+    cg_depth : float
+        Depth z_G of the centre of gravity below the mean water line [m] (negative: above).
+    thruster_depth : float
+        Depth z_T at which the horizontal thrust acts [m].
+    wind_height : float
+        Height h_W of the wind load's centre above the mean water line [m].
+    rho, g : float
+        Water density [kg/m^3] and gravity [m/s^2].
+    """
+
+    displacement: float
+    GM_T: float
+    GM_L: float
+    roll_gyration: float
+    pitch_gyration: float
+    roll_added_inertia: float
+    pitch_added_inertia: float
+    roll_damping: float
+    pitch_damping: float
+    cg_depth: float
+    thruster_depth: float
+    wind_height: float
+    rho: float = 1025.0
+    g: float = 9.81
+
+    def __post_init__(self) -> None:
+        for name in ("displacement", "GM_T", "GM_L", "roll_gyration", "pitch_gyration", "rho", "g"):
+            object.__setattr__(self, name, _positive(name, getattr(self, name)))
+        for name in ("roll_added_inertia", "pitch_added_inertia", "roll_damping", "pitch_damping"):
+            object.__setattr__(self, name, _positive(name, getattr(self, name), zero=True))
+        for name in ("roll_damping", "pitch_damping"):
+            if getattr(self, name) >= 1.0:
+                raise ModelError(f"{name}={getattr(self, name)!r} must be below 1 (a fraction of critical)")
+        for name in ("cg_depth", "thruster_depth", "wind_height"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v)):
+                raise ModelError(f"{name}={v!r} must be a finite number [m]")
+            object.__setattr__(self, name, float(v))
+
+    @classmethod
+    def from_config(cls, rp: Any, environment: Any) -> RollPitchParams:
+        """From a scenario's ``vessel.roll_pitch`` section and its ``environment`` (density, gravity)."""
+        return cls(displacement=rp.displacement, GM_T=rp.GM_T, GM_L=rp.GM_L, roll_gyration=rp.roll_gyration,
+                   pitch_gyration=rp.pitch_gyration, roll_added_inertia=rp.roll_added_inertia,
+                   pitch_added_inertia=rp.pitch_added_inertia, roll_damping=rp.roll_damping,
+                   pitch_damping=rp.pitch_damping, cg_depth=rp.cg_depth, thruster_depth=rp.thruster_depth,
+                   wind_height=rp.wind_height, rho=float(environment.water_density), g=float(environment.gravity))
+
+    @property
+    def mass(self) -> float:
+        """Rigid-body mass rho nabla [kg]."""
+        return self.rho * self.displacement
+
+    @property
+    def C(self) -> tuple[float, float]:
+        """Hydrostatic restoring (C44, C55) = rho g nabla (GM_T, GM_L) [N m/rad] (eq. RP2)."""
+        w = self.rho * self.g * self.displacement
+        return w * self.GM_T, w * self.GM_L
+
+    @property
+    def inertia(self) -> tuple[float, float]:
+        """Total inertia (I44 + A44, I55 + A55) [kg m^2], I = rho nabla r^2."""
+        m = self.mass
+        return (m * self.roll_gyration ** 2 + self.roll_added_inertia,
+                m * self.pitch_gyration ** 2 + self.pitch_added_inertia)
+
+    @property
+    def B(self) -> tuple[float, float]:
+        """Linear damping (B44, B55) = 2 zeta sqrt(C I) [N m s/rad] (eq. RP3)."""
+        (c4, c5), (i4, i5) = self.C, self.inertia
+        return 2.0 * self.roll_damping * math.sqrt(c4 * i4), 2.0 * self.pitch_damping * math.sqrt(c5 * i5)
+
+    @property
+    def natural_periods(self) -> tuple[float, float]:
+        """Undamped natural periods (T4, T5) = 2 pi sqrt(I / C) [s]."""
+        (c4, c5), (i4, i5) = self.C, self.inertia
+        return 2.0 * math.pi * math.sqrt(i4 / c4), 2.0 * math.pi * math.sqrt(i5 / c5)
+
+    @property
+    def thruster_lever(self) -> float:
+        """Vertical lever of the thrust below the centre of gravity, z_T - z_G [m]: a sway force Y
+        makes the roll moment ``-lever Y``, a surge force X the pitch moment ``+lever X`` (eq. RP4)."""
+        return self.thruster_depth - self.cg_depth
+
+
+def roll_pitch_rhs(x: Any, moment: Any, rp: RollPitchParams) -> Any:
+    """Time derivative of the roll–pitch state ``x = (phi, theta, p, q)`` [rad, rad, rad/s, rad/s]
+    under the moments ``(K, M)`` [N m] about the centre of gravity (eq. RP1), numpy or CasADi::
+
+        phi_d = p,  theta_d = q,  p_d = (K - B44 p - C44 phi) / (I44 + A44),  q_d likewise.
+
+    Returns an ndarray (4,) or a CasADi 4-vector [rad/s, rad/s, rad/s^2, rad/s^2]."""
+    (c4, c5), (i4, i5), (b4, b5) = rp.C, rp.inertia, rp.B
+    p_d = (moment[0] - b4 * x[2] - c4 * x[0]) / i4
+    q_d = (moment[1] - b5 * x[3] - c5 * x[1]) / i5
+    return _vec(x[2], x[3], p_d, q_d)
+
+
+def roll_pitch_moments(rp: RollPitchParams, tau_thr: Any, tau_wind: Any, tau_wave: Any = (0.0, 0.0, 0.0)) -> Any:
+    """Roll and pitch moments (K, M) [N m] about the centre of gravity of the horizontal loads
+    in {B} (eq. RP4): thrust at depth z_T, wind at height h_W, wave drift at the water line; a force
+    (X, Y) at depth z makes ``K = -(z - z_G) Y`` and ``M = (z - z_G) X``. The lines' moments come
+    from their fairlead forces (:meth:`tapm_opt.plant.simulator.Plant` adds them). numpy or CasADi."""
+    lt, lw, l0 = rp.thruster_depth - rp.cg_depth, -rp.wind_height - rp.cg_depth, -rp.cg_depth
+    K = -(lt * tau_thr[1] + lw * tau_wind[1] + l0 * tau_wave[1])
+    M = lt * tau_thr[0] + lw * tau_wind[0] + l0 * tau_wave[0]
+    return _vec(K, M)
 
 
 # --- generic numpy / CasADi helpers ---------------------------------------------------------

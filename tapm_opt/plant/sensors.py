@@ -8,6 +8,11 @@ is wrapped with ``ssa``. Noise is drawn from four independent generators spawned
 (GNSS, heading, tensions, riser angles), so e.g. changing the number of lines does not change the
 GNSS noise, and a riser leaves the other sensors' noise as it was.
 
+A vessel with low-frequency roll and pitch (``vessel.roll_pitch``) carries a motion reference
+unit (MRU): roll, pitch and their rates (4,) [rad, rad, rad/s, rad/s], sampled at ``mru_rate``
+with the noise ``mru_angle_std`` on the angles and ``mru_rate_std`` on the rates, from a fifth
+generator of the same seed (the other four draw as without it).
+
 The riser angles (top_x, top_y, bottom_x, bottom_y) [rad] in {E} are sampled at
 ``riser_angle_rate`` (default 1 Hz, the tension cells' rate: the bottom angle reaches the surface
 by acoustic telemetry at about that rate) with the noise ``riser_angle_std`` on each component.
@@ -28,7 +33,7 @@ from .environment import PlantError, _num
 
 __all__ = ["SensorSpec", "Measurement", "Sensors"]
 
-_GNSS, _HEADING, _TENSION, _RISER = 0, 1, 2, 3
+_GNSS, _HEADING, _TENSION, _RISER, _MRU = 0, 1, 2, 3, 4
 
 
 #: The sensor specification is the scenario's ``[sensors]`` section (one definition of the fields,
@@ -38,9 +43,9 @@ SensorSpec = schema.Sensors
 
 
 def _check_spec(spec: SensorSpec) -> None:
-    for name in ("gnss_std", "heading_std", "tension_std_rel", "riser_angle_std"):
+    for name in ("gnss_std", "heading_std", "tension_std_rel", "riser_angle_std", "mru_angle_std", "mru_rate_std"):
         _num(f"sensors.{name}", getattr(spec, name), lo=0.0)
-    for name in ("gnss_rate", "heading_rate", "tension_rate", "riser_angle_rate"):
+    for name in ("gnss_rate", "heading_rate", "tension_rate", "riser_angle_rate", "mru_rate"):
         _num(f"sensors.{name}", getattr(spec, name), lo=0.0, strict=True, unit="Hz")
 
 
@@ -74,12 +79,13 @@ class Sensors:
         else:
             raise PlantError("give MBS: the tension noise is sensors.tension_std_rel times each line's MBS")
         self.tension_std = readonly(std)
-        self._rates = (spec.gnss_rate, spec.heading_rate, spec.tension_rate, spec.riser_angle_rate)
-        # spawn(4): the first three streams are those of the sensors without the riser's
-        self._rngs = [np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(4)]
-        self._next: list[float] = [-math.inf] * 4  # next sample index k per sensor
-        self._held: list[Any] = [None] * 4
-        self._t_held = [math.nan] * 4
+        self._rates = (spec.gnss_rate, spec.heading_rate, spec.tension_rate, spec.riser_angle_rate, spec.mru_rate)
+        # spawn(5): the first three streams are those of the sensors without the riser's, the first
+        # four those without the MRU's (a SeedSequence's i-th child does not depend on how many)
+        self._rngs = [np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(5)]
+        self._next: list[float] = [-math.inf] * 5  # next sample index k per sensor
+        self._held: list[Any] = [None] * 5
+        self._t_held = [math.nan] * 5
         self._t_last = -math.inf
 
     @classmethod
@@ -96,14 +102,17 @@ class Sensors:
         self._t_held[i] = t
         return True
 
-    def sample(self, t: float, eta_total: Any, tensions: Any, riser_angles: Any = None) -> Measurement:
+    def sample(self, t: float, eta_total: Any, tensions: Any, riser_angles: Any = None,
+               attitude: Any = None) -> Measurement:
         """Measurement at time t [s] of the true pose ``eta_total`` (3,) = (x [m], y [m], psi [rad])
         in {E} (LF + WF), the true fairlead tensions (n_lines,) [N] and, for a vessel with a riser,
         the true riser angles (4,) = (top_x, top_y, bottom_x, bottom_y) [rad] in {E} (None: no
-        riser, and ``Measurement.riser_angles`` is None). Times must not decrease."""
-        return Measurement(**self._fields(t, eta_total, tensions, riser_angles))
+        riser, and ``Measurement.riser_angles`` is None), and for a vessel with roll and pitch the
+        true attitude (4,) = (roll [rad], pitch [rad], roll rate [rad/s], pitch rate [rad/s]) the
+        MRU reads (None: no MRU, ``Measurement.attitude`` is None). Times must not decrease."""
+        return Measurement(**self._fields(t, eta_total, tensions, riser_angles, attitude))
 
-    def _fields(self, t: float, eta_total: Any, tensions: Any, riser_angles: Any = None) -> dict:
+    def _fields(self, t: float, eta_total: Any, tensions: Any, riser_angles: Any = None, attitude: Any = None) -> dict:
         """The fields of :meth:`sample`'s Measurement (:meth:`Plant.measure` adds the thruster
         feedback and builds it once). The held arrays are new, read-only and held by nobody else
         (the Measurement takes them without a copy)."""
@@ -153,8 +162,18 @@ class Sensors:
             if self._due(_RISER, t):
                 held[_RISER] = _frozen(theta + s.riser_angle_std * rngs[_RISER].standard_normal(4))
             riser, t_riser = held[_RISER], t_held[_RISER]
-        return dict(t=t, position=held[_GNSS], heading=held[_HEADING],
-                    tensions=held[_TENSION], t_position=t_held[_GNSS],
-                    t_heading=t_held[_HEADING], t_tensions=t_held[_TENSION],
-                    riser_angles=riser, t_riser_angles=t_riser)
+        out = dict(t=t, position=held[_GNSS], heading=held[_HEADING],
+                   tensions=held[_TENSION], t_position=t_held[_GNSS],
+                   t_heading=t_held[_HEADING], t_tensions=t_held[_TENSION],
+                   riser_angles=riser, t_riser_angles=t_riser)
+        if attitude is not None:   # the MRU: (roll, pitch, roll rate, pitch rate)
+            att = np.asarray(attitude, dtype=float)
+            if att.shape != (4,) or not np.isfinite(att).all():
+                raise PlantError(f"attitude={att.tolist()} must be 4 finite numbers (roll [rad], pitch [rad], "
+                                 "roll rate [rad/s], pitch rate [rad/s])")
+            if self._due(_MRU, t):
+                std = np.array([s.mru_angle_std, s.mru_angle_std, s.mru_rate_std, s.mru_rate_std])
+                held[_MRU] = _frozen(att + std * rngs[_MRU].standard_normal(4))
+            out["attitude"], out["t_attitude"] = held[_MRU], t_held[_MRU]
+        return out
 

@@ -12,6 +12,12 @@ Time stepping (multirate, all explicit):
   the fairleads following the *total* motion (LF + wave-frequency), interpolated linearly over the
   outer step.
 
+A vessel with low-frequency roll and pitch (``vessel.roll_pitch``, :attr:`Plant.roll_pitch`;
+``docs/semi.md``) integrates them in the per-outer-step path with the same semi-implicit Euler, from
+the thrust, wind and drift moments at the start of the step and the lines' moments at the end of the
+previous one; they add to the pose's roll and pitch, so the fairleads follow them (the fused
+multi-step path is not used then). Without it the plant is the 3-DOF one, to the bit.
+
 A scenario with a riser also gets its quasi-static end angles
 (:class:`tapm_opt.models.riser.RiserModel`, the affine map of the tensioned beam) at the
 instantaneous hang-off (LF + wave-frequency pose) and the sea state's current, at the end of
@@ -53,7 +59,7 @@ from ..config.schema import FaultTargetError, buoy_of_fault
 from ..geometry import rot_z
 from ..interfaces import Measurement, ThrusterCommand, Truth, _frozen, _trusted
 from ..models.system import System
-from ..models.vessel import vessel_rhs
+from ..models.vessel import roll_pitch_moments, roll_pitch_rhs, vessel_rhs
 from ..results import Result, ResultBuilder
 from .environment import BLOCK_MAX, Environment, PlantError
 from .fem import MAX_NODE_SPEED, SimulationDiverged, _as_f64
@@ -204,10 +210,27 @@ class Plant:
         #: ``vessel.wave_motion.model = "six_dof"``; :meth:`WaveField.vertical`).
         self.six_dof = self.wave_frequency and self.env.waves.six_dof
         self._vert = self.env.waves.vertical(0.0, float(self.eta[2])) if self.six_dof else np.zeros(3)
+        #: Low-frequency roll and pitch of the hull (``vessel.roll_pitch``; None: 3-DOF): the state
+        #: ``rp = (phi, theta, p, q)`` [rad, rad, rad/s, rad/s] (:func:`~tapm_opt.models.vessel.roll_pitch_rhs`),
+        #: integrated in the per-outer-step path; the fairleads follow it (it adds to the wave-frequency
+        #: roll and pitch of the pose).
+        self.roll_pitch = self.vessel.roll_pitch
+        self.rp = np.zeros(4)
+        self._M_lines = np.zeros(2)
         pose = np.concatenate([self.eta + self._eta_wf, self._vert])
         self.mooring.initialise(pose)
         self.settle_info: SettleInfo = self.mooring.settle(pose)
         self._tau_moor = self.mooring.tau(pose)
+        if self.roll_pitch is not None:   # start at the static heel and trim the lines give
+            self._M_lines = self._line_moments(pose, None)
+            C = self.roll_pitch.C
+            self.rp[:2] = self._M_lines / np.array(C)
+            if np.max(np.abs(self.rp[:2])) > 1e-5:
+                pose = np.concatenate([self.eta + self._eta_wf, self._vert + self._rp_pose()])
+                self.mooring.initialise(pose)
+                self.settle_info = self.mooring.settle(pose)
+                self._tau_moor = self.mooring.tau(pose)
+                self._M_lines = self._line_moments(pose, None)
         self._riser_angles = self.riser.angles_at(pose[:3]) if self.riser is not None else None
         self._rate = np.zeros(6)   # the pose rate, then the heave, roll and pitch rates
         if self.wave_frequency:
@@ -230,6 +253,42 @@ class Plant:
         self._n_sub = 1
 
     # -- helpers ---------------------------------------------------------------------------
+    def _rp_pose(self) -> np.ndarray:
+        """The low-frequency (heave, roll, pitch) = (0, phi, theta) added to the pose's last three."""
+        return np.array([0.0, self.rp[0], self.rp[1]])
+
+    def _line_moments(self, pose: np.ndarray, a_fl: np.ndarray | None) -> np.ndarray:
+        """Roll and pitch moments (K, M) [N m] of the lines about the centre of gravity (docs/semi.md
+        eq. RP5): each fairlead force f in {E} (:meth:`FEMLines.fairlead_forces`, the load on the
+        vessel, z down) at its fairlead r (of the last FEM step), turned to {B}, with the lever
+        ``(b_x, b_y, z - z_G)`` from the centre of gravity: ``K = sum(b_y f_z - (z - z_G) f_y)``,
+        ``M = sum((z - z_G) f_x - b_x f_z)``."""
+        m = self.mooring
+        fem = m.fem
+        vc = m._vc[fem.fairlead_idx] if m.current is not None else None
+        f = fem.fairlead_forces(vc, a_fl)
+        r = m._r_fl
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        dx, dy = r[:, 0] - pose[0], r[:, 1] - pose[1]
+        bx, by = c * dx + s * dy, c * dy - s * dx
+        fx, fy = c * f[:, 0] + s * f[:, 1], c * f[:, 1] - s * f[:, 0]
+        lz = r[:, 2] - self.roll_pitch.cg_depth
+        return np.array([float(np.sum(by * f[:, 2] - lz * fy)), float(np.sum(lz * fx - bx * f[:, 2]))])
+
+    def _roll_pitch_step(self, h: float, tau_thr: np.ndarray, tau_wind: np.ndarray, tau_drift: np.ndarray) -> None:
+        """Advance the roll–pitch state over ``h`` [s] (semi-implicit Euler, as the vessel) under the
+        thrust, wind and drift moments at the start of the step and the lines' moments of the end of
+        the previous one (docs/semi.md eq. RP1, RP4, RP5)."""
+        rp = self.roll_pitch
+        moment = roll_pitch_moments(rp, tau_thr, tau_wind, tau_drift) + self._M_lines
+        x = self.rp
+        xd = roll_pitch_rhs(x, moment, rp)
+        rates = x[2:] + h * xd[2:]
+        self.rp = np.concatenate([x[:2] + h * rates, rates])
+        if not np.isfinite(self.rp).all():
+            raise SimulationDiverged(f"roll and pitch became non-finite at t = {self.t:.2f} s "
+                                     f"(roll, pitch, rates = {self.rp.tolist()})", time=self.t)
+
     def _wf(self, t: float) -> np.ndarray:
         if not self.wave_frequency:
             return np.zeros(3)
@@ -254,6 +313,17 @@ class Plant:
     def eta_total(self) -> np.ndarray:
         """LF plus wave-frequency pose (x [m], y [m], psi [rad])."""
         return self.eta + self._eta_wf
+
+    @property
+    def attitude(self) -> np.ndarray:
+        """True roll, pitch and their rates (4,) [rad, rad, rad/s, rad/s] the MRU measures: the
+        low-frequency state plus the wave-frequency roll and pitch (with ``six_dof``); zeros without
+        ``vessel.roll_pitch``."""
+        a = self.rp.copy()
+        if self.six_dof:
+            a[:2] += self._vert[1:]
+            a[2:] += self._rate[4:]
+        return a
 
     @property
     def fem_dt(self) -> float:
@@ -302,7 +372,8 @@ class Plant:
         failure flags, the generalised thrust they give); with ``truth=True`` also the true LF
         state (:class:`~tapm_opt.interfaces.Truth`), for validation estimators only."""
         # the sensors only read the tensions (their held sample is a new array): no copy
-        m = self.sensors._fields(self.t, self.eta + self._eta_wf, self._end_tensions()[0], self._riser_angles)
+        m = self.sensors._fields(self.t, self.eta + self._eta_wf, self._end_tensions()[0], self._riser_angles,
+                                 self.attitude if self.roll_pitch is not None else None)
         th = self.thrusters
         tr = Truth(eta=self.eta, nu=self.nu, tau_env=self.loads["tau_wind"] + self.loads["tau_drift"]) if truth else None
         f, alpha = th._f.copy(), th._alpha.copy()
@@ -506,7 +577,10 @@ class Plant:
             fem.L = np.clip(fem.L + h * self._winch, self._L_limits[:, 0], self._L_limits[:, 1])
             fem._update_lengths()
         # FEM substeps with the fairleads on the interpolated total motion
-        pose0 = np.concatenate([self.eta + self._eta_wf, self._vert])
+        rp_on = self.roll_pitch is not None
+        pose0 = np.concatenate([self.eta + self._eta_wf, self._vert + self._rp_pose() if rp_on else self._vert])
+        if rp_on:
+            self._roll_pitch_step(h, tau_thr, tau_wind, tau_drift)
         self.t = t1
         self.eta, self.nu = eta, nu
         if self.wave_frequency and env.waves.grid_horizontal:
@@ -517,7 +591,7 @@ class Plant:
             self._eta_wf = np.zeros(3)
         if self.six_dof:
             self._vert = env.waves.vertical_of(sums[5], float(eta[2]))
-        pose1 = np.concatenate([self.eta + self._eta_wf, self._vert])
+        pose1 = np.concatenate([self.eta + self._eta_wf, self._vert + self._rp_pose() if rp_on else self._vert])
         n_sub = self._substeps(h, winching)
         self._steps += 1
         if compiled:  # substeps, fairlead accelerations and the load in one call, the same numbers
@@ -542,6 +616,8 @@ class Plant:
             self._rate = rate
             self._check_overload(T_bonds)
             self._tau_moor = m.tau(pose1, a_fl)
+        if rp_on:
+            self._M_lines = self._line_moments(pose1, a_fl)
         if self.riser is not None:
             self._riser_angles = self.riser.angles_at(pose1[:3])
         self._loads = {"tau_wind": tau_wind, "tau_drift": tau_drift, "tau_moor": self._tau_moor, "tau_thr": tau_thr}
@@ -572,6 +648,9 @@ class Plant:
         f = self._fused
         if f is not None and f[0] is kc and f[1] is cur_fn:
             return f[2] is not None
+        if self.roll_pitch is not None:   # roll and pitch are integrated in the per-outer-step path
+            self._fused = (kc, cur_fn, None)
+            return False
         env = self.env
         prof = env.current if env is not None else None
         kinds = _fem_kernel()
@@ -796,6 +875,8 @@ class Plant:
                    ("riser_bottom[y]", "rad"), ("riser_top_angle", "rad"), ("riser_bottom_angle", "rad")]
         if self.six_dof:
             ch += [("heave_wf", "m"), ("roll_wf", "rad"), ("pitch_wf", "rad")]
+        if self.roll_pitch is not None:
+            ch += [("roll", "rad"), ("pitch", "rad"), ("roll_rate", "rad/s"), ("pitch_rate", "rad/s")]
         return ch
 
     def sample_row(self) -> np.ndarray:
@@ -812,6 +893,8 @@ class Plant:
             parts += [a, (math.hypot(a[0], a[1]), math.hypot(a[2], a[3]))]
         if self.six_dof:
             parts.append(self._vert)
+        if self.roll_pitch is not None:
+            parts.append(self.rp)
         return np.concatenate(parts)
 
     def metadata(self) -> dict:

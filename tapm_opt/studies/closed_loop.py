@@ -39,8 +39,8 @@ from ..estimation import DEFAULT_ESTIMATOR
 from ..estimation.detection import TensionDropDetector, TensionResidualDetector
 from ..estimation.lowpass import LowPassEstimator, TrueStateEstimator
 from ..estimation.reliability import monitor_for
-from ..interfaces import (Controller, ControllerStep, Estimate, Estimator, FaultAware, Logged, Setpoint, SetpointLayer,
-                          ThrusterCommand, ThrusterController, WinchController)
+from ..interfaces import (AttitudeAware, Controller, ControllerStep, Estimate, Estimator, FaultAware, Logged, Setpoint,
+                          SetpointLayer, ThrusterCommand, ThrusterController, WinchController)
 from ..models.system import System
 from ..plant.simulator import Plant
 from ..results import Result, ResultBuilder
@@ -380,6 +380,7 @@ def run_closed_loop(plant: Plant, controller: Controller, settings: ClosedLoopSe
     sp = Setpoint(eta_d=np.asarray(s.eta_d, float))
     est: Estimate | None = None
 
+    attitude_aware = isinstance(controller, AttitudeAware)
     for step in range(n_steps + 1):
         m = plant.measure(truth=s.true_state)
         t = m.t
@@ -392,6 +393,8 @@ def run_closed_loop(plant: Plant, controller: Controller, settings: ClosedLoopSe
                 if isinstance(controller, FaultAware):
                     controller.set_failed_thrusters(failed)
                 failed_known = failed
+        if attitude_aware and m.attitude is not None:   # the MRU reaches a controller that reads it
+            controller.set_attitude(t, m.attitude)
         est = estimator.update(t, m)
         if step % log_every == 0:   # the row written in place: plant, then the runner's channels
             row = rb.next_row(t)

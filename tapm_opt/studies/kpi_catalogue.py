@@ -196,6 +196,11 @@ _ENTRIES: tuple[KpiDef, ...] = (
     _k("riser_delta_bottom_min", "-", "maximise", "min causal reliability index of the riser's bottom angle"),
     _k("riser_delta_frac_below", "-", "minimise", "fraction of ready time with the worse riser end's index below "
                                                   "delta_s"),
+    # low-frequency roll and pitch (a vessel with vessel.roll_pitch; docs/semi.md)
+    _k("roll_std_deg", "deg", "minimise", "standard deviation of the roll angle about its mean"),
+    _k("roll_max_deg", "deg", "minimise", "max roll angle magnitude"),
+    _k("pitch_std_deg", "deg", "minimise", "standard deviation of the pitch angle about its mean"),
+    _k("pitch_max_deg", "deg", "minimise", "max pitch angle magnitude"),
     # energy
     _k("thrust_energy", "J", "minimise", "thruster shaft energy, integral of the summed thruster power"),
     _k("thrust_power_mean", "W", "minimise", "thrust_energy / duration"),

@@ -612,6 +612,13 @@ def _compute(result: Result, scenario: Any, *, t_start: float, lp_window: float,
         if all(runs):  # the worst end at each ready instant
             out["riser_delta_min"], out["riser_delta_frac_below"] = _run_stats(worst, delta_s)
 
+    # low-frequency roll and pitch (channels of a plant with vessel.roll_pitch; docs/semi.md)
+    for axis in ("roll", "pitch"):
+        if axis in result:
+            a = _channel(result, axis, f"the {axis} KPIs", win)
+            out[f"{axis}_std_deg"] = float(np.degrees(a.std()))
+            out[f"{axis}_max_deg"] = float(np.degrees(np.abs(a).max()))
+
     # thrust energy and fuel
     th_ids = [th.id for th in scenario.thrusters]
     if th_ids:
