@@ -114,7 +114,8 @@ def test_converges_on_a_constant_profile(fpso, model, truth):
     10 min the speed is within 0.03 m/s, the direction within 2 deg and the seabed factor within
     0.05 of the truth; the filter's 1-sigma covers the error within 4 sigma."""
     sc = fpso
-    est = CurrentProfileEstimator(model, tension_noise=sc.sensors.tension_std_rel * np.asarray(model.lines.MBS),
+    est = CurrentProfileEstimator(model, warmup=0.0,
+                                  tension_noise=sc.sensors.tension_std_rel * np.asarray(model.lines.MBS),
                                   angle_noise=sc.sensors.riser_angle_std)
     h = _feed(est, sc, truth, [(600.0, (0.8, 180.0))])
     e = h[-1]
@@ -129,7 +130,8 @@ def test_tensions_alone_give_the_speed_and_direction_with_the_shape_held(fpso, m
     """Without the riser the seabed factor is held (not observable, see the next test) and the
     speed and direction still converge: within 0.1 m/s and 8 deg after 10 min."""
     sc = fpso
-    est = CurrentProfileEstimator(model, tension_noise=sc.sensors.tension_std_rel * np.asarray(model.lines.MBS),
+    est = CurrentProfileEstimator(model, warmup=0.0,
+                                  tension_noise=sc.sensors.tension_std_rel * np.asarray(model.lines.MBS),
                                   use_riser=False)
     assert not est.fit_seabed_factor
     e = _feed(est, sc, truth, [(600.0, (0.8, 180.0))])[-1]
@@ -150,7 +152,8 @@ def test_observability_the_seabed_factor_needs_the_riser(fpso, model):
     JT = J[:M]
     cosang = abs(JT[:, 0] @ JT[:, 2]) / (np.linalg.norm(JT[:, 0]) * np.linalg.norm(JT[:, 2]))
     assert cosang > math.cos(math.radians(6.0))
-    sig = np.concatenate([sc.sensors.tension_std_rel * np.asarray(model.lines.MBS), np.full(4, sc.sensors.riser_angle_std)])
+    sig = np.concatenate([sc.sensors.tension_std_rel * np.asarray(model.lines.MBS),
+                          np.full(4, sc.sensors.riser_angle_std)])
     F_T = JT.T @ (JT / sig[:M, None] ** 2)
     F_all = J.T @ (J / sig[:, None] ** 2)
     sd_T = math.sqrt(np.linalg.inv(F_T)[2, 2])
@@ -163,7 +166,8 @@ def test_tracks_a_step_in_the_current(fpso, model, truth):
     """0.6 m/s going 150 deg, then a step to 1.0 m/s going 200 deg at 600 s: 5 min after the
     step the estimate is within 0.05 m/s and 3 deg of the new current."""
     sc = fpso
-    est = CurrentProfileEstimator(model, tension_noise=sc.sensors.tension_std_rel * np.asarray(model.lines.MBS),
+    est = CurrentProfileEstimator(model, warmup=0.0,
+                                  tension_noise=sc.sensors.tension_std_rel * np.asarray(model.lines.MBS),
                                   angle_noise=sc.sensors.riser_angle_std)
     h = _feed(est, sc, truth, [(600.0, (0.6, 150.0)), (900.0, (1.0, 200.0))], seed=3)
     before = [e for e in h if e.t <= 600.0][-1]

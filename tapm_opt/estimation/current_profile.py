@@ -46,9 +46,10 @@ bottom angles weigh the profile differently, which is what makes ``f_b`` observa
 Estimator (eq. CP4)
 -------------------
 Residuals are averaged over blocks of ``block`` seconds (the wave-frequency tension and angle
-swings average out): ``r_T = mean(T_meas - T_cat(eta_hat)) - b`` with ``T_cat`` the design
-catenary (no drag) at the estimator's pose and ``b = T_FEM,0 - T_cat`` at the reference pose (the
-FEM's static difference from the catenary without current), and ``r_theta = mean(theta_meas -
+swings average out): ``r_T = mean(T_meas - T_cat(eta_hat)) - b(eta_blk)`` with ``T_cat`` the
+design catenary (no drag) at the estimator's pose and ``b = T_FEM,0 - T_cat`` the FEM's static
+difference from the catenary without current at the block's mean pose ``eta_blk`` (one settle per
+block), and ``r_theta = mean(theta_meas -
 theta_0(eta_hat))``. Each block is an iterated-EKF (Gauss-Newton MAP) update of ``x = (u_x, u_y,
 f_b)`` (``u = V (cos beta, sin beta)`` the surface current in {E}), a random walk between blocks:
 
@@ -208,6 +209,7 @@ class CurrentResponseModel:
                 raise CurrentEstimationError(f"settle returned {T.tolist()}: need {self.n_lines} finite tensions [N]")
             return T
 
+        self._settle = settle
         #: FEM fairlead tensions without current at ``eta_ref`` [N] (M,).
         self.T_fem0 = tensions(None)
         #: The FEM's static tension less the design catenary's at ``eta_ref`` [N] (M,): eq. CP4's ``b``.
@@ -269,10 +271,15 @@ class CurrentResponseModel:
         """Riser angles at pose ``eta`` in still water [rad] (4,); None without a riser."""
         return None if self.risers is None else self.risers[0].angles_at(np.asarray(eta, float), np.zeros(2))
 
-    def tensions_without_current(self, eta: Any) -> np.ndarray:
-        """The model's fairlead tensions at ``eta`` without current [N] (M,): the design catenary
-        plus the FEM's static bias ``b`` (eq. CP4)."""
-        return np.asarray(self.lines.tensions(np.asarray(eta, float)), float) + self.bias
+    def static_bias(self, eta: Any) -> np.ndarray:
+        """Eq. (CP4)'s ``b`` at pose ``eta``: the FEM's static fairlead tensions without current less
+        the design catenary's [N] (M,) (one settle)."""
+        eta = np.asarray(eta, float)
+        T = np.array(self._settle(eta, None), dtype=float)
+        if T.shape != (self.n_lines,) or not np.all(np.isfinite(T)):
+            raise CurrentEstimationError(f"settle at eta = {eta.tolist()} returned {T.tolist()}: need "
+                                         f"{self.n_lines} finite tensions [N]")
+        return T - np.asarray(self.lines.tensions(eta), float)
 
 
 class CurrentProfileEstimator:
@@ -297,6 +304,14 @@ class CurrentProfileEstimator:
         Model-error floors of a block mean [N], [rad].
     use_riser : bool
         Use the riser angles when measured.
+    warmup : float
+        Samples of the first ``warmup`` seconds are not used [s], >= 0 (the start-up transient of
+        the lines and the vessel).
+    rebias : bool
+        Take eq. (CP4)'s ``b`` at each block's mean pose (one FEM settle per block,
+        :meth:`CurrentResponseModel.static_bias`), else at the model's reference pose. On fpso the
+        FEM's difference from the design catenary changes by 20-30 kN over 10-15 m of offset, a
+        tension pattern the estimator would read as 0.5-1 m/s of current.
     fit_seabed_factor : bool or None
         Estimate ``f_b`` (default: when the riser angles are used). From the tensions alone ``f_b``
         is not observable (its tension pattern is that of the speed's, ``docs/current_estimation.md``):
@@ -308,7 +323,7 @@ class CurrentProfileEstimator:
     def __init__(self, model: CurrentResponseModel, *, tension_noise: Any = 0.0, angle_noise: float = 0.0,
                  block: float = 30.0, t_corr: float = 10.0, q_speed: float = 2e-3, q_factor: float = 2e-3,
                  tension_floor: float = 5e3, angle_floor: float = 2e-4, use_riser: bool = True, x0: Any = None,
-                 fit_seabed_factor: bool | None = None):
+                 fit_seabed_factor: bool | None = None, rebias: bool = True, warmup: float = 60.0):
         if not isinstance(model, CurrentResponseModel):
             raise CurrentEstimationError(f"model must be a CurrentResponseModel, got {type(model).__name__}")
         self.model = model
@@ -326,6 +341,8 @@ class CurrentProfileEstimator:
         self.tension_floor = _num("tension_floor", tension_floor, lo=0.0, strict=True, unit="N")
         self.angle_floor = _num("angle_floor", angle_floor, lo=0.0, strict=True, unit="rad")
         self.use_riser = bool(use_riser) and model.risers is not None
+        self.rebias = bool(rebias)
+        self.warmup = _num("warmup", warmup, lo=0.0, unit="s")
         self.fit_seabed_factor = self.use_riser if fit_seabed_factor is None else bool(fit_seabed_factor)
         #: The estimated components of x (u_x, u_y and, when fitted, f_b).
         self.free = np.array([0, 1, 2] if self.fit_seabed_factor else [0, 1])
@@ -343,6 +360,7 @@ class CurrentProfileEstimator:
         self.P = np.diag([1.0, 1.0, 0.5 ** 2 if self.fit_seabed_factor else 0.0])
         self.started = False
         self._t0: float | None = None
+        self._t_first: float | None = None
         self._last_t_T: float | None = None
         self._last_t_a: float | None = None
         self._sT = np.zeros(self.model.n_lines)
@@ -391,19 +409,26 @@ class CurrentProfileEstimator:
         if T.shape != (self.model.n_lines,) or not np.all(np.isfinite(T)):
             raise CurrentEstimationError(f"tensions at t = {t:g} s = {np.asarray(tensions).tolist()} must be "
                                          f"{self.model.n_lines} finite numbers [N]")
+        a = None
+        if self.use_riser and riser_angles is not None:
+            a = np.asarray(riser_angles, float)
+            if a.shape != (4,) or not np.all(np.isfinite(a)):
+                raise CurrentEstimationError(f"riser_angles at t = {t:g} s = {a.tolist()} must be 4 finite "
+                                             "numbers [rad]")
+        if self._t_first is None:
+            self._t_first = t
+        if t < self._t_first + self.warmup - 1e-9:
+            return self.latest
         if self._t0 is None:
             self._t0 = t
         tT = t if t_tensions is None else float(t_tensions)
         if tT != self._last_t_T:
             self._last_t_T = tT
-            r = T - self.model.tensions_without_current(eta)
+            r = T - np.asarray(self.model.lines.tensions(eta), float)
             self._sT += r
             self._sT2 += r * r
             self._nT += 1
-        if self.use_riser and riser_angles is not None:
-            a = np.asarray(riser_angles, float)
-            if a.shape != (4,) or not np.all(np.isfinite(a)):
-                raise CurrentEstimationError(f"riser_angles at t = {t:g} s = {a.tolist()} must be 4 finite numbers [rad]")
+        if a is not None:
             ta = t if t_riser is None else float(t_riser)
             if ta != self._last_t_a:
                 self._last_t_a = ta
@@ -428,11 +453,12 @@ class CurrentProfileEstimator:
         n = self._nT
         mT = self._sT / n
         vT = np.maximum(self._sT2 / n - mT * mT, 0.0)
+        eta = self._eta_sum / max(self._n_eta, 1)
+        mT = mT - (self.model.static_bias(eta) if self.rebias else self.model.bias)
         n_eff = max(self.block / self.t_corr, 1.0)
         RT = np.maximum(vT, self.tension_noise ** 2) / min(n_eff, n) + self.tension_floor ** 2
         z, R = mT[keep], RT[keep]
         use_a = self.use_riser and self._na >= 2
-        eta = self._eta_sum / max(self._n_eta, 1)
         if use_a:
             ma = self._sa / self._na
             va = np.maximum(self._sa2 / self._na - ma * ma, 0.0)

@@ -245,7 +245,8 @@ def current_estimator(system: System, sea_state: Any, eta_ref: Any = (0.0, 0.0, 
     sc = system.scenario
     model = CurrentResponseModel(sc, fem_static_tensions(sc), sea_state, eta_ref=eta_ref)
     sens = sc.sensors
-    return CurrentProfileEstimator(model, tension_noise=float(sens.tension_std_rel) * np.asarray(system.lines.MBS, float),
+    return CurrentProfileEstimator(model,
+                                   tension_noise=float(sens.tension_std_rel) * np.asarray(system.lines.MBS, float),
                                    angle_noise=float(sens.riser_angle_std), use_riser=use_riser)
 
 
