@@ -23,7 +23,7 @@ from tapm_opt.studies.kpis import basic_kpis, case_kpis, kpi_order, kpi_unit
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 FPSO = tapm_opt.load_scenario("fpso")   # 12 lines with winches, a riser, MBS_std > 0
-UNITS = {"s", "m", "deg", "N", "J", "W", "kg", "-", "lines"}
+UNITS = {"s", "m", "m/s", "deg", "N", "J", "W", "kg", "-", "lines"}
 
 
 # -- the table itself --------------------------------------------------------------------------
@@ -190,7 +190,10 @@ def _full_result() -> Result:
     meta = {"events": [[800.0, "line 1 broke"], [1200.0, "line 3 lost its buoy at joint 0"]],
             "estimator_log": [{"t": 300.0, "line": "5", "event": "line break detected"},
                               {"t": 808.0, "line": "1", "event": "line break detected"},
-                              {"t": 1240.0, "line": "3", "joint": 0, "event": "buoy loss detected"}],
+                              {"t": 1240.0, "line": "3", "joint": 0, "event": "buoy loss detected"},
+                              {"t": 900.0, "event": "current estimate", "speed": 0.7, "direction": np.radians(170.0),
+                               "seabed_factor": 0.2, "std": [0.01, 0.01, 0.01]}],
+            "sea_state": "normal",
             "controller_log": [{"t": 810.0, "event": "mode switch"}],
             "diagnostics": {"solver_time_median": 0.01, "solver_time_p95": 0.02, "solver_time_max": 0.05,
                             "solver_failures": 0, "solver_fallbacks": 0, "allocation_fallbacks": 1}}
@@ -213,6 +216,10 @@ def test_the_catalogue_holds_what_the_kpi_functions_write_and_nothing_else():
     assert written["roll_std_deg"] == pytest.approx(0.5 * np.std(c))
     assert written["pitch_std_deg"] == pytest.approx(0.3 * np.std(c))
     assert written["buoy_loss_isolated"] == 1.0 and written["buoy_loss_detected_at"] == 1240.0
+    # fpso 'normal': 0.8 m/s going 180 deg, seabed factor 0.15
+    assert written["current_speed_error"] == pytest.approx(0.1)
+    assert written["current_direction_error"] == pytest.approx(10.0)
+    assert written["current_seabed_factor_error"] == pytest.approx(0.05)
 
 
 # -- the catalogue against docs/kpis.md ----------------------------------------------------------

@@ -585,11 +585,16 @@ class OptimalSetpoint:
         Starting setpoint (turret offset x [m], y [m], heading [rad]); the heading is kept.
     v_c : (2,), optional
         Surface current in {E} the riser model sees [m/s] (default: the riser model's own).
+    current_source : callable, optional
+        ``() -> (2,) or None``: an estimated surface current in {E} [m/s] read at every
+        optimisation in place of ``v_c`` (e.g. :meth:`CurrentEstimating.surface_current
+        <tapm_opt.estimation.current_profile.CurrentEstimating.surface_current>`); ``v_c`` while
+        it returns None.
     """
 
     def __init__(self, system: Any, method: str, *, riser: Any = None,
                  options: SetpointOptions | Mapping[str, Any] | None = None, eta_d: Any = (0.0, 0.0, 0.0),
-                 v_c: Any = None):
+                 v_c: Any = None, current_source: Any = None):
         if method not in METHODS:
             raise SetpointOptError(f"setpoint = {method!r} is not one of {', '.join(METHODS)}")
         self.options = options if isinstance(options, SetpointOptions) else SetpointOptions.from_mapping(options)
@@ -605,6 +610,9 @@ class OptimalSetpoint:
         self.line_ids = tuple(ln.id for ln in system.scenario.lines)
         self.v_c = np.zeros(2) if v_c is None and riser is None else np.asarray(
             riser.v_c if v_c is None else v_c, float)[:2]
+        if current_source is not None and not callable(current_source):
+            raise SetpointOptError(f"current_source = {current_source!r} must be a function () -> (2,) or None")
+        self.current_source = current_source
         self._problems: dict[frozenset, SetpointProblem] = {}
         self.history: list[dict] = []
         self.reset()
@@ -640,11 +648,12 @@ class OptimalSetpoint:
     def working_point(self, estimate: Estimate, broken: frozenset) -> WorkingPoint:
         """The optimisation's inputs from the estimate and its reliability statistics."""
         ks = {} if estimate.reliability is None else estimate.reliability.allowance()
+        v_c = None if self.current_source is None else self.current_source()
         return WorkingPoint(p=np.array(turret_offset(estimate.eta, self.system0.p_cot_B), float),
                             psi=float(estimate.eta[2]), tau_env=np.asarray(estimate.tau_env, float),
                             ksigma_lines=np.array([ks.get(line_signal(i), 0.0) for i in self.line_ids if i not in broken]),
                             ksigma_riser=np.array([ks.get(RISER_TOP, 0.0), ks.get(RISER_BOTTOM, 0.0)]),
-                            v_c=self.v_c, p_o=self.eta_d0[:2], r_lf=self.r_lf)
+                            v_c=self.v_c if v_c is None else v_c, p_o=self.eta_d0[:2], r_lf=self.r_lf)
 
     @property
     def r_lf(self) -> float:

@@ -8,6 +8,9 @@
   (``TensionResidualDetector``, ``TensionDropDetector``).
 * :mod:`tapm_opt.estimation.bank` -- a bank of observers that detects and isolates a line break
   from the position/heading innovations (``ObserverBank``), without tension cells.
+* :mod:`tapm_opt.estimation.current_profile` -- the current profile (surface speed, direction,
+  seabed factor) estimated on line from the tension cells and the riser inclinometers
+  (``CurrentProfileEstimator``, ``CurrentResponseModel``, ``CurrentEstimating``).
 * :mod:`tapm_opt.estimation.reliability` -- the causal (on-line) structural reliability index of
   line tensions and riser angles (survey eq. 32; reliability seed §2.2), re-exported here.
 """

@@ -36,9 +36,11 @@ from ..control.setpoint import FixedSetpoint, HeadingChasing, SetpointChasing
 from ..control.setpoint_opt import METHODS, OptimalSetpoint, SetpointOptions
 from ..errors import TapmError
 from ..estimation import DEFAULT_ESTIMATOR
+from ..estimation.current_profile import CURRENT_MODES, CurrentEstimating, CurrentProfileEstimator, CurrentResponseModel
 from ..estimation.detection import TensionDropDetector, TensionResidualDetector
 from ..estimation.lowpass import LowPassEstimator, TrueStateEstimator
 from ..estimation.reliability import monitor_for
+from ..geometry import body_from_turret
 from ..interfaces import (AttitudeAware, Controller, ControllerStep, Estimate, Estimator, FaultAware, Logged, Setpoint,
                           SetpointLayer, ThrusterCommand, ThrusterController, WinchController)
 from ..models.system import System
@@ -47,7 +49,8 @@ from ..results import Result, ResultBuilder
 
 __all__ = ["ClosedLoopSettings", "SetpointChasing", "run_closed_loop", "default_setpoint_layer",
            "optimal_setpoint_layer", "SETPOINT_KINDS", "ClosedLoopError", "default_estimator", "ESTIMATOR_KINDS",
-           "DEFAULT_ESTIMATOR", "DETECTOR_KINDS", "WINCH_KINDS", "default_winch_controller", "combination_issues"]
+           "DEFAULT_ESTIMATOR", "DETECTOR_KINDS", "WINCH_KINDS", "default_winch_controller", "combination_issues",
+           "CURRENT_MODES", "current_estimator", "fem_static_tensions"]
 
 
 class ClosedLoopError(TapmError, ValueError):
@@ -116,6 +119,14 @@ class ClosedLoopSettings:
     winch_options : mapping or None
         Options of the tension controller (:class:`~tapm_opt.control.winch.WinchSettings`: ``kc``,
         ``ki``, ``T_max_fraction``, ``T_min_fraction``, ``geometry``).
+    current : {"known", "estimated", "estimated_tensions"}
+        The current the layers take: the sea state's profile ("known", as it is at t = 0), or the
+        on-line estimate from the tension cells and riser inclinometers ("estimated"), or from the
+        tension cells alone ("estimated_tensions", the seabed factor held at the nominal profile's)
+        (:mod:`tapm_opt.estimation.current_profile`): the estimator is wrapped in a
+        :class:`~tapm_opt.estimation.current_profile.CurrentEstimating` (its estimates in the
+        estimator's log, ``"current estimate"`` events) and the optimal setpoints read its surface
+        current in place of the sea state's.
     """
 
     duration: float = 3600.0
@@ -134,6 +145,7 @@ class ClosedLoopSettings:
     detector: Literal["tension", "drop", "bank", "none"] = "tension"
     winch: Literal["none", "tension"] = "none"
     winch_options: Mapping[str, Any] | None = None
+    current: Literal["known", "estimated", "estimated_tensions"] = "known"
 
     def __post_init__(self) -> None:
         for name in ("duration", "dt_control", "dt_log", "chase_time", "chase_margin", "heading_chase_time"):
@@ -149,6 +161,8 @@ class ClosedLoopSettings:
         for name, kinds in (("estimator", ESTIMATOR_KINDS), ("detector", DETECTOR_KINDS)):
             if getattr(self, name) not in kinds:
                 raise ClosedLoopError(f"{name} = {getattr(self, name)!r} is not one of {', '.join(map(repr, kinds))}")
+        if self.current not in CURRENT_MODES:
+            raise ClosedLoopError(f"current = {self.current!r} is not one of {', '.join(map(repr, CURRENT_MODES))}")
         if self.winch not in WINCH_KINDS:
             raise ClosedLoopError(f"winch = {self.winch!r} is not one of {', '.join(map(repr, WINCH_KINDS))}")
         issues = combination_issues(vars(self))
@@ -207,7 +221,42 @@ def combination_issues(settings: Mapping[str, Any]) -> list[tuple[str, str]]:
                              "detector = 'none'"))
     if g["winch_options"] and g["winch"] != "tension":
         out.append(("winch_options", f"are for winch = 'tension', not winch = {g['winch']!r}"))
+    if g["current"] != "known" and g["winch"] == "tension":
+        out.append(("current", f"= {g['current']!r} reads the drag share of the tensions of the lines at their nominal "
+                               "lengths, which the winches change; give winch = 'none'"))
     return out
+
+
+def fem_static_tensions(scenario: Any, segments: int | None = 10) -> Any:
+    """``settle(eta, current) -> (M,)``: the fairlead tensions [N] of ``scenario``'s lines as the
+    plant's FEM (``segments`` per line) settled by dynamic relaxation with the vessel held at ``eta``
+    under ``current`` (node depths [m] -> velocities (n, 3) in {E} [m/s]; None: still water), as
+    :func:`tapm_opt.studies.anchor_network.current_tension_share` settles them. The line model with
+    current drag of :class:`~tapm_opt.estimation.current_profile.CurrentResponseModel`."""
+    from ..plant.mooring_fem import MooringFEM
+
+    def settle(eta: Any, current: Any) -> np.ndarray:
+        eta = np.asarray(eta, dtype=float)
+        fem = MooringFEM(scenario, segments=segments, current=current)
+        fem.initialise(eta)
+        fem.settle(eta, max_time=3000.0)
+        return np.asarray(fem.fairlead_tension(), dtype=float).copy()
+
+    return settle
+
+
+def current_estimator(system: System, sea_state: Any, eta_ref: Any = (0.0, 0.0, 0.0), *,
+                      use_riser: bool = True) -> CurrentProfileEstimator:
+    """The on-line current-profile estimator of ``system`` (:mod:`tapm_opt.estimation.current_profile`):
+    the response model of its lines (and riser, read when ``use_riser``) with ``sea_state``'s
+    profile shape settled at ``eta_ref`` (body origin, {E}), the tension-cell and inclinometer
+    noise of its sensors."""
+    sc = system.scenario
+    model = CurrentResponseModel(sc, fem_static_tensions(sc), sea_state, eta_ref=eta_ref)
+    sens = sc.sensors
+    return CurrentProfileEstimator(model,
+                                   tension_noise=float(sens.tension_std_rel) * np.asarray(system.lines.MBS, float),
+                                   angle_noise=float(sens.riser_angle_std), use_riser=use_riser)
 
 
 def default_estimator(system: System, settings: ClosedLoopSettings, sea_state: Any = None) -> Estimator:
@@ -254,12 +303,14 @@ def default_winch_controller(system: System, settings: ClosedLoopSettings) -> An
 
 
 def optimal_setpoint_layer(system: System, method: str, sea_state: Any = None, *,
-                           options: Mapping[str, Any] | None = None, eta_d: Any = (0.0, 0.0, 0.0)) -> OptimalSetpoint:
+                           options: Mapping[str, Any] | None = None, eta_d: Any = (0.0, 0.0, 0.0),
+                           current_source: Any = None) -> OptimalSetpoint:
     """An :class:`~tapm_opt.control.setpoint_opt.OptimalSetpoint` of ``method`` on ``system``, with
     the scenario's riser under ``sea_state``'s current (the wave-frequency statistics come with the
-    estimate, from the estimator's reliability monitor)."""
+    estimate, from the estimator's reliability monitor); ``current_source`` an estimated surface
+    current read in its place (``ClosedLoopSettings.current = "estimated"``)."""
     riser = system.riser(sea_state)
-    return OptimalSetpoint(system, method, riser=riser, options=options, eta_d=eta_d)
+    return OptimalSetpoint(system, method, riser=riser, options=options, eta_d=eta_d, current_source=current_source)
 
 
 def _sea_state(system: System, sea_state_id: Any) -> Any:
@@ -272,15 +323,16 @@ def _sea_state(system: System, sea_state_id: Any) -> Any:
         return None
 
 
-def default_setpoint_layer(system: System, settings: ClosedLoopSettings, sea_state: Any = None) -> Any:
+def default_setpoint_layer(system: System, settings: ClosedLoopSettings, sea_state: Any = None, *,
+                           current_source: Any = None) -> Any:
     """The setpoint layer a :class:`ClosedLoopSettings` describes (fixed, chasing, optimal or
     fatigue-aware, with the heading fixed or chased). ``sea_state`` gives the current the riser model of the optimal
-    setpoints sees (None: still water)."""
+    setpoints sees (None: still water); ``current_source`` an estimated one read in its place."""
     s = settings
     R = system.limits.safe_radius
     if s.setpoint in METHODS:
         layer: Any = optimal_setpoint_layer(system, s.setpoint, sea_state, options=s.setpoint_options,
-                                            eta_d=s.eta_d)
+                                            eta_d=s.eta_d, current_source=current_source)
     elif s.setpoint == "fatigue":
         from ..control.fatigue_setpoint import FatigueAwareSetpoint
         from ..models.fatigue import line_curves
@@ -349,7 +401,14 @@ def run_closed_loop(plant: Plant, controller: Controller, settings: ClosedLoopSe
     sea_state = _sea_state(system, plant.metadata().get("sea_state"))
     chosen = {} if estimator is not None else {"estimator_kind": s.estimator, "detector": s.detector}
     estimator = estimator or default_estimator(system, s, sea_state)
-    layer = setpoint_layer or default_setpoint_layer(system, s, sea_state)
+    source = None
+    if s.current != "known":
+        psi0 = float(s.eta_d[2])
+        eta_ref = (*body_from_turret(s.eta_d[:2], psi0, system.p_cot_B), psi0)
+        estimator = CurrentEstimating(estimator, current_estimator(system, sea_state, eta_ref,
+                                                                   use_riser=s.current == "estimated"))
+        source = estimator.surface_current
+    layer = setpoint_layer or default_setpoint_layer(system, s, sea_state, current_source=source)
     winch = winch if winch is not None else default_winch_controller(system, s)
     extra = [("tau_cmd[X]", "N"), ("tau_cmd[Y]", "N"), ("tau_cmd[N]", "N m"),
              ("x_d", "m"), ("y_d", "m"), ("psi_d", "rad"),
@@ -444,6 +503,7 @@ def run_closed_loop(plant: Plant, controller: Controller, settings: ClosedLoopSe
     md = {**plant.metadata(), "controller": type(controller).__name__, "controller_period": period,
           "dt_control": s.dt_control, "true_state": s.true_state, "setpoint": s.setpoint,
           "setpoint_options": dict(s.setpoint_options or {}), "heading": s.heading,
+          **({"current": s.current} if s.current != "known" else {}),
           "estimator": type(estimator).__name__, **chosen, "setpoint_layer": type(layer).__name__,
           **({"winch": s.winch, "winch_options": dict(s.winch_options or {}),
               "winch_controller": type(winch).__name__} if winch is not None else {}),

@@ -67,7 +67,7 @@ class KpiDef:
         pattern with the line-id token ``<id>`` (``T_max[<id>]``).
     unit : str
         Unit as written in the docs and table headers: SI symbols (``"m"``, ``"s"``, ``"N"``,
-        ``"J"``, ``"W"``, ``"kg"``), ``"deg"`` for angles, ``"lines"`` for a number of lines,
+        ``"J"``, ``"W"``, ``"kg"``, ``"m/s"``), ``"deg"`` for angles, ``"lines"`` for a number of lines,
         ``"-"`` for a dimensionless number, a count or a text.
     direction : {"minimise", "maximise", "none"}
         Which value is better when cases are compared on the same condition; ``"none"``: neither.
@@ -188,6 +188,13 @@ _ENTRIES: tuple[KpiDef, ...] = (
     _k("mode_switches", "-", "none", "controller mode, gain-row or dead-band switches: a switch the weather or a "
                                      "break calls for is wanted, so the count alone is neither good nor bad",
        kind="count"),
+    # current-profile estimation
+    _k("current_speed_error", "m/s", "minimise", "RMS error of the estimated surface current speed against the "
+                                                 "plant's, over the estimates after t_start"),
+    _k("current_direction_error", "deg", "minimise", "RMS error of the estimated current direction against the "
+                                                     "plant's, over the estimates after t_start"),
+    _k("current_seabed_factor_error", "-", "minimise", "RMS error of the estimated seabed factor of the profile "
+                                                       "against the plant's, over the estimates after t_start"),
     # riser
     _k("riser_top_angle_max_deg", "deg", "minimise", "max riser angle at the hang-off"),
     _k("riser_bottom_angle_max_deg", "deg", "minimise", "max riser angle at the wellhead"),

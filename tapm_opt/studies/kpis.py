@@ -425,6 +425,41 @@ def _detection(result: Result, breaks: dict[str, float],
     return out
 
 
+def _current_estimation(result: Result, scenario: Any, t_start: float) -> dict[str, float]:
+    """Current-profile estimation KPIs from the estimator's log (``"current estimate"`` events of
+    :class:`~tapm_opt.estimation.current_profile.CurrentEstimating`) against the plant's current
+    at each estimate's time (``Environment.current_surface``: the turning and developing current of
+    the case's sea state; the seabed factor of its profile, :func:`~tapm_opt.estimation.current_profile.
+    profile_shape`): RMS over the estimates at or after ``t_start`` of the speed error
+    ``current_speed_error`` [m/s], the direction error ``current_direction_error`` [deg] (wrapped to
+    +-180 deg) and the seabed-factor error ``current_seabed_factor_error`` [-]. All absent without
+    estimates (the run took the current as known)."""
+    log = result.meta.get("estimator_log") or []
+    est = [e for e in log if e.get("event") == "current estimate" and float(e["t"]) >= t_start - 1e-9]
+    if not est:
+        return {}
+    from ..estimation.current_profile import profile_shape
+    from ..plant.environment import Environment
+
+    sid = result.meta.get("sea_state")
+    try:
+        ss = scenario.sea_state(sid)
+    except (KeyError, ValueError, TapmError):
+        raise KpiError(f"the record's sea_state = {sid!r} is not a sea state of scenario {scenario.name!r}: "
+                       "its current is the truth of the current KPIs") from None
+    env = Environment(scenario, ss)
+    f_b = profile_shape(ss, scenario.environment.water_depth)[1]
+    eV, eb, ef = [], [], []
+    for e in est:
+        u = env.current_surface(float(e["t"]))
+        eV.append(float(e["speed"]) - math.hypot(u[0], u[1]))
+        eb.append(float(ssa(float(e["direction"]) - math.atan2(u[1], u[0]))))
+        ef.append(float(e["seabed_factor"]) - f_b)
+    rms = lambda x: math.sqrt(float(np.mean(np.square(x))))  # noqa: E731
+    return {"current_speed_error": rms(eV), "current_direction_error": math.degrees(rms(eb)),
+            "current_seabed_factor_error": rms(ef)}
+
+
 def _mode_switches(result: Result) -> dict[str, float]:
     """``mode_switches`` — the controller's switches of mode set or gain-table row, or of the MPC's
     dead band between intact and damaged (events ``{"event": "mode switch"}`` of
@@ -588,6 +623,7 @@ def _compute(result: Result, scenario: Any, *, t_start: float, lp_window: float,
         out["buoys_lost"] = len(losses)
     out.update(_detection(result, breaks, losses))
     out.update(_mode_switches(result))
+    out.update(_current_estimation(result, scenario, t_start))
 
     # riser end angles and their reliability indices ([G] §2.2)
     riser = getattr(scenario, "riser", None)

@@ -104,7 +104,7 @@ class Study:
 _STUDY_KEYS = {"name", "description", "scenario", "duration", "segments", "break_on_overload", "dt_control",
                "dt_log", "heading",
                "setpoint", "setpoint_options", "true_state", "seeds", "mode", "estimator", "detector", "winch",
-               "winch_options"}
+               "winch_options", "current"}
 _TOP_KEYS = {"study", "sea_states", "controllers", "conditions", "cases", "capability", "tuning", "verification"}
 _CONDITION_KEYS = {"name", "line_break", "thruster_failure", "buoy_loss"}
 _FAULT_KEYS = {"line_break": {"line", "time", "time_fraction"}, "thruster_failure": {"thruster", "time", "time_fraction"},
@@ -345,12 +345,16 @@ _ESTIMATION_DEFAULTS = _estimation_defaults()
 
 
 def _estimation_fields(ck: Checker, table: Mapping, where: str) -> dict:
-    """``estimator`` and ``detector`` of a [study] or [[controllers]] table, checked (only the
-    ones given; the study's defaults are :data:`_ESTIMATION_DEFAULTS`)."""
-    from .closed_loop import DETECTOR_KINDS, ESTIMATOR_KINDS
+    """``estimator``, ``detector`` and ``current`` ("known" | "estimated": the layers take the sea
+    state's current or its on-line estimate, :mod:`tapm_opt.estimation.current_profile`) of a
+    [study] or [[controllers]] table, checked (only the ones given; the study's defaults are
+    :data:`_ESTIMATION_DEFAULTS`, and ``current`` is named only when given, so the case ids of a
+    study without it are unchanged)."""
+    from .closed_loop import CURRENT_MODES, DETECTOR_KINDS, ESTIMATOR_KINDS
 
     return {k: ck.choice(table[k], kinds, f"{where}.{k}")
-            for k, kinds in (("estimator", ESTIMATOR_KINDS), ("detector", DETECTOR_KINDS)) if k in table}
+            for k, kinds in (("estimator", ESTIMATOR_KINDS), ("detector", DETECTOR_KINDS), ("current", CURRENT_MODES))
+            if k in table}
 
 
 def _winch_fields(ck: Checker, table: Mapping, where: str) -> dict:
@@ -384,7 +388,7 @@ def _loop(study: dict, controller: dict) -> dict:
     from ..control.setpoint_opt import METHODS
 
     out = dict(study)
-    for key in ("setpoint", "estimator", "detector", "winch", "winch_options"):
+    for key in ("setpoint", "estimator", "detector", "winch", "winch_options", "current"):
         if key in controller:
             out[key] = controller[key]
     out.pop("setpoint_options", None)
@@ -506,7 +510,7 @@ def _parse_controllers(ck: Checker, data: Mapping, out: _Parsed) -> None:
             _check_tune(ck, kind, e, p)
         opts = {k: v for k, v in e.items()
                 if k not in ("name", "type", "setpoint", "setpoint_options", "estimator", "detector", "winch",
-                             "winch_options", "tune")}
+                             "winch_options", "tune", "current")}
         loop = {**_setpoint_fields(ck, e, p, {}, inherited=out.closed_loop.get("setpoint")),
                 **_estimation_fields(ck, e, p), **_winch_fields(ck, e, p)}
         merged = _loop(out.closed_loop, loop)
