@@ -481,3 +481,25 @@ def test_non_finite_or_misshapen_input_is_refused():
         RiserModel.from_scenario(scenario("aamo4"))
     with pytest.raises(ModelError, match=r"EI=-1\.0"):
         riser(EI=-1.0)
+
+
+def test_plant_riser_angles_follow_a_turning_current():
+    """With a turning current the plant's riser angles are those of the current of the step (the
+    hull's), not of the sea state's current at t = 0: recomputed from the logged pose and the
+    current at that time, they agree; with the t = 0 current they would not (the current has
+    turned 30 deg)."""
+    sc = tapm_opt.load_scenario("fpso")
+    ss = dataclasses.replace(sc.sea_state("normal"), Hs=0.0, wind_speed=0.0, current_speed=0.8,
+                             current_turn_rate=math.radians(0.5))
+    plant = Plant(sc, sea_state=ss, seed=0, segments=4, wave_frequency=False)
+    run_open_loop(plant, 60.0)
+    env = plant.env
+    v_now = env.current_surface(plant.t - 0.1)[:2]   # held over the last outer step from its start
+    v_0 = env.current_surface(0.0)[:2]
+    turned = math.degrees(math.atan2(v_now[1], v_now[0]) - math.atan2(v_0[1], v_0[0]))
+    assert (turned + 180.0) % 360.0 - 180.0 == pytest.approx(29.95, abs=0.1)
+    pose = plant.eta + plant._eta_wf
+    want = plant.riser.angles_at(pose, v_now)
+    np.testing.assert_allclose(plant._riser_angles, want, rtol=1e-12, atol=1e-15)
+    stale = plant.riser.angles_at(pose)
+    assert np.max(np.abs(stale - want)) > 0.2 * np.max(np.abs(want))

@@ -231,7 +231,8 @@ class Plant:
                 self.settle_info = self.mooring.settle(pose)
                 self._tau_moor = self.mooring.tau(pose)
                 self._M_lines = self._line_moments(pose, None)
-        self._riser_angles = self.riser.angles_at(pose[:3]) if self.riser is not None else None
+        self._riser_angles = (None if self.riser is None else
+                              self.riser.angles_at(pose[:3], self._v_c if self._current_turns else None))
         self._rate = np.zeros(6)   # the pose rate, then the heave, roll and pitch rates
         if self.wave_frequency:
             self._rate[:3] = self.env.eta_wf_dot(0.0, self.eta[2])
@@ -618,8 +619,8 @@ class Plant:
             self._tau_moor = m.tau(pose1, a_fl)
         if rp_on:
             self._M_lines = self._line_moments(pose1, a_fl)
-        if self.riser is not None:
-            self._riser_angles = self.riser.angles_at(pose1[:3])
+        if self.riser is not None:   # in the current of the step (a turning or developing one as the hull has it)
+            self._riser_angles = self.riser.angles_at(pose1[:3], self._v_c if self._current_turns else None)
         self._loads = {"tau_wind": tau_wind, "tau_drift": tau_drift, "tau_moor": self._tau_moor, "tau_thr": tau_thr}
 
     def _substeps(self, h: float, winching: bool) -> int:
