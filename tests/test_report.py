@@ -724,3 +724,24 @@ def test_after_a_break_the_safe_region_leaves_the_broken_line_out():
     # the break is marked on the delta(t) panel
     assert any(t.get_text().startswith(" line 7 broke") for t in rf.figure.axes[1].texts)
     report_figures.png_bytes(rf.figure)
+
+
+def test_side_by_side_gives_the_worst_lines_fatigue_life_against_the_first_controller(tmp_path):
+    """The life of the worst line over the first column's is the inverse ratio of their
+    fatigue_damage_max (Miner: life ~ 1 / damage), the longest marked; absent without the KPI."""
+    from tapm_opt.report.data import CaseInfo
+    from tapm_opt.report.kpi_tables import side_by_side_tables
+
+    def case(i, ctrl, dmg):
+        k = {"offset_max": 10.0 + i}
+        if dmg is not None:
+            k["fatigue_damage_max"] = dmg
+        return CaseInfo(id=f"c{i}", name=f"c{i}", labels={"controller": ctrl, "seed": 1}, inputs={},
+                        folder=tmp_path, status="finished", kpis=k)
+
+    (_, tab), = side_by_side_tables([case(0, "chasing", 3.0e-4), case(1, "fatigue", 2.4e-4)])
+    row = [r for r in tab.rows if r[0].text.startswith("worst line's fatigue life")]
+    assert len(row) == 1 and "chasing" in row[0][0].text
+    assert [c.text for c in row[0][3:]] == ["1", "1.25"] and [c.best for c in row[0][3:]] == [False, True]
+    (_, tab), = side_by_side_tables([case(0, "chasing", None), case(1, "fatigue", None)])
+    assert not any(r[0].text.startswith("worst line's") for r in tab.rows)

@@ -144,10 +144,25 @@ def side_by_side_tables(cases: Sequence[CaseInfo]) -> list[tuple[str, Table]]:
             d = kpi_direction(k)
             rows.append([Cell(k, code=True), Cell(unit), Cell({-1: "lower", 1: "higher", 0: "–"}[d])]
                         + [Cell(_fmt(v), best=b) for v, b in zip(vals, best)])
+            if k == "fatigue_damage_max" and len(members) >= 2:
+                rows.append(_life_ratio_row(vals, cols[0]))
         out.append((g.description,
                     Table(header=["KPI", "unit", "better", *cols], rows=rows,
                           align=["l", "l", "l", *["r"] * len(cols)], css="sbs")))
     return out
+
+
+def _life_ratio_row(damage: Sequence[Any], first: str) -> list[Cell]:
+    """The worst line's fatigue life of each case over the first column's, in the same sea: the
+    ratio of their ``fatigue_damage_max`` (life is inversely proportional to Miner's damage per
+    record, ``docs/kpis.md``); the longest marked."""
+    num = [float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else None for v in damage]
+    d0 = num[0]
+    ratio = [d0 / v if d0 is not None and v is not None and v > 0 and math.isfinite(d0 / v) else None for v in num]
+    present = [r for r in ratio if r is not None]
+    top = max(present) if len(present) >= 2 and max(present) != min(present) else None
+    return ([Cell(f"worst line's fatigue life / {first}'s"), Cell("-"), Cell("higher")]
+            + [Cell("" if r is None else f"{r:.3g}", best=top is not None and r == top) for r in ratio])
 
 
 def _best_flags(name: str, vals: Sequence[Any]) -> list[bool]:
