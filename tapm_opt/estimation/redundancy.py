@@ -215,6 +215,7 @@ class SensorVoting:
         self._e_var = np.zeros(n)
         self._d2_fast = np.zeros(n)
         self._d2_slow = np.zeros(n)
+        self._d2_short = np.zeros(n)
         self._e_prev = None
         self._T_prev = None
         self._T_same_since = np.full(n, math.nan)
@@ -346,6 +347,7 @@ class SensorVoting:
             d2 = (e - self._e_prev) ** 2
             self._nd += 1
             self._d2_fast = _ewma(self._d2_fast, d2, dt, s.tau_test, self._nd)
+            self._d2_short = _ewma(self._d2_short, d2, dt, s.confirm, self._nd)
         self._e_prev = e
         # the healthy baselines and scales, learnt while every sensor is trusted and no alarm builds
         n_eff = 2.0 * s.tau_test / dt
@@ -383,8 +385,9 @@ class SensorVoting:
                 continue
             noisy = self._confirmed(("noisy", i), q[i] >= s.noise_ratio and ok[i], t)
             if noisy or self._confirmed(("drift", i), abs(z[i]) >= s.z_alarm and ok[i], t):
-                # a noisy cell also moves its low-passed residual: its noise ratio names it
-                loud = q[i] >= s.noise_ratio
+                # a noisy cell also moves its low-passed residual: its noise ratio over the last
+                # confirm seconds names it
+                loud = noisy or (self._d2_short[i] / max(self._d2_slow[i], 1e-300)) / max(med, 1e-12) >= s.noise_ratio
                 self._exclude_cell(t, i, "noisy" if loud else "drift", float(q[i] if loud else z[i]))
         # GNSS against the tensions (only while the GNSS is the reference and the gyros agree)
         if self.reference == "gnss" and not self.gnss_excluded:
