@@ -233,6 +233,8 @@ class SensorVoting:
         self._h_last = None
         self._d_gt = np.zeros(2)
         self._n_gt = 0
+        self._gt_var = 0.0
+        self._gyro_suspect = False
         self._alarm_since: dict[tuple, float] = {}
         self._tT_last = -math.inf
         self._prev_tT = math.nan
@@ -318,12 +320,23 @@ class SensorVoting:
         U = ok.copy()
         U[list(self.excluded_cells)] = False
         w = 1.0 / np.maximum(self._s_n, 1.0)
+        dp = np.zeros(2)
+        rr = r
         if U.sum() >= 3:
+            # Gauss-Newton on the inverse mooring model: the step from the residual at the last
+            # iterate, the model re-evaluated there (up to 3 steps, until one is below 0.1 m)
             A = J[U] * w[U, None]
-            dp = np.linalg.lstsq(A, r[U] * w[U], rcond=None)[0]
-        else:
-            dp = np.zeros(2)
-        e = np.where(alive, r - J @ dp, 0.0)
+            for _ in range(3):
+                step = np.linalg.lstsq(A, (rr - J @ np.zeros(2))[U] * w[U], rcond=None)[0]
+                dp = dp + step
+                e_it = eta.copy()
+                e_it[:2] += dp
+                Tq = np.full(n, math.nan)
+                Tq[idx] = table(e_it)
+                rr = T - Tq - self._beta
+                if float(np.hypot(*step)) < 0.1:
+                    break
+        e = np.where(alive, rr, 0.0)
         self._dp = dp
         self._p_T = eta[:2] + dp
         # the GNSS-tension heading of this sample (module docstring) and each gyro's difference from it
@@ -334,8 +347,13 @@ class SensorVoting:
             psi_gt = eta[2] + float(arm[0] * dp[1] - arm[1] * dp[0]) / L2
             dd = np.array([ssa(h - psi_gt) if h is not None else 0.0 for h in self._h_last])
             self._n_gt += 1
-            self._d_gt = _ewma(self._d_gt, dd, max(t - self._tT_last, 1e-9) if math.isfinite(self._tT_last) else 1.0,
-                               self.settings.tau_test, self._n_gt)
+            dtg = max(t - self._tT_last, 1e-9) if math.isfinite(self._tT_last) else 1.0
+            self._d_gt = _ewma(self._d_gt, dd, dtg, self.settings.tau_test, self._n_gt)
+            if learn and not self._gyro_suspect and self.excluded_gyro is None:   # the third vote's spread
+                tau_g = 10.0 * self.settings.tau_learn if armed else self.settings.tau_learn
+                g2 = float(np.mean(self._d_gt ** 2))
+                self._gt_var = _ewma(self._gt_var, min(g2, 9.0 * self._gt_var) if self._n_gt > 1 else g2, dtg,
+                                     tau_g, self._n_gt)
         dt = 1.0 if self._e_prev is None else max(t - self._tT_last, 1e-9)
         self._tT_last = t
         self._n += 1
@@ -358,19 +376,29 @@ class SensorVoting:
         z_p = self._dp_lp / s_p
         quiet = (np.abs(z) < 0.5 * s.z_alarm) & ok
         quiet[list(self.excluded_cells)] = False
-        if learn:   # the scales with Huber-clipped squares (bounded influence, never frozen)
+        if learn:
+            # the scales from Huber-clipped squares (3 sigma: bounded influence), calibrated until
+            # the tests arm; then refined ten times slower, and not while a statistic is past
+            # half the alarm level (a fault building), so a drift is not absorbed into its own scale
             kl = max(k, 1)
             learnt = alive.copy()
             learnt[list(self.excluded_cells)] = False
+            hold = 0.5 * s.z_alarm if armed else math.inf
+            tau_s = 10.0 * s.tau_learn if armed else s.tau_learn
             self._beta = np.where(quiet & alive, _ewma(self._beta, self._beta + r, dt, s.tau_learn, kl), self._beta)
             x2 = np.minimum(self._e_lp ** 2, 9.0 * s_e ** 2) if k > 1 else self._e_lp ** 2
-            self._e_var = np.where(learnt, _ewma(self._e_var, x2, dt, s.tau_learn, kl), self._e_var)
-            p2 = np.minimum(self._dp_lp ** 2, 9.0 * s_p ** 2) if k > 1 else self._dp_lp ** 2
-            self._dp_var = _ewma(self._dp_var, p2, dt, s.tau_learn, kl)
+            self._e_var = np.where(learnt & (np.abs(z) < hold), _ewma(self._e_var, x2, dt, tau_s, kl),
+                                   self._e_var)
+            if float(np.max(np.abs(z_p))) < hold:
+                p2 = np.minimum(self._dp_lp ** 2, 9.0 * s_p ** 2) if k > 1 else self._dp_lp ** 2
+                self._dp_var = _ewma(self._dp_var, p2, dt, tau_s, kl)
             if self._nd:
                 d2s = np.minimum(self._d2_fast, 9.0 * np.maximum(self._d2_slow, 1e-300)) if self._nd > 1 \
                     else self._d2_fast
-                self._d2_slow = np.where(learnt, _ewma(self._d2_slow, d2s, dt, s.tau_learn, self._nd), self._d2_slow)
+                q_now = np.full(n, math.inf)
+                np.divide(self._d2_fast, self._d2_slow, out=q_now, where=self._d2_slow > 0)
+                keep = learnt & ((q_now < 0.5 * s.noise_ratio) if armed else True)
+                self._d2_slow = np.where(keep, _ewma(self._d2_slow, d2s, dt, tau_s, self._nd), self._d2_slow)
         ratio = np.ones(n)
         np.divide(self._d2_fast, self._d2_slow, out=ratio, where=alive & (self._d2_slow > 0))
         healthy = [i for i in range(n) if alive[i] and i not in self.excluded_cells]
@@ -391,7 +419,7 @@ class SensorVoting:
                 self._exclude_cell(t, i, "noisy" if loud else "drift", float(q[i] if loud else z[i]))
         # GNSS against the tensions (only while the GNSS is the reference and the gyros agree)
         if self.reference == "gnss" and not self.gnss_excluded:
-            cells_quiet = all(abs(z[i]) < 0.5 * s.z_alarm for i in healthy)
+            cells_quiet = all(abs(z[i]) < s.z_alarm for i in healthy)
             alarm = (float(np.max(np.abs(z_p))) >= s.z_alarm and float(np.hypot(*self._dp_lp)) >= s.gnss_floor
                      and gyros_agree and cells_quiet)
             if self._confirmed(("gnss",), alarm, t):
@@ -433,9 +461,13 @@ class SensorVoting:
         alarm = abs(self._dh_lp) >= floor
         if armed and self._confirmed(("gyro",), alarm, t):
             # the third vote: each gyro's low-passed difference from the GNSS-tension heading; the
-            # one farther by at least half the floor is excluded (else wait: the drift grows)
-            a1, a2 = abs(float(self._d_gt[0])), abs(float(self._d_gt[1]))
-            if abs(a1 - a2) >= 0.5 * floor:
+            # farther one is excluded once the gyros disagree by 4 standard deviations of that
+            # heading's own error (then it is on the wrong side with probability 2 %); until
+            # then the heading handed on is the two gyros' mean
+            self._gyro_suspect = True
+            if abs(self._dh_lp) >= 4.0 * math.sqrt(self._gt_var):
+                a1, a2 = abs(float(self._d_gt[0])), abs(float(self._d_gt[1]))
+                self._gyro_suspect = False
                 self._exclude_gyro(t, 1 if a1 > a2 else 2, "drift", float(self._dh_lp))
                 return True
         return abs(self._dh_lp) < 0.5 * floor
@@ -491,6 +523,8 @@ class SensorVoting:
             changes.update(position=np.array(p, float), position_valid=True)
         if self.excluded_gyro == 1 and m.heading2 is not None:
             changes["heading"] = float(m.heading2)
+        elif self._gyro_suspect and self.excluded_gyro is None and m.heading2 is not None:
+            changes["heading"] = float(ssa(m.heading + 0.5 * ssa(m.heading2 - m.heading)))
         if self._T_sub and m.tensions is not None:
             T = np.array(m.tensions, float)
             for i, v in self._T_sub.items():
