@@ -21,10 +21,11 @@ catenary tensions of the lines not known broken (the tabulated model of
 line's mean residual learnt while every sensor is healthy (the quasi-static model's own error:
 current drag on the line, the LF lag; an exponentially weighted mean, time constant ``tau_learn``,
 the plain mean before), ``U`` the cells neither excluded nor reading below ``break_fraction`` of
-their model tension (a line that may have just broken). (R2) is one Gauss-Newton step of the
-inverse of the mooring model about the estimate, the same inversion as the range measurements of
-:class:`~tapm_opt.estimation.anchor_slam.TensionPositionEstimator`, linearised because the
-estimate is never far; ``e`` is the *parity residual*, the part of the residual no position error
+their model tension (a line that may have just broken). (R2) is solved by up to three
+Gauss-Newton steps of the inverse of the mooring model from the estimate (the model re-evaluated
+at each iterate; ``e`` then is the residual at the last one), the same inversion as the range
+measurements of :class:`~tapm_opt.estimation.anchor_slam.TensionPositionEstimator` without its
+filter; ``e`` is the *parity residual*, the part of the residual no position error
 explains (Chow & Willsky 1984), in which one cell's fault shows and a position error does not.
 
 **GNSS**. No fix (``position_valid`` False) or a GNSS excluded: the position handed on is
@@ -33,7 +34,8 @@ dropout; an excluded GNSS stays excluded). A silent drift is found by voting the
 tensions: ``dp`` low-passed (time constant ``tau_test``) and standardised by its standard deviation
 learnt while healthy, ``z_p = dp_lp / s_p`` per axis; the GNSS is excluded when ``|z_p| >= z_alarm``
 and ``|dp_lp| >= gnss_floor`` for ``confirm`` s, while the gyros agree (a heading error moves the
-estimated turret as a GNSS error would; that is the gyros' test, below).
+estimated turret as a GNSS error would; that is the gyros' test, below) and no cell's statistic is
+past the alarm level (a cell's fault leaks a little into ``dp``).
 
 **Tension cells**. *Stuck*: the cell repeats its reading exactly over ``stuck_time`` [s] (at least
 three samples). With noise of standard deviation > 0 two samples are equal with probability 0 (2^-52
@@ -50,9 +52,17 @@ cell falls below ``break_fraction`` of its model tension at once (to zero or the
 50-100 % down: :class:`~tapm_opt.estimation.detection.TensionResidualDetector`), which the drift test
 does not count and the line-break detector does.
 
+Scales: the standard deviations (``s_e``, ``s_p``, the healthy noise ratio, the spread of the
+GNSS-tension heading) are exponentially weighted means of Huber-clipped squares (at 3 standard
+deviations) with time constant ``tau_learn`` until the tests arm (``t_arm``); then ten times
+slower, and not while the statistic is past half the alarm level, so that a slow drift is not
+absorbed into its own scale. ASSUMPTION: the sea changes slowly against ``10 tau_learn``.
+
 Threshold and false alarms: for Gaussian residuals, ``|z| >= 5`` has probability 5.7e-7 per
 independent sample of the low-passed statistic (one per about ``2 tau_test`` = 60 s), so about one
-false alarm per 3000 years per statistic. ASSUMPTION: the residuals are Gaussian and stationary over
+false alarm per 3 years per statistic (the 12 cells, the GNSS's two axes and the noise ratios of
+fpso: one every two to three months of operation, before the confirmation over ``confirm`` s,
+which lowers it). ASSUMPTION: the residuals are Gaussian and stationary over
 ``tau_learn``; the real ones are neither (wave groups, a changing sea), and the confirmation time and
 the floors are what protect against that: the study ``studies/sensor_faults.toml`` runs the intact
 case through the same tests and reports the false alarms (docs/sensor_faults.md).
@@ -63,8 +73,11 @@ cell, over ``stuck_time``. *Drifting*: the two disagree, ``|ssa(psi_1 - psi_2)|`
 is isolated by a third vote, the heading the GNSS and the tensions give together: the tensions
 place the turret (R3 moves the turret of the estimate onto the tensions'), the GNSS the body
 origin, and the line between them, ``L = |p_cot|`` long (91 m on fpso: 0.5 m of position is 0.3
-deg), points along the hull: ``psi_GT = psi_hat + (dp_lp x R(psi_hat) p_cot) / L^2``. The gyro
-farther from ``psi_GT`` is excluded and the other's heading handed on. Why a second gyro rather
+deg), points along the hull: at each tension sample ``psi_GT = psi_hat + (R(psi_hat) p_cot x dp) / L^2``. Once the
+gyros' difference also exceeds 4 standard deviations of ``psi_GT``'s own error (learnt while the
+gyros agree), the gyro farther from ``psi_GT`` (each difference low-passed over ``tau_test``) is
+excluded and the other's heading handed on; until then the heading handed on is the two gyros'
+mean. Why a second gyro rather
 than an innovation test against the model's yaw prediction: the observers' bias state absorbs a
 slow heading drift as an environmental yaw moment, so the innovation stays white; two gyros are
 what a DP-classed vessel carries, and the GNSS-tension heading breaks their tie.
