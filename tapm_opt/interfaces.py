@@ -54,7 +54,8 @@ class Measurement:
     t : float
         Time of the request [s].
     position : ndarray, shape (2,)
-        Measured (x, y) of the body origin in {E} [m] (held since ``t_position``).
+        Measured (x, y) of the body origin in {E} [m] (held since ``t_position``); (nan, nan)
+        when the GNSS has no fix (``position_valid`` False).
     heading : float
         Measured heading [rad] in [-pi, pi) (held since ``t_heading``).
     tensions : ndarray, shape (n_lines,)
@@ -82,6 +83,13 @@ class Measurement:
         [rad/s]), held since ``t_attitude``; None without it.
     t_attitude : float or None
         Time [s] at which the held attitude was sampled (None without it).
+    position_valid : bool
+        False when the GNSS reports no fix (a dropout): ``position`` is then (nan, nan) and every
+        consumer must do without it (the estimators hold their prediction, or a redundant
+        reference takes over: :mod:`tapm_opt.estimation.redundancy`). True otherwise.
+    heading2 : float or None
+        The second gyro-compass's heading [rad] in [-pi, pi), sampled with ``heading`` (held since
+        ``t_heading``); None when the source has one gyro.
     """
 
     t: float
@@ -100,8 +108,11 @@ class Measurement:
     t_riser_angles: float | None = None
     attitude: np.ndarray | None = None
     t_attitude: float | None = None
+    position_valid: bool = True
+    heading2: float | None = None
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "position_valid", bool(self.position_valid))
         for name in ("position", "tensions", "thruster_f", "thruster_alpha", "tau_thr", "riser_angles", "attitude"):
             v = getattr(self, name)
             if v is not None:
@@ -249,7 +260,7 @@ def _trusted(cls: type, **fields: Any) -> Any:
 _DEFAULTS: dict[type, dict[str, Any]] = {
     Measurement: {"thruster_f": None, "thruster_alpha": None, "thruster_failed": None, "tau_thr": None,
                   "truth": None, "riser_angles": None, "t_riser_angles": None, "attitude": None,
-                  "t_attitude": None},
+                  "t_attitude": None, "position_valid": True, "heading2": None},
     Estimate: {"tensions": None, "riser_angles": None, "broken_lines": frozenset(), "reliability": None,
                "eta_wf": None, "lost_points": frozenset()},
     Setpoint: {},

@@ -186,14 +186,16 @@ def _full_result() -> Result:
         cols[f"P[{th.id}]"] = np.full(n, 1e5)
     cols.update({"riser_top_angle": np.radians(2 + 0.5 * c), "riser_bottom_angle": np.radians(1 + 0.3 * c),
                  "tau_cmd[X]": np.full(n, 1e6), "tau_cmd[Y]": np.zeros(n), "tau_thr[X]": np.full(n, 2e5),
-                 "tau_thr[Y]": np.zeros(n), "roll": np.radians(1 + 0.5 * c), "pitch": np.radians(-0.3 * c)})
+                 "tau_thr[Y]": np.zeros(n), "roll": np.radians(1 + 0.5 * c), "pitch": np.radians(-0.3 * c),
+                 "x_hat": 5 + np.sin(t / 50) + 0.5, "y_hat": np.zeros(n), "psi_hat": np.zeros(n)})
     meta = {"events": [[800.0, "line 1 broke"], [1200.0, "line 3 lost its buoy at joint 0"]],
             "estimator_log": [{"t": 300.0, "line": "5", "event": "line break detected"},
                               {"t": 808.0, "line": "1", "event": "line break detected"},
                               {"t": 1240.0, "line": "3", "joint": 0, "event": "buoy loss detected"},
                               {"t": 900.0, "event": "current estimate", "speed": 0.7, "direction": np.radians(170.0),
-                               "seabed_factor": 0.2, "std": [0.01, 0.01, 0.01]}],
-            "sea_state": "normal",
+                               "seabed_factor": 0.2, "std": [0.01, 0.01, 0.01]},
+                              {"t": 1530.0, "event": "sensor fault detected", "sensor": "gnss", "fault": "drift"}],
+            "sea_state": "normal", "redundancy": "vote",
             "controller_log": [{"t": 810.0, "event": "mode switch"}],
             "diagnostics": {"solver_time_median": 0.01, "solver_time_p95": 0.02, "solver_time_max": 0.05,
                             "solver_failures": 0, "solver_fallbacks": 0, "allocation_fallbacks": 1}}
@@ -205,7 +207,10 @@ def test_the_catalogue_holds_what_the_kpi_functions_write_and_nothing_else():
     """Both ways: every name case_kpis and basic_kpis write is a catalogue KPI, and every catalogue
     KPI is written by one of them on a record that has every channel."""
     res = _full_result()
-    written = {**case_kpis(res, FPSO), **basic_kpis(res, FPSO)}
+    from tapm_opt.config.schema import Fault
+
+    fpso = dataclasses.replace(FPSO, faults=(Fault(kind="gnss_drift", time=1500.0, speed=0.1, direction=0.0),))
+    written = {**case_kpis(res, fpso), **basic_kpis(res, fpso)}
     assert not [n for n in written if not cat.is_kpi(n)]
     covered = {kpi(n).name for n in written}
     assert [n for n in KPIS if n not in covered] == []
@@ -220,6 +225,8 @@ def test_the_catalogue_holds_what_the_kpi_functions_write_and_nothing_else():
     assert written["current_speed_error"] == pytest.approx(0.1)
     assert written["current_direction_error"] == pytest.approx(10.0)
     assert written["current_seabed_factor_error"] == pytest.approx(0.05)
+    assert written["sensor_fault_detection_delay"] == 30.0 and written["sensor_false_alarms"] == 0
+    assert abs(written["turret_error_fault_max"] - 0.5) < 1e-9
 
 
 # -- the catalogue against docs/kpis.md ----------------------------------------------------------

@@ -26,7 +26,8 @@ from .._checks import fmt as _fmt, is_number as _is_number  # one definition for
 from ..errors import ScenarioError, ScenarioIssue
 from ..geometry import fairleads_B, merge_sectors
 from ..strain_table import secant_of_rows, table_problem
-from .schema import DEVELOPING_FIELDS, FaultTargetError, Scenario, buoy_of_fault
+from .schema import (DEVELOPING_FIELDS, SENSOR_FAULT_KINDS, Fault, FaultTargetError, Scenario, buoy_of_fault,
+                     sensor_fault_issues)
 
 BUILTIN_DIR = Path(__file__).parent / "scenarios"
 
@@ -63,6 +64,11 @@ def file_key(f: dataclasses.Field) -> str:
     """Key of a field in the scenario file (``<name>_deg`` for angles)."""
     unit = f.metadata.get("unit", "")
     return {"deg": f"{f.name}_deg", "deg/s": f"{f.name}_deg_s"}.get(unit, f.name)
+
+
+def _file_key_of_fault(name: str) -> str:
+    """The file key of :class:`~tapm_opt.config.schema.Fault` field ``name`` (``direction_deg``)."""
+    return file_key({f.name: f for f in dataclasses.fields(Fault)}[name])
 
 
 def _unwrap_optional(tp: Any) -> tuple[Any, bool]:
@@ -1084,6 +1090,10 @@ def validate(sc: Scenario) -> list[ScenarioIssue]:
     first_fault: dict[tuple[str, str], int] = {}
     for i, fault in enumerate(sc.faults):
         p = f"faults[{i}]"
+        sensor = sensor_fault_issues(fault, line_ids)
+        issues.extend(ScenarioIssue(f"{p}.{_file_key_of_fault(name)}", msg) for name, msg in sensor)
+        if fault.kind in SENSOR_FAULT_KINDS:
+            continue
         if fault.kind == "line_break":
             if fault.line is None:
                 issues.append(ScenarioIssue(f"{p}.line", "is required for a line_break"))

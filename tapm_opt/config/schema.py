@@ -678,15 +678,45 @@ class Riser:
         return self.youngs_modulus * math.pi / 64.0 * (D**4 - max(D - 2.0 * t, 0.0) ** 4)
 
 
+#: The sensor faults (:class:`Fault` kinds that corrupt a measurement, not the physics): GNSS
+#: dropout and drift, a fairlead tension cell stuck, drifting or noisy, a gyro-compass stuck or
+#: drifting (:mod:`tapm_opt.plant.sensors`).
+SENSOR_FAULT_KINDS = ("gnss_dropout", "gnss_drift", "cell_stuck", "cell_drift", "cell_noisy", "gyro_stuck",
+                      "gyro_drift")
+#: The fields each sensor fault kind needs (besides ``kind`` and ``time``; ``end_time`` is optional
+#: for every one of them) and may carry; ``cell_drift`` takes exactly one of ``rate`` and ``rate_rel``.
+SENSOR_FAULT_FIELDS = {"gnss_dropout": ((), ()), "gnss_drift": (("speed", "direction"), ()),
+                       "cell_stuck": (("line",), ()), "cell_drift": (("line",), ("rate", "rate_rel")),
+                       "cell_noisy": (("line", "factor"), ()), "gyro_stuck": ((), ("gyro",)),
+                       "gyro_drift": (("heading_rate",), ("gyro",))}
+#: The fields of a :class:`Fault` only a sensor fault carries.
+SENSOR_FAULT_ONLY = ("end_time", "speed", "direction", "rate", "rate_rel", "heading_rate", "factor", "gyro")
+
+
+def _finite_nonzero(v: float) -> str | None:
+    return None if math.isfinite(v) and v != 0 else "must be a finite number other than 0"
+
+
+_finite_nonzero.__doc__ = "finite, not 0"
+
+
 @dataclass(frozen=True, kw_only=True)
 class Fault:
     """A fault injected into the plant at a given time: a line breaks at its fairlead, a thruster
     fails, or a buoy comes off a joint of a composite line (from then on the joint carries no
-    point: its mass, buoyancy, added mass and drag are gone)."""
+    point: its mass, buoyancy, added mass and drag are gone); or a sensor fault
+    (:data:`SENSOR_FAULT_KINDS`) from ``time`` to ``end_time``: the GNSS gives no fix
+    (``gnss_dropout``: the measurement says its position is invalid) or drifts silently at
+    ``speed`` toward ``direction`` (``gnss_drift``); the tension cell of ``line`` holds its last
+    reading (``cell_stuck``), drifts at ``rate`` [N/s] or ``rate_rel`` [MBS/s] (``cell_drift``) or
+    has its noise multiplied by ``factor`` (``cell_noisy``); gyro-compass ``gyro`` holds its last
+    heading (``gyro_stuck``) or drifts at ``heading_rate`` (``gyro_drift``)."""
 
-    kind: Literal["line_break", "thruster_failure", "buoy_loss"] = spec("Fault kind.")
+    kind: Literal["line_break", "thruster_failure", "buoy_loss", "gnss_dropout", "gnss_drift", "cell_stuck",
+                  "cell_drift", "cell_noisy", "gyro_stuck", "gyro_drift"] = spec("Fault kind.")
     time: float = spec("Time the fault occurs.", "s", check=nonneg)
-    line: str | None = spec("Line id (line_break, buoy_loss).", default=None, id_like=True)
+    line: str | None = spec("Line id (line_break, buoy_loss; the line whose tension cell fails for cell_stuck, "
+                            "cell_drift, cell_noisy).", default=None, id_like=True)
     thruster: str | None = spec("Thruster id (thruster_failure).", default=None, id_like=True)
     joint: int | None = spec(
         "Joint of the buoy (buoy_loss): its index from the anchor up, 0 joining the line's sections 0 and 1; "
@@ -694,6 +724,71 @@ class Fault:
     point: str | None = spec(
         "Point type id of the buoy (buoy_loss), instead of joint: the one joint of the line that carries it.",
         default=None, id_like=True)
+    end_time: float | None = spec("End of a sensor fault: the sensor is healthy again from then on (none: to the "
+                                  "end of the run); after time.", "s", default=None, check=nonneg)
+    speed: float | None = spec("Speed of the GNSS position's silent drift (gnss_drift).", "m/s", default=None,
+                               check=positive_at_most(10.0, "a drift faster than a vessel moves is no silent drift"))
+    direction: float | None = spec("Direction the GNSS position drifts to (gnss_drift), from north (x) toward east "
+                                   "(y).", "deg", default=None, check=_ANGLE)
+    rate: float | None = spec("Drift of the tension cell's reading (cell_drift), + up.", "N/s", default=None,
+                              check=_finite_nonzero)
+    rate_rel: float | None = spec("Drift of the tension cell's reading (cell_drift) as a fraction of the line's MBS "
+                                  "per second, + up; instead of rate.", "1/s", default=None,
+                                  check=bounded(-0.1, 0.1, "10 % of MBS a second is a break, not a drift"))
+    heading_rate: float | None = spec("Drift of the gyro-compass heading (gyro_drift), + clockwise.", "deg/s",
+                                      default=None, check=_finite_nonzero)
+    factor: float | None = spec("Multiplier of the tension cell's noise standard deviation (cell_noisy).",
+                                default=None, check=bounded(1.0, 1000.0, "a cell's noise grows when it fails"))
+    gyro: int | None = spec("Gyro-compass that fails (gyro_stuck, gyro_drift): 1 or 2 (default 1).", default=None,
+                            check=in_range(1, 2))
+
+
+def sensor_fault_issues(fault: Any, line_ids: Any) -> list[tuple[str, str]]:
+    """``(field, message)`` of everything wrong with a sensor fault's fields (empty when it is
+    right, or when ``fault`` is not a sensor fault): the fields its kind needs
+    (:data:`SENSOR_FAULT_FIELDS`), the ones it may not carry, the line of a cell fault among
+    ``line_ids``, ``end_time`` after ``time``. The one statement of these rules (scenario loader,
+    plant, study files). A message follows the field name (``"= 3.0 must be ..."``)."""
+    kind = getattr(fault, "kind", None)
+    out: list[tuple[str, str]] = []
+    if kind not in SENSOR_FAULT_KINDS:
+        for name in SENSOR_FAULT_ONLY:
+            if getattr(fault, name, None) is not None:
+                out.append((name, f"is only for a sensor fault ({', '.join(SENSOR_FAULT_KINDS)}), not a {kind}"))
+        return out
+    need, may = SENSOR_FAULT_FIELDS[kind]
+    for name in need:
+        if getattr(fault, name, None) is None:
+            out.append((name, f"is required for a {kind}"))
+    for name in ("line", "thruster", "joint", "point", *SENSOR_FAULT_ONLY):
+        if name not in need and name not in may and name != "end_time" and getattr(fault, name, None) is not None:
+            out.append((name, f"is not a field of a {kind}"))
+    if kind == "cell_drift" and (fault.rate is None) == (fault.rate_rel is None):
+        out.append(("rate", "give exactly one of rate [N/s] and rate_rel [MBS/s] for a cell_drift"))
+    ids = [str(i) for i in line_ids]
+    if "line" in need and fault.line is not None and str(fault.line) not in ids:
+        out.append(("line", f"= {fault.line!r} is not a line id; lines are {ids}"))
+    for name, check in (("time", nonneg), ("end_time", nonneg), ("speed", positive), ("factor", at_least(1.0)),
+                        ("rate", _finite_nonzero), ("rate_rel", _finite_nonzero), ("heading_rate", _finite_nonzero),
+                        ("direction", _ANGLE)):
+        v = getattr(fault, name, None)
+        if v is None:
+            continue
+        try:
+            bad = None if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) else \
+                "must be a finite number"
+            bad = bad or check(v)
+        except TypeError:
+            bad = "must be a number"
+        if bad:
+            out.append((name, f"= {v!r} {bad}"))
+    g = getattr(fault, "gyro", None)
+    if g is not None and (isinstance(g, bool) or g not in (1, 2)):
+        out.append(("gyro", f"= {g!r} must be 1 or 2 (the vessel's two gyro-compasses)"))
+    e = getattr(fault, "end_time", None)
+    if e is not None and isinstance(e, (int, float)) and isinstance(fault.time, (int, float)) and e <= fault.time:
+        out.append(("end_time", f"= {e:g} s must be after time = {fault.time:g} s"))
+    return out
 
 
 class FaultTargetError(ValueError):

@@ -159,9 +159,15 @@ class LowPassEstimator(_WithDetectorAndMonitor):
         m = measurement
         tau_thr = np.zeros(3) if m.tau_thr is None else m.tau_thr
         broken = self._broken(t, m)
-        eta, nu, tau_env = self.filter(t, m.position, m.heading, tau_thr)
+        pos = m.position
+        if not m.position_valid:   # no GNSS fix: the filtered position in its place (held)
+            if self._y is None:
+                raise EstimationError(f"measurement.position_valid is False at the first update (t = {t!r} s): "
+                                      "the estimator needs one GNSS fix to start")
+            pos = self._y[:2].copy()
+        eta, nu, tau_env = self.filter(t, pos, m.heading, tau_thr)
         self._eta_det = eta
-        eta_wf = np.array([m.position[0] - eta[0], m.position[1] - eta[1], ssa(m.heading - eta[2])])
+        eta_wf = np.array([pos[0] - eta[0], pos[1] - eta[1], ssa(m.heading - eta[2])])
         return Estimate(t=t, eta=eta, nu=nu, tau_env=tau_env, tensions=m.tensions, riser_angles=m.riser_angles,
                         broken_lines=broken, reliability=self._reliability(t, m), eta_wf=eta_wf,
                         lost_points=self.lost_points)

@@ -34,6 +34,12 @@ is ``intact_model.damaged(broken, lost_points)``). ``Estimate.broken_lines``, ``
 ``reliability`` come from the shared detector/monitor base, the measured tensions and riser angles
 pass through.
 
+Without a GNSS fix (``Measurement.position_valid`` False: a dropout) the position is not
+corrected: the EKF only predicts x and y (its covariance grows), the passive observer takes its
+own prediction as the measurement (zero position innovation): dead reckoning on the model (1a)-(1c)
+with the bias held. A redundant position reference that takes over instead is
+:class:`~tapm_opt.estimation.redundancy.SensorVoting`.
+
 Headings are unwrapped next to the observer's predicted heading (``ssa`` of the difference), the
 internal LF heading is continuous and reported wrapped to [-pi, pi).
 
@@ -273,8 +279,14 @@ class _ModelObserver(_WithDetectorAndMonitor):
         if p is None or np.shape(p) != (2,):
             raise EstimationError(f"measurement.position = {p!r} must be 2 numbers (x, y) [m]")
         y = np.array([p[0], p[1], m.heading], dtype=float)
-        if not math.isfinite(y[0] + y[1] + y[2]):
-            raise EstimationError(f"measurement position = {list(p)}, heading = {m.heading!r} must be finite")
+        self._fix = m.position_valid
+        if not (math.isfinite(y[0] + y[1] + y[2]) or (not self._fix and math.isfinite(y[2]))):
+            raise EstimationError(f"measurement position = {list(p)}, heading = {m.heading!r} must be finite "
+                                  "(a position without a GNSS fix is flagged position_valid = False)")
+        if not self._fix and self._t is None:
+            raise EstimationError(f"measurement.position_valid is False at the first update (t = {t!r} s): the "
+                                  "observer needs one GNSS fix to start (or a redundant position reference: "
+                                  "tapm_opt.estimation.redundancy)")
         if m.tau_thr is None:
             tau_c = np.zeros(3)
         else:
@@ -467,6 +479,8 @@ class PassiveObserver(_ModelObserver):
             self._t = t
             z = self._z
             y[2] = z[2, 2] + z[1, 2] + _wrap(y[2] - z[2, 2] - z[1, 2])  # unwrap next to y_hat
+            if not self._fix:   # no GNSS fix: the predicted position in its place (no correction)
+                y[:2] = z[1, :2] + z[2, :2]
             if dt > 0:
                 self._step(dt, y, tau_c)
             else:
@@ -708,6 +722,9 @@ class EKFObserver(_ModelObserver):
             if dt > 0:
                 self._predict(dt, tau_c)
             new_p, new_h = tp > self._t_pos, th > self._t_hdg
+            if not self._fix:   # no GNSS fix: the prediction in its place, and no position correction
+                y[:2] = self.x[6:8] + self.x[3:5]
+                new_p = False
             self._correct(y, (new_p, new_p, new_h))
             if new_p:
                 self._t_pos = tp

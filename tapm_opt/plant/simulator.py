@@ -55,7 +55,7 @@ import numpy as np
 
 from ._kernels import fem_kernel as _fem_kernel
 from .._checks import vector
-from ..config.schema import FaultTargetError, buoy_of_fault
+from ..config.schema import SENSOR_FAULT_KINDS, FaultTargetError, buoy_of_fault, sensor_fault_issues
 from ..geometry import rot_z
 from ..interfaces import Measurement, ThrusterCommand, Truth, _frozen, _trusted
 from ..models.system import System
@@ -176,9 +176,14 @@ class Plant:
                     sep = " " if str(exc).startswith("= ") else ": "
                     raise PlantError(f"fault buoy_loss at t = {f.time:g} s: {exc.field}{sep}{exc}") from None
                 continue
+            if f.kind in SENSOR_FAULT_KINDS:
+                bad = sensor_fault_issues(f, self.line_ids)
+                if bad:
+                    raise PlantError(f"fault {f.kind} at t = {f.time!r} s: {bad[0][0]} {bad[0][1]}")
+                continue
             if f.kind not in ("line_break", "thruster_failure"):
                 raise PlantError(f"fault at t = {f.time:g} s has kind {f.kind!r}; kinds are 'line_break', "
-                                 "'thruster_failure', 'buoy_loss'")
+                                 f"'thruster_failure', 'buoy_loss', {', '.join(map(repr, SENSOR_FAULT_KINDS))}")
             if f.kind == "line_break" and str(f.line) not in self.line_ids:
                 raise PlantError(f"fault line_break at t = {f.time:g} s names line {f.line!r}, which does not "
                                  f"exist; lines are {list(self.line_ids)}")
@@ -433,6 +438,15 @@ class Plant:
                 self._dt_stable = None   # a lighter joint node: the stable step again
                 self._h_last = -1.0
                 self.events.append((self.t, f"line {f.line} lost its buoy at joint {joint}"))
+            elif f.kind in SENSOR_FAULT_KINDS:   # the sensors corrupt their samples from f.time on
+                line = self.line_ids.index(str(f.line)) if f.kind.startswith("cell_") else None
+                self.sensors.inject(f, line)
+                what = {"gnss_dropout": "GNSS dropout", "gnss_drift": "GNSS drift",
+                        "cell_stuck": f"tension cell {f.line} stuck", "cell_drift": f"tension cell {f.line} drift",
+                        "cell_noisy": f"tension cell {f.line} noisy",
+                        "gyro_stuck": f"gyro {f.gyro or 1} stuck", "gyro_drift": f"gyro {f.gyro or 1} drift"}[f.kind]
+                end = "" if f.end_time is None else f" until {f.end_time:g} s"
+                self.events.append((float(f.time), f"sensor fault: {what}{end}"))
             else:
                 self.thrusters.fail(str(f.thruster))
                 self.events.append((self.t, f"thruster {f.thruster} failed"))

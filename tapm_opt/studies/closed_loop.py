@@ -49,8 +49,8 @@ from ..results import Result, ResultBuilder
 
 __all__ = ["ClosedLoopSettings", "SetpointChasing", "run_closed_loop", "default_setpoint_layer",
            "optimal_setpoint_layer", "SETPOINT_KINDS", "ClosedLoopError", "default_estimator", "ESTIMATOR_KINDS",
-           "DEFAULT_ESTIMATOR", "DETECTOR_KINDS", "WINCH_KINDS", "default_winch_controller", "combination_issues",
-           "CURRENT_MODES", "current_estimator", "fem_static_tensions"]
+           "DEFAULT_ESTIMATOR", "DETECTOR_KINDS", "REDUNDANCY_KINDS", "WINCH_KINDS", "default_winch_controller",
+           "combination_issues", "CURRENT_MODES", "current_estimator", "fem_static_tensions"]
 
 
 class ClosedLoopError(TapmError, ValueError):
@@ -127,6 +127,10 @@ class ClosedLoopSettings:
         :class:`~tapm_opt.estimation.current_profile.CurrentEstimating` (its estimates in the
         estimator's log, ``"current estimate"`` events) and the optimal setpoints read its surface
         current in place of the sea state's.
+    redundancy : {"none", "vote"}
+        Sensor redundancy of the default estimator: none, or the tension cells as a second
+        position reference with the voting that finds and excludes a failed GNSS, tension cell or
+        gyro-compass (:class:`~tapm_opt.estimation.redundancy.SensorVoting`).
     """
 
     duration: float = 3600.0
@@ -146,6 +150,7 @@ class ClosedLoopSettings:
     winch: Literal["none", "tension"] = "none"
     winch_options: Mapping[str, Any] | None = None
     current: Literal["known", "estimated", "estimated_tensions"] = "known"
+    redundancy: Literal["none", "vote"] = "none"
 
     def __post_init__(self) -> None:
         for name in ("duration", "dt_control", "dt_log", "chase_time", "chase_margin", "heading_chase_time"):
@@ -158,7 +163,8 @@ class ClosedLoopSettings:
             raise ClosedLoopError(f"setpoint = {self.setpoint!r} is not one of {', '.join(map(repr, SETPOINT_KINDS))}")
         if self.heading not in ("fixed", "chasing"):
             raise ClosedLoopError(f"heading = {self.heading!r} is not one of 'fixed', 'chasing'")
-        for name, kinds in (("estimator", ESTIMATOR_KINDS), ("detector", DETECTOR_KINDS)):
+        for name, kinds in (("estimator", ESTIMATOR_KINDS), ("detector", DETECTOR_KINDS),
+                            ("redundancy", REDUNDANCY_KINDS)):
             if getattr(self, name) not in kinds:
                 raise ClosedLoopError(f"{name} = {getattr(self, name)!r} is not one of {', '.join(map(repr, kinds))}")
         if self.current not in CURRENT_MODES:
@@ -197,6 +203,8 @@ SETPOINT_KINDS = ("fixed", "chasing", *METHODS, "fatigue")
 #: Every ``ClosedLoopSettings.estimator`` and ``.detector``.
 ESTIMATOR_KINDS = ("lowpass", "passive", "ekf")
 DETECTOR_KINDS = ("tension", "drop", "bank", "none")
+#: Every ``ClosedLoopSettings.redundancy``.
+REDUNDANCY_KINDS = ("none", "vote")
 #: Every ``ClosedLoopSettings.winch``.
 WINCH_KINDS = ("none", "tension")
 
@@ -219,6 +227,9 @@ def combination_issues(settings: Mapping[str, Any]) -> list[tuple[str, str]]:
         out.append(("winch", f"= 'tension' with detector = {g['detector']!r}: the line-break detectors compare "
                              "the tensions with the lines at their nominal lengths, which the winches change; give "
                              "detector = 'none'"))
+    if g["redundancy"] == "vote" and g["true_state"]:
+        out.append(("redundancy", "= 'vote' screens the sensors for the estimator; with true_state the plant's truth "
+                                  "replaces them: give redundancy = 'none'"))
     if g["winch_options"] and g["winch"] != "tension":
         out.append(("winch_options", f"are for winch = 'tension', not winch = {g['winch']!r}"))
     if g["current"] != "known" and g["winch"] == "tension":
@@ -263,8 +274,18 @@ def default_estimator(system: System, settings: ClosedLoopSettings, sea_state: A
     """The estimator a :class:`ClosedLoopSettings` describes: ``settings.estimator`` on
     ``system.lines`` (the plant's truth with ``true_state``), with ``settings.detector``'s
     line-break detection and the reliability monitor of the measured tensions and riser angles
-    (:func:`~tapm_opt.estimation.reliability.monitor_for`). ``sea_state`` gives the observers'
-    wave-frequency model its peak period (None: the observers' default)."""
+    (:func:`~tapm_opt.estimation.reliability.monitor_for`), inside the sensor voting with
+    ``redundancy = "vote"``. ``sea_state`` gives the observers' wave-frequency model its peak
+    period (None: the observers' default)."""
+    est = _default_estimator(system, settings, sea_state)
+    if settings.redundancy == "vote" and not settings.true_state:
+        from ..estimation.redundancy import SensorVoting
+
+        return SensorVoting(system, est)
+    return est
+
+
+def _default_estimator(system: System, settings: ClosedLoopSettings, sea_state: Any = None) -> Estimator:
     s = settings
     mon = monitor_for(system.scenario)
     det: Any = None
@@ -399,7 +420,8 @@ def run_closed_loop(plant: Plant, controller: Controller, settings: ClosedLoopSe
     period = s.controller_period or controller.period or s.dt_control
     period = max(period, s.dt_control)
     sea_state = _sea_state(system, plant.metadata().get("sea_state"))
-    chosen = {} if estimator is not None else {"estimator_kind": s.estimator, "detector": s.detector}
+    chosen = {} if estimator is not None else {"estimator_kind": s.estimator, "detector": s.detector,
+                                               **({"redundancy": s.redundancy} if s.redundancy != "none" else {})}
     estimator = estimator or default_estimator(system, s, sea_state)
     source = None
     if s.current != "known":

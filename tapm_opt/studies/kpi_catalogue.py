@@ -185,6 +185,18 @@ _ENTRIES: tuple[KpiDef, ...] = (
     _k("buoy_loss_detection_delay", "s", "minimise", "time from a buoy's loss to its detection"),
     _k("buoy_loss_isolated", "-", "maximise", "1 when the first fault detected after the first buoy loss is a buoy "
                                               "lost by then (not a break, not another buoy), else 0", kind="flag"),
+    # sensor faults (tapm_opt.estimation.redundancy)
+    _k("sensor_fault_detected_at", "s", "none", "time of the first detection of the first sensor fault's sensor: an "
+                                                "instant on the record's clock, compare sensor_fault_detection_delay"),
+    _k("sensor_fault_detection_delay", "s", "minimise", "time from the first sensor fault to its detection"),
+    _k("sensor_fault_isolated", "-", "maximise", "1 when the first sensor found failed after the first sensor fault "
+                                                 "is its sensor, else 0", kind="flag"),
+    _k("sensor_false_alarms", "-", "minimise", "detections of a sensor fault (GNSS, tension cell, gyro) that had "
+                                               "not happened by then", kind="count"),
+    _k("turret_error_fault_max", "m", "minimise", "max error of the estimated turret position during the first "
+                                                  "sensor fault"),
+    _k("turret_error_fault_rms", "m", "minimise", "RMS error of the estimated turret position during the first "
+                                                  "sensor fault"),
     _k("mode_switches", "-", "none", "controller mode, gain-row or dead-band switches: a switch the weather or a "
                                      "break calls for is wanted, so the count alone is neither good nor bad",
        kind="count"),

@@ -460,6 +460,71 @@ def _current_estimation(result: Result, scenario: Any, t_start: float) -> dict[s
             "current_seabed_factor_error": rms(ef)}
 
 
+def _sensor_target(kind: str, fault: Any) -> tuple:
+    """The sensor a fault or a detection names: ("gnss",), ("cell", line id) or ("gyro", 1 | 2)."""
+    if kind.startswith("gnss"):
+        return ("gnss",)
+    if kind.startswith("cell"):
+        return ("cell", str(fault.get("line") if isinstance(fault, Mapping) else fault.line))
+    g = fault.get("gyro") if isinstance(fault, Mapping) else fault.gyro
+    return ("gyro", int(g or 1))
+
+
+def _sensor_faults(result: Result, scenario: Any, win: np.ndarray) -> dict[str, float]:
+    """Sensor-fault KPIs (docs/kpis.md, "Sensor faults"): the scenario's sensor faults
+    (:data:`~tapm_opt.config.schema.SENSOR_FAULT_KINDS`) against the estimator's
+    ``sensor fault detected`` events (``meta["estimator_log"]``,
+    :mod:`tapm_opt.estimation.redundancy`): ``sensor_fault_detected_at`` and
+    ``sensor_fault_detection_delay`` [s] of the first fault's sensor (absent when not detected),
+    ``sensor_fault_isolated`` (1 when the first sensor detection after the first fault names its
+    sensor), ``sensor_false_alarms`` (detections of a sensor with no fault by then: 0 in a run
+    without sensor faults when the estimator votes; absent without the events' estimator); and
+    the error of the estimated turret position (``x_hat, y_hat, psi_hat``) against the true one
+    (``x, y, psi``) over the first fault (its time to its end or the record's),
+    ``turret_error_fault_max`` and ``turret_error_fault_rms`` [m] (time-weighted)."""
+    from ..config.schema import SENSOR_FAULT_KINDS
+
+    faults = sorted((f for f in getattr(scenario, "faults", ()) if f.kind in SENSOR_FAULT_KINDS),
+                    key=lambda f: f.time)
+    log = result.meta.get("estimator_log")
+    voting = log is not None and result.meta.get("redundancy") == "vote"
+    out: dict[str, float] = {}
+    det = [] if log is None else sorted(
+        (float(e["t"]), _sensor_target(str(e.get("sensor")), e)) for e in log
+        if isinstance(e, Mapping) and e.get("event") == "sensor fault detected")
+    starts: dict[tuple, float] = {}
+    for f in faults:
+        starts.setdefault(_sensor_target(f.kind, f), float(f.time))
+    if voting or det:
+        out["sensor_false_alarms"] = sum(1 for t, tgt in det if not (tgt in starts and t >= starts[tgt] - 1e-9))
+    if not faults:
+        return out
+    f0 = faults[0]
+    t0 = float(f0.time)
+    tgt0 = _sensor_target(f0.kind, f0)
+    hit = [t for t, tgt in det if tgt == tgt0 and t >= t0 - 1e-9]
+    if hit:
+        out["sensor_fault_detected_at"] = hit[0]
+        out["sensor_fault_detection_delay"] = hit[0] - t0
+    if voting or det:
+        after = [tgt for t, tgt in det if t >= t0 - 1e-9]
+        out["sensor_fault_isolated"] = float(bool(after) and after[0] == tgt0)
+    if all(c in result for c in ("x_hat", "y_hat", "psi_hat")):
+        t_all = result.time
+        t1 = math.inf if f0.end_time is None else float(f0.end_time)
+        sel = win & (t_all >= t0 - 1e-9) & (t_all <= t1 + 1e-9)
+        if sel.sum() >= 2:
+            p = scenario.turret.position
+            true = turret_offset(np.stack([result["x"][sel], result["y"][sel], result["psi"][sel]], -1), p)
+            est = turret_offset(np.stack([result["x_hat"][sel], result["y_hat"][sel], result["psi_hat"][sel]], -1), p)
+            e = np.hypot(*(np.asarray(true) - np.asarray(est)))
+            if np.all(np.isfinite(e)):
+                ts = t_all[sel]
+                out["turret_error_fault_max"] = float(e.max())
+                out["turret_error_fault_rms"] = math.sqrt(_tmean(ts, e * e))
+    return out
+
+
 def _mode_switches(result: Result) -> dict[str, float]:
     """``mode_switches`` — the controller's switches of mode set or gain-table row, or of the MPC's
     dead band between intact and damaged (events ``{"event": "mode switch"}`` of
@@ -622,6 +687,7 @@ def _compute(result: Result, scenario: Any, *, t_start: float, lp_window: float,
     if losses:
         out["buoys_lost"] = len(losses)
     out.update(_detection(result, breaks, losses))
+    out.update(_sensor_faults(result, scenario, win))
     out.update(_mode_switches(result))
     out.update(_current_estimation(result, scenario, t_start))
 

@@ -10,6 +10,7 @@ turns the product of sea states, controllers, conditions and seeds, plus the lis
 from __future__ import annotations
 
 import difflib
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
@@ -18,7 +19,8 @@ from .._io import toml_key, toml_value
 from ..config import Fault, builtin_scenarios, load_scenario, scenario_from_dict, scenario_to_dict
 from .._checks import fmt as _fmt  # the scenario loader's value checks too
 from ..config.loader import BUILTIN_DIR
-from ..config.schema import FaultTargetError, buoy_of_fault
+from ..config.schema import (SENSOR_FAULT_FIELDS, SENSOR_FAULT_KINDS, FaultTargetError, buoy_of_fault,
+                             sensor_fault_issues)
 from ..config.loader import fem_size_issues, log_size_issues
 from ..errors import ScenarioError
 from . import store
@@ -104,11 +106,21 @@ class Study:
 _STUDY_KEYS = {"name", "description", "scenario", "duration", "segments", "break_on_overload", "dt_control",
                "dt_log", "heading",
                "setpoint", "setpoint_options", "true_state", "seeds", "mode", "estimator", "detector", "winch",
-               "winch_options", "current"}
+               "winch_options", "current", "redundancy"}
 _TOP_KEYS = {"study", "sea_states", "controllers", "conditions", "cases", "capability", "tuning", "verification"}
-_CONDITION_KEYS = {"name", "line_break", "thruster_failure", "buoy_loss"}
+_CONDITION_KEYS = {"name", "line_break", "thruster_failure", "buoy_loss", *SENSOR_FAULT_KINDS}
 _FAULT_KEYS = {"line_break": {"line", "time", "time_fraction"}, "thruster_failure": {"thruster", "time", "time_fraction"},
                "buoy_loss": {"line", "joint", "point", "time", "time_fraction"}}
+#: A sensor fault's study keys (file keys: ``direction_deg``, ``heading_rate_deg_s``) and their
+#: Fault fields, units and the conversion to SI.
+_SENSOR_KEYS = {"line": ("line", "", None), "end_time": ("end_time", "s", None), "speed": ("speed", "m/s", None),
+                "direction_deg": ("direction", "deg", math.radians), "rate": ("rate", "N/s", None),
+                "rate_rel": ("rate_rel", "1/s", None), "heading_rate_deg_s": ("heading_rate", "deg/s", math.radians),
+                "factor": ("factor", "", None), "gyro": ("gyro", "", None)}
+for _k in SENSOR_FAULT_KINDS:
+    _need, _may = SENSOR_FAULT_FIELDS[_k]
+    _FAULT_KEYS[_k] = {"time", "time_fraction", "end_time"} | {
+        key for key, (fld, _u, _c) in _SENSOR_KEYS.items() if fld in _need or fld in _may}
 _CASE_KEYS = {"name", "sea_state", "controller", "condition", "seed", "duration"}
 
 
@@ -121,6 +133,7 @@ class _FaultSpec:
     path: str
     joint: int | None = None    # buoy_loss: the buoy's joint (resolved from point when that is given)
     point: str | None = None    # buoy_loss: the point type id given instead of joint
+    params: tuple = ()          # a sensor fault's other Fault fields, (name, SI value) pairs
 
     def at(self, duration: float) -> float:
         return float(self.time) if self.time is not None else float(self.fraction) * duration
@@ -129,6 +142,8 @@ class _FaultSpec:
         """The scenario's :class:`Fault` of this spec in a run of ``duration`` [s]."""
         if self.kind == "buoy_loss":
             return Fault(kind="buoy_loss", time=self.at(duration), line=self.target, joint=self.joint)
+        if self.kind in SENSOR_FAULT_KINDS:
+            return Fault(kind=self.kind, time=self.at(duration), **dict(self.params))
         return Fault(kind=self.kind, time=self.at(duration),
                      **{"line" if self.kind == "line_break" else "thruster": self.target})
 
@@ -146,6 +161,10 @@ class _Condition:
             return "intact"
         parts = []
         for f in self.faults:
+            if f.kind in SENSOR_FAULT_KINDS:
+                on = f" {f.target}" if f.target else ""
+                parts.append(f"{f.kind.replace('_', ' ')}{on} at {f.at(duration):g} s")
+                continue
             if f.kind == "buoy_loss":
                 parts.append(f"line {f.target} buoy at joint {f.joint} lost at {f.at(duration):g} s")
                 continue
@@ -345,16 +364,17 @@ _ESTIMATION_DEFAULTS = _estimation_defaults()
 
 
 def _estimation_fields(ck: Checker, table: Mapping, where: str) -> dict:
-    """``estimator``, ``detector`` and ``current`` ("known" | "estimated": the layers take the sea
-    state's current or its on-line estimate, :mod:`tapm_opt.estimation.current_profile`) of a
-    [study] or [[controllers]] table, checked (only the ones given; the study's defaults are
-    :data:`_ESTIMATION_DEFAULTS`, and ``current`` is named only when given, so the case ids of a
-    study without it are unchanged)."""
-    from .closed_loop import CURRENT_MODES, DETECTOR_KINDS, ESTIMATOR_KINDS
+    """``estimator``, ``detector``, ``redundancy`` and ``current`` ("known" | "estimated": the
+    layers take the sea state's current or its on-line estimate,
+    :mod:`tapm_opt.estimation.current_profile`) of a [study] or [[controllers]] table, checked (only
+    the ones given; the study's defaults are :data:`_ESTIMATION_DEFAULTS`, and ``current`` and
+    ``redundancy`` are named only when given, so the case ids of a study without them are
+    unchanged)."""
+    from .closed_loop import CURRENT_MODES, DETECTOR_KINDS, ESTIMATOR_KINDS, REDUNDANCY_KINDS
 
     return {k: ck.choice(table[k], kinds, f"{where}.{k}")
-            for k, kinds in (("estimator", ESTIMATOR_KINDS), ("detector", DETECTOR_KINDS), ("current", CURRENT_MODES))
-            if k in table}
+            for k, kinds in (("estimator", ESTIMATOR_KINDS), ("detector", DETECTOR_KINDS),
+                             ("redundancy", REDUNDANCY_KINDS), ("current", CURRENT_MODES)) if k in table}
 
 
 def _winch_fields(ck: Checker, table: Mapping, where: str) -> dict:
@@ -388,7 +408,7 @@ def _loop(study: dict, controller: dict) -> dict:
     from ..control.setpoint_opt import METHODS
 
     out = dict(study)
-    for key in ("setpoint", "estimator", "detector", "winch", "winch_options", "current"):
+    for key in ("setpoint", "estimator", "detector", "winch", "winch_options", "current", "redundancy"):
         if key in controller:
             out[key] = controller[key]
     out.pop("setpoint_options", None)
@@ -510,7 +530,7 @@ def _parse_controllers(ck: Checker, data: Mapping, out: _Parsed) -> None:
             _check_tune(ck, kind, e, p)
         opts = {k: v for k, v in e.items()
                 if k not in ("name", "type", "setpoint", "setpoint_options", "estimator", "detector", "winch",
-                             "winch_options", "tune", "current")}
+                             "winch_options", "tune", "current", "redundancy")}
         loop = {**_setpoint_fields(ck, e, p, {}, inherited=out.closed_loop.get("setpoint")),
                 **_estimation_fields(ck, e, p), **_winch_fields(ck, e, p)}
         merged = _loop(out.closed_loop, loop)
@@ -545,6 +565,8 @@ def _parse_fault(ck: Checker, f: dict, kind: str, fp: str, sc: Any) -> _FaultSpe
     ck.keys(f, _FAULT_KEYS[kind], fp)
     if kind == "buoy_loss":
         return _parse_buoy_loss(ck, f, fp, sc)
+    if kind in SENSOR_FAULT_KINDS:
+        return _parse_sensor_fault(ck, f, kind, fp, sc)
     target = None
     if target_key not in f:
         ck.err(f"{fp}.{target_key}", f"missing required field (the {target_key} id)")
@@ -578,6 +600,40 @@ def _fault_time(ck: Checker, f: dict, fp: str) -> tuple[float | None, float | No
         return t, None, t is not None
     frac = ck.number(f["time_fraction"], f"{fp}.time_fraction", nonneg=True, at_most=1.0)
     return None, frac, frac is not None
+
+
+def _parse_sensor_fault(ck: Checker, f: dict, kind: str, fp: str, sc: Any) -> _FaultSpec | None:
+    """A sensor fault (:data:`~tapm_opt.config.schema.SENSOR_FAULT_KINDS`): its time and its
+    fields, each checked here for type and then by the scenario's rules
+    (:func:`~tapm_opt.config.schema.sensor_fault_issues`), the key named."""
+    ok = True
+    params: dict = {}
+    for key in sorted(set(f) & set(_SENSOR_KEYS)):
+        fld, unit, conv = _SENSOR_KEYS[key]
+        if fld == "line":
+            v = ck.text(f[key], f"{fp}.{key}", id_like=True)
+        elif fld == "gyro":
+            v = ck.integer(f[key], f"{fp}.{key}", at_least=1)
+        else:
+            v = ck.number(f[key], f"{fp}.{key}", unit=unit)
+            v = conv(v) if (v is not None and conv is not None) else v
+        ok &= v is not None
+        params[fld] = v
+    t, frac, t_ok = _fault_time(ck, f, fp)
+    if not (ok and t_ok):
+        return None
+    probe = Fault(kind=kind, time=t if t is not None else 0.0, **params)
+    keys = {fld: key for key, (fld, _u, _c) in _SENSOR_KEYS.items()}
+    ids = [ln.id for ln in sc.lines] if sc is not None else ([params["line"]] if params.get("line") else [])
+    bad = [(n, m) for n, m in sensor_fault_issues(probe, ids) if not (n == "end_time" and t is None)]
+    for name, msg in bad:
+        key = keys.get(name, name)
+        if key in f and _SENSOR_KEYS.get(key, (0, 0, None))[2] is not None and msg.startswith("= "):
+            msg = f"= {_fmt(f[key])} {_SENSOR_KEYS[key][1]}: " + msg.split(" ", 2)[2]   # the file's value, in its unit
+        ck.err(f"{fp}.{key}", msg)
+    if bad:
+        return None
+    return _FaultSpec(kind, str(params.get("line") or ""), t, frac, fp, params=tuple(sorted(params.items())))
 
 
 def _parse_buoy_loss(ck: Checker, f: dict, fp: str, sc: Any) -> _FaultSpec | None:
@@ -616,7 +672,7 @@ def _parse_conditions(ck: Checker, data: Mapping, out: _Parsed) -> None:
         p = f"conditions[{i}]"
         ck.keys(e, _CONDITION_KEYS, p)
         faults = []
-        for kind in ("line_break", "thruster_failure", "buoy_loss"):
+        for kind in ("line_break", "thruster_failure", "buoy_loss", *SENSOR_FAULT_KINDS):
             if kind in e:
                 many = isinstance(e[kind], list)
                 for j, f in enumerate(ck.tables(e[kind], f"{p}.{kind}")):
