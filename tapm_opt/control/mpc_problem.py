@@ -239,10 +239,13 @@ class MPCSettings:
         but in the sweep's collinear storm 5-19 % less energy for up to 7.4 m more offset and more
         time outside (docs/estimation.md).
     roll_pitch_damping : bool, table or RollPitchWeights
-        Roll–pitch damping (survey §4.2.3; a vessel with ``vessel.roll_pitch``): the prediction
-        carries the hull's low-frequency roll and pitch under the planned thrust's moments and the
-        cost charges their rates (:class:`RollPitchWeights`; true: its defaults, a table: its
-        fields); false (default): the 3-DOF prediction.
+        roll-pitch damping in the prediction (survey §4.2.3, docs/controllers.md; a scenario with
+        vessel.roll_pitch): true, or a table of w_roll_rate, w_pitch_rate (default 1 each), w_roll,
+        w_pitch (default 0), rate_ref [rad/s] (default 0.1 deg/s), angle_ref [rad] (default 1 deg),
+        disturbance_time_constant [s] (default 300; 0: the lines' and environment's moments left
+        out); false (default): the 3-DOF prediction. The prediction then carries the hull's
+        low-frequency roll and pitch under the planned thrust's moments and the cost charges their
+        rates (:class:`RollPitchWeights`).
     """
 
     horizon: int = 20
