@@ -50,11 +50,12 @@ from ..estimation.reliability import RISER_BOTTOM, RISER_TOP, line_signal
 from ..geometry import body_from_turret, rot_z, ssa
 from ..interfaces import Estimate, Setpoint, ThrusterCommand
 from ..models.system import as_system
-from .mpc_problem import (MPCError, MPCSettings, MPCStep, _Problem, build_problem, mooring_parameters,
-                          polytope_parameters)
+from ..models.vessel import roll_pitch_moments
+from .mpc_problem import (MPCError, MPCSettings, MPCStep, RollPitchWeights, _Problem, build_problem,
+                          mooring_parameters, polytope_parameters)
 
 __all__ = ["MPCSettings", "MPCError", "NonlinearMPC", "LinearMPC", "build_problem", "MPCStep", "LINEAR_QP_SOLVERS",
-           "NONLINEAR_QP_SOLVERS", "budgeted_dead_band", "net_load_along"]
+           "NONLINEAR_QP_SOLVERS", "RollPitchWeights", "budgeted_dead_band", "net_load_along"]
 
 #: QP solvers of :class:`LinearMPC`.
 LINEAR_QP_SOLVERS = ("piqp", "osqp", "daqp")
@@ -124,6 +125,51 @@ class _MPCBase:
         self._lost_models: dict[frozenset, Any] = {}   # the line model without the lost buoys
         self._radius = math.nan                    # the dead band's radius of the last step [m]
         self._log: list[dict] = []                 # the dead band's changes after a break
+        # roll-pitch damping (settings.roll_pitch_damping): the measured attitude (phi, theta, p, q)
+        # and the low-passed disturbance moment (K, M) of the lines and the environment
+        self._attitude: np.ndarray | None = None
+        self._rp_dist: np.ndarray | None = None
+        self._t_dist: float | None = None
+
+    def set_attitude(self, t: float, attitude: Any) -> None:
+        """The motion reference unit's attitude at ``t`` [s]: (roll [rad], pitch [rad], roll rate
+        [rad/s], pitch rate [rad/s]) (:attr:`tapm_opt.interfaces.Measurement.attitude`;
+        :class:`~tapm_opt.interfaces.AttitudeAware`). With ``settings.roll_pitch_damping`` the next
+        solve starts its roll–pitch prediction there (eq. MRP1; upright at rest until the first
+        call); ignored without it."""
+        if not self.settings.roll_pitch_damping:
+            return
+        a = np.asarray(attitude, dtype=float)
+        if a.shape != (4,) or not np.isfinite(a).all():
+            raise MPCError(f"attitude = {a.tolist()} must be 4 finite numbers (roll [rad], pitch [rad], roll rate "
+                           "[rad/s], pitch rate [rad/s]): the MPC will not plan from it")
+        self._attitude = a.copy()
+
+    @property
+    def roll_pitch_disturbance(self) -> np.ndarray | None:
+        """The disturbance moment (K, M) [N m] about the centre of gravity of the last solve's
+        roll–pitch prediction (eq. MRP2), None without roll–pitch damping."""
+        return None if self._rp_dist is None else self._rp_dist.copy()
+
+    def _roll_pitch_parameters(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """The roll–pitch prediction's initial state (phi, theta, p, q) — the last attitude set —
+        and its disturbance moment ``d = LP(C (phi, theta) - M_thr)`` (eq. MRP2): the moment that
+        holds the measured angles statically less that of the thrust the MPC applied last, through
+        a first-order low-pass of ``disturbance_time_constant`` started at zero (0: d = 0)."""
+        rpw: RollPitchWeights = self.settings.roll_pitch_damping
+        att = np.zeros(4) if self._attitude is None else self._attitude
+        T = rpw.disturbance_time_constant
+        if T <= 0:
+            self._rp_dist = np.zeros(2)
+            return att, self._rp_dist
+        rp = self.system.vessel.roll_pitch
+        tau = np.zeros(3) if self._u_prev is None else self.tau_from_u(self._u_prev)
+        x = np.asarray(rp.C) * att[:2] - roll_pitch_moments(rp, tau, np.zeros(3))
+        if self._rp_dist is None:
+            self._rp_dist, self._t_dist = np.zeros(2), t
+        self._rp_dist = _low_pass_step(self._rp_dist, self._t_dist, x, t, T)
+        self._t_dist = t
+        return att, self._rp_dist
 
     def log(self) -> list[dict]:
         """The dead band after a break (with ``dead_band_damaged``; ``interfaces.Logged``): a
@@ -168,7 +214,12 @@ class _MPCBase:
         # after a thruster failure the previous move may lie outside what the rest can deliver: the
         # rate rows start from its part inside (else the first move could have no feasible value)
         u_prev = self._into_polytope(u_prev / self._prob.scale["u"]) * self._prob.scale["u"]
-        p[pi["x0"]], p[pi["u_prev"]], p[pi["eta_d"]], p[pi["b"]] = np.concatenate([eta, nu]), u_prev, eta_d, b_E
+        if "rp_dist" in pi:   # roll-pitch damping: the measured attitude and the disturbance moment
+            att, p[pi["rp_dist"]] = self._roll_pitch_parameters(float(est.t))
+            p[pi["x0"]] = np.concatenate([eta, nu, att])
+        else:
+            p[pi["x0"]] = np.concatenate([eta, nu])
+        p[pi["u_prev"]], p[pi["eta_d"]], p[pi["b"]] = u_prev, eta_d, b_E
         ft = self.settings.fault_tolerance
         lost = frozenset(est.lost_points) if ft else frozenset()
         if pi["moor"].stop > pi["moor"].start:
@@ -363,7 +414,7 @@ class _MPCBase:
         prob, N = self._prob, self.settings.horizon
         idx = prob.idx
         out = z.copy()
-        X = z[idx["X"]].reshape(N + 1, 6)
+        X = z[idx["X"]].reshape(N + 1, prob.nx)
         U = z[idx["U"]].reshape(prob.n_moves, self._n_u)[prob.block_of]   # the thrust of every step
         U = np.vstack([U[1:], U[-1:]])
         starts = np.flatnonzero(np.r_[True, np.diff(prob.block_of) != 0])
@@ -376,7 +427,7 @@ class _MPCBase:
 
     def _initial(self, p: np.ndarray) -> np.ndarray:
         z = np.zeros(self._prob.z.numel())
-        X = np.tile(p[:6] / self._prob.scale["x"], self.settings.horizon + 1)
+        X = np.tile(p[self._prob.p_idx["x0"]] / self._prob.scale["x"], self.settings.horizon + 1)
         z[self._prob.idx["X"]] = X
         return z
 
@@ -505,6 +556,7 @@ class _MPCBase:
         self._b_lf = self._t_b = None
         self._b_mean = self._t_mean = None
         self._log = []
+        self._attitude = self._rp_dist = self._t_dist = None
 
 
 class NonlinearMPC(_MPCBase):
@@ -781,7 +833,7 @@ class LinearMPC(_MPCBase):
             x_op = p[pi["x0"]]
             u_op = p[pi["u_prev"]]
         else:
-            x_op = np.concatenate([self._centre(eta, eta_d), np.zeros(3)])
+            x_op = np.concatenate([self._centre(eta, eta_d), np.zeros(3), p[pi["x0"]][6:]])
             u_op = np.zeros(self._n_u)
         p[pi["x_op"]], p[pi["u_op"]], p[pi["b_op"]] = x_op, u_op, p[pi["b"]]
         self._f0 = float(self._qp_arrays(p)[-1][0])

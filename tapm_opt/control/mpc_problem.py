@@ -13,7 +13,9 @@ parameter, and the problem is a QP whose matrices are functions of the parameter
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -25,13 +27,83 @@ from ..geometry import R2, rot_z
 from ..interfaces import ControllerStep
 from ..models.mooring import MooringModel
 from ..models.system import ATTAINABLE_DIRECTIONS, CAPACITY_FRACTION, as_system
-from ..models.vessel import moored_function
+from ..models.vessel import moored_function, roll_pitch_moments, roll_pitch_rhs
 
-__all__ = ["MPCSettings", "MPCError", "MPCStep", "build_problem"]
+__all__ = ["MPCSettings", "MPCError", "MPCStep", "RollPitchWeights", "build_problem"]
 
 
 class MPCError(TapmError, ValueError):
     """Bad MPC settings or arguments."""
+
+
+@dataclass(frozen=True, kw_only=True)
+class RollPitchWeights:
+    """Roll–pitch damping in the MPC (``MPCSettings.roll_pitch_damping``; survey §4.2.3,
+    ``docs/controllers.md`` "Roll–pitch damping in the MPC", eq. MRP1–MRP4): the prediction model
+    carries the hull's low-frequency roll and pitch ``(phi, theta, p, q)``
+    (:func:`~tapm_opt.models.vessel.roll_pitch_rhs`) under the moments of the planned thrust
+    (:func:`~tapm_opt.models.vessel.roll_pitch_moments`) and a constant disturbance moment, and the
+    cost charges the predicted rates and angles.
+
+    Attributes
+    ----------
+    w_roll_rate, w_pitch_rate : float
+        Weights on (p / rate_ref)^2 and (q / rate_ref)^2 at every predicted step [-].
+    w_roll, w_pitch : float
+        Weights on ((phi - phi_eq) / angle_ref)^2 and ((theta - theta_eq) / angle_ref)^2 [-], with
+        phi_eq, theta_eq the static heel and trim of the disturbance moment alone (d / C); 0
+        (default): the rates only, so the MPC does not fight the static heel.
+    rate_ref : float
+        Normalisation of the roll and pitch rates [rad/s] (default 0.1 deg/s).
+    angle_ref : float
+        Normalisation of the roll and pitch angles [rad] (default 1 deg).
+    disturbance_time_constant : float
+        The moments of the lines and the environment in the prediction [s]: a constant over the
+        horizon, estimated as ``d = LP(C x_meas - M_thr)`` — the static moment that balances the
+        measured roll and pitch less the moment of the MPC's own applied thrust — through a
+        first-order low-pass filter of this time constant, started at zero (the hull upright at
+        rest). 0: left out (d = 0).
+    """
+
+    w_roll_rate: float = 1.0
+    w_pitch_rate: float = 1.0
+    w_roll: float = 0.0
+    w_pitch: float = 0.0
+    rate_ref: float = math.radians(0.1)
+    angle_ref: float = math.radians(1.0)
+    disturbance_time_constant: float = 300.0
+
+    def __post_init__(self) -> None:
+        for name in ("w_roll_rate", "w_pitch_rate", "w_roll", "w_pitch", "disturbance_time_constant"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                raise MPCError(f"MPCSettings.roll_pitch_damping.{name} = {v!r} must be a number >= 0")
+            object.__setattr__(self, name, float(v))
+        for name in ("rate_ref", "angle_ref"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise MPCError(f"MPCSettings.roll_pitch_damping.{name} = {v!r} must be a positive number")
+            object.__setattr__(self, name, float(v))
+
+    @classmethod
+    def from_option(cls, value: Any) -> RollPitchWeights | None:
+        """From the option's value: false or None (off), true (the defaults), a table of the
+        attributes, or an instance."""
+        if value is False or value is None:
+            return None
+        if value is True:
+            return cls()
+        if isinstance(value, cls):
+            return value
+        if isinstance(value, Mapping):
+            names = [f.name for f in dataclasses.fields(cls)]
+            unknown = sorted(str(k) for k in value if k not in names)
+            if unknown:
+                raise MPCError(f"MPCSettings.roll_pitch_damping: unknown option(s) {unknown}; options are "
+                               f"{', '.join(names)}")
+            return cls(**dict(value))
+        raise MPCError(f"MPCSettings.roll_pitch_damping = {value!r} must be true, false or a table of "
+                       f"{', '.join(f.name for f in dataclasses.fields(cls))}")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -166,6 +238,14 @@ class MPCSettings:
         job 50.0 m / 5 s outside the safe circle / 18.13 MWh against 50.7 m / 21 s / 19.43 MWh,
         but in the sweep's collinear storm 5-19 % less energy for up to 7.4 m more offset and more
         time outside (docs/estimation.md).
+    roll_pitch_damping : bool, table or RollPitchWeights
+        roll-pitch damping in the prediction (survey §4.2.3, docs/controllers.md; a scenario with
+        vessel.roll_pitch): true, or a table of w_roll_rate, w_pitch_rate (default 1 each), w_roll,
+        w_pitch (default 0), rate_ref [rad/s] (default 0.1 deg/s), angle_ref [rad] (default 1 deg),
+        disturbance_time_constant [s] (default 300; 0: the lines' and environment's moments left
+        out); false (default): the 3-DOF prediction. The prediction then carries the hull's
+        low-frequency roll and pitch under the planned thrust's moments and the cost charges their
+        rates (:class:`RollPitchWeights`).
     """
 
     horizon: int = 20
@@ -205,8 +285,10 @@ class MPCSettings:
     delta_s: float = 2.0
     fault_tolerance: bool = False
     load_time_constant: float = 0.0
+    roll_pitch_damping: Any = False
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "roll_pitch_damping", RollPitchWeights.from_option(self.roll_pitch_damping) or False)
         pos = ("dt", "r_ref", "psi_ref", "nu_ref", "r_rate_ref", "capacity_fraction", "max_time")
         nonneg = ("w_thrust", "w_rate", "w_position", "w_position_in", "w_heading", "w_velocity", "w_terminal",
                   "dead_band", "soft_l1", "soft_l2", "load_time_constant")
@@ -304,13 +386,17 @@ class _Problem:
     #: Slices of the parameter vector (``x0``, ``u_prev``, ``eta_d``, ``b``, ``T_lim`` — each
     #: line's allowed tension [N] —, and when present ``moor`` — the line characteristics —,
     #: ``poly_A``, ``poly_b``, ``rate_dt``, ``riser`` — angle limits and the current's shares —,
-    #: and for the linear problem ``x_op``, ``u_op``, ``b_op``).
+    #: and for the linear problem ``x_op``, ``u_op``, ``b_op``; with roll-pitch damping ``x0`` and
+    #: ``x_op`` have 10 states and ``rp_dist`` is the disturbance moment (K, M) [N m]).
     p_idx: dict | None = None
     #: Rows of the thrust polytope (padded: a row of zeros with bound 1 is always met).
     n_poly: int = 0
     linear: bool = False
     #: The thrust move that acts at each prediction step (N,): ``arange(N)`` without move blocking.
     block_of: np.ndarray | None = None
+    #: States per prediction step: 6 (eta, nu), or 10 with roll-pitch damping (eta, nu, phi, theta,
+    #: p, q; ``MPCSettings.roll_pitch_damping``).
+    nx: int = 6
 
     @property
     def n_moves(self) -> int:
@@ -428,6 +514,16 @@ def build_problem(system: Any, settings: MPCSettings, *, linear: bool = False,
         rate_s = rate / fmax
         Bu = B_thr
     x_ref = np.array([s.r_ref, s.r_ref, s.psi_ref, s.nu_ref, s.nu_ref, s.r_rate_ref])
+    # roll-pitch damping: the state (eta, nu) augmented with (phi, theta, p, q) (eq. MRP1)
+    rpw = s.roll_pitch_damping or None
+    rpv = vp.roll_pitch
+    if rpw is not None and rpv is None:
+        raise MPCError(f"MPCSettings.roll_pitch_damping: scenario {system.name!r} has no low-frequency roll and "
+                       "pitch (give its vessel a [vessel.roll_pitch] table)")
+    nx = 6
+    if rpw is not None:
+        nx = 10
+        x_ref = np.concatenate([x_ref, [rpw.angle_ref, rpw.angle_ref, rpw.rate_ref, rpw.rate_ref]])
     util = system.limits.tension_utilisation if s.tension_utilisation is None else s.tension_utilisation
     T_allow = util * np.asarray(moor.MBS, float)
     R_safe = system.limits.safe_radius if s.safe_radius is None else s.safe_radius
@@ -435,12 +531,14 @@ def build_problem(system: Any, settings: MPCSettings, *, linear: bool = False,
 
     Sym = ca.MX if kind == "catenary" else ca.SX
     use_riser = bool(s.reliability and riser is not None)
-    sizes = [("x0", 6), ("u_prev", n_u), ("eta_d", 3), ("b", 3),
+    sizes = [("x0", nx), ("u_prev", n_u), ("eta_d", 3), ("b", 3),
              ("moor", 5 * n_lines if kind == "characteristic" else 0),
              ("poly_A", 3 * n_poly), ("poly_b", n_poly), ("rate_dt", 1 if n_poly else 0),
              ("T_lim", n_lines), ("riser", 6 if use_riser else 0), ("dead_band", 1 if s.dead_band > 0 else 0)]
+    if rpw is not None:
+        sizes += [("rp_dist", 2)]   # the disturbance moment (K, M) about the CG [N m] (eq. MRP2)
     if linear:
-        sizes += [("x_op", 6), ("u_op", n_u), ("b_op", 3)]
+        sizes += [("x_op", nx), ("u_op", n_u), ("b_op", 3)]
     p_idx, at = _layout(sizes)
     p = Sym.sym("p", at)
     x0, u_prev, eta_d, b_E = (p[p_idx[k]] for k in ("x0", "u_prev", "eta_d", "b"))
@@ -456,13 +554,20 @@ def build_problem(system: Any, settings: MPCSettings, *, linear: bool = False,
 
     # discrete dynamics (RK4) in SI, with thrust tau = Bu u
     SymF = ca.MX if kind == "catenary" else ca.SX
-    xs, us, bs = SymF.sym("x", 6), SymF.sym("u", n_u), SymF.sym("b", 3)
+    xs, us, bs = SymF.sym("x", nx), SymF.sym("u", n_u), SymF.sym("b", 3)
     ms = SymF.sym("m", 5 * n_lines if kind == "characteristic" else 0)
+    ds = [SymF.sym("d", 2)] if rpw is not None else []   # the roll-pitch disturbance moment
     h = s.dt / s.substeps
     xk = xs
     tau_u = ca.mtimes(ca.DM(Bu), us)
+    if rpw is not None:   # the planned thrust's roll and pitch moments (eq. RP4) plus the disturbance
+        moment_rp = roll_pitch_moments(rpv, tau_u, ca.DM.zeros(3)) + ds[0]
     for _ in range(s.substeps):
         def fx(xx):
+            if rpw is not None:
+                tau_env = ca.mtimes(rot_z(xx[2]).T, bs) + mooring_terms(xx[0:3], ms)[0]
+                return ca.vertcat(rhs(xx[0:6], tau_u, tau_env, ca.DM.zeros(2)),
+                                  roll_pitch_rhs(xx[6:10], moment_rp, rpv))
             tau_env = ca.mtimes(rot_z(xx[2]).T, bs) + mooring_terms(xx[0:3], ms)[0]
             return rhs(xx, tau_u, tau_env, ca.DM.zeros(2))
         k1 = fx(xk)
@@ -471,14 +576,15 @@ def build_problem(system: Any, settings: MPCSettings, *, linear: bool = False,
         k4 = fx(xk + h * k3)
         xk = xk + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
     es = SymF.sym("e", 3)
-    F = ca.Function("F", [xs, us, bs, ms], [xk])
+    F = ca.Function("F", [xs, us, bs, ms, *ds], [xk])
     Tfun = ca.Function("T", [es, ms], [mooring_terms(es, ms)[1]])
     mp = p[p_idx["moor"]]
+    dist_p = [p[p_idx["rp_dist"]]] if rpw is not None else []   # (the disturbance enters exactly: affine)
     if linear:
         x_op, u_op, b_op = (p[p_idx[k]] for k in ("x_op", "u_op", "b_op"))
-        parts = ca.Function("F_parts", [xs, us, bs, ms], [xk, ca.jacobian(xk, xs), ca.jacobian(xk, us),
-                                                          ca.jacobian(xk, bs)])
-        F0, A, Bm, G = parts(x_op, u_op, b_op, mp)
+        parts = ca.Function("F_parts", [xs, us, bs, ms, *ds], [xk, ca.jacobian(xk, xs), ca.jacobian(xk, us),
+                                                               ca.jacobian(xk, bs)])
+        F0, A, Bm, G = parts(x_op, u_op, b_op, mp, *dist_p)
         T0, JT = ca.Function("T_parts", [es, ms], [Tfun(es, ms), ca.jacobian(Tfun(es, ms), es)])(x_op[0:3], mp)
 
         def step(xx, uu, bb):
@@ -489,7 +595,7 @@ def build_problem(system: Any, settings: MPCSettings, *, linear: bool = False,
         psi_lin = x_op[2]
     else:
         def step(xx, uu, bb):
-            return F(xx, uu, bb, mp)
+            return F(xx, uu, bb, mp, *dist_p)
 
         def tension(ee):
             return Tfun(ee, mp)
@@ -503,10 +609,10 @@ def build_problem(system: Any, settings: MPCSettings, *, linear: bool = False,
     # move blocking), slacks: dead band, safe, tension, riser (N each)
     block_of = block_index(s.move_blocks, N)
     M = int(block_of[-1]) + 1
-    nX, nU = 6 * (N + 1), n_u * M
+    nX, nU = nx * (N + 1), n_u * M
     idx, n_z = _layout([("X", nX), ("U", nU), ("S_db", N), ("S_safe", N), ("S_T", N), ("S_R", N)])
     z = Sym.sym("z", n_z)
-    X = ca.reshape(z[idx["X"]], 6, N + 1)
+    X = ca.reshape(z[idx["X"]], nx, N + 1)
     U = ca.reshape(z[idx["U"]], n_u, M)
     S_db, S_safe, S_T, S_R = (z[idx[k]] for k in ("S_db", "S_safe", "S_T", "S_R"))
     Dx, Du = ca.DM(x_ref), ca.DM(u_ref)
@@ -527,8 +633,10 @@ def build_problem(system: Any, settings: MPCSettings, *, linear: bool = False,
             res.append(math.sqrt(weight) * v)
 
     g.append(X[:, 0] - x0 / Dx)
-    lbg += [0.0] * 6
-    ubg += [0.0] * 6
+    lbg += [0.0] * nx
+    ubg += [0.0] * nx
+    if rpw is not None:   # the static heel and trim of the disturbance moment alone (eq. MRP3)
+        rp_eq = ca.vertcat(dist_p[0][0] / rpv.C[0], dist_p[0][1] / rpv.C[1])
     u_last = u_prev / Du
     for k in range(N):
         j = int(block_of[k])
@@ -536,8 +644,8 @@ def build_problem(system: Any, settings: MPCSettings, *, linear: bool = False,
         xk_si = X[:, k] * Dx
         xn = step(xk_si, uk * Du, b_E)
         g.append(X[:, k + 1] - xn / Dx)
-        lbg += [0.0] * 6
-        ubg += [0.0] * 6
+        lbg += [0.0] * nx
+        ubg += [0.0] * nx
         new_move = k == 0 or block_of[k - 1] != j   # the thrust rows only where a move starts
         if new_move and n_poly:
             # the attainable thrust, and its change within the same polytope scaled by r dt
@@ -595,6 +703,11 @@ def build_problem(system: Any, settings: MPCSettings, *, linear: bool = False,
         # 2 (1 - cos dpsi) = (2 sin(dpsi / 2))^2: the periodic heading error as a square
         sq(w_state * s.w_heading, (dpsi if linear else 2.0 * ca.sin(dpsi / 2.0)) / s.psi_ref)
         sq(w_state * s.w_velocity, ca.vertcat(xe[3:5] / s.nu_ref, xe[5] / s.r_rate_ref))
+        if rpw is not None:   # roll-pitch damping: the predicted rates (and angles about the static ones)
+            sq(w_state * rpw.w_roll_rate, xe[8] / rpw.rate_ref)
+            sq(w_state * rpw.w_pitch_rate, xe[9] / rpw.rate_ref)
+            sq(w_state * rpw.w_roll, (xe[6] - rp_eq[0]) / rpw.angle_ref)
+            sq(w_state * rpw.w_pitch, (xe[7] - rp_eq[1]) / rpw.angle_ref)
         # soft: safe circle of the turret offset about the field zero point, line tensions
         if R_safe is not None:
             for nrm in polyg:
@@ -629,7 +742,7 @@ def build_problem(system: Any, settings: MPCSettings, *, linear: bool = False,
     scale = {"x": x_ref, "u": u_ref, "T_allow": T_allow, "R_safe": R_safe, "p_cot_B": p_cot}
     return _Problem(z=z, p=p, f=cost, g=g, lbz=lbz, ubz=ubz, lbg=np.array(lbg, float), ubg=np.array(ubg, float),
                     idx=idx, scale=scale, n_u=n_u, B_thr=Bu if s.decision == "thrusters" else None, r=r,
-                    p_idx=p_idx, n_poly=n_poly, linear=linear, block_of=block_of)
+                    p_idx=p_idx, n_poly=n_poly, linear=linear, block_of=block_of, nx=nx)
 
 
 def _layout(blocks: list[tuple[str, int]]) -> tuple[dict[str, slice], int]:

@@ -510,7 +510,7 @@ _NOT_SETTINGS = ("period", "qp_solver")
 
 
 def _mpc_settings(system: Any, o: Any, where: str) -> Any:
-    from ..control.mpc_problem import MPCSettings
+    from ..control.mpc_problem import MPCError, MPCSettings, RollPitchWeights
 
     s = {k: getattr(o, k) for k in (f.name for f in dataclasses.fields(o)) if k not in _NOT_SETTINGS}
     if s["dead_band"] is None:
@@ -531,6 +531,18 @@ def _mpc_settings(system: Any, o: Any, where: str) -> Any:
     elif s["dead_band_damaged"] is None:
         raise ControllerSpecError(f"{where}.dead_band_budget = {s['dead_band_budget']!r} has nothing to budget: it "
                                   "needs fault tolerance and a dead band (dead_band > 0)")
+    rpd = s["roll_pitch_damping"]
+    if rpd is not False and rpd is not None:
+        if system.vessel.roll_pitch is None:
+            raise ControllerSpecError(f"{where}.roll_pitch_damping: scenario {system.scenario.name!r} has no "
+                                      "low-frequency roll and pitch (give its vessel a [vessel.roll_pitch] table)")
+        if rpd is not True and not isinstance(rpd, Mapping):
+            raise ControllerSpecError(f"{where}.roll_pitch_damping = {rpd!r} must be true, false or a table of "
+                                      + ", ".join(f.name for f in dataclasses.fields(RollPitchWeights)))
+        try:
+            s["roll_pitch_damping"] = RollPitchWeights.from_option(rpd)
+        except MPCError as exc:
+            raise ControllerSpecError(f"{where}.{str(exc).removeprefix('MPCSettings.')}") from None
     settings = MPCSettings(**s)
     n_pred = settings.horizon * settings.substeps
     if n_pred > MAX_PREDICTION_STEPS:
