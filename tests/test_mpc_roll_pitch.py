@@ -154,20 +154,28 @@ def _rms(r, ch):
 
 @pytest.mark.parametrize("kind", ["lmpc", "mpc"])
 def test_option_reduces_a_forced_roll_and_pitch_oscillation(semi, forced, kind):
-    """RMS roll and pitch after the first 40 s, with and without the option (figures:
-    docs/controllers.md): without it the MPC's position control feeds the roll (positive work of
-    the thrust's roll moment); with it the thrust takes energy out of the roll and the roll and
-    pitch are smaller."""
+    """Released from 2 deg roll and 1 deg pitch in still water, with and without the option
+    (figures: docs/controllers.md): without it the MPC's position control feeds the roll and the
+    pitch (positive work of the thrust's moments); with it the thrust takes energy out of both, the
+    RMS roll after the first 40 s is smaller and the late roll swings too. (The RMS pitch is not
+    asserted: the semi-taut lines' 32 s pitch is damped, but the MPC's steady surge thrust trims
+    the hull by a fraction of a degree, which the RMS counts.)"""
     off, on = forced[(kind, False)], forced[(kind, True)]
-    ell = semi.vessel.roll_pitch.thruster_lever
-    assert _rms(on, "roll") < 0.3 * _rms(off, "roll")
-    assert _rms(on, "pitch") < 0.8 * _rms(off, "pitch")
-    w_off = -ell * np.trapezoid(off["tau_thr[Y]"] * off["roll_rate"], off.time)
-    w_on = -ell * np.trapezoid(on["tau_thr[Y]"] * on["roll_rate"], on.time)
-    E_roll = 0.5 * semi.vessel.roll_pitch.C[0] * math.radians(2.0) ** 2
-    assert w_off > 0 and w_on < -0.5 * E_roll
+    rp = semi.vessel.roll_pitch
+    ell = rp.thruster_lever
+    assert _rms(on, "roll") < 0.9 * _rms(off, "roll")
+
+    def work(r):
+        return (-ell * np.trapezoid(r["tau_thr[Y]"] * r["roll_rate"], r.time),
+                ell * np.trapezoid(r["tau_thr[X]"] * r["pitch_rate"], r.time))
+
+    (wr_off, wp_off), (wr_on, wp_on) = work(off), work(on)
+    E_roll = 0.5 * rp.C[0] * math.radians(2.0) ** 2
+    E_pitch = 0.5 * rp.C[1] * math.radians(1.0) ** 2
+    assert wr_off > 2 * E_roll and wr_on < -2 * E_roll
+    assert wp_off > 0 and wp_on < -0.25 * E_pitch
     late = on.time >= 110.0
-    assert np.abs(on["roll"][late]).max() < 0.3 * np.abs(off["roll"][late]).max()
+    assert np.abs(on["roll"][late]).max() < 0.7 * np.abs(off["roll"][late]).max()
 
 
 # -- bad input -----------------------------------------------------------------------------------

@@ -225,7 +225,7 @@ def test_damping_mode_reduces_a_forced_roll_and_pitch_oscillation(forced):
     semi-taut lines' vertical pull at the columns stiffens roll (moored period about 60 s against
     the hull's 108 s), so the mode's gain (0.3 of the hull's own critical damping) is a smaller
     fraction of the moored mode's and the thrusters' 5 s lag a larger phase: the reduction is
-    smaller than on a slack mooring (docs/semi.md: RMS roll 0.71 -> 0.54 deg, pitch 0.135 -> 0.076 deg)."""
+    smaller than on a slack mooring (docs/semi.md: RMS roll 0.71 -> 0.54 deg, pitch 0.135 -> 0.051 deg)."""
     off, on = forced
 
     def rms(r, ch):
