@@ -151,7 +151,7 @@ def test_cli_default_heading_and_refusal(tapm, capsys, tmp_path):
     code, _, err = tapm(capsys, "capability", "semi", "--out", str(out), "--heading", "weathervane")
     assert code == 2 and "--heading" in err and "locked" in err
     assert not out.exists()
-    code, text, err = tapm(capsys, "capability", "semi", "--out", str(out), "--condition", "intact",
+    code, _, err = tapm(capsys, "capability", "semi", "--out", str(out), "--condition", "intact",
                            "--directions", "0,90", "--workers", "1", "--json")
     assert code == 0, err
     data = json.loads((out / "capability.json").read_text())

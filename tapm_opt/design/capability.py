@@ -1118,7 +1118,7 @@ class _Engine(CapabilityEnvironment):
         """Whether the intact mooring alone holds the environment (module docstring)."""
         from ..models.statics import solve_equilibrium
 
-        model, Tlim = self.mooring(None)
+        model, _ = self.mooring(None)
         target = self.a * self.load(e, beta_from, psi)
         if not self.free:
             return self._evaluate_spread(e, beta_from, psi, target, guess, diagnose=diagnose)
