@@ -36,9 +36,11 @@ def _out_dir(ctx: click.Context, param: click.Parameter, value: str | None) -> s
               help="1: wind, waves and current collinear (DNV-ST-0111 Level 1); 2: wind and current keep the base "
                    "sea state's directions relative to its waves; 3: the time domain, the controller in the loop on "
                    "the FEM plant (environments as Level 1).")
-@click.option("--heading", type=click.Choice(["weathervane", "fixed"]), default="weathervane", show_default=True,
-              help="Heading with thrust: bow into the environment (weathervane) or --fixed-heading. Mooring alone "
-                   "always weathervanes.")
+@click.option("--heading", type=click.Choice(["weathervane", "fixed"]), default=None,
+              help="Heading with thrust: bow into the environment (weathervane) or --fixed-heading. Default by the "
+                   "turret: weathervane for a free turret, fixed for a locked one (a spread mooring cannot turn "
+                   "into the weather; weathervane is refused). Mooring alone: a free turret weathervanes, a locked "
+                   "one's heading is where the lines hold it.")
 @click.option("--fixed-heading", "fixed_heading", type=float, default=0.0, show_default=True,
               help="Heading of --heading fixed [deg].")
 @click.option("--condition", type=click.Choice(["all", "intact", "all-single-line", "thruster-failure"]),
@@ -82,7 +84,7 @@ def _out_dir(ctx: click.Context, param: click.Parameter, value: str | None) -> s
               help="Processes over the cases (Levels 1, 2) or the directions (Level 3) (default: 2, or 1 on a "
                    "single CPU).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of text.")
-def capability(scenario_name: str, out_dir: str | None, level: str, heading: str, fixed_heading: float,
+def capability(scenario_name: str, out_dir: str | None, level: str, heading: str | None, fixed_heading: float,
                condition: str | None, sea_state: str | None, directions: str | None, design_direction: float | None,
                table: str, losses: bool, thruster_diameter: float | None, controller: str | None,
                duration: float | None, warmup: float | None, seeds: int | None, segments: int | None,
@@ -145,6 +147,15 @@ def capability(scenario_name: str, out_dir: str | None, level: str, heading: str
         if len({round(float(d) % 360.0, 9) for d in vals}) != len(vals):
             raise click.BadParameter(f"{directions!r} repeats a direction", param_hint="'--directions'")
         dirs = tuple(float(d) for d in vals)
+    from ..design.capability import default_heading
+
+    if heading is None:
+        heading = default_heading(sc)
+    elif heading == "weathervane" and sc.turret.mode == "locked":
+        raise click.BadParameter(f"scenario {sc.name!r} has a locked turret (turret.mode = 'locked', a spread "
+                                 "mooring): the hull cannot turn into the weather, its heading is held by the lines; "
+                                 "give --heading fixed (--fixed-heading, default 0) or leave --heading out",
+                                 param_hint="'--heading'")
     if sc.limits.safe_radius is None:
         raise click.BadParameter(f"scenario {sc.name!r} has no limits.safe_radius: the capability needs the safe "
                                  "circle", param_hint="SCENARIO")

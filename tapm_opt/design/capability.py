@@ -51,12 +51,22 @@ the smallest gauge are handed, in that order, to the allocator, which decides. A
 only the net line force through its centre, so the table at heading 0 serves every heading (the
 fairleads depend on the turret position alone); a locked turret is tabulated per heading.
 
-Mooring alone: the static equilibrium with the heading held at the weathervane heading (where the
-mean load has no yaw moment about the turret, so a free turret balances yaw without thrust) is
-solved by :func:`~tapm_opt.models.statics.solve_equilibrium` (the project's root finder) on the
-tabulated catenary load (:meth:`~tapm_opt.models.mooring.MooringModel.force_fast`), then its
-offset, tensions (:meth:`~tapm_opt.models.mooring.MooringModel.tensions`) and riser angles are
-checked. A locked turret solves x, y and psi.
+Mooring alone: the static equilibrium, solved by :func:`~tapm_opt.models.statics.solve_equilibrium`
+(the project's root finder) on the tabulated catenary load
+(:meth:`~tapm_opt.models.mooring.MooringModel.force_fast`), then its offset, tensions
+(:meth:`~tapm_opt.models.mooring.MooringModel.tensions`) and riser angles are checked. A free
+turret: x and y with the heading held at the weathervane heading (where the mean load has no yaw
+moment about the turret, so the turret balances yaw without thrust). A locked turret (a spread
+mooring): x, y and psi together, the yaw held by the lines alone, the environmental load
+re-evaluated at each heading the solver tries (the environment is fixed in {E}, its load in {B}
+turns with the hull), from the field zero point's heading 0 (where the lines hold the hull at rest)
+or the last equilibrium of the same direction; the heading is reported on that branch
+(``psi0 + ssa(psi - psi0)``).
+
+Heading (:func:`resolve_options`): ``heading=None`` (the default) is ``weathervane`` for a free
+turret and ``fixed`` (``fixed_heading_deg``, 0: the field zero point's heading) for a locked one.
+A spread-moored hull cannot turn into the weather: its heading is held by the lines (and the
+thrusters), so ``weathervane`` with a locked turret is refused (:class:`CapabilityError`).
 
 Envelope of one case and direction: the rows are walked upward from Beaufort 0 to the first that
 fails; the wind speed is then bisected between the last passing and the first failing row to
@@ -121,6 +131,8 @@ __all__ = [
     "TableEnvironment",
     "capability",
     "case_names",
+    "default_heading",
+    "resolve_options",
     "table_name",
 ]
 
@@ -244,13 +256,16 @@ class CapabilityOptions:
     level : {1, 2}
         1: wind, waves and current collinear (DNV-ST-0111 Level 1); 2: wind and current keep the
         base sea state's directions relative to its waves (the scenario's own spreads).
-    heading : {"weathervane", "fixed"}
-        Heading of the thrust cases: ``weathervane`` — bow into the environment (Level 1; with
+    heading : {"weathervane", "fixed"} or None
+        Heading of the thrust cases (None, the default: by the turret, :func:`default_heading`:
+        ``weathervane`` for a free turret, ``fixed`` for a locked one; :func:`capability` resolves
+        it; ``weathervane`` with a locked turret is refused): ``weathervane`` — bow into the environment (Level 1; with
         collinear loads on a port/starboard-symmetric hull the mean load then has no yaw moment
         about the turret) or the heading where the mean load has no yaw moment about the turret
         (Level 2, a stable zero as :func:`~tapm_opt.design.tables.weathervane_heading`);
-        ``fixed`` — ``fixed_heading_deg``. Mooring alone always weathervanes (without thrust a
-        heading cannot be held).
+        ``fixed`` — ``fixed_heading_deg``. Mooring alone: a free turret weathervanes (without
+        thrust a heading cannot be held); a locked turret's heading is solved with x and y (the
+        lines hold the yaw).
     condition : {"all", "intact", "all-single-line", "thruster-failure"} or "line <id>"
         ``intact``: the cases ``mooring`` and ``intact``; ``all-single-line`` adds ``line <id>``
         for every line; ``thruster-failure`` adds the worst ``thruster <id>``; ``all`` both;
@@ -315,7 +330,7 @@ class CapabilityOptions:
     """
 
     level: int = 1
-    heading: str = "weathervane"
+    heading: str | None = None
     condition: str = "all"
     directions_deg: tuple[float, ...] = DIRECTIONS_DEG
     design_direction_deg: float | None = None
@@ -358,8 +373,8 @@ class CapabilityOptions:
 
         if self.level not in LEVELS or isinstance(self.level, bool):
             raise bad("level", f"must be one of {', '.join(map(str, LEVELS))}")
-        if self.heading not in HEADINGS:
-            raise bad("heading", f"must be one of {', '.join(HEADINGS)}")
+        if self.heading is not None and self.heading not in HEADINGS:
+            raise bad("heading", f"must be one of {', '.join(HEADINGS)} (or left out: by the turret)")
         if self.condition not in CONDITIONS and _single_line(self.condition) is None:
             raise bad("condition", f"must be one of {', '.join(CONDITIONS)} or 'line <id>'")
         try:
@@ -424,6 +439,31 @@ class CapabilityOptions:
                 "seed": self.seed, "table_name": table_name(self.table), "losses": bool(self.losses),
                 "thruster_diameter": self.thruster_diameter, "riser": bool(self.riser),
                 "tension_utilisation": self.tension_utilisation}
+
+
+def default_heading(scenario: Any) -> str:
+    """The default heading of :class:`CapabilityOptions` for ``scenario``: ``"weathervane"`` for a
+    free turret (it turns into the weather), ``"fixed"`` for a locked turret (a spread mooring: the
+    lines hold the heading; ``docs/capability.md`` "Spread moorings")."""
+    return "fixed" if scenario.turret.mode == "locked" else "weathervane"
+
+
+def resolve_options(scenario: Any, options: CapabilityOptions) -> CapabilityOptions:
+    """``options`` with ``heading`` resolved for ``scenario`` (None: :func:`default_heading`).
+
+    Raises
+    ------
+    CapabilityError
+        ``heading = "weathervane"`` with a locked turret: a spread-moored hull cannot turn into the
+        weather, and its lines, laid out for the field zero point's heading, do not follow it.
+    """
+    if options.heading is None:
+        return dataclasses.replace(options, heading=default_heading(scenario))
+    if options.heading == "weathervane" and scenario.turret.mode == "locked":
+        raise CapabilityError(f"heading = 'weathervane' with scenario {scenario.name!r}'s turret.mode = 'locked' (a "
+                              "spread mooring): the hull cannot turn into the weather, its heading is held by the "
+                              "lines; use heading = 'fixed' (fixed_heading_deg, default 0) or leave heading out")
+    return options
 
 
 def table_name(table: Sequence[BeaufortRow]) -> str:
@@ -710,7 +750,7 @@ class CapabilityEnvironment:
 
     def __init__(self, scenario: Any, options: CapabilityOptions):
         self.sc = sc = scenario
-        self.opt = opt = options
+        self.opt = opt = resolve_options(scenario, options)
         try:
             self.base = sc.sea_state(opt.sea_state)
         except KeyError as exc:
@@ -853,8 +893,12 @@ class CapabilityEnvironment:
 
     def heading(self, kind: str, beta_from: float, wind: float) -> float:
         """Heading [rad] of case ``kind`` with the environment coming from ``beta_from`` [rad] at
-        wind speed ``wind`` [m/s]: the fixed heading for a thrust case with ``heading="fixed"``,
-        else the weathervane heading (mooring alone always weathervanes)."""
+        wind speed ``wind`` [m/s]: the fixed heading for a thrust case with ``heading="fixed"``;
+        mooring alone with a locked turret: 0, the field zero point's heading (where the solve of
+        x, y and psi starts); else the weathervane heading (mooring alone with a free turret always
+        weathervanes)."""
+        if kind == "mooring" and self.sc.turret.mode == "locked":
+            return 0.0
         if kind != "mooring" and self.opt.heading == "fixed":
             return math.radians(self.opt.fixed_heading_deg)
         return float(ssa(beta_from - self.weathervane(wind)))
@@ -1074,14 +1118,16 @@ class _Engine(CapabilityEnvironment):
         """Whether the intact mooring alone holds the environment (module docstring)."""
         from ..models.statics import solve_equilibrium
 
-        model, Tlim = self.mooring(None)
+        model, _ = self.mooring(None)
         target = self.a * self.load(e, beta_from, psi)
+        if not self.free:
+            return self._evaluate_spread(e, beta_from, psi, target, guess, diagnose=diagnose)
         if guess is None:   # the grid point whose mooring load balances best
             tab = self.table(None, psi)
             j = int(np.argmin(np.hypot(*(tab.tau[:, :2] + target[None, :2]).T)))
             bx, by = body_from_turret(self.P[j], psi, self.p_cot)
             guess = np.array([bx, by, psi])
-        n = 2 if self.free else 3
+        n = 2
         scale = max(float(np.max(np.abs(target[:n]))), 1.0e3)
         h = 1e-3
 
@@ -1103,7 +1149,49 @@ class _Engine(CapabilityEnvironment):
             x = solve_equilibrium(residual, jacobian, np.asarray(guess, float)[:n], tol=1e-9)
         except TapmError:
             return _Outcome(False, limit="offset", psi=psi)
-        eta = pose(x)
+        return self._check_mooring(e, beta_from, pose(x))
+
+    def _evaluate_spread(self, e: TableEnvironment, beta_from: float, psi0: float, target: np.ndarray,
+                         guess: np.ndarray | None, *, diagnose: bool = False) -> _Outcome:
+        """Mooring alone with a locked turret: the root of ``tau_moor(eta) + a tau_env(psi) = 0`` in
+        x, y and psi (module docstring), from ``guess`` (the last equilibrium) or the grid point at
+        heading ``psi0`` whose mooring load balances ``target`` (the scaled load at ``psi0``) best."""
+        from ..models.statics import solve_equilibrium
+
+        model, _ = self.mooring(None)
+        if guess is None:
+            tab = self.table(None, psi0)
+            j = int(np.argmin(np.hypot(*(tab.tau[:, :2] + target[None, :2]).T)))
+            bx, by = body_from_turret(self.P[j], psi0, self.p_cot)
+            guess = np.array([bx, by, psi0])
+        start = float(guess[2])
+        # forces scaled by the load (at least 1 kN), the yaw moment by it times the mooring's reach
+        arm = max(float(np.max(np.hypot(*np.asarray(model.fairleads(np.zeros(3)), float)))), 1.0)
+        f_scale = max(float(np.max(np.abs(target[:2]))), float(abs(target[2])) / arm, 1.0e3)
+        scale = np.array([f_scale, f_scale, f_scale * arm])
+        h = np.array([1e-3, 1e-3, 1e-5])
+
+        def residual(x: np.ndarray, s: float) -> np.ndarray:
+            return (model.force_fast(x) + s * self.a * self.load(e, beta_from, float(x[2]))) / scale
+
+        def jacobian(x: np.ndarray, s: float) -> np.ndarray:
+            J = np.empty((3, 3))
+            for k in range(3):
+                dx = np.zeros(3)
+                dx[k] = h[k]
+                J[:, k] = (residual(x + dx, s) - residual(x - dx, s)) / (2.0 * h[k])
+            return J
+
+        try:
+            x = solve_equilibrium(residual, jacobian, np.asarray(guess, float), tol=1e-9)
+        except TapmError:
+            return _Outcome(False, limit="offset", psi=start)
+        eta = np.array([x[0], x[1], start + float(ssa(x[2] - start))])
+        return self._check_mooring(e, beta_from, eta)
+
+    def _check_mooring(self, e: TableEnvironment, beta_from: float, eta: np.ndarray) -> _Outcome:
+        """Offset, tensions and riser angles of the mooring-alone equilibrium ``eta``."""
+        model, Tlim = self.mooring(None)
         p = np.array(turret_offset(eta, self.p_cot), float)
         r_off = float(np.hypot(*p)) / self.R
         if r_off > 2.0:   # far outside the safe circle: the tensions are not worth computing
@@ -1300,6 +1388,7 @@ def capability(scenario: Any, options: CapabilityOptions | Mapping[str, Any] | N
             raise CapabilityError(f"unknown option(s) {unknown}; options are "
                                   f"{[f.name for f in dataclasses.fields(CapabilityOptions)]}")
         opt = CapabilityOptions(**{**given, **kw})
+    opt = resolve_options(scenario, opt)     # the heading by the turret (reported and stamped resolved)
     specs = case_names(scenario, opt.condition)
     engine = _Engine(scenario, opt)          # checks the scenario before any work (and serves workers=1)
     if not scenario.thrusters:   # every condition has the case "intact" (thrusters + mooring)

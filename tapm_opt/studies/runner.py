@@ -251,7 +251,7 @@ def write_study_capability(study: Study, out_dir: str | Path, *, workers: int = 
     from .. import __version__
     from .._io import atomic_write_bytes
     from ..config import scenario_from_dict
-    from ..design.capability import CapabilityOptions, capability
+    from ..design.capability import CapabilityOptions, capability, resolve_options
     from ..design.registry import kind
     from .capability_level3 import (
         capability_level3,
@@ -271,7 +271,9 @@ def write_study_capability(study: Study, out_dir: str | Path, *, workers: int = 
                              scenario_from_dict(study.scenario, source=f"study {study.name}"),
                              dataclasses.replace(opt, workers=max(1, workers)))))
     elif tab is not None:
-        resolved = CapabilityOptions(**tab)
+        # the heading resolved by the scenario's turret (design.capability.resolve_options), as computed
+        resolved = resolve_options(scenario_from_dict(study.scenario, source=f"study {study.name}"),
+                                   CapabilityOptions(**tab))
         jobs = [("capability", {**resolved.settings(), "table": [dataclasses.asdict(r) for r in resolved.table]},
                  lambda: capability(scenario_from_dict(study.scenario, source=f"study {study.name}"),
                                     {**tab, "workers": max(1, workers)}))]

@@ -912,6 +912,7 @@ def _capability_table(data: Mapping[str, Any], base_dir: str | Path, source: str
         CapabilityError,
         CapabilityOptions,
         case_names,
+        resolve_options,
     )
 
     tab = data["capability"]
@@ -936,8 +937,14 @@ def _capability_table(data: Mapping[str, Any], base_dir: str | Path, source: str
         except (CapabilityError, TypeError, ValueError) as exc:
             raise StudyError(f"capability: {exc}", source=source) from None
     one_line = tab.get("condition", "all") not in CONDITIONS and tab.get("level") != 3
-    if "sea_state" in tab or one_line or "failed_line" in tab:   # of the study's scenario: its sea states, lines
+    vane = tab.get("heading") == "weathervane" and tab.get("level") != 3   # refused with a locked turret
+    if "sea_state" in tab or one_line or "failed_line" in tab or vane:   # of the study's scenario
         sc = load_scenario(_resolve_scenario(data["study"]["scenario"], Path(base_dir)))
+        if vane:
+            try:
+                resolve_options(sc, CapabilityOptions(**dict(tab)))
+            except CapabilityError as exc:
+                raise StudyError(f"capability.{exc}", source=source) from None
         ids = [ss.id for ss in sc.sea_states]
         if "sea_state" in tab and tab["sea_state"] not in ids:
             raise StudyError(f"capability.sea_state = {tab['sea_state']!r} is not a sea state of the scenario "
