@@ -200,3 +200,22 @@ def test_study_stamp_holds_the_resolved_heading(tmp_path, monkeypatch):
     stamp_file.write_text(json.dumps({**stamp, "options": {**stamp["options"], "heading": "weathervane"}}))
     write_study_capability(study, tmp_path / "run")
     assert len(calls) == 2
+
+
+def test_level3_heading_defaults_by_the_turret_and_refuses_weathervaning_a_spread_mooring(semi):
+    """Level 3 (Python and studies) resolves its heading as Level 1 does: by the turret when not
+    given, a weathervane on a locked turret refused naming the heading."""
+    from tapm_opt.design.capability import CapabilityError
+    from tapm_opt.studies.capability_level3 import Level3Options, study_level3_options
+
+    fpso = tapm_opt.load_scenario("fpso")
+    assert Level3Options().heading is None
+    assert Level3Options().resolved(semi).heading == "fixed"
+    assert Level3Options().resolved(fpso).heading == "weathervane"
+    assert Level3Options(heading="fixed").resolved(fpso).heading == "fixed"
+    with pytest.raises(CapabilityError, match="weathervane"):
+        Level3Options(heading="weathervane").resolved(semi)
+    with pytest.raises(CapabilityError, match="heading"):
+        Level3Options(heading="bow")
+    (opt,) = study_level3_options({"level": 3, "controllers": ["pid"]})
+    assert opt.resolved(semi).settings()["heading"] == "fixed"

@@ -168,7 +168,9 @@ class Level3Options:
     directions_deg : sequence of float
         Environment directions [deg, coming from] (default 0-350 in 10 deg steps, as Level 1).
     heading, fixed_heading_deg, sea_state, table
-        As :class:`~tapm_opt.design.capability.CapabilityOptions` (table: default the extended one).
+        As :class:`~tapm_opt.design.capability.CapabilityOptions` (table: default the extended one;
+        heading: default by the scenario's turret, :func:`~tapm_opt.design.capability.default_heading`,
+        resolved by :func:`capability_level3` and :meth:`resolved`).
     losses : bool
         Run the plant and the controller with the Level 1 thrust losses applied to the thrusters
         (:func:`~tapm_opt.design.thrust_losses.apply_level1_losses`); default False.
@@ -196,7 +198,7 @@ class Level3Options:
     warmup: float = LEVEL3_WARMUP
     seeds: int = 1
     directions_deg: tuple[float, ...] = DIRECTIONS_DEG
-    heading: str = "weathervane"
+    heading: str | None = None
     fixed_heading_deg: float = 0.0
     sea_state: str | None = None
     table: tuple[BeaufortRow, ...] = EXTENDED_TABLE
@@ -232,8 +234,8 @@ class Level3Options:
         if self.segments is not None and (isinstance(self.segments, bool) or not isinstance(self.segments, int)
                                           or self.segments < 1):
             raise bad("segments", "must be a whole number >= 1")
-        if self.heading not in HEADINGS:
-            raise bad("heading", f"must be one of {', '.join(HEADINGS)}")
+        if self.heading is not None and self.heading not in HEADINGS:
+            raise bad("heading", f"must be one of {', '.join(HEADINGS)} (or absent: by the turret)")
         if self.failed_line is not None and not (isinstance(self.failed_line, str) and self.failed_line.strip()):
             raise bad("failed_line", "must be a line id (text) or absent (intact)")
         if self.tension_utilisation is not None and not (
@@ -245,6 +247,14 @@ class Level3Options:
         dataclasses.replace(lv1, losses=self.losses, thruster_diameter=self.thruster_diameter)
         object.__setattr__(self, "directions_deg", lv1.directions_deg)
         object.__setattr__(self, "table", lv1.table)
+
+    def resolved(self, scenario: Any) -> "Level3Options":
+        """These options with ``heading`` resolved for ``scenario`` as Level 1 resolves it
+        (:func:`~tapm_opt.design.capability.resolve_options`: None takes the turret's default;
+        ``"weathervane"`` on a locked turret is refused)."""
+        from ..design.capability import resolve_options
+
+        return dataclasses.replace(self, heading=resolve_options(scenario, self.level1_options()).heading)
 
     @property
     def case(self) -> str:
@@ -679,6 +689,7 @@ def capability_level3(scenario: Any, options: Level3Options | Mapping[str, Any] 
         raise CapabilityError(f"scenario {scenario.name!r}: limits.safe_radius = None: Level 3 needs the safe circle")
     if not scenario.thrusters:
         raise CapabilityError(f"scenario {scenario.name!r} has no thrusters: Level 3 runs a controller")
+    opt = opt.resolved(scenario)
     check_failed_line(scenario, opt)
     util = float(scenario.limits.tension_utilisation if opt.tension_utilisation is None else opt.tension_utilisation)
     workers = min(opt.workers, max(1, len(opt.directions_deg)))

@@ -263,7 +263,8 @@ def write_study_capability(study: Study, out_dir: str | Path, *, workers: int = 
     tab = study.capability if study.scenario is not None else None
     jobs = []   # (file stem, resolved options, computation): files <stem>.csv, .json, stamp study_<stem>.json
     if tab is not None and tab.get("level") == 3:
-        for opt in study_level3_options(tab):
+        sc3 = scenario_from_dict(study.scenario, source=f"study {study.name}")
+        for opt in (o.resolved(sc3) for o in study_level3_options(tab)):
             # the controller runs at its registry defaults: they are part of what was computed
             jobs.append((level3_file_stem(opt.controller, opt.failed_line),
                          {**opt.settings(), "controller_defaults": kind(opt.controller).defaults()},
