@@ -147,15 +147,12 @@ def capability(scenario_name: str, out_dir: str | None, level: str, heading: str
         if len({round(float(d) % 360.0, 9) for d in vals}) != len(vals):
             raise click.BadParameter(f"{directions!r} repeats a direction", param_hint="'--directions'")
         dirs = tuple(float(d) for d in vals)
-    from ..design.capability import default_heading
+    from ..design.capability import CapabilityError, CapabilityOptions, resolve_options
 
-    if heading is None:
-        heading = default_heading(sc)
-    elif heading == "weathervane" and sc.turret.mode == "locked":
-        raise click.BadParameter(f"scenario {sc.name!r} has a locked turret (turret.mode = 'locked', a spread "
-                                 "mooring): the hull cannot turn into the weather, its heading is held by the lines; "
-                                 "give --heading fixed (--fixed-heading, default 0) or leave --heading out",
-                                 param_hint="'--heading'")
+    try:   # the heading by the turret, a weathervane on a locked turret refused (one rule, the options')
+        heading = resolve_options(sc, CapabilityOptions(heading=heading)).heading
+    except CapabilityError as exc:
+        raise click.BadParameter(str(exc), param_hint="'--heading'") from None
     if sc.limits.safe_radius is None:
         raise click.BadParameter(f"scenario {sc.name!r} has no limits.safe_radius: the capability needs the safe "
                                  "circle", param_hint="SCENARIO")
@@ -171,7 +168,6 @@ def capability(scenario_name: str, out_dir: str | None, level: str, heading: str
                 heading_tolerance=heading_tolerance, failed_line=failed_line, riser=bool(riser),
                 workers=n_workers, **kw)
         return
-    from ..design.capability import CapabilityOptions
     from ..design.capability import capability as compute
     from ..report.capability import capability_files, write_capability
 

@@ -96,7 +96,7 @@ def current_tension_share(scenario: Any, sea_state: Any, eta: Any, *, segments: 
     without a current. The tensions the range map reads are the measured ones less this share
     (``estimation.anchor_slam.VirtualVessel.current_tension``)."""
     from ..plant.environment import CurrentProfile
-    from ..plant.mooring_fem import MooringFEM
+    from .closed_loop import fem_static_tensions
 
     eta = np.asarray(eta, dtype=float)
     if eta.shape != (3,) or not np.all(np.isfinite(eta)):
@@ -104,13 +104,8 @@ def current_tension_share(scenario: Any, sea_state: Any, eta: Any, *, segments: 
     if not float(getattr(sea_state, "current_speed", 0.0)) > 0.0:
         return np.zeros(len(scenario.lines))
     profile = CurrentProfile(sea_state, scenario.environment.water_depth)
-    T = []
-    for current in (profile.velocity, None):
-        fem = MooringFEM(scenario, segments=segments, current=current)
-        fem.initialise(eta)
-        fem.settle(eta, max_time=3000.0)
-        T.append(fem.fairlead_tension())
-    return T[0] - T[1]
+    settle = fem_static_tensions(scenario, segments)
+    return settle(eta, profile.velocity) - settle(eta, None)
 
 
 def range_bias_along(scenario: Any, sea_state: Any, positions: Any, headings: Any, *, seed: int = 0,

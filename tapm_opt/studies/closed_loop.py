@@ -241,9 +241,9 @@ def combination_issues(settings: Mapping[str, Any]) -> list[tuple[str, str]]:
 def fem_static_tensions(scenario: Any, segments: int | None = 10) -> Any:
     """``settle(eta, current) -> (M,)``: the fairlead tensions [N] of ``scenario``'s lines as the
     plant's FEM (``segments`` per line) settled by dynamic relaxation with the vessel held at ``eta``
-    under ``current`` (node depths [m] -> velocities (n, 3) in {E} [m/s]; None: still water), as
-    :func:`tapm_opt.studies.anchor_network.current_tension_share` settles them. The line model with
-    current drag of :class:`~tapm_opt.estimation.current_profile.CurrentResponseModel`."""
+    under ``current`` (node depths [m] -> velocities (n, 3) in {E} [m/s]; None: still water): the
+    line model with current drag of :class:`~tapm_opt.estimation.current_profile.CurrentResponseModel`
+    and of :func:`tapm_opt.studies.anchor_network.current_tension_share`."""
     from ..plant.mooring_fem import MooringFEM
 
     def settle(eta: Any, current: Any) -> np.ndarray:

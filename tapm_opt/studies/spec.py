@@ -937,12 +937,15 @@ def _capability_table(data: Mapping[str, Any], base_dir: str | Path, source: str
         except (CapabilityError, TypeError, ValueError) as exc:
             raise StudyError(f"capability: {exc}", source=source) from None
     one_line = tab.get("condition", "all") not in CONDITIONS and tab.get("level") != 3
-    vane = tab.get("heading") == "weathervane" and tab.get("level") != 3   # refused with a locked turret
+    vane = tab.get("heading") == "weathervane"   # refused with a locked turret
     if "sea_state" in tab or one_line or "failed_line" in tab or vane:   # of the study's scenario
         sc = load_scenario(_resolve_scenario(data["study"]["scenario"], Path(base_dir)))
         if vane:
             try:
-                resolve_options(sc, CapabilityOptions(**dict(tab)))
+                if lv3:
+                    lv3[0].resolved(sc)
+                else:
+                    resolve_options(sc, CapabilityOptions(**dict(tab)))
             except CapabilityError as exc:
                 raise StudyError(f"capability.{exc}", source=source) from None
         ids = [ss.id for ss in sc.sea_states]
