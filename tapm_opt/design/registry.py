@@ -315,13 +315,12 @@ def _roll_pitch_damping(system: Any, value: Any, where: str) -> Any:
     for k, v in opts.items():
         if isinstance(v, bool) or not _is_number(v) or not math.isfinite(float(v)) or float(v) < 0:
             raise ControllerSpecError(f"{key}.{k} = {v!r} must be a number >= 0")
-    (c4, c5), (i4, i5) = rp.C, rp.inertia
     kd = {}
-    for axis, c, i in (("roll", c4, i4), ("pitch", c5, i5)):
+    for axis, crit in zip(("roll", "pitch"), rp.critical_damping):
         if f"Kd_{axis}" in opts and f"zeta_{axis}" in opts:
             raise ControllerSpecError(f"{key}: give Kd_{axis} or zeta_{axis}, not both")
         kd[axis] = float(opts[f"Kd_{axis}"]) if f"Kd_{axis}" in opts else \
-            2.0 * float(opts.get(f"zeta_{axis}", ROLL_PITCH_ZETA)) * math.sqrt(c * i)
+            float(opts.get(f"zeta_{axis}", ROLL_PITCH_ZETA)) * crit
     try:
         return RollPitchDamping(lever=rp.thruster_lever, Kd_roll=kd["roll"], Kd_pitch=kd["pitch"],
                                 Kp_roll=float(opts.get("Kp_roll", 0.0)), Kp_pitch=float(opts.get("Kp_pitch", 0.0)),

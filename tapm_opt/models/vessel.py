@@ -266,10 +266,17 @@ class RollPitchParams:
                 m * self.pitch_gyration ** 2 + self.pitch_added_inertia)
 
     @property
+    def critical_damping(self) -> tuple[float, float]:
+        """Critical damping (2 sqrt(C44 I44), 2 sqrt(C55 I55)) [N m s/rad]: a damping ratio zeta
+        gives B = zeta times it (eq. RP3; also the roll–pitch damping mode's gains)."""
+        (c4, c5), (i4, i5) = self.C, self.inertia
+        return 2.0 * math.sqrt(c4 * i4), 2.0 * math.sqrt(c5 * i5)
+
+    @property
     def B(self) -> tuple[float, float]:
         """Linear damping (B44, B55) = 2 zeta sqrt(C I) [N m s/rad] (eq. RP3)."""
-        (c4, c5), (i4, i5) = self.C, self.inertia
-        return 2.0 * self.roll_damping * math.sqrt(c4 * i4), 2.0 * self.pitch_damping * math.sqrt(c5 * i5)
+        b4, b5 = self.critical_damping
+        return self.roll_damping * b4, self.pitch_damping * b5
 
     @property
     def natural_periods(self) -> tuple[float, float]:
