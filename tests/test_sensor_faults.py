@@ -261,3 +261,17 @@ def test_the_voting_needs_a_system_and_a_fix_to_start():
                     t_heading=0.0, t_tensions=0.0, position_valid=False)
     with pytest.raises(RedundancyError, match="position_valid"):
         v.update(0.0, m)
+
+
+def test_simulate_takes_the_voting_as_an_estimation_option(tmp_path, capsys):
+    """``tapm simulate --option redundancy=vote`` reaches the runner's estimator (a bad value named,
+    nothing written)."""
+    from tapm_opt.cli import main
+    from tapm_opt.results import Result
+
+    code = main(["simulate", "aamo4", "--duration", "10", "--option", "redundancy=bogus", "--out", str(tmp_path / "b")])
+    assert code != 0 and "redundancy" in capsys.readouterr().err and not (tmp_path / "b").exists()
+    code = main(["simulate", "aamo4", "--duration", "30", "--segments", "4", "--option", "redundancy=vote",
+                 "--out", str(tmp_path / "v")])
+    assert code == 0
+    assert Result.load(tmp_path / "v" / "result.npz").meta["redundancy"] == "vote"

@@ -42,8 +42,9 @@ from ._common import ControllerKindChoice, check_issues, cli, key_values, load, 
 @click.option("--true-state", is_flag=True, help="Give the controller the true LF state (no estimator).")
 @click.option("--option", "options", multiple=True, metavar="KEY=VALUE",
               help="Controller option, e.g. --option horizon=30 --option solver=ipopt (repeatable); "
-                   "estimator=ekf|passive|lowpass (default ekf) and detector=tension|drop|bank|none (default tension) "
-                   "choose the estimation.")
+                   "estimator=ekf|passive|lowpass (default ekf), detector=tension|drop|bank|none (default tension), "
+                   "redundancy=none|vote (sensor voting, docs/sensor_faults.md) and "
+                   "current=known|estimated|estimated_tensions (docs/current_estimation.md) choose the estimation.")
 @click.option("--winch", type=click.Choice(["none", "tension"]), default="none", show_default=True,
               help="Line-tension control: none, or the passivity-based tension controller (the winches drive the "
                    "mooring force toward the DP command, the thrusters supply the rest; docs/controllers.md). "
@@ -82,8 +83,8 @@ def simulate(scenario_name: str, controller: str, duration: float, out_dir: str,
         except ControllerSpecError as exc:
             raise click.BadParameter(str(exc), param_hint="'--option design'") from None
         controller = spec["type"]
-    # estimation is the runner's: --option estimator=... / detector=... choose its default estimator
-    estimation = {k: str(spec.pop(k)) for k in ("estimator", "detector") if k in spec}
+    # estimation is the runner's: --option estimator=... / detector=... / redundancy=... / current=...
+    estimation = {k: str(spec.pop(k)) for k in ("estimator", "detector", "redundancy", "current") if k in spec}
     from ..studies.closed_loop import ClosedLoopError
 
     w_opts = key_values(winch_options, "--winch-option")
