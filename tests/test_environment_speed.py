@@ -144,3 +144,23 @@ def test_riser_angles_of_an_array_pose_are_those_of_its_floats(fpso):
     assert np.array_equal(riser.angles_at(eta.astype(np.float32)), riser.angles_at(eta.astype(np.float32).tolist()))
     with pytest.raises(tapm_opt.errors.ModelError, match="finite"):
         riser.angles_at(np.array([0.0, math.nan, 0.0]))
+
+
+def test_one_blas_thread_sets_and_restores_the_blas_threads():
+    """The drift and vertical blocks' BLAS context: inside it every BLAS library the process loaded
+    runs one thread, outside it the count it had (restored, also after an exception)."""
+    pytest.importorskip("threadpoolctl")
+    from threadpoolctl import threadpool_info
+
+    from tapm_opt.plant import environment as env
+
+    def counts():
+        return [d["num_threads"] for d in threadpool_info() if d["user_api"] == "blas"]
+
+    before = counts()
+    with env._one_blas_thread():
+        assert counts() and all(n == 1 for n in counts())
+    assert counts() == before
+    with pytest.raises(RuntimeError), env._one_blas_thread():
+        raise RuntimeError("inside")
+    assert counts() == before

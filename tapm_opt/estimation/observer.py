@@ -115,6 +115,7 @@ from ..interfaces import Estimate, Measurement, _frozen, _trusted
 from ..models.mooring import MooringModel
 from ..models.vessel import VesselParams
 from .lowpass import EstimationError, _WithDetectorAndMonitor
+from .ekf_kernel import kernels as ekf_kernels
 
 __all__ = ["PassiveObserver", "EKFObserver", "wave_filter_matrices", "passive_gains", "DEFAULT_TP",
            "PASSIVE_ZETA_N", "PASSIVE_OMEGA_C_RATIO", "EstimationError"]
@@ -736,6 +737,22 @@ class EKFObserver(_ModelObserver):
     def _predict(self, dt: float, tau_c: np.ndarray) -> None:
         if self._disc_dt is None or abs(dt - self._disc_dt) > 1e-9 * max(1.0, dt):
             self._discretise(dt)
+        kern = ekf_kernels()   # compiled predict and correct (None: the numpy path)
+        if kern is None:
+            return self._predict_numpy(dt, tau_c)
+        x = self.x
+        eta = x[6:9]
+        tm = self.mooring_load(eta)
+        J = self._jacobian(eta)
+        xn, Pn = np.empty(15), np.empty((15, 15))
+        kern[0](x, self.P, self._Phi_w, self._A_nu, self._M_inv, self._G, self._decay, self._Q, dt,
+                np.asarray(tm, float), J, tau_c, self._Phi, xn, Pn)
+        self.P = Pn
+        self.x = xn
+
+    def _predict_numpy(self, dt: float, tau_c: np.ndarray) -> None:
+        """:meth:`_predict` in numpy operations (the reference of the compiled kernel,
+        :mod:`tapm_opt.estimation.ekf_kernel`; used without numba)."""
         x = self.x
         eta, nu, b = x[6:9], x[9:12], x[12:]
         psi = float(eta[2])
@@ -774,6 +791,21 @@ class EKFObserver(_ModelObserver):
         self.x = xn
 
     def _correct(self, y: np.ndarray, new: tuple) -> None:
+        kern = ekf_kernels()   # compiled predict and correct (None: the numpy path)
+        if kern is None or not (new[0] and new[1] and new[2]):
+            return self._correct_numpy(y, new)
+        xn, Pn, innov, S = np.empty(15), np.empty((15, 15)), np.empty(3), np.empty((3, 3))
+        ok = kern[1](self.x, self.P, y, self._r, xn, Pn, innov, S)
+        self.innovation = innov
+        self.innovation_cov = S
+        self.innovation_mask = np.array(new)
+        if not ok:
+            raise EstimationError(f"innovation covariance S = {S.tolist()} is singular")
+        self.x, self.P = xn, Pn
+
+    def _correct_numpy(self, y: np.ndarray, new: tuple) -> None:
+        """:meth:`_correct` in numpy operations (the reference of the compiled kernel; used for a
+        partial correction and without numba)."""
         x, P = self.x, self.P
         innov = y - x[6:9] - x[3:6]
         innov[2] = _wrap(float(innov[2]))

@@ -404,6 +404,8 @@ class Plant:
         for name, v in (("thruster_cmd.f", f), ("thruster_cmd.alpha", alpha)):
             if v.shape != (n,):
                 raise PlantError(f"{name} has shape {v.shape}, expected ({n},) for thrusters {list(self.thrusters.ids)}")
+            if math.isfinite(float(v.sum())):   # a finite sum: every value is finite
+                continue
             bad = np.flatnonzero(~np.isfinite(v))
             if bad.size:
                 i = int(bad[0])
