@@ -23,7 +23,7 @@ import numpy as np
 
 from .._jit import jit
 
-__all__ = ["kernels", "predict_py", "correct_py"]
+__all__ = ["correct_py", "kernels", "predict_py"]
 
 _TWO_PI = 2.0 * math.pi
 
