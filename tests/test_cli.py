@@ -118,3 +118,16 @@ def test_gains_writes_tables_that_load_back(capsys, tmp_path):
     assert (tmp_path / "gains.csv").exists() and (tmp_path / "gains.md").exists()
     code, _, err = run(capsys, "gains", "fpso", "--out", str(tmp_path / "x"), "--headings", "north")
     assert code == 2 and "--headings" in err
+
+
+def test_simulate_offers_every_setpoint_kind_the_closed_loop_has():
+    """``tapm simulate --setpoint`` lists the kinds itself (the CLI does not import the closed loop
+    to start): the list must be the closed loop's ``SETPOINT_KINDS``, so a kind added there is
+    added here too."""
+    import click
+
+    from tapm_opt.cli.simulate import simulate
+    from tapm_opt.studies.closed_loop import SETPOINT_KINDS
+
+    opt = next(p for p in simulate.params if p.name == "setpoint")
+    assert isinstance(opt.type, click.Choice) and tuple(opt.type.choices) == SETPOINT_KINDS
