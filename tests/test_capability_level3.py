@@ -124,6 +124,21 @@ def test_a_direction_checked_by_a_closed_loop_run_at_the_envelope_and_one_row_ab
     assert again.passed and again.offset_max == d.decided.offset_max
 
 
+def test_a_row_with_several_seeds_reports_each_seeds_maxima(aamo4, level3):
+    """``seeds = 3``: the row at the envelope runs seeds 1, 2, 3 (all pass), reports each seed's
+    largest offset and tension — the first seed's is the one-seed search's run, the seeds are
+    different realisations, the row's figures are their maxima — and writes them to the JSON."""
+    d = level3.directions[0]
+    r = run_row(aamo4, Level3Options(controller="pid", directions_deg=(d.direction_deg,), seeds=3, **FAST),
+                d.direction_deg, d.beaufort)
+    assert r.seeds == (1, 2, 3) and len(r.offset_by_seed) == 3 and len(r.util_by_seed) == 3
+    assert r.offset_by_seed[0] == d.decided.offset_max and r.util_by_seed[0] == d.decided.util_max
+    assert r.offset_max == max(r.offset_by_seed) and r.util_max == max(r.util_by_seed)
+    assert len(set(r.offset_by_seed)) == 3                     # three realisations, three maxima
+    js = r.as_json()
+    assert js["offset_max_by_seed_m"] == list(r.offset_by_seed) and js["util_max_by_seed"] == list(r.util_by_seed)
+
+
 def test_level3_files_and_report_section(aamo4, level3, tmp_path):
     from tapm_opt.report.capability import study_capability_section, write_level3
     from tapm_opt.report.document import render_markdown

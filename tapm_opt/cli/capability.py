@@ -273,6 +273,10 @@ def _level3(sc, out_dir: str | None, as_json: bool, **kw) -> None:
                f"{s.offset_max:5.1f} m, {s.util_max:.3f} ({s.util_line}), {s.heading_error_max:.1f} deg, "
                f"{s.thrust_energy / 3.6e9:.2f} MWh")
         above = d.limit if d.above is None else f"BF {d.above.number}: {d.above.detail}"
+        if opts.seeds > 1:   # each seed's largest offset: how far the maxima spread
+            for lab, r in (("", s), ("above ", d.above)):
+                if r is not None and len(r.offset_by_seed) > 1:
+                    above += f"; {lab}offset by seed " + ", ".join(f"{v:.1f}" for v in r.offset_by_seed) + " m"
         click.echo(f"  {d.direction_deg:6.0f} deg  BF {d.beaufort:3d} ({d.wind_speed:4.1f} m/s)  "
                    f"{int(b1[i]):4d} / {int(b0[i]):2d}   {run}   {above}")
     for p in paths:

@@ -324,6 +324,11 @@ class RunSummary:
         The failure's message (the break event or the error).
     wall_time : float
         Wall-clock time of the runs [s].
+    offset_by_seed : tuple of float
+        Each seed's largest LF turret offset [m], in the order of ``seeds`` (the spread of the
+        maxima: how near the row is to its limit beyond the one realisation).
+    util_by_seed : tuple of float
+        Each seed's largest fairlead tension over MBS [-].
     """
 
     number: int
@@ -339,6 +344,8 @@ class RunSummary:
     riser_max_deg: tuple = (math.nan, math.nan)
     detail: str = ""
     wall_time: float = 0.0
+    offset_by_seed: tuple = ()
+    util_by_seed: tuple = ()
 
     def as_json(self) -> dict:
         def num(v: float) -> float | None:
@@ -349,7 +356,8 @@ class RunSummary:
                 "util_line": self.util_line, "heading_error_max_deg": num(self.heading_error_max),
                 "thrust_energy_J": num(self.thrust_energy),
                 "riser_max_deg": [num(v) for v in self.riser_max_deg], "detail": self.detail,
-                "wall_time_s": self.wall_time}
+                "wall_time_s": self.wall_time, "offset_max_by_seed_m": [num(v) for v in self.offset_by_seed],
+                "util_max_by_seed": [num(v) for v in self.util_by_seed]}
 
 
 @dataclass(frozen=True)
@@ -584,7 +592,9 @@ class _Runner:
                           limit="" if failed is None else failed["limit"], seeds=tuple(s for s, _ in runs),
                           offset_max=mx("offset_max"), util_max=u, util_line=line, heading_error_max=mx("heading_error_max"),
                           thrust_energy=float(np.mean(energy)) if energy else math.nan, riser_max_deg=riser,
-                          detail="" if failed is None else failed["detail"], wall_time=time.perf_counter() - w0)
+                          detail="" if failed is None else failed["detail"], wall_time=time.perf_counter() - w0,
+                          offset_by_seed=tuple(float(r["offset_max"]) for _, r in runs),
+                          util_by_seed=tuple(float(r["util_max"]) for _, r in runs))
 
 
 def run_row(scenario: Any, options: Level3Options, direction_deg: float, beaufort: int) -> RunSummary:
