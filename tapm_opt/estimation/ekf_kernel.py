@@ -23,9 +23,32 @@ import numpy as np
 
 from .._jit import jit
 
-__all__ = ["correct_py", "kernels", "predict_py"]
+__all__ = ["correct_py", "kernels", "predict_py", "sandwich_py"]
 
 _TWO_PI = 2.0 * math.pi
+
+
+def sandwich_py(A, P):  # pragma: no cover - compiled
+    """``A P A^T`` (n, n) of square ``A`` and ``P``, as ``(A P) A^T``."""
+    n = A.shape[0]
+    AP = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            acc = 0.0
+            for k in range(n):
+                acc += A[i, k] * P[k, j]
+            AP[i, j] = acc
+    out = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            acc = 0.0
+            for k in range(n):
+                acc += AP[i, k] * A[j, k]
+            out[i, j] = acc
+    return out
+
+
+_sandwich_k = sandwich_py   # the compiled one once kernels() has built it
 
 
 def predict_py(x, P, Phi_w, A_nu, M_inv, G, decay, Q, dt, tm, J, tau_c, F, xn, Pn):  # pragma: no cover - compiled
@@ -96,19 +119,10 @@ def predict_py(x, P, Phi_w, A_nu, M_inv, G, decay, Q, dt, tm, J, tau_c, F, xn, P
     F[6, 8] += dt * (-s * n0 - c * n1)
     F[7, 8] += dt * (c * n0 - s * n1)
     # Pn = F P F^T + Q
-    FP = np.empty((15, 15))
+    FPFt = _sandwich_k(F, P)
     for i in range(15):
         for j in range(15):
-            acc = 0.0
-            for k in range(15):
-                acc += F[i, k] * P[k, j]
-            FP[i, j] = acc
-    for i in range(15):
-        for j in range(15):
-            acc = 0.0
-            for k in range(15):
-                acc += FP[i, k] * F[j, k]
-            Pn[i, j] = acc + Q[i, j]
+            Pn[i, j] = FPFt[i, j] + Q[i, j]
 
 
 def correct_py(x, P, y, r, xn, Pn, innov, S):  # pragma: no cover - compiled
@@ -161,20 +175,10 @@ def correct_py(x, P, y, r, xn, Pn, innov, S):  # pragma: no cover - compiled
         for j in range(3):
             IKH[i, 3 + j] -= K[i, j]
             IKH[i, 6 + j] -= K[i, j]
-    A = np.empty((15, 15))
+    B = _sandwich_k(IKH, P)
     for i in range(15):
         for j in range(15):
-            acc = 0.0
-            for k in range(15):
-                acc += IKH[i, k] * P[k, j]
-            A[i, j] = acc
-    B = np.empty((15, 15))
-    for i in range(15):
-        for j in range(15):
-            acc = 0.0
-            for k in range(15):
-                acc += A[i, k] * IKH[j, k]
-            B[i, j] = acc + (K[i, 0] * r[0] * K[j, 0] + K[i, 1] * r[1] * K[j, 1] + K[i, 2] * r[2] * K[j, 2])
+            B[i, j] += K[i, 0] * r[0] * K[j, 0] + K[i, 1] * r[1] * K[j, 1] + K[i, 2] * r[2] * K[j, 2]
     for i in range(15):
         for j in range(15):
             Pn[i, j] = 0.5 * (B[i, j] + B[j, i])
@@ -187,8 +191,12 @@ _KERNELS: Any = False   # built on first use
 def kernels() -> tuple | None:
     """(predict, correct) compiled (numba compiles them on the first call, cached on disk), or None
     without numba: the observer then runs its numpy path."""
-    global _KERNELS
+    global _KERNELS, _sandwich_k
     if _KERNELS is False:
-        p = jit(predict_py, fallback=None)
-        _KERNELS = None if p is None else (p, jit(correct_py))
+        sw = jit(sandwich_py, fallback=None)
+        if sw is None:
+            _KERNELS = None
+        else:
+            _sandwich_k = sw   # the kernels call it compiled (numba reads the global when it compiles them)
+            _KERNELS = (jit(predict_py), jit(correct_py))
     return _KERNELS
