@@ -14,12 +14,17 @@ DIR``, :func:`verify_study`), per controller, condition, sea state and line:
   line's characteristic capacity (:func:`~tapm_opt.studies.verification.utilisation`) and the
   verdict. The line a condition breaks is left out of its ALS rows (its record after the break
   is 0).
-* **FLS** (conditions without a fault): rainflow ranges of each line's fairlead tension, the line
+* every line is checked at its fairlead section (``T_fairlead[<line>]``) and, on a composite
+  line, at the top of every section below it (``T_section[<line>/<k>]``, :func:`checked_sections`),
+  each against its own line type (MBS, capacity factor, T-N curve);
+* **FLS** (conditions without a fault): rainflow ranges of each section's tension, its line
   type's T-N curve, the nominal area, Miner's damage per record
   (:func:`~tapm_opt.studies.verification.miner_damage`, the mean over the seeds) and, with
   sea-state probabilities, each sea state's annual damage and the line's fatigue life with the
   design fatigue factor (:func:`~tapm_opt.studies.verification.annual_damage`,
-  :func:`~tapm_opt.studies.verification.fatigue_life`).
+  :func:`~tapm_opt.studies.verification.fatigue_life`), the design fatigue factor a number or
+  DNV-OS-E301's from the adjacent line (``design_fatigue_factor = "adjacent"``,
+  :func:`~tapm_opt.studies.verification.adjacent_fatigue_factor`).
 * per controller, condition and sea state: the most probable maximum of the turret offset against
   the safe circle and, with a riser, of the riser's end angles against their critical angles
   (``verification.json`` and the report; not rows of the CSV, whose rows are lines).
