@@ -239,3 +239,50 @@ def test_bad_input_is_a_typed_error_naming_the_argument(call, needle):
         call()
     assert isinstance(info.value, TapmError) and isinstance(info.value, ValueError)
     assert needle in str(info.value)
+
+
+# -- DNV-OS-E301's design fatigue factor from the adjacent line -----------------------------------
+
+@pytest.mark.parametrize("d_F, gamma", [(0.0, 5.0), (0.5, 5.0), (0.8, 5.0), (0.9, 6.5), (1.0, 8.0)])
+def test_adjacent_fatigue_factor_piecewise(d_F, gamma):
+    """gamma_F = 5 up to d_F = 0.8, then 5 + 3 (d_F - 0.8) / 0.2: 8 for two equally damaged lines."""
+    assert v.adjacent_fatigue_factor(d_F) == pytest.approx(gamma, rel=1e-12)
+    # continuous at the knee, linear above it
+    assert v.adjacent_fatigue_factor(0.8 + 1e-9) == pytest.approx(5.0, abs=1e-6)
+
+
+@pytest.mark.parametrize("bad", [-0.1, 1.0001, math.nan, math.inf, None, [0.9]])
+def test_adjacent_fatigue_factor_bad_input(bad):
+    with pytest.raises(VerificationError, match="d_F"):
+        v.adjacent_fatigue_factor(bad)
+
+
+def test_damage_ratio():
+    assert v.damage_ratio(2.0, 8.0) == v.damage_ratio(8.0, 2.0) == 0.25
+    assert v.damage_ratio(0.0, 3.0) == 0.0 and v.damage_ratio(0.0, 0.0) == 1.0
+    with pytest.raises(VerificationError, match="D_b = -1"):
+        v.damage_ratio(1.0, -1.0)
+
+
+def test_line_neighbours_on_fpso_layout():
+    """fpso's 12 lines, 3 bundles of 4 at 120 deg (fairlead angles 352.5, 357.5, 2.5, 7.5, 112.5, ...):
+    each line's neighbours are the lines beside it in its bundle, and across the gap the last line of
+    the next bundle; line 1 (352.5 deg) lies between line 12 (247.5 deg) and line 2 (357.5 deg)."""
+    import tapm_opt
+
+    sc = tapm_opt.load_scenario("fpso")
+    ids = [ln.id for ln in sc.lines]
+    nb = v.line_neighbours([ln.fairlead_angle for ln in sc.lines])
+    got = {ids[i]: {ids[a], ids[b]} for i, (a, b) in enumerate(nb)}
+    assert got["1"] == {"12", "2"} and got["2"] == {"1", "3"} and got["3"] == {"2", "4"}
+    assert got["4"] == {"3", "5"} and got["5"] == {"4", "6"} and got["8"] == {"7", "9"}
+    assert got["12"] == {"11", "1"}
+    # every line is the neighbour of its two neighbours (a ring)
+    assert all(ids[i] in got[n] for i in range(12) for n in got[ids[i]])
+    # angles are taken modulo 2 pi; one line has no neighbour, two lines are each other's
+    assert v.line_neighbours([0.1, 0.1 + 2 * math.pi + 1.0, -0.5]) == [(2, 1), (0, 2), (1, 0)]
+    assert v.line_neighbours([1.0]) == [(0, 0)] and v.line_neighbours([1.0, 2.0]) == [(1, 1), (0, 0)]
+    with pytest.raises(VerificationError, match="azimuths"):
+        v.line_neighbours([])
+    with pytest.raises(VerificationError, match="azimuths"):
+        v.line_neighbours([0.0, math.nan])

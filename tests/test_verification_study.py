@@ -176,14 +176,28 @@ def test_dt_log_criterion():
 def test_csv_columns_and_rows(run, rows):
     with open(run / "verification.csv", newline="") as fh:
         assert next(csv.reader(fh)) == list(vs.CSV_COLUMNS)
+    # the columns before the sections, in their place; the new ones at the end
     assert vs.CSV_COLUMNS == ("controller", "condition", "sea_state", "line", "limit_state", "n_seeds", "T_mpm",
                               "T_c", "utilisation", "verdict", "a_D", "m", "area", "damage", "annual_damage",
-                              "life_years")
+                              "life_years", "section", "line_type", "channel", "dff")
     lines = [str(i) for i in range(1, 13)]
-    keys = [(r["controller"], r["condition"], r["sea_state"], r["line"], r["limit_state"]) for r in rows]
+    # the fairlead sections' rows, as before the sections were checked
+    top = [r for r in rows if r["channel"].startswith("T_fairlead[")]
+    keys = [(r["controller"], r["condition"], r["sea_state"], r["line"], r["limit_state"]) for r in top]
     want = ([("PID", "intact", ss, lid, ls) for ss in ("storm", "choppy") for lid in lines for ls in ("ULS", "FLS")]
             + [("PID", "line 1 broken", "storm", lid, "ALS") for lid in lines[1:]])
     assert keys == want
+    assert all(r["section"] == "2" and r["line_type"] == "chain137" and r["channel"] == f"T_fairlead[{r['line']}]"
+               for r in top)
+    # fpso's chain-wire-chain lines: each line's fairlead section, then its wire (1), then its bottom chain (0)
+    secs = [(r["sea_state"], r["condition"], r["line"], r["section"], r["line_type"], r["channel"], r["limit_state"])
+            for r in rows]
+    assert len(set(secs)) == len(rows) == 3 * len(want)
+    assert secs[:6] == [("storm", "intact", "1", k, t, ch, ls) for k, t, ch in (
+        ("2", "chain137", "T_fairlead[1]"), ("1", "wire165", "T_section[1/1]"), ("0", "chain137", "T_section[1/0]"))
+        for ls in ("ULS", "FLS")]
+    for r in rows:   # the design fatigue factor used, on the FLS rows
+        assert r["dff"] == ("5.0" if r["limit_state"] == "FLS" else "")
     for r in rows:
         assert r["n_seeds"] == ("2" if r["sea_state"] == "choppy" else "3")
         strength = ("T_mpm", "T_c", "utilisation")
@@ -216,22 +230,25 @@ def _cases(run: Path) -> dict[tuple[str, str, str], list[Path]]:
 
 def test_T_mpm_and_T_c_recomputed_from_the_stored_tensions(run, rows):
     cases = _cases(run)
-    detail = {(r["condition"], r["sea_state"], r["line"], r["limit_state"]): r
+    detail = {(r["condition"], r["sea_state"], r["line"], r["section"], r["limit_state"]): r
               for r in json.loads((run / "verification.json").read_text())["rows"]}
     from tapm_opt.config import load_scenario
 
-    mbs = load_scenario("fpso").line_types[0].MBS   # chain137, every line's fairlead section
+    sc = load_scenario("fpso")
     checked = 0
     for r in rows:
         if r["limit_state"] == "FLS":
             continue
-        maxima = [float(_npz_channel(p, f"T_fairlead[{r['line']}]")[1].max())
+        mbs = sc.line_type_by_id(r["line_type"]).MBS   # the section's own type: chain137 or wire165
+        assert r["channel"] == (f"T_fairlead[{r['line']}]" if r["section"] == "2"
+                                else f"T_section[{r['line']}/{r['section']}]")
+        maxima = [float(_npz_channel(p, r["channel"])[1].max())
                   for p in cases[("PID", r["condition"], r["sea_state"])]]
         loc, _ = gumbel_r.fit(maxima)
         assert float(r["T_mpm"]) == pytest.approx(loc, rel=1e-3), r
         # T_c by hand from the stored mean: DNV-OS-E301 (2008) class 1, ULS 1.1/1.5 with the common
         # factor 1.3 when T_mean > 2/3 T_dyn, ALS 1.0/1.1; capacity 0.95 MBS
-        t_mean = detail[(r["condition"], r["sea_state"], r["line"], r["limit_state"])]["T_mean"]
+        t_mean = detail[(r["condition"], r["sea_state"], r["line"], int(r["section"]), r["limit_state"])]["T_mean"]
         t_dyn = max(float(r["T_mpm"]) - t_mean, 0.0)
         if r["limit_state"] == "ULS":
             t_c = 1.3 * (t_mean + t_dyn) if t_mean > 2 / 3 * t_dyn else 1.1 * t_mean + 1.5 * t_dyn
@@ -240,7 +257,7 @@ def test_T_mpm_and_T_c_recomputed_from_the_stored_tensions(run, rows):
         assert float(r["T_c"]) == pytest.approx(t_c, rel=1e-9)
         assert float(r["utilisation"]) == pytest.approx(t_c / (0.95 * mbs), rel=1e-9)
         checked += 1
-    assert checked == 35
+    assert checked == 3 * 35
 
 
 def _hand_rainflow(x: np.ndarray) -> list[tuple[float, float]]:
@@ -282,35 +299,37 @@ def test_hand_rainflow_on_the_astm_example():
 
 def test_damage_annual_damage_and_life_recomputed(run, rows):
     cases = _cases(run)
-    area = 2 * math.pi * 0.137 ** 2 / 4
+    curves = {"chain137": (6.0e10, 3.0, 2 * math.pi * 0.137 ** 2 / 4),   # studless chain, as stated
+              "wire165": (3.4e14, 4.0, math.pi * 0.165 ** 2 / 4)}       # six-strand wire by default
     fls = [r for r in rows if r["limit_state"] == "FLS"]
-    assert len(fls) == 24
-    total: dict[str, float] = {}
+    assert len(fls) == 3 * 24
+    total: dict[tuple[str, str], float] = {}
     for r in fls:
-        assert (float(r["a_D"]), float(r["m"]), float(r["area"])) == pytest.approx((6.0e10, 3.0, area))
+        a_D, m, area = curves[r["line_type"]]
+        assert (float(r["a_D"]), float(r["m"]), float(r["area"])) == pytest.approx((a_D, m, area))
         ds, durs = [], []
         for p in cases[("PID", "intact", r["sea_state"])]:
-            t, T = _npz_channel(p, f"T_fairlead[{r['line']}]")
-            ds.append(sum(n * (R / area / 1e6) ** 3 for R, n in _hand_rainflow(T)) / 6.0e10)
+            t, T = _npz_channel(p, r["channel"])
+            ds.append(sum(n * (R / area / 1e6) ** m for R, n in _hand_rainflow(T)) / a_D)
             durs.append(t[-1] - t[0])
         D = float(np.mean(ds))
         assert D > 0 and float(r["damage"]) == pytest.approx(D, rel=1e-9)
         # this sea state's share of the year's damage: p D (seconds a year / record length)
         annual = PROBS[r["sea_state"]] * D * SPY / float(np.mean(durs))
         assert float(r["annual_damage"]) == pytest.approx(annual, rel=1e-9)
-        total[r["line"]] = total.get(r["line"], 0.0) + annual
-    for r in fls:   # the life is the line's, over both sea states, with DFF 5
-        assert float(r["life_years"]) == pytest.approx(1.0 / (5.0 * total[r["line"]]), rel=1e-9)
+        total[r["line"], r["section"]] = total.get((r["line"], r["section"]), 0.0) + annual
+    for r in fls:   # the life is the line section's, over both sea states, with DFF 5
+        assert float(r["life_years"]) == pytest.approx(1.0 / (5.0 * total[r["line"], r["section"]]), rel=1e-9)
 
 
 def test_als_leaves_the_broken_line_out(run, rows):
     als = [r for r in rows if r["limit_state"] == "ALS"]
-    assert "1" not in {r["line"] for r in als} and len(als) == 11
+    assert "1" not in {r["line"] for r in als} and len(als) == 3 * 11
     data = json.loads((run / "verification.json").read_text())
     assert [(e["condition"], e["line"]) for e in data["excluded"]] == [("line 1 broken", "1")]
     # the ALS maxima are of the whole record, the transient after the break included
     cases = _cases(run)[("PID", "line 1 broken", "storm")]
-    r2 = next(r for r in data["rows"] if r["limit_state"] == "ALS" and r["line"] == "2")
+    r2 = next(r for r in data["rows"] if r["limit_state"] == "ALS" and r["line"] == "2" and r["section"] == 2)
     assert r2["maxima"] == pytest.approx([_npz_channel(p, "T_fairlead[2]")[1].max() for p in cases])
     # and its mean is the damaged record's, after the break at 150 s
     t, T = _npz_channel(cases[0], "T_fairlead[2]")
@@ -347,7 +366,7 @@ def test_one_seed_gives_no_fit(run, tmp_path):
         shutil.rmtree(p.parent)
     res = vs.verify_study(d)
     uls = [r for r in res.rows if r["limit_state"] == "ULS" and r["sea_state"] == "storm"]
-    assert len(uls) == 12 and all(r["n_seeds"] == 1 and r["T_mpm"] is None and r["verdict"] == "n/a" for r in uls)
+    assert len(uls) == 3 * 12 and all(r["n_seeds"] == 1 and r["T_mpm"] is None and r["verdict"] == "n/a" for r in uls)
     assert any("2 of 8 cases are not finished" in w for w in res.warnings)
     assert any("no Gumbel fit with one seed" in w for w in res.warnings)
     with open(d / "verification.csv", newline="") as fh:
@@ -380,7 +399,7 @@ def test_study_verify_command(run, tmp_path):
     other = _write(tmp_path, STUDY.replace("consequence_class = 1", "consequence_class = 2"), "class2.toml")
     r = CliRunner().invoke(cli, ["study", "verify", str(d), "--study", str(other)])
     assert r.exit_code == 0, r.output
-    assert "ULS 24 rows" in r.output and "ALS 11 rows" in r.output
+    assert "ULS 72 rows" in r.output and "ALS 33 rows" in r.output
     with open(d / "verification.csv", newline="") as fh:
         uls = next(x for x in csv.DictReader(fh) if x["limit_state"] == "ULS")
     detail = next(x for x in json.loads((d / "verification.json").read_text())["rows"] if x["limit_state"] == "ULS")

@@ -17,6 +17,7 @@ _EXPORTS = {
     "run_open_loop": ".simulator",
     "PlantError": ".simulator",
     "SimulationDiverged": ".simulator",
+    "section_channel": ".simulator",
     "forced_motion": ".forced_motion",
     "identify_mooring_damping": ".forced_motion",
     "ForcedMotionResult": ".forced_motion",

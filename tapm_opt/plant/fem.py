@@ -833,6 +833,39 @@ class FEMLines:
             return self.end_tensions()[1]
         return self.segment_state(self.r, self.v, self.anchor_seg)[2]
 
+    def section_top_bonds(self) -> tuple[tuple[int, int, int], ...]:
+        """The sections below the fairlead section of every line of more than one section, each
+        as ``(line j, section k, bond b)``: section k counted from the anchor up from 0 (the
+        scenario's ``sections`` order), ``b`` its top segment (the bond just below joint k,
+        :meth:`joint_node_index`). Lines in order, sections from the anchor up; empty without
+        such lines."""
+        out = []
+        secs = self.lines.sections
+        for j in range(self.n_lines):
+            sec = secs[j] if secs is not None else None
+            if sec is None:
+                continue
+            n = int(np.asarray(sec["segments"]).size)
+            out += [(j, k, self.joint_node_index(j, k) - 1) for k in range(n - 1)]
+        return tuple(out)
+
+    def section_tension(self, bonds: np.ndarray, lines: np.ndarray) -> np.ndarray:
+        """Tension at the upper end of sections [N], each given by its top segment ``bonds`` and
+        its line ``lines`` (:meth:`section_top_bonds`): :meth:`fairlead_tension`'s definition one
+        section down, the magnitude of the top segment's tension vector (tension only, with the
+        internal damping) plus the submerged weight of its upper half ``w l0 / 2``, i.e. the
+        tension at the section's top end, just below the joint (a point there is not included:
+        it acts on the joint, above the section's end). 0 on a broken line (as its fairlead)."""
+        bonds = np.asarray(bonds, dtype=np.int64)
+        if bonds.size == 0:
+            return np.zeros(0)
+        lv, eps, T = self.segment_state(self.r, self.v, bonds)
+        f = -(T / eps)[:, None] * lv
+        f[:, 2] += 0.5 * self._w[bonds] * self.l0[bonds]
+        out = np.sqrt((f * f).sum(axis=1))
+        out[~self.active[np.asarray(lines, dtype=np.int64)]] = 0.0
+        return out
+
     def end_tensions(self) -> tuple[np.ndarray, np.ndarray]:
         """(:meth:`fairlead_tension`, :meth:`anchor_tension`) [N], each (n_lines,), in one pass: the
         compiled :func:`tapm_opt.plant.fem_kernel.end_tensions` with the "numba" kernel (the same

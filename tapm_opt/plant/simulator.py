@@ -77,7 +77,15 @@ _ULP4 = 4.0 * 2.220446049250313e-16
 _EMPTY = np.zeros(1)
 _NO_SUMS = (0.0, 0.0, 0.0, 0.0, 0.0, np.zeros(0), np.zeros(0))
 
-__all__ = ["Plant", "ThrusterCommand", "run_open_loop", "PlantError", "SimulationDiverged"]
+__all__ = ["Plant", "ThrusterCommand", "run_open_loop", "PlantError", "SimulationDiverged", "section_channel"]
+
+
+def section_channel(line_id: str, k: int) -> str:
+    """The logged channel of the tension [N] at the upper end of section ``k`` (from the anchor
+    up, from 0: the scenario's ``sections`` order) of line ``line_id``: ``T_section[<line>/<k>]``
+    (:meth:`FEMLines.section_tension <tapm_opt.plant.fem.FEMLines.section_tension>`). Logged for
+    every section below the fairlead section of a line of several sections."""
+    return f"T_section[{line_id}/{int(k)}]"
 
 
 class Plant:
@@ -162,6 +170,12 @@ class Plant:
         #: current): vessel and lines then see the current of the start of each outer step.
         self._current_turns = current is not None and self.env.current_varies
         self.line_ids = tuple(ln.id for ln in scenario.lines)
+        #: The sections below the fairlead section of each line of several sections, as
+        #: ``(line j, section k, top bond)`` (:meth:`FEMLines.section_top_bonds`): logged as
+        #: ``T_section[<line id>/<k>]`` (:meth:`channels`); empty without composite lines.
+        self.section_tops = self.mooring.fem.section_top_bonds()
+        self._sec_bonds = np.array([b for _, _, b in self.section_tops], dtype=np.int64)
+        self._sec_lines = np.array([j for j, _, _ in self.section_tops], dtype=np.int64)
         self._winch_rate_max = np.array([ln.winch_max_rate for ln in scenario.lines])
         self._L_limits = np.array([ln.length_limits for ln in scenario.lines])
         self._faults = sorted(scenario.faults if faults is None else faults, key=lambda f: f.time)
@@ -881,6 +895,7 @@ class Plant:
               ("x_wf", "m"), ("y_wf", "m"), ("psi_wf", "rad")]
         ch += [(f"T_fairlead[{i}]", "N") for i in self.line_ids]
         ch += [(f"T_anchor[{i}]", "N") for i in self.line_ids]
+        ch += [(section_channel(self.line_ids[j], k), "N") for j, k, _ in self.section_tops]
         ch += [(f"L[{i}]", "m") for i in self.line_ids]
         ch += [(f"f[{i}]", "N") for i in self.thrusters.ids]
         ch += [(f"alpha[{i}]", "rad") for i in self.thrusters.ids]
@@ -901,7 +916,8 @@ class Plant:
         m = self.mooring
         T_fl, T_an = self._end_tensions()
         parts = [
-            self.eta, self.nu, self._eta_wf, T_fl, T_an, m.fem.L,
+            self.eta, self.nu, self._eta_wf, T_fl, T_an,
+            m.fem.section_tension(self._sec_bonds, self._sec_lines), m.fem.L,
             self.thrusters.f, self.thrusters.alpha, self.thrusters.power(),
             self.loads["tau_thr"], self.loads["tau_moor"], self.loads["tau_wind"], self.loads["tau_drift"],
         ]

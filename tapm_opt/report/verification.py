@@ -2,7 +2,8 @@
 (written by the study run or ``tapm study verify DIR``, :mod:`tapm_opt.studies.verification_study`).
 
 The section shows the settings and the T-N curves used, the warnings, the strength checks (ULS,
-ALS) as utilisation per line side by side for each controller, the turret offset and riser
+ALS) as utilisation per line side by side for each controller (a composite line's sections below
+its fairlead section as rows of their own, labelled ``<line>/<k> <line type>``, :func:`row_label`), the turret offset and riser
 angles against their limits, the fatigue damage and lives (FLS), and each controller against the
 reference controller (the one named ``PID`` when the study has one, else the first) on the worst
 line of every limit state. Nothing is recomputed: every number is read from the file.
@@ -17,7 +18,18 @@ from typing import Any, Sequence
 from .document import Cell, Fig, Heading, Para, Table, _fmt, json_section
 from .figures import ALERT_COLOR, kpi_bar_figure, png_bytes
 
-__all__ = ["study_verification_section", "verification_blocks", "reference_controller"]
+__all__ = ["study_verification_section", "verification_blocks", "reference_controller", "row_label"]
+
+
+def row_label(row: dict) -> str:
+    """How the report names the line section of a row of ``verification.json``: the line id for
+    its fairlead section (``T_fairlead[<id>]``, and every row of a file written before the sections
+    were checked), ``<line>/<k> <line type>`` for section k (from the anchor up, the scenario's
+    order) below it (``T_section[<line>/<k>]``), e.g. ``1/1 poly240``."""
+    ch = str(row.get("channel") or "")
+    if not ch.startswith("T_section["):
+        return str(row.get("line"))
+    return f"{row.get('line')}/{row.get('section')} {row.get('line_type')}"
 
 
 def _num(v: Any) -> float | None:
@@ -72,13 +84,18 @@ def _settings_blocks(data: dict) -> list:
             f"{als[0]}/{als[1]} in ALS (October 2008 edition, transcribed from secondary sources, unchecked)"
             + (", the class-1 common factor 1.3 on T_mean + T_dyn in ULS when T_mean > 2/3 T_dyn"
                if st.get("common_factor") and cc == 1 else "")
-            + "; the utilisation is T_c / (capacity factor · MBS) of the line's fairlead section. T_mpm is the "
-            f"most probable maximum of a Gumbel fitted ({st.get('mpm_method')}) to the per-seed maxima of the "
-            "fairlead tension; T_mean the mean over the seeds of each record's time-weighted mean (in ALS after "
+            + "; the utilisation is T_c / (capacity factor · MBS) of the section's own line type. Each line is "
+            "checked at its fairlead (T_fairlead, the rows named by the line id) and, for a composite line, at the "
+            "top of every section below (T_section, rows named `<line>/<k> <line type>`, k from the anchor up). "
+            f"T_mpm is the most probable maximum of a Gumbel fitted ({st.get('mpm_method')}) to the per-seed maxima "
+            "of the section's tension; T_mean the mean over the seeds of each record's time-weighted mean (in ALS after "
             "the fault). ULS: conditions without a fault; ALS: conditions with one (the whole record, transient "
             "included; a line the condition breaks is left out). FLS (conditions without a fault): rainflow "
-            "ranges of the fairlead tension, Miner's damage per record with the T-N curve below, the mean over "
-            f"the seeds; design fatigue factor {_txt(st.get('design_fatigue_factor'))}"
+            "ranges of the section's tension, Miner's damage per record with its line type's T-N curve below, the "
+            "mean over the seeds; design fatigue factor "
+            + ("from the adjacent line (DNV-OS-E301's γ_F: 5, rising to 8 as the damage ratio d_F of the line and "
+               "its more damaged neighbour goes from 0.8 to 1; a secondary reading, unchecked; column dff)"
+               if st.get("design_fatigue_factor") == "adjacent" else _txt(st.get("design_fatigue_factor")))
             + (f", design life {_txt(st.get('design_life'))} years" if st.get("design_life") is not None else "")
             + ". Samples before t_start = " + _txt(st.get("t_start")) + " s are left out. "
             + ("Sea-state probabilities: " + ", ".join(f"{k} {_txt(v)}" for k, v in probs.items()) + "."
@@ -94,7 +111,7 @@ def _settings_blocks(data: dict) -> list:
                          Cell(_txt(c.get("area"), 1e-4)), Cell(_txt(c.get("capacity_factor"))),
                          Cell(", ".join(c.get("inferred") or []) or "–")])
         blocks.append(Para("T-N curves n = a_D s^−m (s the tension range over the nominal area, MPa) and capacity "
-                           "factors of the lines' fairlead sections:"))
+                           "factors of the line types checked:"))
         blocks.append(Table(header=["line type", "component", "nominal d [mm]", "a_D", "m", "area [cm²]",
                                     "capacity factor", "taken by default"], rows=rows,
                             align=["l", "l", "r", "r", "r", "r", "r", "l"]))
@@ -305,7 +322,7 @@ def verification_blocks(data: dict, *, styles: dict | None = None) -> tuple[list
     """The report section of one ``verification.json`` content: settings, warnings, strength
     tables and figure, offsets, fatigue tables and figure, the controllers compared. Returns
     ``(blocks, figures)``; the figures are also among the blocks."""
-    rows = [r for r in data.get("rows", []) if isinstance(r, dict)]
+    rows = [dict(r, line=row_label(r)) for r in data.get("rows", []) if isinstance(r, dict)]
     offsets = [o for o in data.get("offsets", []) if isinstance(o, dict)]
     excluded = [e for e in data.get("excluded", []) if isinstance(e, dict)]
     controllers = _ordered([r["controller"] for r in rows] + [o["controller"] for o in offsets])

@@ -52,6 +52,12 @@ __all__ = [
     "SECONDS_PER_YEAR",
     "annual_damage",
     "fatigue_life",
+    "DFF_ADJACENT_KNEE",
+    "DFF_ADJACENT_BASE",
+    "DFF_ADJACENT_RISE",
+    "adjacent_fatigue_factor",
+    "damage_ratio",
+    "line_neighbours",
 ]
 
 
@@ -305,3 +311,55 @@ def fatigue_life(annual_damage: float, design_fatigue_factor: float) -> float:
     if dff < 1.0:
         raise VerificationError(f"design_fatigue_factor = {dff!r} must be >= 1")
     return math.inf if D == 0.0 else 1.0 / (dff * D)
+
+
+# -- design fatigue factor from the adjacent line ------------------------------------------------
+
+#: ``d_F`` at and below which DNV-OS-E301's design fatigue factor is its base value (as read,
+#: secondary, unchecked): :func:`adjacent_fatigue_factor`.
+DFF_ADJACENT_KNEE = 0.8
+#: The design fatigue factor for ``d_F <= DFF_ADJACENT_KNEE`` and its rise to ``d_F = 1``.
+DFF_ADJACENT_BASE = 5.0
+DFF_ADJACENT_RISE = 3.0
+
+
+def adjacent_fatigue_factor(d_F: float) -> float:
+    """DNV-OS-E301's design fatigue factor ``gamma_F`` from the adjacent lines' damage ratio
+    (Ch. 2 Sec. 2, FLS design equation ``1 - d_c gamma_F >= 0``, as commonly read; a **secondary
+    reading, unchecked against the standard**):
+
+    ``gamma_F = 5`` for ``d_F <= 0.8``, ``gamma_F = 5 + 3 (d_F - 0.8) / 0.2`` for ``d_F > 0.8``
+    (8 at ``d_F = 1``, two adjacent lines equally damaged), ``d_F`` the ratio of the smaller to the
+    larger characteristic fatigue damage of the two adjacent lines with the largest damage
+    (:func:`damage_ratio`), in [0, 1]. :class:`VerificationError` outside [0, 1] or not finite.
+    """
+    d = _finite("d_F", d_F, nonnegative=True)
+    if d > 1.0:
+        raise VerificationError(f"d_F = {d_F!r} must be in [0, 1] (the smaller damage over the larger)")
+    if d <= DFF_ADJACENT_KNEE:
+        return DFF_ADJACENT_BASE
+    return DFF_ADJACENT_BASE + DFF_ADJACENT_RISE * (d - DFF_ADJACENT_KNEE) / (1.0 - DFF_ADJACENT_KNEE)
+
+
+def damage_ratio(D_a: float, D_b: float) -> float:
+    """``d_F`` of two adjacent lines' fatigue damages (each >= 0): the smaller over the larger, in
+    [0, 1]; 1 when both are 0 (equally damaged). :class:`VerificationError` for a negative or
+    non-finite damage."""
+    a = _finite("D_a", D_a, nonnegative=True)
+    b = _finite("D_b", D_b, nonnegative=True)
+    hi = max(a, b)
+    return 1.0 if hi == 0.0 else min(a, b) / hi
+
+
+def line_neighbours(azimuths: Sequence[float] | np.ndarray) -> list[tuple[int, int]]:
+    """The two neighbours of each line around the vessel: ``azimuths`` [rad] the lines' directions
+    about the turret (e.g. their fairlead angles), one per line; returns per line the indices of
+    ``(the line at the next lower azimuth, the line at the next higher)`` in the cyclic order of
+    the azimuths (taken modulo 2 pi; equal azimuths keep the given order). One line: its own index twice (no neighbour); two
+    lines: each other twice. :class:`VerificationError` for an empty or non-finite input."""
+    a = _finite_array("azimuths", azimuths, min_len=1)
+    n = a.size
+    order = np.argsort(np.mod(a, 2.0 * math.pi), kind="stable")
+    pos = np.empty(n, dtype=int)
+    pos[order] = np.arange(n)
+    return [(int(order[(pos[i] - 1) % n]), int(order[(pos[i] + 1) % n])) for i in range(n)]

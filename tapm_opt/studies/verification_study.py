@@ -14,12 +14,17 @@ DIR``, :func:`verify_study`), per controller, condition, sea state and line:
   line's characteristic capacity (:func:`~tapm_opt.studies.verification.utilisation`) and the
   verdict. The line a condition breaks is left out of its ALS rows (its record after the break
   is 0).
-* **FLS** (conditions without a fault): rainflow ranges of each line's fairlead tension, the line
+* every line is checked at its fairlead section (``T_fairlead[<line>]``) and, on a composite
+  line, at the top of every section below it (``T_section[<line>/<k>]``, :func:`checked_sections`),
+  each against its own line type (MBS, capacity factor, T-N curve);
+* **FLS** (conditions without a fault): rainflow ranges of each section's tension, its line
   type's T-N curve, the nominal area, Miner's damage per record
   (:func:`~tapm_opt.studies.verification.miner_damage`, the mean over the seeds) and, with
   sea-state probabilities, each sea state's annual damage and the line's fatigue life with the
   design fatigue factor (:func:`~tapm_opt.studies.verification.annual_damage`,
-  :func:`~tapm_opt.studies.verification.fatigue_life`).
+  :func:`~tapm_opt.studies.verification.fatigue_life`), the design fatigue factor a number or
+  DNV-OS-E301's from the adjacent line (``design_fatigue_factor = "adjacent"``,
+  :func:`~tapm_opt.studies.verification.adjacent_fatigue_factor`).
 * per controller, condition and sea state: the most probable maximum of the turret offset against
   the safe circle and, with a riser, of the riser's end angles against their critical angles
   (``verification.json`` and the report; not rows of the CSV, whose rows are lines).
@@ -41,32 +46,35 @@ from .._checks import fmt as _fmt
 from .._io import atomic_write_text, csv_text
 from ..geometry import turret_offset
 from ..models.fatigue import CHAIN_HYDRODYNAMIC_RATIO, default_component, default_nominal_diameter
+from ..plant.simulator import section_channel
 from ..standards import DNV_CAPACITY_FACTOR
 from . import store
 from ._checks import Checker
 from .kpis import _tmean, break_times
 from .store import StudyError
-from .verification import (TN_CURVES, annual_damage, characteristic_tension, fatigue_life, gumbel_mpm,
+from .verification import (DFF_ADJACENT_BASE, TN_CURVES, adjacent_fatigue_factor, annual_damage,
+                           characteristic_tension, damage_ratio, fatigue_life, gumbel_mpm, line_neighbours,
                            miner_damage, nominal_area, partial_safety_factors, recommended_realisations,
                            utilisation)
 
 __all__ = [
     "VERIFICATION_CSV", "VERIFICATION_JSON", "CSV_COLUMNS", "STANDARDS", "MPM_METHODS", "COMPONENTS",
-    "CHAIN_HYDRODYNAMIC_RATIO", "DEFAULT_DESIGN_FATIGUE_FACTOR", "SAMPLES_PER_PEAK_PERIOD",
+    "CHAIN_HYDRODYNAMIC_RATIO", "DEFAULT_DESIGN_FATIGUE_FACTOR", "SAMPLES_PER_PEAK_PERIOD", "DFF_RULES",
     "VerificationSettings", "LineTypeCurve", "Verification",
     "check_verification", "verification_settings", "line_type_curves", "dt_log_warning",
-    "verify_study", "write_verification", "read_verification_table",
+    "verify_study", "write_verification", "read_verification_table", "checked_sections",
 ]
 
 #: The files a verification writes into the study directory.
 VERIFICATION_CSV = "verification.csv"
 VERIFICATION_JSON = "verification.json"
 
-#: The columns of ``verification.csv``, in order (kept stable).
+#: The columns of ``verification.csv``, in order (kept stable; new ones only at the end).
 CSV_COLUMNS: tuple[str, ...] = (
     "controller", "condition", "sea_state", "line", "limit_state",
     "n_seeds", "T_mpm", "T_c", "utilisation", "verdict",
     "a_D", "m", "area", "damage", "annual_damage", "life_years",
+    "section", "line_type", "channel", "dff",
 )
 
 #: Standards a ``[verification]`` table may name.
@@ -79,6 +87,10 @@ COMPONENTS: tuple[str, ...] = (*TN_CURVES, "custom")
 #: Default design fatigue factor: the lowest of the 5-10 quoted in the project's standards notes
 #: (secondary transcription of DNV-OS-E301, unchecked); set ``design_fatigue_factor``.
 DEFAULT_DESIGN_FATIGUE_FACTOR = 5.0
+#: Rules a ``design_fatigue_factor`` may name instead of a number: ``"adjacent"``, DNV-OS-E301's
+#: factor from the damage ratio of a line and its more damaged neighbour
+#: (:func:`~tapm_opt.studies.verification.adjacent_fatigue_factor`; secondary reading, unchecked).
+DFF_RULES: tuple[str, ...] = ("adjacent",)
 #: Fewest logged samples per peak period of a sea state before the fatigue ranges and the maxima
 #: are flagged as under-sampled: ``dt_log > Tp / 10`` warns. A sinusoid at the peak period sampled
 #: 10 times a cycle loses up to ``1 - cos(pi / 10)`` = 4.9 % of its range (up to 14 % of its damage
@@ -111,8 +123,10 @@ class VerificationSettings:
         The class-1 ULS common factor 1.3 (:func:`characteristic_tension`; default True).
     t_start : float
         Samples before this time [s] are left out of every statistic (default 0: the whole record).
-    design_fatigue_factor : float
-        DFF >= 1 on the fatigue damage (default :data:`DEFAULT_DESIGN_FATIGUE_FACTOR`).
+    design_fatigue_factor : float or str
+        DFF >= 1 on the fatigue damage (default :data:`DEFAULT_DESIGN_FATIGUE_FACTOR`), or
+        ``"adjacent"`` (:data:`DFF_RULES`): per FLS row DNV-OS-E301's factor from the damage ratio
+        with the more damaged neighbouring line (docs/verification.md).
     design_life : float or None
         Design life [years]; with probabilities, the FLS verdict is life >= design_life.
     probabilities : dict or None
@@ -128,7 +142,7 @@ class VerificationSettings:
     mpm_method: str = "mle"
     common_factor: bool = True
     t_start: float = 0.0
-    design_fatigue_factor: float = DEFAULT_DESIGN_FATIGUE_FACTOR
+    design_fatigue_factor: float | str = DEFAULT_DESIGN_FATIGUE_FACTOR
     design_life: float | None = None
     probabilities: dict | None = None
     line_types: dict = field(default_factory=dict)
@@ -172,10 +186,13 @@ def check_verification(ck: Checker, table: Any, scenario: Any, sea_states: Seque
     t_start = ck.number(tab.get("t_start", 0.0), f"{where}.t_start", unit="s", nonneg=True)
     if t_start is not None and duration is not None and t_start >= duration:
         ck.err(f"{where}.t_start", f"= {_fmt(float(t_start))} s must be below the study's duration ({duration:g} s)")
-    dff = ck.number(tab.get("design_fatigue_factor", DEFAULT_DESIGN_FATIGUE_FACTOR),
-                    f"{where}.design_fatigue_factor", positive=True)
-    if dff is not None and dff < 1.0:
-        ck.err(f"{where}.design_fatigue_factor", f"= {_fmt(dff)} must be >= 1 (it multiplies the damage)")
+    dff_in = tab.get("design_fatigue_factor", DEFAULT_DESIGN_FATIGUE_FACTOR)
+    if isinstance(dff_in, str):
+        dff = ck.choice(dff_in, DFF_RULES, f"{where}.design_fatigue_factor")
+    else:
+        dff = ck.number(dff_in, f"{where}.design_fatigue_factor", positive=True)
+        if dff is not None and dff < 1.0:
+            ck.err(f"{where}.design_fatigue_factor", f"= {_fmt(dff)} must be >= 1 (it multiplies the damage)")
     life = None
     if "design_life" in tab:
         life = ck.number(tab["design_life"], f"{where}.design_life", unit="years", positive=True)
@@ -185,7 +202,8 @@ def check_verification(ck: Checker, table: Any, scenario: Any, sea_states: Seque
     if len(ck.issues) > n0:
         return None
     return VerificationSettings(standard=standard, consequence_class=cc, mpm_method=method, common_factor=common,
-                                t_start=float(t_start), design_fatigue_factor=float(dff),
+                                t_start=float(t_start),
+                                design_fatigue_factor=dff if isinstance(dff, str) else float(dff),
                                 design_life=None if life is None else float(life), probabilities=probs,
                                 line_types=lts)
 
@@ -298,8 +316,9 @@ class LineTypeCurve:
 
 def line_type_curves(settings: VerificationSettings, scenario: Any,
                      type_ids: Sequence[str] | None = None) -> dict[str, LineTypeCurve]:
-    """The :class:`LineTypeCurve` of each line type (default: the fairlead line type of each line,
-    whose fairlead tension is checked).
+    """The :class:`LineTypeCurve` of each line type (default: the type of every section the
+    verification checks, :func:`checked_sections`: the lines' fairlead types first, then the
+    other sections' types).
 
     Defaults for what ``settings.line_types[<id>]`` does not give: ``component`` from the type's
     id — ``studlink`` in it: studlink chain, else ``chain``: studless chain, else ``spiral``:
@@ -311,7 +330,8 @@ def line_type_curves(settings: VerificationSettings, scenario: Any,
     :func:`~tapm_opt.studies.verification.nominal_area`; ``capacity_factor``
     :data:`~tapm_opt.standards.DNV_CAPACITY_FACTOR` (0.95, chain's definition).
     """
-    ids = list(dict.fromkeys(type_ids if type_ids is not None else [ln.type for ln in scenario.lines]))
+    ids = list(dict.fromkeys(type_ids if type_ids is not None else [ln.type for ln in scenario.lines]
+                             + [c[1] for ln in scenario.lines for c in checked_sections(ln)]))
     out: dict[str, LineTypeCurve] = {}
     for tid in ids:
         lt = scenario.line_type_by_id(tid)
@@ -354,6 +374,19 @@ def dt_log_warning(dt_log: float, sea_state: Any) -> str | None:
             f"{limit:.3g} s (Tp = {tp:g} s): the wave-frequency tension cycles are under-sampled, so the rainflow "
             f"ranges (FLS damage) and the maxima (ULS/ALS) are underestimated; run with dt_log <= {tp / 20:.3g} s "
             "(Tp/20) for fatigue")
+
+
+def checked_sections(line: Any) -> list[tuple[int, str, str, str]]:
+    """The sections of a scenario line the verification checks, each ``(k, line type id, channel,
+    kind)``: the fairlead section first (``k`` = its index, 0 for a line of one section; channel
+    ``T_fairlead[<id>]``; kind ``"fairlead"``), then every section below it from the top down
+    (channel ``T_section[<id>/<k>]``, :func:`~tapm_opt.plant.simulator.section_channel`; kind
+    ``"section"``). ``k`` counts from the anchor up from 0, the scenario's ``sections`` order."""
+    parts = line.parts
+    n = len(parts)
+    out = [(n - 1, str(line.type), f"T_fairlead[{line.id}]", "fairlead")]
+    out += [(k, str(parts[k].type), section_channel(line.id, k), "section") for k in range(n - 2, -1, -1)]
+    return out
 
 
 # -- the computation -----------------------------------------------------------------------------
@@ -558,8 +591,11 @@ def _fit(values: Sequence[float], method: str) -> Any:
 def _compute(res: Verification, groups: Sequence[_Group], scenario: Any) -> None:
     s = res.settings
     lines = list(scenario.lines)
-    mbs = {ln.id: float(scenario.line_type(ln).MBS) for ln in lines}
-    fls_by_line: dict[tuple[str, str, str], list[dict]] = {}   # (controller, condition, line) -> FLS rows
+    sections = {ln.id: checked_sections(ln) for ln in lines}
+    # (controller, condition, line, section) -> FLS rows
+    fls_by_line: dict[tuple[str, str, str, int], list[dict]] = {}
+    fls_rows: list[dict] = []
+    missing: dict[str, list[str]] = {}
     warned_dt: set[tuple[str, float]] = set()
     for g in groups:
         where = f"{g.controller}, {g.condition}, {g.sea_state}"
@@ -586,7 +622,7 @@ def _compute(res: Verification, groups: Sequence[_Group], scenario: Any) -> None
         if warn:
             res.warnings.append(f"{where}: {warn}" + ("; no Gumbel fit with one seed: T_mpm, T_c and utilisation are "
                                                       "left empty, verdict n/a" if len(g.records) < 2 else ""))
-        per_seed = [_seed_stats(r, lines, scenario, s.t_start, t_fault, broken) for r in g.records]
+        per_seed = [_seed_stats(r, lines, scenario, s.t_start, t_fault, broken, sections) for r in g.records]
         seeds = [int(r.labels.get("seed", -1)) for r in g.records]
         ids = [r.id for r in g.records]
         for ln in lines:
@@ -596,21 +632,36 @@ def _compute(res: Verification, groups: Sequence[_Group], scenario: Any) -> None
                                      "line": lid, "reason": "broken by the condition: its record after the break "
                                                             "is 0"})
                 continue
-            st = [p["lines"][lid] for p in per_seed]
-            res.rows.append(_strength_row(g, ls, lid, st, seeds, ids, mbs[lid], res.curves[ln.type], s,
-                                          n_rec, res.warnings, where))
-            if ls == "ULS":
-                row = _fatigue_row(g, lid, st, seeds, ids, res.curves[ln.type])
-                res.rows.append(row)
-                fls_by_line.setdefault((g.controller, g.condition, lid), []).append(row)
+            for k, tid, channel, _kind in sections[lid]:
+                st = [p["sections"][(lid, k)] for p in per_seed]
+                if any(x is None for x in st):   # a result stored before the plant logged the channel
+                    missing.setdefault(channel, []).extend(str(r.name) for r, x in zip(g.records, st) if x is None)
+                    continue
+                where_s = {"section": k, "line_type": tid, "channel": channel}
+                mbs = float(scenario.line_type_by_id(tid).MBS)
+                res.rows.append(_strength_row(g, ls, lid, st, seeds, ids, mbs, res.curves[tid], s,
+                                              n_rec, res.warnings, where) | where_s)
+                if ls == "ULS":
+                    row = _fatigue_row(g, lid, st, seeds, ids, res.curves[tid]) | where_s
+                    res.rows.append(row)
+                    fls_rows.append(row)
+                    fls_by_line.setdefault((g.controller, g.condition, lid, k), []).append(row)
         _offset_rows(res, g, ls, per_seed, seeds, scenario, where)
+    for channel, cases in missing.items():
+        res.warnings.append(f"channel {channel} is not in the stored results of {len(cases)} case(s) ("
+                            + ", ".join(cases[:3]) + (", ..." if len(cases) > 3 else "")
+                            + "), run before the plant logged the tension at the top of each section: that "
+                            "section is not checked there; run the study again in a new directory to check it")
     if s.probabilities is not None:
         _annual(res, fls_by_line)
+    _design_fatigue_factors(res, fls_rows, scenario, fls_by_line)
 
 
 def _seed_stats(r: Any, lines: Sequence[Any], scenario: Any, t_start: float, t_fault: float | None,
-                broken: set[str]) -> dict:
-    """One case's per-line maximum, mean and damage inputs, and its offset and riser maxima."""
+                broken: set[str], sections: Mapping[str, list] | None = None) -> dict:
+    """One case's per-line maximum, mean and damage inputs (``lines``: the fairlead tension;
+    ``sections``: every checked section's channel, :func:`checked_sections`, None where the stored
+    result lacks it), and its offset and riser maxima."""
     result = r.load_result()
     t_all = np.asarray(result.time, float)
     win = t_all >= t_start - 1e-9
@@ -618,22 +669,21 @@ def _seed_stats(r: Any, lines: Sequence[Any], scenario: Any, t_start: float, t_f
     eps = 1e-9 * max(1.0, abs(float(t[-1]))) if len(t) else 0.0
     ids = [ln.id for ln in lines]
     brk = break_times(result, ids)
-    out: dict[str, Any] = {"lines": {}, "duration": float(t[-1] - t[0]) if len(t) > 1 else 0.0}
+    out: dict[str, Any] = {"lines": {}, "sections": {}, "duration": float(t[-1] - t[0]) if len(t) > 1 else 0.0}
+    chans = set(result.channels)
+    for ln in lines:
+        for k, _tid, ch, kind in (sections or {}).get(ln.id, ()):
+            if kind == "fairlead":
+                continue
+            out["sections"][(ln.id, k)] = (_channel_stats(np.asarray(result[ch], float)[win], t, brk.get(ln.id, math.inf),
+                                                          eps, t_fault, False) if ch in chans else None)
     for lid in ids:
         T = np.asarray(result[f"T_fairlead[{lid}]"], float)[win]
-        alive = t <= brk.get(lid, math.inf) + eps
-        ta, Ta = t[alive], T[alive]
-        if t_fault is not None:
-            after = ta >= t_fault - eps
-            tm_t, tm_T = (ta[after], Ta[after]) if after.sum() >= 2 else (ta, Ta)
-        else:
-            tm_t, tm_T = ta, Ta
-        out["lines"][lid] = {
-            "max": float(Ta.max()) if Ta.size else math.nan,
-            "mean": _tmean(tm_t, tm_T) if tm_T.size else math.nan,
-            "series": Ta, "duration": float(ta[-1] - ta[0]) if ta.size > 1 else 0.0,
-            "overload": lid in brk and lid not in broken,
-        }
+        out["lines"][lid] = _channel_stats(T, t, brk.get(lid, math.inf), eps, t_fault, lid in brk and lid not in broken)
+    for ln in lines:
+        for k, _tid, _ch, kind in (sections or {}).get(ln.id, ()):
+            if kind == "fairlead":
+                out["sections"][(ln.id, k)] = out["lines"][ln.id]
     off = np.hypot(*turret_offset(np.stack([result["x"][win], result["y"][win], result["psi"][win]], axis=-1),
                                   scenario.turret.position))
     out["offset"] = float(off.max()) if off.size else math.nan
@@ -643,6 +693,26 @@ def _seed_stats(r: Any, lines: Sequence[Any], scenario: Any, t_start: float, t_f
             a = np.asarray(result[ch], float)[win]
             out[f"riser_{end}"] = float(a.max()) if a.size else math.nan
     return out
+
+
+def _channel_stats(T: np.ndarray, t: np.ndarray, t_break: float, eps: float, t_fault: float | None,
+                   overload: bool) -> dict:
+    """Maximum, time-weighted mean (after ``t_fault``, the damaged condition's, when given), the
+    series and its duration of one tension channel ``T`` [N] at times ``t`` [s] while its line is
+    alive (up to ``t_break``); ``overload``: the line broke from overload (not by the condition)."""
+    alive = t <= t_break + eps
+    ta, Ta = t[alive], T[alive]
+    if t_fault is not None:
+        after = ta >= t_fault - eps
+        tm_t, tm_T = (ta[after], Ta[after]) if after.sum() >= 2 else (ta, Ta)
+    else:
+        tm_t, tm_T = ta, Ta
+    return {
+        "max": float(Ta.max()) if Ta.size else math.nan,
+        "mean": _tmean(tm_t, tm_T) if tm_T.size else math.nan,
+        "series": Ta, "duration": float(ta[-1] - ta[0]) if ta.size > 1 else 0.0,
+        "overload": overload,
+    }
 
 
 def _strength_row(g: _Group, ls: str, lid: str, st: Sequence[dict], seeds: list, ids: list, mbs: float,
@@ -686,10 +756,13 @@ def _fatigue_row(g: _Group, lid: str, st: Sequence[dict], seeds: list, ids: list
             "damages": damages, "record_durations": [x["duration"] for x in st], "cases": ids}
 
 
-def _annual(res: Verification, fls_by_line: Mapping[tuple[str, str, str], list[dict]]) -> None:
+def _annual(res: Verification, fls_by_line: Mapping[tuple[str, str, str, int], list[dict]]) -> None:
+    """Each FLS row's sea-state share of the annual damage and, per (controller, condition, line,
+    section), their sum ``annual_damage_total`` (the life follows with the design fatigue factor,
+    :func:`_design_fatigue_factors`)."""
     s = res.settings
     probs = s.probabilities or {}
-    for (ctrl, cond, lid), rows in fls_by_line.items():
+    for (ctrl, cond, lid, _k), rows in fls_by_line.items():
         total = 0.0
         for row in rows:
             p = probs.get(row["sea_state"], 0.0)
@@ -699,14 +772,67 @@ def _annual(res: Verification, fls_by_line: Mapping[tuple[str, str, str], list[d
                 continue
             row["annual_damage"] = annual_damage([row["damage"]], [p], dur)
             total += row["annual_damage"]
-        life = fatigue_life(total, s.design_fatigue_factor)
         missing = [sid for sid, p in probs.items() if p > 0 and sid not in {r["sea_state"] for r in rows}]
-        if missing:
+        if missing and str(rows[0].get("channel", "")).startswith("T_fairlead["):   # once per line
             res.warnings.append(f"{ctrl}, {cond}, line {lid}: no finished case in sea state(s) "
                                 f"{', '.join(missing)}: the annual damage and the life leave them out")
         for row in rows:
-            row["life_years"] = life
             row["annual_damage_total"] = total
+
+
+def _design_fatigue_factors(res: Verification, fls_rows: Sequence[dict], scenario: Any,
+                            fls_by_line: Mapping[tuple[str, str, str, int], list[dict]]) -> None:
+    """The design fatigue factor of every FLS row (``dff``) and, with probabilities, the life and
+    the verdict of each (controller, condition, line, section).
+
+    A number: that factor. ``"adjacent"``: DNV-OS-E301's ``gamma_F`` from ``d_F``
+    (:func:`~tapm_opt.studies.verification.adjacent_fatigue_factor`,
+    :func:`~tapm_opt.studies.verification.damage_ratio`) of the row's damage and the larger of its
+    two neighbouring lines' (:func:`~tapm_opt.studies.verification.line_neighbours` on the lines'
+    fairlead angles), the neighbours' rows of the same section index (a neighbour without that
+    section: its fairlead section's row). The damage compared is the annual damage over the sea
+    states with probabilities (one factor per line and section), else the damage per record of the
+    row's sea state."""
+    s = res.settings
+    probs = s.probabilities is not None
+    if s.design_fatigue_factor not in DFF_RULES:
+        for row in fls_rows:
+            row["dff"] = float(s.design_fatigue_factor)
+    else:
+        lines = list(scenario.lines)
+        ids = [ln.id for ln in lines]
+        top = {ln.id: len(ln.parts) - 1 for ln in lines}
+        nb = line_neighbours([ln.fairlead_angle for ln in lines])
+        key = (lambda r: (r["controller"], r["condition"], None if probs else r["sea_state"], r["line"], r["section"]))
+        index = {key(r): r for r in fls_rows}
+        value = (lambda r: r["annual_damage_total"]) if probs else (lambda r: r["damage"])
+        lonely = False
+        for row in fls_rows:
+            i = ids.index(row["line"])
+            best = None
+            for n in dict.fromkeys(nb[i]):
+                if n == i:
+                    continue
+                k0 = key(row)
+                other = index.get(k0[:3] + (ids[n], row["section"])) or index.get(k0[:3] + (ids[n], top[ids[n]]))
+                if other is not None and (best is None or value(other) > value(best)):
+                    best = other
+            if best is None:
+                lonely = True
+                row.update(dff=DFF_ADJACENT_BASE, d_F=None, dff_neighbour=None)
+                continue
+            d_F = damage_ratio(value(row), value(best))
+            row.update(dff=adjacent_fatigue_factor(d_F), d_F=d_F, dff_neighbour=best["line"],
+                       dff_neighbour_section=best["section"])
+        if lonely:
+            res.warnings.append("design_fatigue_factor = 'adjacent': a line without a neighbouring line (the "
+                                f"study's scenario has one line) takes the base factor {DFF_ADJACENT_BASE:g}")
+    if not probs:
+        return
+    for rows in fls_by_line.values():
+        life = fatigue_life(rows[0]["annual_damage_total"], rows[0]["dff"])
+        for row in rows:
+            row["life_years"] = life
             if s.design_life is not None:
                 row["verdict"] = "pass" if life >= s.design_life else "fail"
 
