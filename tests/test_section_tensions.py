@@ -116,6 +116,14 @@ def test_the_logged_channel_is_the_top_segment_of_the_section_in_motion(deep):
     # the damping term matters here: the elastic part alone differs
     fem = p.mooring.fem
     assert np.max(np.abs(fem.v)) > 0.01
+    # the compiled kernel (fem_kernel.section_tensions) and the numpy path: the same bits
+    compiled = fem.section_tension(p._sec_bonds, p._sec_lines)
+    kern, fem._kernel_fn = fem._kernel_fn, None
+    try:
+        numpy_path = fem.section_tension(p._sec_bonds, p._sec_lines)
+    finally:
+        fem._kernel_fn = kern
+    assert kern is not None and np.array_equal(compiled, numpy_path)
 
 
 def test_at_rest_the_section_tops_agree_with_the_quasi_static_composite_line(settled_line):

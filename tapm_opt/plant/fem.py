@@ -859,6 +859,14 @@ class FEMLines:
         bonds = np.asarray(bonds, dtype=np.int64)
         if bonds.size == 0:
             return np.zeros(0)
+        if self._kernel_fn is not None:   # the compiled kernel: the same operations in one call
+            from . import fem_kernel
+
+            shape = (self.n_nodes, 3)
+            return fem_kernel.section_tensions(_as_f64(self.r, shape, "r"), _as_f64(self.v, shape, "v"), self.l0,
+                                               self._EA, self._tab_idx, self._tab, self._c_int,
+                                               bool(self._has_int_damping), self._w, bonds,
+                                               np.asarray(lines, dtype=np.int64), self.active)
         lv, eps, T = self.segment_state(self.r, self.v, bonds)
         f = -(T / eps)[:, None] * lv
         f[:, 2] += 0.5 * self._w[bonds] * self.l0[bonds]

@@ -1047,6 +1047,25 @@ def end_tensions(r, v, l0, EA, tabi, tab, c_int, has_int_damping, node_weight, f
     return T_fl, T_an
 
 
+@_jit
+def section_tensions(r, v, l0, EA, tabi, tab, c_int, has_int_damping, w, bonds, lines, active):  # pragma: no cover - compiled
+    """Tension at the upper end of sections [N] (:meth:`FEMLines.section_tension
+    <tapm_opt.plant.fem.FEMLines.section_tension>`): each top segment ``bonds[i]``'s tension
+    vector plus the submerged weight of its upper half ``w l0 / 2``, 0 on a broken line
+    ``lines[i]``; the numpy path's operations in its order."""
+    n = bonds.shape[0]
+    out = np.empty(n)
+    for i in range(n):
+        b = bonds[i]
+        lx, ly, lz, e, t = _bond_any(r, v, b, l0, EA, tabi, tab, c_int, has_int_damping)
+        s = -(t / e)
+        fx = s * lx
+        fy = s * ly
+        fz = s * lz + 0.5 * w[b] * l0[b]
+        out[i] = math.sqrt(0.0 + fx * fx + fy * fy + fz * fz) if active[lines[i]] else 0.0
+    return out
+
+
 # plant_steps calls the step functions through these names: a test or a benchmark that wraps the
 # public ones in Python (to count or time the per-step path's calls) leaves its compilation alone
 _plant_pre_step, _mooring_step = plant_pre_step, mooring_step
