@@ -51,6 +51,7 @@ consequence_class = 1
 design_fatigue_factor = "adjacent"
 design_life = 25.0
 probabilities = { storm = 0.01 }
+sections = true
 
 [verification.line_types.chain137]
 component = "studless_chain"

@@ -15,6 +15,7 @@ import csv
 import json
 import math
 import shutil
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -66,6 +67,7 @@ consequence_class = 1
 design_fatigue_factor = 5.0
 design_life = 20.0
 probabilities = { storm = 0.01, choppy = 0.2 }
+sections = true
 
 [verification.line_types.chain137]
 component = "studless_chain"
@@ -125,6 +127,7 @@ def rows(run):
     ("storm = 0.01, choppy = 0.2", "storm = 0.01",
      "verification.probabilities: no probability for sea state(s) 'choppy'"),
     ("choppy = 0.2", "choppy = 0.995", "verification.probabilities: sum to 1.005, more than 1"),
+    ("sections = true", 'sections = "yes"', "verification.sections"),
     ('component = "studless_chain"', 'component = "studlss_chain"',
      "verification.line_types.chain137.component = 'studlss_chain' is not one of"),
     ('component = "studless_chain"', 'component = "custom"',
@@ -189,13 +192,26 @@ def test_csv_columns_and_rows(run, rows):
     assert keys == want
     assert all(r["section"] == "2" and r["line_type"] == "chain137" and r["channel"] == f"T_fairlead[{r['line']}]"
                for r in top)
-    # fpso's chain-wire-chain lines: each line's fairlead section, then its wire (1), then its bottom chain (0)
+    # fpso's chain-wire-chain lines (sections = true): each line's fairlead section, then its wire (1),
+    # then its bottom chain (0)
     secs = [(r["sea_state"], r["condition"], r["line"], r["section"], r["line_type"], r["channel"], r["limit_state"])
             for r in rows]
     assert len(set(secs)) == len(rows) == 3 * len(want)
     assert secs[:6] == [("storm", "intact", "1", k, t, ch, ls) for k, t, ch in (
         ("2", "chain137", "T_fairlead[1]"), ("1", "wire165", "T_section[1/1]"), ("0", "chain137", "T_section[1/0]"))
         for ls in ("ULS", "FLS")]
+    # without sections (the default): one row per controller, condition, sea state, line and limit
+    # state, the fairlead's, with the same values as above
+    table = tomllib.loads(STUDY)["verification"]
+    del table["sections"]
+    res = vs.verify_study(run, table, write=False)
+    plain = [r for r in res.rows if r["limit_state"] != "offset"]
+    assert [(r["controller"], r["condition"], r["sea_state"], r["line"], r["limit_state"]) for r in plain] == want
+    assert all(r["channel"] == f"T_fairlead[{r['line']}]" for r in plain)
+    for r, q in zip(top, plain):
+        for c in ("T_mpm", "utilisation", "damage"):
+            if r[c]:
+                assert float(r[c]) == pytest.approx(float(q[c]), rel=1e-12)
     for r in rows:   # the design fatigue factor used, on the FLS rows
         assert r["dff"] == ("5.0" if r["limit_state"] == "FLS" else "")
     for r in rows:

@@ -99,7 +99,7 @@ DFF_RULES: tuple[str, ...] = ("adjacent",)
 SAMPLES_PER_PEAK_PERIOD = 10
 
 _KEYS = {"standard", "consequence_class", "mpm_method", "common_factor", "t_start", "design_fatigue_factor",
-         "design_life", "probabilities", "line_types"}
+         "design_life", "probabilities", "line_types", "sections"}
 _LINE_TYPE_KEYS = {"component", "nominal_diameter", "a_D", "m", "area", "capacity_factor"}
 _FAULTS_ALS = ("line_break", "thruster_failure", "buoy_loss")
 
@@ -135,6 +135,11 @@ class VerificationSettings:
     line_types : dict
         ``{line type id: {component, nominal_diameter, a_D, m, area, capacity_factor}}`` as given
         (any subset; the rest by default, :func:`line_type_curves`).
+    sections : bool
+        Also check every section below the fairlead section of a composite line, at its top
+        (``T_section[<line>/<k>]``, :func:`checked_sections`), each against its own line type
+        (default False: one row per line and limit state, from ``T_fairlead[<line>]``; with True
+        the rows of a line are told apart by ``section`` and ``channel``).
     """
 
     consequence_class: int
@@ -146,6 +151,7 @@ class VerificationSettings:
     design_life: float | None = None
     probabilities: dict | None = None
     line_types: dict = field(default_factory=dict)
+    sections: bool = False
 
     def as_dict(self) -> dict:
         """JSON-ready, every default filled in."""
@@ -153,7 +159,7 @@ class VerificationSettings:
                 "mpm_method": self.mpm_method, "common_factor": self.common_factor, "t_start": self.t_start,
                 "design_fatigue_factor": self.design_fatigue_factor, "design_life": self.design_life,
                 "probabilities": None if self.probabilities is None else dict(self.probabilities),
-                "line_types": {k: dict(v) for k, v in self.line_types.items()}}
+                "line_types": {k: dict(v) for k, v in self.line_types.items()}, "sections": self.sections}
 
 
 def check_verification(ck: Checker, table: Any, scenario: Any, sea_states: Sequence[str] | None, *,
@@ -183,6 +189,7 @@ def check_verification(ck: Checker, table: Any, scenario: Any, sea_states: Seque
             cc = int(v)
     method = ck.choice(tab.get("mpm_method", "mle"), MPM_METHODS, f"{where}.mpm_method")
     common = ck.boolean(tab.get("common_factor", True), f"{where}.common_factor")
+    with_sections = ck.boolean(tab.get("sections", False), f"{where}.sections")
     t_start = ck.number(tab.get("t_start", 0.0), f"{where}.t_start", unit="s", nonneg=True)
     if t_start is not None and duration is not None and t_start >= duration:
         ck.err(f"{where}.t_start", f"= {_fmt(float(t_start))} s must be below the study's duration ({duration:g} s)")
@@ -205,7 +212,7 @@ def check_verification(ck: Checker, table: Any, scenario: Any, sea_states: Seque
                                 t_start=float(t_start),
                                 design_fatigue_factor=dff if isinstance(dff, str) else float(dff),
                                 design_life=None if life is None else float(life), probabilities=probs,
-                                line_types=lts)
+                                line_types=lts, sections=bool(with_sections))
 
 
 def _check_probabilities(ck: Checker, value: Any, sea_states: Sequence[str] | None, where: str) -> dict | None:
@@ -331,7 +338,7 @@ def line_type_curves(settings: VerificationSettings, scenario: Any,
     :data:`~tapm_opt.standards.DNV_CAPACITY_FACTOR` (0.95, chain's definition).
     """
     ids = list(dict.fromkeys(type_ids if type_ids is not None else [ln.type for ln in scenario.lines]
-                             + [c[1] for ln in scenario.lines for c in checked_sections(ln)]))
+                             + [c[1] for ln in scenario.lines for c in checked_sections(ln, settings.sections)]))
     out: dict[str, LineTypeCurve] = {}
     for tid in ids:
         lt = scenario.line_type_by_id(tid)
@@ -376,16 +383,18 @@ def dt_log_warning(dt_log: float, sea_state: Any) -> str | None:
             "(Tp/20) for fatigue")
 
 
-def checked_sections(line: Any) -> list[tuple[int, str, str, str]]:
+def checked_sections(line: Any, sections: bool = True) -> list[tuple[int, str, str, str]]:
     """The sections of a scenario line the verification checks, each ``(k, line type id, channel,
     kind)``: the fairlead section first (``k`` = its index, 0 for a line of one section; channel
-    ``T_fairlead[<id>]``; kind ``"fairlead"``), then every section below it from the top down
-    (channel ``T_section[<id>/<k>]``, :func:`~tapm_opt.plant.simulator.section_channel`; kind
-    ``"section"``). ``k`` counts from the anchor up from 0, the scenario's ``sections`` order."""
+    ``T_fairlead[<id>]``; kind ``"fairlead"``), then, with ``sections`` (the table's ``sections =
+    true``), every section below it from the top down (channel ``T_section[<id>/<k>]``,
+    :func:`~tapm_opt.plant.simulator.section_channel`; kind ``"section"``). ``k`` counts from the
+    anchor up from 0, the scenario's ``sections`` order."""
     parts = line.parts
     n = len(parts)
     out = [(n - 1, str(line.type), f"T_fairlead[{line.id}]", "fairlead")]
-    out += [(k, str(parts[k].type), section_channel(line.id, k), "section") for k in range(n - 2, -1, -1)]
+    if sections:
+        out += [(k, str(parts[k].type), section_channel(line.id, k), "section") for k in range(n - 2, -1, -1)]
     return out
 
 
@@ -591,7 +600,7 @@ def _fit(values: Sequence[float], method: str) -> Any:
 def _compute(res: Verification, groups: Sequence[_Group], scenario: Any) -> None:
     s = res.settings
     lines = list(scenario.lines)
-    sections = {ln.id: checked_sections(ln) for ln in lines}
+    sections = {ln.id: checked_sections(ln, s.sections) for ln in lines}
     # (controller, condition, line, section) -> FLS rows
     fls_by_line: dict[tuple[str, str, str, int], list[dict]] = {}
     fls_rows: list[dict] = []
