@@ -650,6 +650,9 @@ def test_random_valid_input_solves_or_raises_catenary_error(p):
 @given(valid)
 @example({"L": 10.0, "xf": 0.0, "zf": 1.0625, "EA": 1e5, "w": 8.76e-170, "CB": 0.0})  # cancellation in z
 @example({"L": 1000.0, "xf": 1.02, "zf": 0.0, "EA": 2e7, "w": 1000.0, "CB": 0.5})  # seabed with friction
+# a weight so small that w s (V + V0) underflows in the hanging piece's span (it lost the arc length)
+@example({"L": 1146.0, "xf": 1.03125, "zf": 3.511302923904085e-193, "EA": 1e5, "w": 3.511302923904085e-193,
+          "CB": 0.0})
 def test_random_line_profile_closes(p):
     L, EA, w, CB = p["L"], p["EA"], p["w"], p["CB"]
     XF, ZF = p["xf"] * L, p["zf"] * L

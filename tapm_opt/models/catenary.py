@@ -95,6 +95,9 @@ from .. import _backend as bk
 from ..errors import CatenaryError
 from ..strain_table import StrainTable, StrainTableError
 
+#: The smallest normal float64: a product below it has lost bits (or is 0).
+_TINY = float(np.finfo(np.float64).tiny)
+
 __all__ = [
     "REGIMES",
     "CatenarySolution",
@@ -887,8 +890,13 @@ def _hanging_piece(H, V0, sig, w, EA):
     hV, h0 = np.hypot(H, V), np.hypot(H, V0)
     same = V * V0 >= 0
     den = np.where(same, V * h0 + V0 * hV, 1.0)  # 0 only where V = V0 = 0, i.e. sig = 0
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        dS = np.where(same, np.where(den != 0, np.arcsinh(w * sig * (V + V0) / np.where(den != 0, den, 1.0)), 0.0),
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore", under="ignore"):
+        d = np.where(den != 0, den, 1.0)
+        a = w * sig * (V + V0)
+        # a weight so small that w sig (V + V0) ~ w^2 sig^2 underflows (or goes subnormal): the same
+        # quotient ordered (V + V0) / den * w sig, whose factors stay normal
+        arg = np.where(np.abs(a) < _TINY, (V + V0) / d * (w * sig), a / d)
+        dS = np.where(same, np.where(den != 0, np.arcsinh(arg), 0.0),
                       np.arcsinh(V / H) - np.arcsinh(V0 / H))
         dx = np.where((H > 0) & (dS != 0), H / w * dS, 0.0) + H * sig / EA  # no 0 x inf for a tiny w
         dz = np.where(hV + h0 > 0, sig * (V + V0) / np.where(hV + h0 > 0, hV + h0, 1.0), 0.0)
