@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 
 import tapm_opt
-from tapm_opt.cli import cli, main
 from tapm_opt.config import scenario_from_dict, scenario_to_dict
 from tapm_opt.control.allocation import ThrustAllocator
 from tapm_opt.design.capability import (
@@ -258,20 +257,6 @@ def test_scenario_without_safe_radius_is_refused():
     with pytest.raises(CapabilityError, match="safe_radius"):
         capability(scenario_from_dict(d), condition="intact", directions_deg=(0.0,))
 
-
-@pytest.fixture()
-def tapm():
-    from tapm_opt.cli.capability import capability as command
-
-    if "capability" not in cli.commands:
-        cli.add_command(command)
-
-    def run(capsys, *args):
-        code = main(list(args))
-        out = capsys.readouterr()
-        return code, out.out, out.err
-
-    return run
 
 
 def test_cli_writes_the_envelopes_and_plots(tapm, capsys, tmp_path):

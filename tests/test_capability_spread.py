@@ -11,7 +11,6 @@ import numpy as np
 import pytest
 
 import tapm_opt
-from tapm_opt.cli import cli, main
 from tapm_opt.design.capability import (
     DYNAMIC_ALLOWANCE,
     CapabilityError,
@@ -130,20 +129,6 @@ def test_weathervane_on_a_locked_turret_is_refused(semi):
     with pytest.raises(CapabilityError, match="heading = 'weathervane'"):
         _Engine(semi, CapabilityOptions(heading="weathervane"))
 
-
-@pytest.fixture()
-def tapm():
-    from tapm_opt.cli.capability import capability as command
-
-    if "capability" not in cli.commands:
-        cli.add_command(command)
-
-    def run(capsys, *args):
-        code = main(list(args))
-        out = capsys.readouterr()
-        return code, out.out, out.err
-
-    return run
 
 
 def test_cli_default_heading_and_refusal(tapm, capsys, tmp_path):
