@@ -680,19 +680,13 @@ def _seed_stats(r: Any, lines: Sequence[Any], scenario: Any, t_start: float, t_f
     brk = break_times(result, ids)
     out: dict[str, Any] = {"lines": {}, "sections": {}, "duration": float(t[-1] - t[0]) if len(t) > 1 else 0.0}
     chans = set(result.channels)
-    for ln in lines:
-        for k, _tid, ch, kind in (sections or {}).get(ln.id, ()):
-            if kind == "fairlead":
-                continue
-            out["sections"][(ln.id, k)] = (_channel_stats(np.asarray(result[ch], float)[win], t, brk.get(ln.id, math.inf),
-                                                          eps, t_fault, False) if ch in chans else None)
     for lid in ids:
         T = np.asarray(result[f"T_fairlead[{lid}]"], float)[win]
         out["lines"][lid] = _channel_stats(T, t, brk.get(lid, math.inf), eps, t_fault, lid in brk and lid not in broken)
-    for ln in lines:
-        for k, _tid, _ch, kind in (sections or {}).get(ln.id, ()):
-            if kind == "fairlead":
-                out["sections"][(ln.id, k)] = out["lines"][ln.id]
+        for k, _tid, ch, kind in (sections or {}).get(lid, ()):   # the fairlead section is the line's
+            out["sections"][(lid, k)] = (out["lines"][lid] if kind == "fairlead" else
+                                         _channel_stats(np.asarray(result[ch], float)[win], t, brk.get(lid, math.inf),
+                                                        eps, t_fault, False) if ch in chans else None)
     off = np.hypot(*turret_offset(np.stack([result["x"][win], result["y"][win], result["psi"][win]], axis=-1),
                                   scenario.turret.position))
     out["offset"] = float(off.max()) if off.size else math.nan
