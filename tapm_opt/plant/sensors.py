@@ -111,8 +111,8 @@ class Sensors:
         self.MBS = None if MBS is None else readonly(np.asarray(MBS, dtype=float))
         #: The sensor faults injected so far (:meth:`inject`), as dicts; ended ones stay listed.
         self.faults: list[dict] = []
-        self._held2: float | None = None
-        self._next: list[float] = [-math.inf] * 6  # next sample index k per sensor (the second gyro's unused)
+        # next sample index k per sensor (the second gyro samples with the first: its entry unused)
+        self._next: list[float] = [-math.inf] * 6
         self._held: list[Any] = [None] * 6
         self._t_held = [math.nan] * 6
         self._t_last = -math.inf
@@ -160,7 +160,7 @@ class Sensors:
             held = self._held[_TENSION]
             rec["value"] = None if held is None else float(held[line])
         elif kind == "gyro_stuck":
-            rec["value"] = self._held[_HEADING] if rec["gyro"] == 1 else self._held2
+            rec["value"] = self._held[_HEADING if rec["gyro"] == 1 else _HEADING2]
         self.faults.append(rec)
 
     def _faulty(self, i: int, t: float, value: Any, std: Any = None, z: Any = None) -> tuple[Any, bool]:
@@ -261,7 +261,7 @@ class Sensors:
             if faults:
                 h1 = self._faulty(_HEADING, t, h1)[0]
                 h2 = self._faulty(_HEADING2, t, h2)[0]
-            held[_HEADING], self._held2 = h1, h2
+            held[_HEADING], held[_HEADING2] = h1, h2
         k = t * rates[_TENSION]
         if k >= nxt[_TENSION] - 1e-9:
             nxt[_TENSION] = math.floor(k + 1e-9) + 1.0
@@ -277,7 +277,7 @@ class Sensors:
             if self._due(_RISER, t):
                 held[_RISER] = _frozen(theta + s.riser_angle_std * rngs[_RISER].standard_normal(4))
             riser, t_riser = held[_RISER], t_held[_RISER]
-        out = dict(t=t, position=held[_GNSS], heading=held[_HEADING], heading2=self._held2,
+        out = dict(t=t, position=held[_GNSS], heading=held[_HEADING], heading2=held[_HEADING2],
                    position_valid=self._gnss_ok,
                    tensions=held[_TENSION], t_position=t_held[_GNSS],
                    t_heading=t_held[_HEADING], t_tensions=t_held[_TENSION],
